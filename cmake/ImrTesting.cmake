@@ -6,8 +6,12 @@ function(imr_add_test)
   add_executable(${exe} ${T_SOURCES})
   target_link_libraries(${exe} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main imr_warnings)
   set_target_properties(${exe} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+  set(props ENVIRONMENT "IMR_SHARED_DIR=${IMR_SHARED_DIR}")
+  if(T_LABELS)
+    list(APPEND props LABELS "${T_LABELS}")
+  endif()
   gtest_discover_tests(${exe}
     TEST_PREFIX "${T_NAME}."
     DISCOVERY_MODE PRE_TEST
-    PROPERTIES LABELS "${T_LABELS}" ENVIRONMENT "IMR_SHARED_DIR=${IMR_SHARED_DIR}")
+    PROPERTIES ${props})
 endfunction()

@@ -1,0 +1,143 @@
+// imr plugin SDK, C++ side for hosts: check a descriptor and drive an instance with RAII,
+// turning statuses into exceptions. Loading the shared object is the host's business (the imr
+// host uses Boost.DLL); this header only needs the descriptor.
+#pragma once
+
+#include <imr/sdk/plugin.h>
+
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace imr::sdk {
+
+inline const char* KindName(int32_t kind) {
+  switch (kind) {
+    case IMR_KIND_FEATURES: return "features";
+    case IMR_KIND_REFINER: return "refiner";
+    case IMR_KIND_WEIGHT_POLICY: return "weight_policy";
+    case IMR_KIND_EXPORTER: return "exporter";
+    default: return "unknown";
+  }
+}
+
+inline const char* StatusName(imr_status s) {
+  switch (s) {
+    case IMR_OK: return "ok";
+    case IMR_ERROR: return "error";
+    case IMR_INVALID_ARGUMENT: return "invalid argument";
+    case IMR_CANCELLED: return "cancelled";
+    case IMR_UNSUPPORTED: return "unsupported";
+    default: return "unknown status";
+  }
+}
+
+// Error raised by the host wrapper when a plugin call fails; carries the plugin's status.
+class PluginCallError : public std::runtime_error {
+ public:
+  PluginCallError(imr_status status, const std::string& message)
+      : std::runtime_error(message), status_(status) {}
+  imr_status status() const { return status_; }
+
+ private:
+  imr_status status_;
+};
+
+// Checks what a host must check before using a descriptor. Returns an empty string when usable,
+// otherwise what is wrong (without the file name, which the caller adds).
+inline std::string CheckDescriptor(const imr_plugin_descriptor* d) {
+  if (d == nullptr) return "null descriptor";
+  if (d->abi_major != IMR_ABI_MAJOR)
+    return "built for plugin ABI " + std::to_string(d->abi_major) + "." +
+           std::to_string(d->abi_minor) + ", this host speaks ABI " +
+           std::to_string(IMR_ABI_MAJOR) + "." + std::to_string(IMR_ABI_MINOR) +
+           " (the ABI major must match: rebuild the plugin against this SDK)";
+  if (d->struct_size < sizeof(imr_plugin_descriptor))
+    return "descriptor is " + std::to_string(d->struct_size) + " bytes, expected at least " +
+           std::to_string(sizeof(imr_plugin_descriptor));
+  if (d->id == nullptr || *d->id == '\0') return "descriptor has no id";
+  if (d->version == nullptr) return "descriptor has no version";
+  if (d->create == nullptr || d->destroy == nullptr) return "descriptor lacks create/destroy";
+  const void* table = nullptr;
+  switch (d->kind) {
+    case IMR_KIND_FEATURES: table = d->features; break;
+    case IMR_KIND_REFINER: table = d->refiner; break;
+    case IMR_KIND_WEIGHT_POLICY: table = d->weight_policy; break;
+    case IMR_KIND_EXPORTER: table = d->exporter; break;
+    default: return "unknown plugin kind " + std::to_string(d->kind);
+  }
+  if (table == nullptr)
+    return std::string("kind is ") + KindName(d->kind) + " but its function table is missing";
+  return {};
+}
+
+// One plugin instance: created from params, destroyed with the object. Move-only.
+class Instance {
+ public:
+  Instance() = default;
+  Instance(const imr_plugin_descriptor* d, const std::string& params_json,
+           const imr_host_services* host)
+      : d_(d) {
+    imr_error error{};
+    imr_status s = d_->create(params_json.c_str(), host, &h_, &error);
+    if (s != IMR_OK || h_ == nullptr)
+      throw PluginCallError(s, std::string(d_->id) + ": create failed: " + error.message);
+  }
+  Instance(Instance&& o) noexcept : d_(std::exchange(o.d_, nullptr)), h_(std::exchange(o.h_, nullptr)) {}
+  Instance& operator=(Instance&& o) noexcept {
+    if (this != &o) {
+      Reset();
+      d_ = std::exchange(o.d_, nullptr);
+      h_ = std::exchange(o.h_, nullptr);
+    }
+    return *this;
+  }
+  Instance(const Instance&) = delete;
+  Instance& operator=(const Instance&) = delete;
+  ~Instance() { Reset(); }
+
+  const imr_plugin_descriptor* descriptor() const { return d_; }
+  imr_instance* handle() const { return h_; }
+
+  void Transfer(imr_transfer_request* request) const {
+    request->struct_size = sizeof(imr_transfer_request);
+    Check(d_->weight_policy->transfer(h_, request, &error_), "transfer");
+  }
+  void ExportMesh(imr_export_request* request) const {
+    request->struct_size = sizeof(imr_export_request);
+    Check(d_->exporter->export_mesh(h_, request, &error_), "export");
+  }
+  imr_track_view ProcessFrame(const imr_camera& camera, const imr_image_view& image,
+                              bool is_keyframe) const {
+    imr_track_view out{};
+    Check(d_->features->process_frame(h_, &camera, &image, is_keyframe ? 1 : 0, &out, &error_),
+          "process_frame");
+    return out;
+  }
+  imr_refiner_update AddFrame(const imr_camera& camera, const imr_track_observation* obs,
+                              uint64_t count, bool is_keyframe) const {
+    imr_refiner_update out{};
+    Check(d_->refiner->add_frame(h_, &camera, obs, count, is_keyframe ? 1 : 0, &out, &error_),
+          "add_frame");
+    return out;
+  }
+
+ private:
+  void Reset() {
+    if (d_ != nullptr && h_ != nullptr) d_->destroy(h_);
+    h_ = nullptr;
+  }
+  void Check(imr_status s, const char* what) const {
+    if (s == IMR_OK) return;
+    std::string msg = std::string(d_->id) + ": " + what + " failed (" + StatusName(s) + ")";
+    if (error_.message[0] != '\0') msg += ": " + std::string(error_.message);
+    error_.message[0] = '\0';
+    throw PluginCallError(s, msg);
+  }
+
+  const imr_plugin_descriptor* d_ = nullptr;
+  imr_instance* h_ = nullptr;
+  mutable imr_error error_{};
+};
+
+}  // namespace imr::sdk
