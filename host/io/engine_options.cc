@@ -1,0 +1,95 @@
+#include "host/io/engine_options.h"
+
+namespace imr::io {
+using nlohmann::json;
+
+const json& EngineOptionsSchema() {
+  static const json schema = [] {
+    const engine::EngineOptions d;
+    json s;
+    s["steiner_spacing"] = {{"type", "number"}, {"default", d.steiner_spacing}, {"minimum", 0.01},
+                            {"description", "Steiner grid step, metres (paper: 5)"}};
+    s["steiner_margin"] = {{"type", "number"}, {"default", d.steiner_margin}, {"minimum", 0.0},
+                           {"description", "grid covers each camera +- (max_ray_length + margin)"}};
+    s["w1"] = {{"type", "number"}, {"default", d.w1}, {"minimum", 0.0},
+               {"description", "weight added to cells a ray traverses"}};
+    s["w2"] = {{"type", "number"}, {"default", d.w2}, {"minimum", 0.0},
+               {"description", "weight added to their neighbours"}};
+    s["w3"] = {{"type", "number"}, {"default", d.w3}, {"minimum", 0.0},
+               {"description", "weight added to the neighbours' neighbours"}};
+    s["free_threshold"] = {{"type", "number"}, {"default", d.free_threshold}, {"minimum", 0.0},
+                           {"description", "T_w: a cell is free space when its weight exceeds it"}};
+    s["window"] = {{"type", "integer"}, {"default", d.window}, {"minimum", 1},
+                   {"description", "W: a move re-casts the rays of the last W cameras"}};
+    s["max_ray_length"] = {{"type", "number"}, {"default", d.max_ray_length}, {"minimum", 0.01},
+                           {"description", "rays longer than this (metres) are not cast"}};
+    s["visibility_mode"] = {{"type", "string"},
+                            {"default", engine::ToString(d.visibility_mode)},
+                            {"enum", {engine::ToString(engine::VisibilityMode::kWeights),
+                                      engine::ToString(engine::VisibilityMode::kRays)}},
+                            {"description", "weights (the paper's policy) or rays (Lovi et al.)"}};
+    s["rays_per_cell"] = {{"type", "integer"}, {"default", d.rays_per_cell}, {"minimum", 1},
+                          {"description", "K of the forgetting heuristic (rays mode)"}};
+    s["steiner_export"] = {
+        {"type", "string"},
+        {"default", engine::ToString(d.steiner_export)},
+        {"enum", {engine::ToString(engine::SteinerExportRule::kNone),
+                  engine::ToString(engine::SteinerExportRule::kAllSteiner),
+                  engine::ToString(engine::SteinerExportRule::kAnySteiner)}},
+        {"description", "which triangles touching Steiner points the exported mesh drops"}};
+    s["shrink_radius"] = {{"type", "number"}, {"default", d.shrink_radius}, {"minimum", 0.0},
+                          {"description", "enclosing set E: cells within this distance, metres"}};
+    s["shrink_passes"] = {{"type", "integer"}, {"default", d.shrink_passes}, {"minimum", 1},
+                          {"description", "passes of shrink over E"}};
+    s["check_invariants"] = {{"type", "boolean"}, {"default", d.check_after_update},
+                             {"description", "full manifold check after every keyframe (slow)"}};
+    return s;
+  }();
+  return schema;
+}
+
+bool EngineOptionsFromJson(const json& j, engine::EngineOptions* o, std::vector<Problem>* problems) {
+  const std::size_t before = problems->size();
+  ValidateAgainstSchema(EngineOptionsSchema(), j, "engine", problems);
+  if (problems->size() != before) return false;
+  const json v = WithDefaults(EngineOptionsSchema(), j);
+  o->steiner_spacing = v["steiner_spacing"];
+  o->steiner_margin = v["steiner_margin"];
+  o->w1 = v["w1"];
+  o->w2 = v["w2"];
+  o->w3 = v["w3"];
+  o->free_threshold = v["free_threshold"];
+  o->window = v["window"];
+  o->max_ray_length = v["max_ray_length"];
+  engine::FromString(v["visibility_mode"].get<std::string>(), &o->visibility_mode);
+  o->rays_per_cell = v["rays_per_cell"];
+  engine::FromString(v["steiner_export"].get<std::string>(), &o->steiner_export);
+  o->shrink_radius = v["shrink_radius"];
+  o->shrink_passes = v["shrink_passes"];
+  o->check_after_update = v["check_invariants"];
+  std::string error;
+  if (!o->Check(&error)) {
+    problems->push_back({"engine", error});
+    return false;
+  }
+  return true;
+}
+
+json EngineOptionsToJson(const engine::EngineOptions& o) {
+  return {{"steiner_spacing", o.steiner_spacing},
+          {"steiner_margin", o.steiner_margin},
+          {"w1", o.w1},
+          {"w2", o.w2},
+          {"w3", o.w3},
+          {"free_threshold", o.free_threshold},
+          {"window", o.window},
+          {"max_ray_length", o.max_ray_length},
+          {"visibility_mode", engine::ToString(o.visibility_mode)},
+          {"rays_per_cell", o.rays_per_cell},
+          {"steiner_export", engine::ToString(o.steiner_export)},
+          {"shrink_radius", o.shrink_radius},
+          {"shrink_passes", o.shrink_passes},
+          {"check_invariants", o.check_after_update}};
+}
+
+}  // namespace imr::io

@@ -1,0 +1,47 @@
+#include "host/io/input_formats.h"
+
+#include "host/synthetic/stream.h"
+
+namespace imr::io {
+using nlohmann::json;
+
+const std::vector<InputFormat>& InputFormats() {
+  static const std::vector<InputFormat> formats = [] {
+    std::vector<InputFormat> f;
+    const synthetic::StreamOptions d;
+    InputFormat s;
+    s.name = "synthetic";
+    s.description = "synthetic observation stream over a known scene (no images; engine only)";
+    s.sequences_are_paths = false;
+    for (auto k : {synthetic::SceneKind::kStreet, synthetic::SceneKind::kRoom,
+                   synthetic::SceneKind::kPlane})
+      s.sequence_names.push_back(synthetic::ToString(k));
+    s.needs_front_end = false;
+    s.options_schema = {
+        {"frames", {{"type", "integer"}, {"default", 200}, {"minimum", 1},
+                    {"description", "frames in the sequence"}}},
+        {"seed", {{"type", "integer"}, {"default", 1}, {"minimum", 0},
+                  {"description", "everything random derives from it"}}},
+        {"keyframe_every", {{"type", "integer"}, {"default", d.keyframe_every}, {"minimum", 1},
+                            {"description", "a keyframe every this many frames (paper: 5)"}}},
+        {"speed", {{"type", "number"}, {"default", d.speed}, {"minimum", 0.01},
+                   {"description", "camera motion per frame, metres"}}},
+        {"points_per_keyframe", {{"type", "integer"}, {"default", d.points_per_keyframe},
+                                 {"minimum", 1}, {"description", "new points per keyframe"}}},
+        {"noise_at_10m", {{"type", "number"}, {"default", d.noise_at_10m}, {"minimum", 0.0},
+                          {"description", "depth error of a first estimate at 10 m, metres"}}},
+        {"frozen", {{"type", "boolean"}, {"default", false},
+                    {"description", "points keep their first estimate (no moves)"}}}};
+    f.push_back(s);
+    return f;
+  }();
+  return formats;
+}
+
+const InputFormat* FindInputFormat(const std::string& name) {
+  for (const auto& f : InputFormats())
+    if (f.name == name) return &f;
+  return nullptr;
+}
+
+}  // namespace imr::io

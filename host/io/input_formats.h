@@ -1,0 +1,25 @@
+// Input formats a job can name in input.format. Each says what its `sequences` entries are
+// (paths that must exist, or names) and which options it takes (a schema, like plugin params).
+// Later formats (KITTI, OpenMVG, COLMAP, SLAM JSON) add rows here.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+namespace imr::io {
+
+struct InputFormat {
+  std::string name;
+  std::string description;
+  bool sequences_are_paths = true;         // false: entries are names (e.g. synthetic scenes)
+  std::vector<std::string> sequence_names;  // allowed names when !sequences_are_paths
+  bool needs_front_end = true;             // true: needs features + refiner stages (images)
+  nlohmann::json options_schema;
+};
+
+const std::vector<InputFormat>& InputFormats();
+const InputFormat* FindInputFormat(const std::string& name);
+
+}  // namespace imr::io

@@ -1,0 +1,290 @@
+#include "host/io/job.h"
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace imr::io {
+namespace fs = std::filesystem;
+namespace {
+
+using json = nlohmann::json;
+
+std::string TypeName(const json& v) {
+  if (v.is_null()) return "null";
+  if (v.is_boolean()) return "boolean";
+  if (v.is_number_integer()) return "integer";
+  if (v.is_number()) return "number";
+  if (v.is_string()) return "string";
+  if (v.is_array()) return "array";
+  return "object";
+}
+
+// Walks one JSON object, recording problems; each Take* marks the key as known.
+class ObjectReader {
+ public:
+  ObjectReader(const json& obj, std::string path, std::vector<Problem>* problems)
+      : obj_(obj), path_(std::move(path)), problems_(problems) {}
+
+  const json* Get(const std::string& key, bool required) {
+    known_.insert(key);
+    auto it = obj_.find(key);
+    if (it == obj_.end()) {
+      if (required) problems_->push_back({Path(key), "required key is missing"});
+      return nullptr;
+    }
+    return &*it;
+  }
+
+  std::optional<std::string> String(const std::string& key, bool required) {
+    const json* v = Get(key, required);
+    if (v == nullptr) return std::nullopt;
+    if (!v->is_string()) {
+      Wrong(key, "string", *v);
+      return std::nullopt;
+    }
+    return v->get<std::string>();
+  }
+
+  std::optional<std::vector<std::string>> Strings(const std::string& key, bool required,
+                                                  bool non_empty) {
+    const json* v = Get(key, required);
+    if (v == nullptr) return std::nullopt;
+    if (!v->is_array()) {
+      Wrong(key, "array of strings", *v);
+      return std::nullopt;
+    }
+    std::vector<std::string> out;
+    bool ok = true;
+    for (std::size_t i = 0; i < v->size(); ++i) {
+      const json& e = (*v)[i];
+      if (!e.is_string() || e.get<std::string>().empty()) {
+        problems_->push_back({Path(key) + "[" + std::to_string(i) + "]",
+                              "expected a non-empty string, got " + Describe(e)});
+        ok = false;
+      } else {
+        out.push_back(e.get<std::string>());
+      }
+    }
+    if (ok && non_empty && out.empty())
+      problems_->push_back({Path(key), "expected at least one entry, got []"});
+    if (!ok) return std::nullopt;
+    return out;
+  }
+
+  const json* Object(const std::string& key, bool required) {
+    const json* v = Get(key, required);
+    if (v != nullptr && !v->is_object()) {
+      Wrong(key, "object", *v);
+      return nullptr;
+    }
+    return v;
+  }
+
+  // Unknown keys are errors: a typo must never be silently ignored.
+  void RejectUnknown() {
+    std::vector<std::string> known(known_.begin(), known_.end());
+    for (const auto& [k, _] : obj_.items())
+      if (!known_.count(k))
+        problems_->push_back({Path(k), "unknown key (expected " + JoinAlternatives(known) + ")"});
+  }
+
+  std::string Path(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+ private:
+  void Wrong(const std::string& key, const std::string& expected, const json& got) {
+    problems_->push_back({Path(key), "expected " + expected + ", got " + TypeName(got) + " " +
+                                         Describe(got)});
+  }
+  const json& obj_;
+  std::string path_;
+  std::vector<Problem>* problems_;
+  std::set<std::string> known_;
+};
+
+// nlohmann reports a byte offset; people want line and column.
+std::string LineColumn(const std::string& text, std::size_t byte) {
+  std::size_t line = 1, col = 1;
+  for (std::size_t i = 0; i < byte && i < text.size(); ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      col = 1;
+    } else {
+      ++col;
+    }
+  }
+  return "line " + std::to_string(line) + ", column " + std::to_string(col);
+}
+
+void ParseStage(const json& v, std::size_t index, JobSpec* job, std::vector<Problem>* problems) {
+  const std::string path = "pipeline[" + std::to_string(index) + "]";
+  if (!v.is_object()) {
+    problems->push_back({path, "expected an object {\"kind\", \"plugin\", \"params\"}, got " +
+                                   Describe(v)});
+    return;
+  }
+  ObjectReader r(v, path, problems);
+  StageSpec stage;
+  stage.json_path = path;
+  if (auto kind = r.String("kind", true)) {
+    stage.kind = *kind;
+    bool known = false;
+    for (const auto& k : StageKinds()) known |= k == *kind;
+    if (!known)
+      problems->push_back({r.Path("kind"), "expected " + JoinAlternatives(StageKinds()) +
+                                               ", got " + Describe(*kind)});
+  }
+  if (auto plugin = r.String("plugin", true)) stage.plugin = *plugin;
+  if (const json* params = r.Object("params", false)) stage.params = *params;
+  r.String("description", false);
+  r.RejectUnknown();
+  job->pipeline.push_back(std::move(stage));
+}
+
+}  // namespace
+
+const std::vector<std::string>& StageKinds() {
+  static const std::vector<std::string> kinds = {"features", "refiner", "weight_policy",
+                                                 "exporter"};
+  return kinds;
+}
+
+fs::path JobSpec::Resolve(const std::string& p) const {
+  fs::path path(p);
+  return path.is_absolute() ? path : (base_dir / path).lexically_normal();
+}
+
+fs::path JobSpec::OutputDirectory(const std::string& sequence_name) const {
+  std::string s = output.directory;
+  auto replace = [&s](const std::string& key, const std::string& value) {
+    for (std::size_t pos; (pos = s.find(key)) != std::string::npos;) s.replace(pos, key.size(), value);
+  };
+  replace("{sequence}", sequence_name);
+  replace("{job}", Name());
+  return Resolve(s);
+}
+
+std::vector<Problem> CheckOutputTemplate(const std::string& tmpl, const std::string& path) {
+  std::vector<Problem> problems;
+  for (std::size_t open = tmpl.find('{'); open != std::string::npos;
+       open = tmpl.find('{', open + 1)) {
+    const std::size_t close = tmpl.find('}', open);
+    if (close == std::string::npos) {
+      problems.push_back({path, "unclosed '{' in " + Describe(tmpl)});
+      break;
+    }
+    const std::string key = tmpl.substr(open, close - open + 1);
+    if (key != "{sequence}" && key != "{job}")
+      problems.push_back({path, "unknown placeholder " + key + " (expected {sequence} or {job})"});
+  }
+  return problems;
+}
+
+JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
+  JobParseResult result;
+  JobSpec& job = result.job;
+  job.file = file;
+  job.base_dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
+  auto& problems = result.problems;
+
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    std::string what = e.what();
+    // Keep nlohmann's explanation, drop its "[json.exception.parse_error.101] parse error at
+    // line x, column y:" prefix in favour of ours.
+    const auto colon = what.find(": ", what.find("parse error"));
+    if (colon != std::string::npos) what = what.substr(colon + 2);
+    problems.push_back({"", file.string() + ": malformed JSON at " + LineColumn(text, e.byte == 0 ? 0 : e.byte - 1) +
+                                ": " + what});
+    return result;
+  }
+  if (!root.is_object()) {
+    problems.push_back({"", file.string() + ": expected a JSON object at the top level, got " +
+                                TypeName(root)});
+    return result;
+  }
+
+  ObjectReader r(root, "", &problems);
+  if (auto d = r.String("description", false)) job.description = *d;
+  if (auto seq = r.Strings("sequences", true, true)) job.sequences = *seq;
+
+  if (const json* input = r.Object("input", true)) {
+    ObjectReader ir(*input, "input", &problems);
+    if (auto f = ir.String("format", true)) job.input.format = *f;
+    if (const json* o = ir.Object("options", false)) job.input.options = *o;
+    ir.RejectUnknown();
+  }
+
+  if (const json* engine = r.Object("engine", false)) job.engine = *engine;
+
+  if (const json* pipeline = r.Get("pipeline", true)) {
+    if (!pipeline->is_array() || pipeline->empty()) {
+      problems.push_back({"pipeline", "expected a non-empty array of stages, got " +
+                                          Describe(*pipeline)});
+    } else {
+      for (std::size_t i = 0; i < pipeline->size(); ++i) ParseStage((*pipeline)[i], i, &job, &problems);
+    }
+  }
+
+  if (const json* output = r.Object("output", true)) {
+    ObjectReader orr(*output, "output", &problems);
+    if (auto d = orr.String("directory", true)) {
+      job.output.directory = *d;
+      auto p = CheckOutputTemplate(*d, "output.directory");
+      problems.insert(problems.end(), p.begin(), p.end());
+      if (d->find("{sequence}") == std::string::npos && job.sequences.size() > 1)
+        problems.push_back({"output.directory", "several sequences would share one folder: "
+                                                "put {sequence} in the template"});
+    }
+    if (auto s = orr.String("stem", false)) {
+      // Plain names only: the stem also names companion files referenced from inside outputs
+      // (a glTF's .bin), where spaces or slashes would need escaping.
+      const bool plain = !s->empty() && (*s)[0] != '.' &&
+                         s->find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                              "0123456789._-") == std::string::npos;
+      if (!plain)
+        problems.push_back({"output.stem", "expected a file name of letters, digits, '.', '_' "
+                                           "and '-' (not starting with '.'), got " + Describe(*s)});
+      else
+        job.output.stem = *s;
+    }
+    if (auto f = orr.Strings("formats", false, true)) job.output.formats = *f;
+    orr.RejectUnknown();
+  }
+
+  if (auto paths = r.Strings("plugin_paths", false, false))
+    for (const auto& p : *paths) job.plugin_paths.push_back(job.Resolve(p));
+
+  r.RejectUnknown();
+  return result;
+}
+
+JobParseResult ParseJobFile(const fs::path& file) {
+  std::error_code ec;
+  if (!fs::exists(file, ec)) {
+    JobParseResult r;
+    r.job.file = file;
+    r.problems.push_back({"", file.string() + ": no such file"});
+    return r;
+  }
+  if (fs::is_directory(file, ec)) {
+    JobParseResult r;
+    r.job.file = file;
+    r.problems.push_back({"", file.string() + ": is a folder, expected a JSON job file"});
+    return r;
+  }
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  if (!in.good() && !in.eof()) {
+    JobParseResult r;
+    r.job.file = file;
+    r.problems.push_back({"", file.string() + ": cannot read"});
+    return r;
+  }
+  return ParseJobText(ss.str(), file);
+}
+
+}  // namespace imr::io

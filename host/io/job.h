@@ -1,0 +1,73 @@
+// Job files: which sequences, read how, through which plugins, written where. Parsing checks the
+// structure (types, required and unknown keys) and collects every problem with its JSON path;
+// checks that need the plugins (ids, kinds, params) are done by pipeline/job_validation.
+#pragma once
+
+#include "host/io/schema.h"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace imr::io {
+
+// One stage of the pipeline: a plugin of a given kind with its params.
+struct StageSpec {
+  std::string kind;       // "features", "refiner", "weight_policy" or "exporter"
+  std::string plugin;     // plugin id, e.g. "org.imr.policy.nearest"
+  nlohmann::json params = nlohmann::json::object();  // as written in the job
+  std::string json_path;  // "pipeline[2]", for messages
+};
+
+struct InputSpec {
+  std::string format;                                 // see input_formats.h
+  nlohmann::json options = nlohmann::json::object();  // format-specific, as written
+};
+
+struct OutputSpec {
+  // Folder per sequence; placeholders {sequence} (sequence name) and {job} (job file stem).
+  // Relative paths are relative to the job file's folder.
+  std::string directory = "runs/{sequence}";
+  std::string stem = "mesh";                           // output file name without extension
+  std::vector<std::string> formats = {"obj", "ply", "glb"};  // handed to the exporter stage(s)
+};
+
+struct JobSpec {
+  std::filesystem::path file;      // the job file
+  std::filesystem::path base_dir;  // its folder: relative paths are resolved against it
+  std::string description;
+  std::vector<std::string> sequences;  // paths, globs, or names (format decides)
+  InputSpec input;
+  nlohmann::json engine = nlohmann::json::object();  // engine options, as written
+  std::vector<StageSpec> pipeline;
+  OutputSpec output;
+  std::vector<std::filesystem::path> plugin_paths;  // resolved against base_dir
+
+  std::string Name() const { return file.stem().string(); }
+  std::filesystem::path Resolve(const std::string& p) const;
+  // The output folder of one sequence, template expanded and resolved.
+  std::filesystem::path OutputDirectory(const std::string& sequence_name) const;
+};
+
+struct JobParseResult {
+  JobSpec job;
+  std::vector<Problem> problems;  // empty when the structure is valid
+  bool ok() const { return problems.empty(); }
+};
+
+// Reads and structurally checks a job file. Never throws for bad input: an unreadable file or
+// malformed JSON (with line and column) is reported as a problem.
+JobParseResult ParseJobFile(const std::filesystem::path& file);
+// The same from text (for tests); `file` names the source in messages and anchors relative paths.
+JobParseResult ParseJobText(const std::string& text, const std::filesystem::path& file);
+
+// Known stage kinds, in pipeline order.
+const std::vector<std::string>& StageKinds();
+
+// Checks an output directory template's placeholders; returns problems at `path`.
+std::vector<Problem> CheckOutputTemplate(const std::string& tmpl, const std::string& path);
+
+}  // namespace imr::io

@@ -1,0 +1,129 @@
+#include "host/io/job.h"
+
+#include "host/io/engine_options.h"
+
+#include <gtest/gtest.h>
+
+namespace imr::io {
+namespace {
+
+bool HasProblem(const std::vector<Problem>& ps, const std::string& text) {
+  for (const auto& p : ps)
+    if (p.ToString().find(text) != std::string::npos) return true;
+  return false;
+}
+
+std::string Dump(const std::vector<Problem>& ps) {
+  std::string s;
+  for (const auto& p : ps) s += p.ToString() + "\n";
+  return s;
+}
+
+const char* kGood = R"({
+  "sequences": ["data/seq*", "other"],
+  "input": {"format": "synthetic", "options": {"frames": 10}},
+  "engine": {"window": 10},
+  "pipeline": [{"kind": "weight_policy", "plugin": "org.imr.policy.nearest", "params": {}},
+               {"kind": "exporter", "plugin": "org.imr.exporter.assimp"}],
+  "output": {"directory": "runs/{job}/{sequence}", "formats": ["obj"]},
+  "plugin_paths": ["plugins", "/abs/plugins"]
+})";
+
+TEST(Job, ParsesAGoodJobAndResolvesPathsAgainstItsFolder) {
+  auto r = ParseJobText(kGood, "/jobs/city.json");
+  ASSERT_TRUE(r.ok()) << Dump(r.problems);
+  EXPECT_EQ(r.job.sequences.size(), 2u);
+  EXPECT_EQ(r.job.pipeline[1].kind, "exporter");
+  EXPECT_EQ(r.job.pipeline[1].json_path, "pipeline[1]");
+  EXPECT_EQ(r.job.OutputDirectory("seq01"), "/jobs/runs/city/seq01");
+  EXPECT_EQ(r.job.plugin_paths[0], "/jobs/plugins");
+  EXPECT_EQ(r.job.plugin_paths[1], "/abs/plugins");
+  EXPECT_EQ(r.job.output.stem, "mesh");
+}
+
+TEST(Job, MalformedJsonGivesLineAndColumn) {
+  auto r = ParseJobText("{\n  \"sequences\": [1,\n}", "x.json");
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_TRUE(HasProblem(r.problems, "x.json: malformed JSON at line 3, column 1")) << Dump(r.problems);
+}
+
+TEST(Job, EmptyFileAndWrongTopLevel) {
+  EXPECT_TRUE(HasProblem(ParseJobText("", "e.json").problems, "e.json: malformed JSON at line 1"));
+  EXPECT_TRUE(HasProblem(ParseJobText("[1]", "a.json").problems,
+                         "expected a JSON object at the top level, got array"));
+}
+
+TEST(Job, ReportsEveryStructuralProblem) {
+  auto r = ParseJobText(R"({
+    "sequences": [],
+    "input": {"fromat": "synthetic"},
+    "pipeline": [{"kind": "policy", "plugin": 3, "parms": {}}, 7],
+    "output": {"directory": "runs/{seq}", "stem": "a/b"},
+    "extra": true
+  })", "j.json");
+  const auto& p = r.problems;
+  EXPECT_TRUE(HasProblem(p, "sequences: expected at least one entry")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "input.format: required key is missing")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "input.fromat: unknown key")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[0].kind: expected features, refiner, weight_policy or "
+                            "exporter, got \"policy\"")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[0].plugin: expected string, got integer 3")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[0].parms: unknown key")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[1]: expected an object")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "output.directory: unknown placeholder {seq}")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "output.stem: expected a file name of letters")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "extra: unknown key")) << Dump(p);
+}
+
+TEST(Job, SeveralSequencesNeedTheSequencePlaceholder) {
+  auto r = ParseJobText(R"({"sequences": ["a", "b"], "input": {"format": "synthetic"},
+    "pipeline": [{"kind": "exporter", "plugin": "x"}], "output": {"directory": "runs"}})", "j.json");
+  EXPECT_TRUE(HasProblem(r.problems, "output.directory: several sequences would share one folder"));
+}
+
+TEST(Schema, ChecksTypesRangesEnumsAndUnknownKeys) {
+  const nlohmann::json schema = nlohmann::json::parse(R"({
+    "window": {"type": "integer", "minimum": 1, "default": 15},
+    "ratio": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.5},
+    "mode": {"type": "string", "enum": ["a", "b"], "default": "a"},
+    "names": {"type": "string_array", "default": []}
+  })");
+  ASSERT_TRUE(CheckSchema(schema, "s").empty());
+  std::vector<Problem> p;
+  ValidateAgainstSchema(schema, {{"window", "15"}, {"ratio", 2}, {"mode", "c"}, {"names", {1}},
+                                 {"x", 1}},
+                        "pipeline[2].params", &p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[2].params.window: expected integer >= 1, got \"15\"")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[2].params.ratio: expected number in [0, 1], got 2")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[2].params.mode: expected string (one of \"a\" or \"b\"), got \"c\"")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[2].params.names: expected array of strings, got [1]")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "pipeline[2].params.x: unknown key (expected mode, names, ratio or window)")) << Dump(p);
+  EXPECT_EQ(p.size(), 5u);
+  const auto filled = WithDefaults(schema, {{"window", 3}});
+  EXPECT_EQ(filled["window"], 3);
+  EXPECT_EQ(filled["mode"], "a");
+}
+
+TEST(Schema, RejectsMalformedSchemas) {
+  EXPECT_FALSE(CheckSchema(nlohmann::json::parse(R"({"a": {"type": "int"}})"), "s").empty());
+  EXPECT_FALSE(CheckSchema(nlohmann::json::parse(R"({"a": {"type": "integer", "default": "1"}})"), "s").empty());
+  EXPECT_FALSE(CheckSchema(nlohmann::json::parse(R"({"a": {"type": "integer", "dflt": 1}})"), "s").empty());
+  EXPECT_FALSE(CheckSchema(nlohmann::json::array(), "s").empty());
+}
+
+TEST(EngineOptionsJson, DefaultsRoundTripAndErrorsNameTheField) {
+  engine::EngineOptions o;
+  std::vector<Problem> p;
+  ASSERT_TRUE(EngineOptionsFromJson(nlohmann::json::object(), &o, &p)) << Dump(p);
+  EXPECT_EQ(o.window, 15);
+  EXPECT_EQ(o.steiner_spacing, 5.0);
+  ASSERT_TRUE(EngineOptionsFromJson({{"visibility_mode", "rays"}, {"rays_per_cell", 1}}, &o, &p));
+  EXPECT_EQ(o.visibility_mode, engine::VisibilityMode::kRays);
+  EXPECT_EQ(o.rays_per_cell, 1);
+  EXPECT_EQ(EngineOptionsToJson(o)["visibility_mode"], "rays");
+  EXPECT_FALSE(EngineOptionsFromJson({{"window", 0}}, &o, &p));
+  EXPECT_TRUE(HasProblem(p, "engine.window: expected integer >= 1, got 0")) << Dump(p);
+}
+
+}  // namespace
+}  // namespace imr::io

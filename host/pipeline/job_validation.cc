@@ -1,0 +1,179 @@
+#include "host/pipeline/job_validation.h"
+
+#include "host/io/engine_options.h"
+#include "host/io/input_formats.h"
+
+#include <glob.h>
+
+#include <algorithm>
+#include <map>
+#include <set>
+
+namespace imr::pipeline {
+namespace fs = std::filesystem;
+using io::Problem;
+
+namespace {
+
+bool HasGlobChars(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
+
+void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
+  const io::JobSpec& job = v->job;
+  std::set<std::string> seen_names;
+  for (std::size_t i = 0; i < job.sequences.size(); ++i) {
+    const std::string path = "sequences[" + std::to_string(i) + "]";
+    const std::string& entry = job.sequences[i];
+    std::vector<SequenceRef> found;
+    if (!format.sequences_are_paths) {
+      if (std::find(format.sequence_names.begin(), format.sequence_names.end(), entry) ==
+          format.sequence_names.end()) {
+        v->problems.push_back({path, "input format '" + format.name + "' takes the names " +
+                                         io::JoinAlternatives(format.sequence_names) +
+                                         ", got " + io::Describe(entry)});
+        continue;
+      }
+      found.push_back({entry, entry});
+    } else if (HasGlobChars(entry)) {
+      const std::string pattern = job.Resolve(entry).string();
+      glob_t g{};
+      const int rc = ::glob(pattern.c_str(), 0, nullptr, &g);
+      if (rc == 0)
+        for (std::size_t k = 0; k < g.gl_pathc; ++k)
+          found.push_back({fs::path(g.gl_pathv[k]).filename().string(), g.gl_pathv[k]});
+      ::globfree(&g);
+      if (found.empty()) v->problems.push_back({path, "pattern matches nothing: " + pattern});
+      std::sort(found.begin(), found.end(),
+                [](const SequenceRef& a, const SequenceRef& b) { return a.source < b.source; });
+    } else {
+      const fs::path p = job.Resolve(entry);
+      std::error_code ec;
+      if (!fs::exists(p, ec)) {
+        v->problems.push_back({path, "no such file or folder: " + p.string()});
+        continue;
+      }
+      found.push_back({p.filename().string(), p.string()});
+    }
+    for (auto& s : found) {
+      if (!seen_names.insert(s.name).second) {
+        v->problems.push_back({path, "two sequences are named '" + s.name +
+                                         "': their outputs would collide"});
+        continue;
+      }
+      v->sequences.push_back(std::move(s));
+    }
+  }
+}
+
+void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry& registry,
+                    ValidatedJob* v) {
+  const io::JobSpec& job = v->job;
+  std::map<std::string, int> count;
+  std::vector<std::string> exporter_formats;
+  for (std::size_t i = 0; i < job.pipeline.size(); ++i) {
+    const io::StageSpec& stage = job.pipeline[i];
+    nlohmann::json params = stage.params;
+    ++count[stage.kind];
+    const plugin::PluginInfo* info = registry.Find(stage.plugin);
+    if (info == nullptr) {
+      auto known = registry.Ids(stage.kind);
+      v->problems.push_back(
+          {stage.json_path + ".plugin",
+           "unknown plugin id " + io::Describe(stage.plugin) + " (known " + stage.kind +
+               " plugins: " + (known.empty() ? std::string("none") : io::JoinAlternatives(known)) +
+               "; run `imr plugins` to see what was found and refused)"});
+      v->stage_params.push_back(params);
+      continue;
+    }
+    if (info->kind() != stage.kind) {
+      v->problems.push_back({stage.json_path + ".plugin",
+                             "plugin " + info->id() + " (" + info->file.string() + ") is a " +
+                                 info->kind() + " plugin, the stage's kind is " + stage.kind});
+    }
+    io::ValidateAgainstSchema(info->params_schema, params, stage.json_path + ".params",
+                              &v->problems);
+    v->stage_params.push_back(io::WithDefaults(info->params_schema, params));
+    if (info->kind() == "exporter" && info->descriptor->exporter->formats) {
+      std::string list = info->descriptor->exporter->formats;
+      for (std::size_t pos = 0; pos <= list.size();) {
+        const std::size_t comma = std::min(list.find(',', pos), list.size());
+        if (comma > pos) exporter_formats.push_back(list.substr(pos, comma - pos));
+        pos = comma + 1;
+      }
+    }
+  }
+  if (format != nullptr && !format->needs_front_end) {
+    for (const char* kind : {"features", "refiner"})
+      if (count[kind] > 0)
+        v->problems.push_back({"pipeline", std::string("input format '") + format->name +
+                                               "' delivers 3D points: a " + kind +
+                                               " stage has nothing to do; remove it"});
+  }
+  if (format != nullptr && format->needs_front_end) {
+    for (const char* kind : {"features", "refiner"})
+      if (count[kind] != 1)
+        v->problems.push_back({"pipeline", std::string("input format '") + format->name +
+                                               "' needs exactly one " + kind + " stage, found " +
+                                               std::to_string(count[kind])});
+  }
+  const bool weights = v->engine_options.visibility_mode == engine::VisibilityMode::kWeights;
+  if (weights && count["weight_policy"] != 1)
+    v->problems.push_back({"pipeline", "visibility_mode 'weights' needs exactly one "
+                                       "weight_policy stage, found " +
+                                           std::to_string(count["weight_policy"])});
+  if (!weights && count["weight_policy"] > 0)
+    v->problems.push_back({"pipeline", "visibility_mode 'rays' does not use a weight_policy "
+                                       "stage; remove it"});
+  if (count["exporter"] == 0)
+    v->problems.push_back({"pipeline", "no exporter stage: nothing would be written"});
+  for (std::size_t i = 0; i < job.output.formats.size(); ++i) {
+    const std::string& f = job.output.formats[i];
+    if (count["exporter"] > 0 &&
+        std::find(exporter_formats.begin(), exporter_formats.end(), f) == exporter_formats.end())
+      v->problems.push_back({"output.formats[" + std::to_string(i) + "]",
+                             io::Describe(f) + " is not written by any exporter stage (they write " +
+                                 io::JoinAlternatives(exporter_formats) + ")"});
+  }
+}
+
+}  // namespace
+
+ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry* registry) {
+  ValidatedJob v;
+  io::JobParseResult parsed = io::ParseJobFile(job_file);
+  v.job = std::move(parsed.job);
+  v.problems = std::move(parsed.problems);
+  if (v.job.input.format.empty() && v.job.sequences.empty() && !v.problems.empty() &&
+      v.problems[0].path.empty())
+    return v;  // unreadable or malformed: nothing more to say
+
+  std::vector<fs::path> paths = v.job.plugin_paths;
+  for (const auto& p : plugin::PluginRegistry::DefaultSearchPaths()) paths.push_back(p);
+  registry->Scan(paths);
+  for (std::size_t i = 0; i < v.job.plugin_paths.size(); ++i) {
+    std::error_code ec;
+    if (!fs::exists(v.job.plugin_paths[i], ec))
+      v.problems.push_back({"plugin_paths[" + std::to_string(i) + "]",
+                            "no such file or folder: " + v.job.plugin_paths[i].string()});
+  }
+
+  const io::InputFormat* format = nullptr;
+  if (!v.job.input.format.empty()) {
+    format = io::FindInputFormat(v.job.input.format);
+    if (format == nullptr) {
+      std::vector<std::string> names;
+      for (const auto& f : io::InputFormats()) names.push_back(f.name);
+      v.problems.push_back({"input.format", "unknown format " + io::Describe(v.job.input.format) +
+                                                " (expected " + io::JoinAlternatives(names) + ")"});
+    } else {
+      io::ValidateAgainstSchema(format->options_schema, v.job.input.options, "input.options",
+                                &v.problems);
+      v.input_options = io::WithDefaults(format->options_schema, v.job.input.options);
+      ExpandSequences(*format, &v);
+    }
+  }
+  io::EngineOptionsFromJson(v.job.engine, &v.engine_options, &v.problems);
+  ValidateStages(format, *registry, &v);
+  return v;
+}
+
+}  // namespace imr::pipeline

@@ -1,0 +1,45 @@
+#include "host/plugin/host_services.h"
+
+#include "host/util/log.h"
+
+#include <atomic>
+
+namespace imr::plugin {
+namespace {
+
+std::atomic<bool> g_cancel{false};
+
+void LogService(void*, int32_t level, const char* message) {
+  if (message == nullptr) return;
+  switch (level) {
+    case IMR_LOG_DEBUG: LogDebug(message); break;
+    case IMR_LOG_WARNING: LogWarning(message); break;
+    case IMR_LOG_ERROR: LogError(message); break;
+    default: LogInfo(message); break;
+  }
+}
+
+void ProgressService(void*, double fraction, const char* message) {
+  LogDebug("progress " + std::to_string(static_cast<int>(fraction * 100.0)) + "%" +
+           (message ? std::string(" ") + message : std::string()));
+}
+
+int32_t CancelService(void*) { return g_cancel.load() ? 1 : 0; }
+
+}  // namespace
+
+const imr_host_services* HostServices() {
+  static const imr_host_services services{sizeof(imr_host_services), IMR_HOST_SERVICES_VERSION,
+                                          nullptr, &LogService, &ProgressService, &CancelService};
+  return &services;
+}
+
+void RequestCancel() { g_cancel = true; }
+bool CancelRequested() { return g_cancel.load(); }
+
+LoadedInstance CreateInstance(const PluginInfo& info, const nlohmann::json& params) {
+  return LoadedInstance{info.library,
+                        imr::sdk::Instance(info.descriptor, params.dump(), HostServices())};
+}
+
+}  // namespace imr::plugin

@@ -1,0 +1,104 @@
+#include "host/util/atomic_file.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <random>
+#include <stdexcept>
+#include <system_error>
+
+namespace imr {
+namespace fs = std::filesystem;
+namespace {
+
+std::string RandomSuffix() {
+  static thread_local std::mt19937_64 rng{std::random_device{}() ^
+                                          static_cast<uint64_t>(::getpid())};
+  static const char* kHex = "0123456789abcdef";
+  std::string s(12, '0');
+  for (char& c : s) c = kHex[rng() & 15];
+  return s;
+}
+
+[[noreturn]] void Fail(const fs::path& path, const std::string& what) {
+  throw std::runtime_error(path.string() + ": " + what);
+}
+
+}  // namespace
+
+void WriteFileAtomically(const fs::path& path, std::string_view contents) {
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + RandomSuffix());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) Fail(path, std::string("cannot write: ") + std::strerror(errno));
+  const char* p = contents.data();
+  std::size_t left = contents.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      Fail(path, std::string("write failed: ") + std::strerror(err));
+    }
+    p += n;
+    left -= static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    Fail(path, std::string("write failed: ") + std::strerror(err));
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    Fail(path, std::string("rename failed: ") + std::strerror(err));
+  }
+}
+
+void EnsureWritableDirectory(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) Fail(dir, "cannot create folder: " + ec.message());
+  if (!fs::is_directory(dir)) Fail(dir, "not a folder");
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    Fail(dir, std::string("folder not writable: ") + std::strerror(errno));
+}
+
+StagingDirectory::StagingDirectory(const fs::path& destination) : destination_(destination) {
+  EnsureWritableDirectory(destination_);
+  staging_ = destination_ / (".imr-staging-" + RandomSuffix());
+  std::error_code ec;
+  if (!fs::create_directory(staging_, ec) || ec)
+    Fail(staging_, "cannot create staging folder: " + ec.message());
+}
+
+StagingDirectory::~StagingDirectory() {
+  std::error_code ec;
+  fs::remove_all(staging_, ec);  // best effort; nothing under a final name is touched
+}
+
+std::vector<fs::path> StagingDirectory::Commit(const std::string& last) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(staging_))
+    if (e.is_regular_file()) files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  std::stable_partition(files.begin(), files.end(),
+                        [&](const fs::path& p) { return p.filename() != last; });
+  std::vector<fs::path> out;
+  for (const auto& f : files) {
+    const fs::path target = destination_ / f.filename();
+    std::error_code ec;
+    fs::rename(f, target, ec);
+    if (ec) Fail(target, "cannot move into place: " + ec.message());
+    out.push_back(target);
+  }
+  committed_ = true;
+  return out;
+}
+
+}  // namespace imr

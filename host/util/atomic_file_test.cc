@@ -1,0 +1,88 @@
+#include "host/util/atomic_file.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+namespace imr {
+namespace {
+namespace fs = std::filesystem;
+
+class AtomicFile : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("imr-atomic-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+            "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  static std::string Read(const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+  static int CountEntries(const fs::path& p) {
+    int n = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(p)) ++n;
+    return n;
+  }
+  fs::path dir_;
+};
+
+TEST_F(AtomicFile, WritesAndReplacesWithoutLeavingTemporaries) {
+  WriteFileAtomically(dir_ / "a.json", "first");
+  WriteFileAtomically(dir_ / "a.json", "second");
+  EXPECT_EQ(Read(dir_ / "a.json"), "second");
+  EXPECT_EQ(CountEntries(dir_), 1);
+}
+
+TEST_F(AtomicFile, FailureNamesThePathAndKeepsTheOldFile) {
+  WriteFileAtomically(dir_ / "keep.txt", "old");
+  // Root ignores permission bits, so make the folder impossible instead: a file in its way.
+  WriteFileAtomically(dir_ / "blocker", "x");
+  try {
+    WriteFileAtomically(dir_ / "blocker" / "out.txt", "new");
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("blocker/out.txt"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(Read(dir_ / "keep.txt"), "old");
+}
+
+TEST_F(AtomicFile, EnsureWritableDirectoryRejectsAFile) {
+  WriteFileAtomically(dir_ / "file", "x");
+  EXPECT_THROW(EnsureWritableDirectory(dir_ / "file"), std::runtime_error);
+  EXPECT_THROW(EnsureWritableDirectory(dir_ / "file" / "sub"), std::runtime_error);
+  EXPECT_NO_THROW(EnsureWritableDirectory(dir_ / "new" / "deep"));
+}
+
+TEST_F(AtomicFile, StagingCommitMovesFilesAndCleansUp) {
+  const fs::path out = dir_ / "out";
+  {
+    StagingDirectory staging(out);
+    WriteFileAtomically(staging.path() / "mesh.bin", "bin");
+    WriteFileAtomically(staging.path() / "mesh.gltf", "gltf");
+    auto files = staging.Commit("mesh.gltf");
+    ASSERT_EQ(files.size(), 2u);
+    EXPECT_EQ(files.back().filename(), "mesh.gltf");  // the referencing file lands last
+  }
+  EXPECT_EQ(Read(out / "mesh.gltf"), "gltf");
+  EXPECT_EQ(Read(out / "mesh.bin"), "bin");
+  EXPECT_EQ(CountEntries(out), 2);  // staging folder gone
+}
+
+TEST_F(AtomicFile, StagingWithoutCommitLeavesNothing) {
+  const fs::path out = dir_ / "out";
+  {
+    StagingDirectory staging(out);
+    WriteFileAtomically(staging.path() / "mesh.obj", "partial");
+  }
+  EXPECT_EQ(CountEntries(out), 0);
+}
+
+}  // namespace
+}  // namespace imr

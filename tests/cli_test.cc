@@ -1,0 +1,247 @@
+// The imr executable end to end: plugins, validate, run, and what each does with bad input.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+
+namespace imr::testing {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const std::string kImr = IMR_EXE;
+
+// A small engine-only job on the synthetic street: fast enough for the suite.
+json SmallJob() {
+  return json::parse(R"({
+    "description": "test job",
+    "sequences": ["street"],
+    "input": {"format": "synthetic", "options": {"frames": 40, "seed": 3}},
+    "pipeline": [
+      {"kind": "weight_policy", "plugin": "org.imr.policy.nearest"},
+      {"kind": "exporter", "plugin": "org.imr.exporter.assimp"}
+    ],
+    "output": {"directory": "runs/{sequence}", "formats": ["obj", "ply", "gltf", "glb"]}
+  })");
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  Cli() : dir_("cli") {}
+  fs::path WriteJob(const json& j, const std::string& name = "job.json") {
+    const fs::path p = dir_ / name;
+    WriteText(p, j.dump(2));
+    return p;
+  }
+  CommandResult Imr(const std::string& args) { return RunShell(kImr + " " + args); }
+  // Every file under `root` (recursively), names relative to it.
+  static std::vector<std::string> Files(const fs::path& root) {
+    std::vector<std::string> out;
+    if (!fs::exists(root)) return out;
+    for (const auto& e : fs::recursive_directory_iterator(root))
+      out.push_back(fs::relative(e.path(), root).string());
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+  ScratchDir dir_;
+};
+
+TEST_F(Cli, VersionAndHelp) {
+  auto r = Imr("--version");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.out.find("imr "), std::string::npos);
+  EXPECT_NE(r.out.find("plugin ABI 1."), std::string::npos) << r.out;
+  for (const char* cmd : {"run --help", "validate --help", "plugins --help", "--help"}) {
+    auto h = Imr(cmd);
+    EXPECT_EQ(h.status, 0) << cmd;
+    EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
+  }
+  auto bad = Imr("frobnicate");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("unknown command 'frobnicate'"), std::string::npos);
+  auto noarg = Imr("run");
+  EXPECT_EQ(noarg.status, 2);
+  EXPECT_NE(noarg.err.find("job"), std::string::npos) << noarg.err;
+}
+
+TEST_F(Cli, PluginsListsTheBuiltInPlugins) {
+  auto r = Imr("plugins");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* id : {"org.imr.policy.mean", "org.imr.policy.weighted_mean",
+                         "org.imr.policy.nearest", "org.imr.exporter.assimp"})
+    EXPECT_NE(r.out.find(id), std::string::npos) << id << " missing from\n" << r.out;
+  EXPECT_NE(r.out.find("weight_policy"), std::string::npos);
+  EXPECT_NE(r.out.find("exporter"), std::string::npos);
+  EXPECT_EQ(r.out.find("Refused"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, PluginsRefusesBadLibrariesByName) {
+  auto r = Imr("plugins -p " + Quote(IMR_TEST_PLUGIN_DIR));
+  ASSERT_EQ(r.status, 0) << r.err;
+  // Another ABI major: the file and both versions are named.
+  EXPECT_NE(r.out.find("test_bad_abi_plugin.so"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("built for plugin ABI 2.3, this host speaks ABI 1.0"), std::string::npos)
+      << r.out;
+  // No entry symbol.
+  EXPECT_NE(r.out.find("test_no_entry_plugin.so: not an imr plugin: no entry symbol "
+                       "'imr_plugin_entry'"),
+            std::string::npos)
+      << r.out;
+  // The good one in the same folder is still listed.
+  EXPECT_NE(r.out.find("org.imr.test.policy.failing"), std::string::npos);
+}
+
+TEST_F(Cli, ImrPluginPathIsSearched) {
+  auto r = RunShell("IMR_PLUGIN_PATH=" + Quote(IMR_EXAMPLE_PLUGIN_DIR) + " " + kImr + " plugins");
+  ASSERT_EQ(r.status, 0);
+  EXPECT_NE(r.out.find("org.imr.example.policy.max"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, ValidateAcceptsAGoodJob) {
+  auto r = Imr("validate " + Quote(WriteJob(SmallJob()).string()));
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("valid (1 sequence"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("runs/street"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, ValidateReportsMalformedJsonWithLineAndColumn) {
+  const fs::path p = dir_ / "broken.json";
+  WriteText(p, "{\n  \"sequences\": [\"street\"],\n  \"input\": {\"format\": }\n}\n");
+  auto r = Imr("validate " + Quote(p.string()));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("broken.json: malformed JSON at line 3, column"), std::string::npos)
+      << r.err;
+}
+
+TEST_F(Cli, ValidateReportsEveryProblemWithItsPath) {
+  json j = SmallJob();
+  j["pipeline"][0]["params"] = {{"radius", "1"}};  // wrong plugin below: nearest has no params
+  j["pipeline"].push_back({{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearset"}});
+  j["input"]["options"]["frames"] = "15";
+  j["input"]["options"]["seeed"] = 2;
+  j["outptu"] = {};
+  j["engine"] = {{"window", 0}, {"visibility_mode", "magic"}};
+  j["output"]["formats"] = {"obj", "stl"};
+  auto r = Imr("validate " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(r.status, 2);
+  const std::vector<std::string> expected = {
+      "input.options.frames: expected integer >= 1, got \"15\"",
+      "input.options.seeed: unknown key",
+      "outptu: unknown key",
+      "engine.window: expected integer >= 1, got 0",
+      "engine.visibility_mode: expected string (one of \"weights\" or \"rays\"), got \"magic\"",
+      "pipeline[0].params.radius: unknown key (no parameters accepted)",
+      "pipeline[2].plugin: unknown plugin id \"org.imr.policy.nearset\" (known weight_policy "
+      "plugins: org.imr.policy.mean, org.imr.policy.nearest or org.imr.policy.weighted_mean",
+      "output.formats[1]: \"stl\" is not written by any exporter stage"};
+  for (const auto& e : expected) EXPECT_NE(r.err.find(e), std::string::npos) << e << "\nin\n" << r.err;
+}
+
+TEST_F(Cli, ValidateChecksParamsAgainstThePluginSchema) {
+  json j = SmallJob();
+  j["pipeline"][0] = {{"kind", "weight_policy"},
+                      {"plugin", "org.imr.example.policy.max"},
+                      {"params", {{"radius", "15"}}}};
+  j["plugin_paths"] = {IMR_EXAMPLE_PLUGIN_DIR};
+  auto r = Imr("validate " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("pipeline[0].params.radius: expected number >= 0.0, got \"15\""),
+            std::string::npos)
+      << r.err;
+}
+
+TEST_F(Cli, ValidateRefusesAPluginOfTheWrongKind) {
+  json j = SmallJob();
+  j["pipeline"][1]["plugin"] = "org.imr.policy.mean";  // a policy where an exporter belongs
+  auto r = Imr("validate " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("pipeline[1].plugin: plugin org.imr.policy.mean ("), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("is a weight_policy plugin, the stage's kind is exporter"), std::string::npos)
+      << r.err;
+}
+
+TEST_F(Cli, ValidateNamesMissingFilesAndFolders) {
+  auto r = Imr("validate " + Quote((dir_ / "nope.json").string()));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("nope.json: no such file"), std::string::npos) << r.err;
+  json j = SmallJob();
+  j["plugin_paths"] = {"does/not/exist"};
+  j["sequences"] = {"street", "moon"};
+  auto r2 = Imr("validate " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(r2.status, 2);
+  EXPECT_NE(r2.err.find("plugin_paths[0]: no such file or folder"), std::string::npos) << r2.err;
+  EXPECT_NE(r2.err.find("sequences[1]: input format 'synthetic' takes the names"), std::string::npos)
+      << r2.err;
+}
+
+TEST_F(Cli, RunWritesMeshesAndAReport) {
+  auto r = Imr("run -q " + Quote(WriteJob(SmallJob()).string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const fs::path out = dir_ / "runs" / "street";
+  for (const char* f : {"mesh.obj", "mesh.ply", "mesh.gltf", "mesh.glb", "report.json"})
+    EXPECT_TRUE(fs::is_regular_file(out / f)) << f;
+  for (const auto& f : Files(out)) EXPECT_EQ(f.find(".imr-staging"), std::string::npos) << f;
+  const json report = json::parse(ReadText(out / "report.json"));
+  EXPECT_EQ(report["sequence"]["name"], "street");
+  EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
+  EXPECT_TRUE(report["mesh"]["boundary_closed_manifold"].get<bool>());
+  EXPECT_GT(report["mesh"]["faces"].get<int>(), 100);
+  EXPECT_GT(report["engine"]["points_moved"].get<int>(), 0);  // points do move
+  EXPECT_EQ(report["plugins"][0]["id"], "org.imr.policy.nearest");
+  EXPECT_LT(report["accuracy"]["mean_mesh_to_scene"].get<double>(), 1.0);
+  EXPECT_NE(r.out.find("1 sequence, 0 failed"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, OneFailingSequenceDoesNotStopTheOthers) {
+  json j = SmallJob();
+  j["sequences"] = {"room", "street"};
+  j["input"]["options"]["frames"] = 20;
+  // Make room's output folder impossible (root ignores permissions): a file in its way.
+  WriteText(dir_ / "runs" / "room", "not a folder");
+  auto r = Imr("run -q " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("FAILED  room"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("runs/room"), std::string::npos) << r.out;  // the path is named
+  EXPECT_NE(r.out.find("ok      street"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "runs" / "street" / "report.json"));
+  EXPECT_NE(r.out.find("2 sequences, 1 failed"), std::string::npos);
+}
+
+TEST_F(Cli, APolicyThatFailsLeavesNoPartialOutput) {
+  for (const std::string params : {R"({"fail_after": 3})", R"({"nan": true})"}) {
+    json j = SmallJob();
+    j["pipeline"][0] = {{"kind", "weight_policy"},
+                        {"plugin", "org.imr.test.policy.failing"},
+                        {"params", json::parse(params)}};
+    j["plugin_paths"] = {IMR_TEST_PLUGIN_DIR};
+    auto r = Imr("run -q " + Quote(WriteJob(j).string()));
+    EXPECT_EQ(r.status, 1) << params << r.out << r.err;
+    EXPECT_NE(r.out.find("org.imr.test.policy.failing"), std::string::npos) << r.out;
+    EXPECT_TRUE(Files(dir_ / "runs" / "street").empty()) << params;
+  }
+}
+
+TEST_F(Cli, APluginThatFailsToCreateIsNamed) {
+  json j = SmallJob();
+  j["pipeline"][0] = {{"kind", "weight_policy"},
+                      {"plugin", "org.imr.test.policy.failing"},
+                      {"params", {{"fail_create", true}}}};
+  j["plugin_paths"] = {IMR_TEST_PLUGIN_DIR};
+  auto r = Imr("run -q " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("org.imr.test.policy.failing: create failed: params.fail_create: asked to fail"),
+            std::string::npos)
+      << r.out;
+}
+
+TEST_F(Cli, AnInvalidJobRunsNothing) {
+  json j = SmallJob();
+  j["pipeline"][0]["plugin"] = "org.imr.policy.none";
+  auto r = Imr("run " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_FALSE(fs::exists(dir_ / "runs"));
+}
+
+}  // namespace
+}  // namespace imr::testing

@@ -1,0 +1,35 @@
+// Helpers for integration tests: run a command and capture its output and exit status, and
+// make scratch folders.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace imr::testing {
+
+struct CommandResult {
+  int status = -1;  // exit status, or 128 + signal
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+// Runs `command` with /bin/sh; stdout and stderr are captured separately.
+CommandResult RunShell(const std::string& command);
+
+// A fresh, empty folder under the system temp folder, removed by the destructor.
+class ScratchDir {
+ public:
+  explicit ScratchDir(const std::string& tag);
+  ~ScratchDir();
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& p) const { return path_ / p; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+void WriteText(const std::filesystem::path& path, const std::string& text);
+std::string ReadText(const std::filesystem::path& path);
+std::string Quote(const std::string& s);  // for the shell
+
+}  // namespace imr::testing
