@@ -92,6 +92,24 @@ TEST_F(Cli, PluginsRefusesBadLibrariesByName) {
   EXPECT_NE(r.out.find("org.imr.test.policy.failing"), std::string::npos);
 }
 
+TEST_F(Cli, ALibraryThatCannotBeLoadedIsNamedWithTheLoadersReason) {
+  WriteText(dir_ / "plugins" / "corrupt.so", "this is not an ELF file");
+  auto r = Imr("plugins -p " + Quote((dir_ / "plugins").string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find((dir_ / "plugins" / "corrupt.so").string() + ": cannot load: "),
+            std::string::npos)
+      << r.out;
+  // A job that points at the folder is still usable (it does not use the broken file), and the
+  // refusal is reported as a warning.
+  json j = SmallJob();
+  j["plugin_paths"] = {(dir_ / "plugins").string()};
+  auto v = Imr("validate " + Quote(WriteJob(j).string()));
+  EXPECT_EQ(v.status, 0) << v.err;
+  EXPECT_NE(v.err.find("warning: plugin refused: " + (dir_ / "plugins" / "corrupt.so").string()),
+            std::string::npos)
+      << v.err;
+}
+
 TEST_F(Cli, ImrPluginPathIsSearched) {
   auto r = RunShell("IMR_PLUGIN_PATH=" + Quote(IMR_EXAMPLE_PLUGIN_DIR) + " " + kImr + " plugins");
   ASSERT_EQ(r.status, 0);

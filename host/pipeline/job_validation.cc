@@ -2,6 +2,7 @@
 
 #include "host/io/engine_options.h"
 #include "host/io/input_formats.h"
+#include "host/util/log.h"
 
 #include <glob.h>
 
@@ -149,6 +150,8 @@ ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry
   std::vector<fs::path> paths = v.job.plugin_paths;
   for (const auto& p : plugin::PluginRegistry::DefaultSearchPaths()) paths.push_back(p);
   registry->Scan(paths);
+  // A refused library is not fatal (the job may not need it) but must not pass unnoticed.
+  for (const auto& r : registry->refusals()) LogWarning("plugin refused: " + r.ToString());
   for (std::size_t i = 0; i < v.job.plugin_paths.size(); ++i) {
     std::error_code ec;
     if (!fs::exists(v.job.plugin_paths[i], ec))
