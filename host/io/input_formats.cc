@@ -1,5 +1,6 @@
 #include "host/io/input_formats.h"
 
+#include "host/io/synthetic_source.h"
 #include "host/synthetic/stream.h"
 
 namespace imr::io {
@@ -32,6 +33,7 @@ const std::vector<InputFormat>& InputFormats() {
                           {"description", "depth error of a first estimate at 10 m, metres"}}},
         {"frozen", {{"type", "boolean"}, {"default", false},
                     {"description", "points keep their first estimate (no moves)"}}}};
+    s.open = &OpenSyntheticSource;
     f.push_back(s);
     return f;
   }();

@@ -3,7 +3,12 @@
 // Later formats (KITTI, OpenMVG, COLMAP, SLAM JSON) add rows here.
 #pragma once
 
+#include "host/io/keyframe_source.h"
+
 #include <nlohmann/json.hpp>
+
+#include <functional>
+#include <memory>
 
 #include <string>
 #include <vector>
@@ -17,6 +22,11 @@ struct InputFormat {
   std::vector<std::string> sequence_names;  // allowed names when !sequences_are_paths
   bool needs_front_end = true;             // true: needs features + refiner stages (images)
   nlohmann::json options_schema;
+  // Opens one sequence: `source` is the resolved path (or the name), `options` have defaults.
+  // Throws std::runtime_error naming the file and field when the input is unusable.
+  std::function<std::unique_ptr<KeyframeSource>(const std::string& source,
+                                                const nlohmann::json& options)>
+      open;
 };
 
 const std::vector<InputFormat>& InputFormats();

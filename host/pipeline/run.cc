@@ -3,8 +3,7 @@
 #include "host/io/engine_options.h"
 #include "host/plugin/host_services.h"
 #include "host/plugin/policy_adapter.h"
-#include "host/synthetic/evaluation.h"
-#include "host/synthetic/stream.h"
+#include "host/io/input_formats.h"
 #include "host/util/atomic_file.h"
 #include "host/util/log.h"
 
@@ -59,28 +58,6 @@ json StatsJson(const engine::EngineStats& s) {
           {"cells_in_o", s.cells_in_o}};
 }
 
-engine::KeyframeUpdate ToUpdate(const synthetic::StreamKeyframe& kf) {
-  engine::KeyframeUpdate u;
-  for (const auto& c : kf.cameras) u.cameras.push_back({c.id, c.center});
-  for (const auto& p : kf.new_points) u.new_points.push_back({p.id, p.position, p.camera_ids});
-  for (const auto& p : kf.moved_points) u.moved_points.push_back({p.id, p.position, p.camera_ids});
-  u.removed_points = kf.removed_points;
-  return u;
-}
-
-synthetic::StreamOptions StreamOptionsFrom(const std::string& scene, const json& o) {
-  synthetic::StreamOptions s;
-  synthetic::FromString(scene, &s.scene);
-  s.frames = o["frames"];
-  s.seed = o["seed"];
-  s.keyframe_every = o["keyframe_every"];
-  s.speed = o["speed"];
-  s.points_per_keyframe = o["points_per_keyframe"];
-  s.noise_at_10m = o["noise_at_10m"];
-  s.frozen = o["frozen"];
-  return s;
-}
-
 void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                  const SequenceRef& seq, SequenceResult* result) {
   const auto start = std::chrono::steady_clock::now();
@@ -103,15 +80,18 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   }
 
   // Input -> engine, keyframe by keyframe.
-  synthetic::SyntheticStream stream(StreamOptionsFrom(seq.source, v.input_options));
+  const io::InputFormat* format = io::FindInputFormat(job.input.format);
+  std::unique_ptr<io::KeyframeSource> source = format->open(seq.source, v.input_options);
   engine::Engine engine(v.engine_options, policy ? &*policy : nullptr);
   if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
-  synthetic::StreamKeyframe kf;
+  engine::KeyframeUpdate update;
+  io::KeyframeInfo kf;
   int keyframes = 0;
-  const int total_keyframes = stream.keyframe_count();
-  while (stream.Next(&kf)) {
+  const int total_keyframes = source->KeyframeCount();
+  const std::string of_total = total_keyframes > 0 ? "/" + std::to_string(total_keyframes) : "";
+  while (source->Next(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
-    engine::Status st = engine.ApplyUpdate(ToUpdate(kf));
+    engine::Status st = engine.ApplyUpdate(update);
     if (!st.ok())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
                                std::to_string(kf.frame) + "): " + st.message());
@@ -120,8 +100,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                                policy->error());
     ++keyframes;
     if (keyframes % 20 == 0 || keyframes == total_keyframes)
-      LogInfo("[" + seq.name + "] keyframe " + std::to_string(keyframes) + "/" +
-              std::to_string(total_keyframes));
+      LogInfo("[" + seq.name + "] keyframe " + std::to_string(keyframes) + of_total);
   }
   const engine::Mesh mesh = engine.ExtractMesh();
   const engine::ManifoldCheckResult boundary_check = engine.CheckInvariants();
@@ -133,9 +112,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     throw std::runtime_error("no surface was reconstructed (0 triangles after " +
                              std::to_string(keyframes) + " keyframes): nothing to export");
 
-  const double tau = 0.2;
-  const synthetic::MeshAccuracy acc =
-      synthetic::EvaluateMesh(stream.scene(), mesh.vertices, mesh.faces, stream.TruePoints(), tau);
+  const nlohmann::json accuracy = source->Evaluate(mesh);
 
   // Export every requested format once, through the first exporter stage that writes it.
   StagingDirectory staging(result->output_directory);
@@ -176,12 +153,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                     {"manifold", mesh_check.ok},
                     {"boundary_closed_manifold", boundary_check.ok},
                     {"boundary_triangles", boundary_check.boundary_triangles}};
-  report["accuracy"] = {{"reference", "known synthetic scene"},
-                        {"tau", acc.tau},
-                        {"mean_mesh_to_scene", acc.mean_mesh_to_scene},
-                        {"precision", acc.precision},
-                        {"mean_truth_to_mesh", acc.mean_truth_to_mesh},
-                        {"completeness", acc.completeness}};
+  if (!accuracy.is_null()) report["accuracy"] = accuracy;
   json files = json::array();
   for (const auto& f : result->files) files.push_back(f.filename().string());
   report["files"] = files;

@@ -1,0 +1,36 @@
+// Where the engine's per-keyframe updates come from. Each input format opens a KeyframeSource
+// for one sequence: the synthetic stream, and (later) SfM/SLAM exports and the image front end.
+// The pipeline only pulls updates from it, so a new format needs no pipeline change.
+#pragma once
+
+#include "host/engine/engine.h"
+
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+
+namespace imr::io {
+
+struct KeyframeInfo {
+  int index = 0;  // keyframe number, from 0
+  int frame = 0;  // frame (or view) number of this keyframe in the sequence
+};
+
+class KeyframeSource {
+ public:
+  virtual ~KeyframeSource() = default;
+  // Fills the next update; false at the end of the sequence. Bad input throws
+  // std::runtime_error whose message names the file and the field, id or line.
+  virtual bool Next(engine::KeyframeUpdate* update, KeyframeInfo* info) = 0;
+  // Keyframes in the sequence, or -1 when not known in advance.
+  virtual int KeyframeCount() const { return -1; }
+  // Accuracy of a mesh against what the source knows to be true (a known scene), as a JSON
+  // object for the report; null when the source has no ground truth.
+  virtual nlohmann::json Evaluate(const engine::Mesh& mesh) const {
+    (void)mesh;
+    return nullptr;
+  }
+};
+
+}  // namespace imr::io
