@@ -1,0 +1,1166 @@
+// The reconstruction engine (Romanoni & Matteucci, sections 2-3; DESIGN §3). The only CGAL
+// translation unit of the engine.
+#include "host/engine/engine.h"
+
+#include <CGAL/Delaunay_triangulation_3.h>
+#include <CGAL/Delaunay_triangulation_cell_base_3.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_cell_base_with_info_3.h>
+#include <CGAL/Triangulation_vertex_base_with_info_3.h>
+#include <CGAL/utility.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <queue>
+#include <sstream>
+#include <unordered_map>
+#include <unordered_set>
+
+namespace imr::engine {
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+
+// One ray stored in a cell (kRays mode): camera, point, and the ring (0 = T, 1 = N1, 2 = N2).
+struct RayEntry {
+  uint32_t camera;
+  uint32_t point;
+  uint8_t level;
+};
+
+struct VertexInfo {
+  int64_t id = -1;  // >= 0: internal point index; < 0: Steiner point number -(k + 1).
+};
+
+struct CellInfo {
+  int64_t weight = 0;     // In units of EngineOptions::weight_unit.
+  uint64_t stamp = 0;     // Ray stamp: a cell joins T, N1 or N2 once per ray.
+  bool in_o = false;      // Member of O (outside, the manifold part of free space).
+  std::vector<RayEntry> rays;  // kRays: at most K rays that raised this cell's weight.
+};
+
+using Vb = CGAL::Triangulation_vertex_base_with_info_3<VertexInfo, K>;
+using Cb = CGAL::Triangulation_cell_base_with_info_3<CellInfo, K,
+                                                     CGAL::Delaunay_triangulation_cell_base_3<K>>;
+using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
+using Dt = CGAL::Delaunay_triangulation_3<K, Tds>;
+using Point = Dt::Point;
+using Cell_handle = Dt::Cell_handle;
+using Vertex_handle = Dt::Vertex_handle;
+using Facet = Dt::Facet;
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+bool Finite(const Vec3& p) {
+  return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
+}
+
+Point ToPoint(const Vec3& p) { return Point(p[0], p[1], p[2]); }
+
+// Regularity of a vertex from the edges of its link on the surface: they must form exactly one
+// closed cycle (or the vertex is not on the surface at all). Edges are given as id pairs.
+template <class Id>
+bool LinkIsOneCycle(const std::vector<std::pair<Id, Id>>& edges) {
+  if (edges.empty()) return true;
+  // Each link vertex must appear in exactly two edges.
+  std::vector<std::pair<Id, std::array<Id, 2>>> adj;
+  std::vector<int> deg;
+  auto find = [&](Id v) -> int {
+    for (size_t i = 0; i < adj.size(); ++i)
+      if (adj[i].first == v) return static_cast<int>(i);
+    adj.push_back({v, {v, v}});
+    deg.push_back(0);
+    return static_cast<int>(adj.size()) - 1;
+  };
+  for (const auto& e : edges) {
+    if (e.first == e.second) return false;
+    const int a = find(e.first), b = find(e.second);
+    if (deg[a] >= 2 || deg[b] >= 2) return false;
+    adj[a].second[deg[a]++] = e.second;
+    adj[b].second[deg[b]++] = e.first;
+  }
+  for (int d : deg)
+    if (d != 2) return false;
+  // Walk the cycle from the first vertex; it must visit every vertex.
+  Id start = adj[0].first, prev = start, cur = adj[0].second[0];
+  size_t steps = 1;
+  while (!(cur == start)) {
+    const int i = find(cur);
+    const Id next = (adj[i].second[0] == prev) ? adj[i].second[1] : adj[i].second[0];
+    prev = cur;
+    cur = next;
+    if (++steps > adj.size()) return false;
+  }
+  return steps == adj.size() && adj.size() == edges.size();
+}
+
+// After dropping triangles from a closed 2-manifold, a vertex may keep several separate fans;
+// give each extra fan its own copy of the vertex so the result is a 2-manifold with boundary.
+void SplitPinchedVertices(Mesh* m) {
+  const size_t nv = m->vertices.size() / 3;
+  const size_t nt = m->faces.size() / 3;
+  std::vector<std::vector<uint32_t>> around(nv);
+  for (size_t t = 0; t < nt; ++t)
+    for (int k = 0; k < 3; ++k) around[m->faces[3 * t + k]].push_back(static_cast<uint32_t>(t));
+  for (size_t v = 0; v < nv; ++v) {
+    const auto& tris = around[v];
+    if (tris.size() < 2) continue;
+    // Union-find over the triangles around v: two are joined when they share an edge at v.
+    std::vector<int> parent(tris.size());
+    for (size_t i = 0; i < tris.size(); ++i) parent[i] = static_cast<int>(i);
+    auto root = [&](int i) {
+      while (parent[i] != i) i = parent[i] = parent[parent[i]];
+      return i;
+    };
+    auto others = [&](uint32_t t, uint32_t out[2]) {
+      int n = 0;
+      for (int k = 0; k < 3; ++k)
+        if (m->faces[3 * t + k] != v) out[n++] = m->faces[3 * t + k];
+    };
+    for (size_t i = 0; i < tris.size(); ++i) {
+      uint32_t a[2];
+      others(tris[i], a);
+      for (size_t j = i + 1; j < tris.size(); ++j) {
+        uint32_t b[2];
+        others(tris[j], b);
+        if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1])
+          parent[root(static_cast<int>(i))] = root(static_cast<int>(j));
+      }
+    }
+    std::map<int, uint32_t> copy;  // Component root -> vertex index.
+    copy[root(0)] = static_cast<uint32_t>(v);
+    for (size_t i = 0; i < tris.size(); ++i) {
+      const int r = root(static_cast<int>(i));
+      auto it = copy.find(r);
+      if (it == copy.end()) {
+        const uint32_t nvtx = static_cast<uint32_t>(m->vertices.size() / 3);
+        m->vertices.insert(m->vertices.end(), {m->vertices[3 * v], m->vertices[3 * v + 1],
+                                               m->vertices[3 * v + 2]});
+        m->point_ids.push_back(m->point_ids[v]);
+        it = copy.emplace(r, nvtx).first;
+      }
+      if (it->second == v) continue;
+      for (int k = 0; k < 3; ++k)
+        if (m->faces[3 * tris[i] + k] == v) m->faces[3 * tris[i] + k] = it->second;
+    }
+  }
+}
+
+}  // namespace
+
+struct Engine::Impl {
+  struct PointRecord {
+    uint64_t id = 0;
+    Vertex_handle vertex;        // Valid when in_triangulation.
+    bool in_triangulation = false;
+    Vec3 position{};             // Latest estimate received.
+    std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
+  };
+
+  EngineOptions opt;
+  WeightTransferPolicy* policy = nullptr;
+  Status init;
+  Dt dt;
+  std::array<int64_t, 3> unit{};  // w1, w2, w3 in weight units.
+  int64_t threshold = 0;
+
+  std::vector<Point> cameras;
+  std::vector<uint64_t> camera_ids;
+  std::unordered_map<uint64_t, uint32_t> camera_index;
+  std::vector<PointRecord> points;
+  std::unordered_map<uint64_t, uint32_t> point_index;
+  std::unordered_set<uint64_t> steiner_keys;
+  int64_t steiner_count = 0;
+  Vertex_handle last_vertex;  // Locate hint.
+
+  uint64_t stamp = 0;
+  // Cells whose state changed this keyframe (became free, created, shrunk): growing seeds.
+  std::unordered_set<Cell_handle> dirty;
+  int64_t cells_in_o = 0;
+  EngineStats stats;
+
+  // Scratch buffers.
+  std::vector<Cell_handle> ring[3];
+  std::vector<Cell_handle> incident_scratch;
+
+  Impl(const EngineOptions& o, WeightTransferPolicy* p) : opt(o), policy(p) {
+    std::string error;
+    if (!opt.Check(&error)) {
+      init = Status::Error("invalid engine options: " + error);
+    } else if (opt.visibility_mode == VisibilityMode::kWeights && policy == nullptr) {
+      init = Status::Error("visibility_mode 'weights' needs a weight-transfer policy");
+    }
+    unit = {ToUnits(opt.w1), ToUnits(opt.w2), ToUnits(opt.w3)};
+    threshold = ToUnits(opt.free_threshold);
+  }
+
+  int64_t ToUnits(double w) const {
+    if (!std::isfinite(w)) return 0;
+    return static_cast<int64_t>(std::llround(w / opt.weight_unit));
+  }
+  double FromUnits(int64_t w) const { return static_cast<double>(w) * opt.weight_unit; }
+
+  bool IsFree(Cell_handle c) const { return c->info().weight > threshold; }
+  bool HullAdjacent(Cell_handle c) const {
+    for (int i = 0; i < 4; ++i)
+      if (dt.is_infinite(c->neighbor(i))) return true;
+    return false;
+  }
+  bool TouchesO(Cell_handle c) const {
+    for (int i = 0; i < 4; ++i)
+      if (c->neighbor(i)->info().in_o) return true;
+    return false;
+  }
+
+  Point Centroid(Cell_handle c) const {
+    return CGAL::centroid(c->vertex(0)->point(), c->vertex(1)->point(), c->vertex(2)->point(),
+                          c->vertex(3)->point());
+  }
+
+  void MarkDirty(Cell_handle c) {
+    if (!dt.is_infinite(c) && !c->info().in_o) dirty.insert(c);
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Manifold test (DESIGN §3): toggling one cell in or out of O changes only the regularity of its
+  // four vertices; each must stay regular (its surface triangles form one closed fan).
+  bool VertexRegular(Vertex_handle v, Cell_handle toggled) {
+    std::vector<Cell_handle>& cells = incident_scratch;
+    cells.clear();
+    dt.incident_cells(v, std::back_inserter(cells));
+    auto in_o = [&](Cell_handle c) { return c == toggled ? !c->info().in_o : c->info().in_o; };
+    std::vector<std::pair<Vertex_handle, Vertex_handle>> edges;
+    for (Cell_handle c : cells) {
+      if (!in_o(c)) continue;
+      const int iv = c->index(v);
+      for (int i = 0; i < 4; ++i) {
+        if (i == iv || in_o(c->neighbor(i))) continue;
+        Vertex_handle e[2];
+        int n = 0;
+        for (int j = 0; j < 4; ++j)
+          if (j != iv && j != i) e[n++] = c->vertex(j);
+        edges.push_back({e[0], e[1]});
+      }
+    }
+    return LinkIsOneCycle(edges);
+  }
+
+  bool ToggleKeepsManifold(Cell_handle c) {
+    for (int i = 0; i < 4; ++i)
+      if (!VertexRegular(c->vertex(i), c)) return false;
+    return true;
+  }
+
+  void SetInO(Cell_handle c, bool in) {
+    if (c->info().in_o == in) return;
+    c->info().in_o = in;
+    cells_in_o += in ? 1 : -1;
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // cast_rays: one viewing ray, camera centre -> point. T = traversed cells, N1 = their
+  // neighbours, N2 = neighbours of N1; each cell once per ray (DESIGN §3, paper §2.1).
+  void CastRay(uint32_t cam, uint32_t pt, int sign) {
+    const PointRecord& rec = points[pt];
+    if (!rec.in_triangulation) return;
+    const Point& a = rec.vertex->point();
+    const Point& b = cameras[cam];
+    const double len2 = CGAL::squared_distance(a, b);
+    if (len2 > opt.max_ray_length * opt.max_ray_length) {
+      ++stats.rays_skipped_too_long;
+      return;
+    }
+    if (len2 <= 0.0) return;  // A point at the camera centre carves nothing.
+    if (dt.dimension() != 3) return;
+    if (sign > 0) ++stats.rays_cast;
+    else ++stats.rays_cast_backward;
+    ++stamp;
+    for (auto& r : ring) r.clear();
+    // Traverse from the point's own vertex (DESIGN §9: located start, ~15x faster than a walk
+    // from an arbitrary cell). The traversal stops at the cell holding the camera, at the hull,
+    // or after max_cells_per_ray cells.
+    int steps = 0;
+    try {
+      auto it = dt.segment_traverser_cells_begin(a, b, rec.vertex->cell());
+      const auto end = dt.segment_traverser_cells_end();
+      for (; it != end; ++it) {
+        Cell_handle c = it;
+        if (dt.is_infinite(c)) break;
+        if (++steps > opt.max_cells_per_ray) {
+          ++stats.rays_truncated;
+          break;
+        }
+        if (c->info().stamp == stamp) continue;
+        c->info().stamp = stamp;
+        ring[0].push_back(c);
+      }
+    } catch (...) {
+      ++stats.rays_truncated;
+    }
+    stats.cells_traversed += static_cast<int64_t>(ring[0].size());
+    for (int level = 1; level < 3; ++level)
+      for (Cell_handle c : ring[level - 1])
+        for (int i = 0; i < 4; ++i) {
+          Cell_handle n = c->neighbor(i);
+          if (n->info().stamp == stamp || dt.is_infinite(n)) continue;
+          n->info().stamp = stamp;
+          ring[level].push_back(n);
+        }
+    const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
+    for (int level = 0; level < 3; ++level) {
+      stats.cells_weighted += static_cast<int64_t>(ring[level].size());
+      for (Cell_handle c : ring[level]) {
+        CellInfo& info = c->info();
+        const bool was_free = info.weight > threshold;
+        if (rays_mode) {
+          // Lovi et al.: a cell remembers the rays that raised its weight (at most K, oldest
+          // forgotten); a ray already stored is not counted twice when it is re-cast.
+          bool stored = false;
+          for (const RayEntry& e : info.rays)
+            if (e.camera == cam && e.point == pt) {
+              stored = true;
+              break;
+            }
+          if (stored) continue;
+          info.weight += unit[level];
+          info.rays.push_back({cam, pt, static_cast<uint8_t>(level)});
+          if (static_cast<int>(info.rays.size()) > opt.rays_per_cell)
+            info.rays.erase(info.rays.begin());
+        } else {
+          info.weight += sign * unit[level];
+        }
+        if (!was_free && info.weight > threshold) MarkDirty(c);
+      }
+    }
+  }
+
+  std::vector<uint32_t> Window(const PointRecord& rec) const {
+    const size_t w = static_cast<size_t>(opt.window);
+    const size_t n = rec.cameras.size();
+    return std::vector<uint32_t>(rec.cameras.begin() + (n > w ? n - w : 0), rec.cameras.end());
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // shrink: remove from O, lowest weight first and keeping dO manifold, the cells of an enclosing
+  // set E of D (D plus the cells around D's vertices near the affected points). Returns whether
+  // D no longer meets O.
+  bool Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>& centres) {
+    auto meets_o = [&]() {
+      for (Cell_handle c : d)
+        if (c->info().in_o) return true;
+      return false;
+    };
+    if (!meets_o()) return true;
+    const auto t0 = Clock::now();
+    // E: D, plus the cells around every vertex of D (all of them when the vertex lies within
+    // shrink_radius of an affected point, else only the cells of D's facet neighbours).
+    std::unordered_set<Cell_handle> e;
+    for (Cell_handle c : d) {
+      e.insert(c);
+      for (int i = 0; i < 4; ++i) e.insert(c->neighbor(i));
+    }
+    const double r2 = opt.shrink_radius * opt.shrink_radius;
+    std::unordered_set<Vertex_handle> vseen;
+    std::vector<Cell_handle> inc;
+    for (Cell_handle c : d)
+      for (int i = 0; i < 4; ++i) {
+        Vertex_handle v = c->vertex(i);
+        if (dt.is_infinite(v) || !vseen.insert(v).second) continue;
+        bool near = false;
+        for (const Point& p : centres) near = near || CGAL::squared_distance(v->point(), p) <= r2;
+        if (!near) continue;
+        inc.clear();
+        dt.incident_cells(v, std::back_inserter(inc));
+        e.insert(inc.begin(), inc.end());
+      }
+    // Peel E from O, lowest weight first (the inverse of grow): a cell refused now is retried
+    // when one of its facet neighbours leaves O.
+    struct Item {
+      int64_t weight;
+      uint64_t order;
+      Cell_handle cell;
+      bool operator<(const Item& o) const {
+        return weight != o.weight ? weight > o.weight : order > o.order;
+      }
+    };
+    std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> start;
+    for (Cell_handle c : e)
+      if (c->info().in_o) start.push_back({CellKey(c), c});
+    std::sort(start.begin(), start.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::priority_queue<Item> q;
+    uint64_t order = 0;
+    for (const auto& s : start) q.push({s.second->info().weight, order++, s.second});
+    int64_t budget = static_cast<int64_t>(start.size()) * 4 * opt.shrink_passes + 16;
+    bool ok = false;
+    while (!q.empty() && budget-- > 0) {
+      Cell_handle c = q.top().cell;
+      q.pop();
+      if (!c->info().in_o || !ToggleKeepsManifold(c)) continue;
+      SetInO(c, false);
+      ++stats.cells_shrunk;
+      MarkDirty(c);
+      for (int i = 0; i < 4; ++i) {
+        Cell_handle n = c->neighbor(i);
+        MarkDirty(n);
+        if (n->info().in_o && e.count(n)) q.push({n->info().weight, order++, n});
+      }
+      if (!meets_o()) {
+        ok = true;
+        break;
+      }
+    }
+    if (!ok) ok = !meets_o();
+    stats.time.shrink += Seconds(t0, Clock::now());
+    return ok;
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Transfer of weights from removed cells R to new cells A (efficient approach, paper §3.2).
+  struct Removed {
+    std::vector<double> centroids;
+    std::vector<double> weights;
+    std::vector<RayEntry> rays;  // kRays: rays stored in R (the set U of Lovi et al.).
+  };
+
+  void CollectRemoved(const std::vector<Cell_handle>& cells, Removed* r) {
+    for (Cell_handle c : cells) {
+      dirty.erase(c);
+      if (dt.is_infinite(c)) continue;
+      if (opt.visibility_mode == VisibilityMode::kRays) {
+        r->rays.insert(r->rays.end(), c->info().rays.begin(), c->info().rays.end());
+      } else {
+        const Point g = Centroid(c);
+        r->centroids.insert(r->centroids.end(), {g.x(), g.y(), g.z()});
+        r->weights.push_back(FromUnits(c->info().weight));
+      }
+    }
+  }
+
+  void AssignNewCells(const std::vector<Cell_handle>& added, const Removed& r) {
+    std::vector<Cell_handle> finite;
+    for (Cell_handle c : added)
+      if (!dt.is_infinite(c)) finite.push_back(c);
+    if (opt.visibility_mode == VisibilityMode::kWeights && !finite.empty()) {
+      std::vector<double> centroids;
+      centroids.reserve(3 * finite.size());
+      for (Cell_handle c : finite) {
+        const Point g = Centroid(c);
+        centroids.insert(centroids.end(), {g.x(), g.y(), g.z()});
+      }
+      std::vector<double> out(finite.size(), 0.0);
+      TransferInput in;
+      in.removed_centroids = r.centroids.data();
+      in.removed_weights = r.weights.data();
+      in.removed_count = r.weights.size();
+      in.new_centroids = centroids.data();
+      in.new_count = finite.size();
+      policy->Transfer(in, out.data());
+      ++stats.policy_calls;
+      for (size_t i = 0; i < finite.size(); ++i) finite[i]->info().weight = ToUnits(out[i]);
+    }
+    for (Cell_handle c : finite)
+      if (IsFree(c)) MarkDirty(c);
+  }
+
+  // Inserts p (conflict cells -> new cells). Returns a null handle when p is dropped: duplicate of
+  // a vertex (*duplicate set) or its conflict zone still meets O after shrink. `rays` receives the
+  // rays stored in the conflict cells (kRays).
+  Vertex_handle InsertPoint(const Point& p, int64_t vertex_id, bool* duplicate,
+                            std::vector<RayEntry>* rays) {
+    *duplicate = false;
+    if (dt.dimension() < 3) {
+      // Only Steiner points get here (before the grid spans 3D): O is empty.
+      const size_t before = dt.number_of_vertices();
+      Vertex_handle v = dt.insert(p, last_vertex != Vertex_handle() ? last_vertex->cell()
+                                                                    : Cell_handle());
+      if (dt.number_of_vertices() == before) {
+        *duplicate = true;
+        return Vertex_handle();
+      }
+      v->info().id = vertex_id;
+      last_vertex = v;
+      return v;
+    }
+    Dt::Locate_type lt;
+    int li, lj;
+    Cell_handle loc = dt.locate(p, lt, li, lj,
+                                last_vertex != Vertex_handle() ? last_vertex->cell() : Cell_handle());
+    if (lt == Dt::VERTEX) {
+      *duplicate = true;
+      return Vertex_handle();
+    }
+    std::vector<Cell_handle> conflicts;
+    Facet boundary;
+    dt.find_conflicts(p, loc, CGAL::Oneset_iterator<Facet>(boundary), std::back_inserter(conflicts));
+    if (!Shrink(conflicts, {p})) return Vertex_handle();
+    Removed removed;
+    CollectRemoved(conflicts, &removed);
+    Vertex_handle v = dt.insert_in_hole(p, conflicts.begin(), conflicts.end(), boundary.first,
+                                        boundary.second);
+    v->info().id = vertex_id;
+    last_vertex = v;
+    std::vector<Cell_handle> added;
+    dt.incident_cells(v, std::back_inserter(added));
+    AssignNewCells(added, removed);
+    if (rays) *rays = std::move(removed.rays);
+    return v;
+  }
+
+  // Removes a vertex none of whose cells is in O; new cells get weights through the policy.
+  void RemoveVertex(Vertex_handle v, std::vector<RayEntry>* rays) {
+    std::vector<Cell_handle> inc;
+    dt.incident_cells(v, std::back_inserter(inc));
+    Removed removed;
+    CollectRemoved(inc, &removed);
+    if (last_vertex == v) last_vertex = Vertex_handle();
+    std::vector<Cell_handle> added;
+    dt.remove_and_give_new_cells(v, std::back_inserter(added));
+    AssignNewCells(added, removed);
+    if (rays) *rays = std::move(removed.rays);
+  }
+
+  // kRays: the whole-triangulation scan of Lovi et al. - remove from every cell the rays ending
+  // at point pt, and their contribution to the weight.
+  void ScanRemoveRays(uint32_t pt) {
+    for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
+      ++stats.rays_scan_cells;
+      auto& rs = c->info().rays;
+      for (size_t i = 0; i < rs.size();) {
+        if (rs[i].point == pt) {
+          c->info().weight -= unit[rs[i].level];
+          rs.erase(rs.begin() + static_cast<std::ptrdiff_t>(i));
+        } else {
+          ++i;
+        }
+      }
+    }
+  }
+
+  // Re-casts the rays of U (kRays), skipping rays of points no longer in the triangulation and,
+  // if given, the rays of point `skip`.
+  void RecastRays(std::vector<RayEntry> u, int64_t skip) {
+    std::sort(u.begin(), u.end(), [](const RayEntry& a, const RayEntry& b) {
+      return a.point != b.point ? a.point < b.point : a.camera < b.camera;
+    });
+    u.erase(std::unique(u.begin(), u.end(),
+                        [](const RayEntry& a, const RayEntry& b) {
+                          return a.point == b.point && a.camera == b.camera;
+                        }),
+            u.end());
+    for (const RayEntry& r : u)
+      if (static_cast<int64_t>(r.point) != skip) CastRay(r.camera, r.point, +1);
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Steiner grid: spacing steiner_spacing, covering every camera +- (max_ray_length + margin).
+  void GrowSteinerGrid(const Point& c) {
+    const double s = opt.steiner_spacing;
+    const double reach = opt.max_ray_length + opt.steiner_margin;
+    int64_t lo[3], hi[3];
+    const double cc[3] = {c.x(), c.y(), c.z()};
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = static_cast<int64_t>(std::floor((cc[d] - reach) / s - opt.steiner_origin[d]));
+      hi[d] = static_cast<int64_t>(std::ceil((cc[d] + reach) / s - opt.steiner_origin[d]));
+    }
+    for (int64_t i = lo[0]; i <= hi[0]; ++i)
+      for (int64_t j = lo[1]; j <= hi[1]; ++j)
+        for (int64_t k = lo[2]; k <= hi[2]; ++k) {
+          const uint64_t key = (static_cast<uint64_t>(i & 0x1FFFFF) << 42) |
+                               (static_cast<uint64_t>(j & 0x1FFFFF) << 21) |
+                               static_cast<uint64_t>(k & 0x1FFFFF);
+          if (!steiner_keys.insert(key).second) continue;
+          const Point p((static_cast<double>(i) + opt.steiner_origin[0]) * s,
+                        (static_cast<double>(j) + opt.steiner_origin[1]) * s,
+                        (static_cast<double>(k) + opt.steiner_origin[2]) * s);
+          bool dup = false;
+          std::vector<RayEntry> u;
+          Vertex_handle v = InsertPoint(p, -(steiner_count + 1), &dup, &u);
+          if (v == Vertex_handle()) {
+            ++stats.steiner_dropped;
+            continue;
+          }
+          ++steiner_count;
+          ++stats.steiner_points;
+          if (opt.visibility_mode == VisibilityMode::kRays) RecastRays(std::move(u), -1);
+        }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  Status Validate(const KeyframeUpdate& u) const {
+    std::unordered_set<uint64_t> update_cams;
+    for (const Camera& c : u.cameras) {
+      if (!Finite(c.center)) {
+        std::ostringstream m;
+        m << "camera " << c.id << " has a non-finite centre";
+        return Status::Error(m.str());
+      }
+      update_cams.insert(c.id);
+    }
+    auto known_cam = [&](uint64_t id) {
+      return camera_index.count(id) > 0 || update_cams.count(id) > 0;
+    };
+    std::unordered_set<uint64_t> new_ids;
+    for (const NewPoint& p : u.new_points) {
+      std::ostringstream m;
+      if (!Finite(p.position)) {
+        m << "new point " << p.id << " has a non-finite position (NaN or inf)";
+        return Status::Error(m.str());
+      }
+      if (point_index.count(p.id) || !new_ids.insert(p.id).second) {
+        m << "new point " << p.id << " uses an id that is already known";
+        return Status::Error(m.str());
+      }
+      for (uint64_t c : p.camera_ids)
+        if (!known_cam(c)) {
+          m << "new point " << p.id << " is observed by unknown camera " << c;
+          return Status::Error(m.str());
+        }
+    }
+    for (const MovedPoint& p : u.moved_points) {
+      std::ostringstream m;
+      if (!Finite(p.position)) {
+        m << "moved point " << p.id << " has a non-finite position (NaN or inf)";
+        return Status::Error(m.str());
+      }
+      if (!point_index.count(p.id)) {
+        m << "moved point " << p.id << " is unknown";
+        return Status::Error(m.str());
+      }
+      for (uint64_t c : p.camera_ids)
+        if (!known_cam(c)) {
+          m << "moved point " << p.id << " is observed by unknown camera " << c;
+          return Status::Error(m.str());
+        }
+    }
+    for (uint64_t id : u.removed_points)
+      if (!point_index.count(id)) {
+        std::ostringstream m;
+        m << "removed point " << id << " is unknown";
+        return Status::Error(m.str());
+      }
+    return Status::Ok();
+  }
+
+  void AddCameras(PointRecord& rec, const std::vector<uint64_t>& ids,
+                  std::vector<uint32_t>* added) {
+    for (uint64_t id : ids) {
+      const uint32_t c = camera_index.at(id);
+      if (std::find(rec.cameras.begin(), rec.cameras.end(), c) != rec.cameras.end()) continue;
+      rec.cameras.push_back(c);
+      if (added) added->push_back(c);
+    }
+  }
+
+  double cast_seconds_before = 0.0;
+  void TimedCast(uint32_t cam, uint32_t pt, int sign) {
+    const auto t0 = Clock::now();
+    CastRay(cam, pt, sign);
+    stats.time.cast += Seconds(t0, Clock::now());
+  }
+  void TimedRecast(std::vector<RayEntry> u, int64_t skip) {
+    const auto t0 = Clock::now();
+    RecastRays(std::move(u), skip);
+    stats.time.cast += Seconds(t0, Clock::now());
+  }
+
+  void RemovePoint(uint32_t pt) {
+    PointRecord& rec = points[pt];
+    if (!rec.in_triangulation) return;
+    std::vector<Cell_handle> inc;
+    dt.incident_cells(rec.vertex, std::back_inserter(inc));
+    if (!Shrink(inc, {rec.vertex->point()})) {
+      ++stats.moves_skipped;  // Cannot be removed without breaking dO; keep it.
+      return;
+    }
+    const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
+    if (!rays_mode)
+      for (uint32_t c : Window(rec)) TimedCast(c, pt, -1);
+    std::vector<RayEntry> u;
+    RemoveVertex(rec.vertex, rays_mode ? &u : nullptr);
+    rec.in_triangulation = false;
+    rec.vertex = Vertex_handle();
+    ++stats.points_removed;
+    if (rays_mode) {
+      const auto t0 = Clock::now();
+      ScanRemoveRays(pt);
+      stats.time.cast += Seconds(t0, Clock::now());
+      TimedRecast(std::move(u), pt);
+    }
+  }
+
+  // Move p_old -> p_new (paper §3): backward cast over the last W cameras, remove, transfer,
+  // insert, transfer, forward cast; or, in kRays mode, the Refinement Event Handler of Lovi et al.
+  void MovePoint(uint32_t pt, const MovedPoint& m) {
+    PointRecord& rec = points[pt];
+    rec.position = m.position;
+    std::vector<uint32_t> added_cams;
+    if (!rec.in_triangulation) {
+      AddCameras(rec, m.camera_ids, nullptr);
+      ++stats.moves_skipped;
+      return;
+    }
+    const Point p_new = ToPoint(m.position);
+    const Point p_old = rec.vertex->point();
+    const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
+    auto cast_new_observations = [&]() {
+      AddCameras(rec, m.camera_ids, &added_cams);
+      if (rays_mode) {
+        std::vector<RayEntry> u;
+        for (uint32_t c : added_cams) u.push_back({c, pt, 0});
+        TimedRecast(std::move(u), -1);
+      } else {
+        for (uint32_t c : added_cams) TimedCast(c, pt, +1);
+      }
+    };
+    if (p_new == p_old) {
+      cast_new_observations();
+      return;
+    }
+    // D: the cells incident to the old vertex and the conflict zone of the new position.
+    std::vector<Cell_handle> d;
+    dt.incident_cells(rec.vertex, std::back_inserter(d));
+    Dt::Locate_type lt;
+    int li, lj;
+    Cell_handle loc = dt.locate(p_new, lt, li, lj, rec.vertex->cell());
+    if (lt == Dt::VERTEX) {
+      ++stats.points_duplicate;
+      ++stats.moves_skipped;
+      cast_new_observations();
+      return;
+    }
+    dt.find_conflicts(p_new, loc, CGAL::Emptyset_iterator(), std::back_inserter(d));
+    std::sort(d.begin(), d.end());
+    d.erase(std::unique(d.begin(), d.end()), d.end());
+    if (!Shrink(d, {p_old, p_new})) {
+      ++stats.moves_skipped;
+      cast_new_observations();
+      return;
+    }
+    std::vector<RayEntry> u;
+    if (!rays_mode)
+      for (uint32_t c : Window(rec)) TimedCast(c, pt, -1);
+    RemoveVertex(rec.vertex, rays_mode ? &u : nullptr);
+    rec.in_triangulation = false;
+    bool dup = false;
+    std::vector<RayEntry> u2;
+    Vertex_handle v = InsertPoint(p_new, pt, &dup, rays_mode ? &u2 : nullptr);
+    u.insert(u.end(), u2.begin(), u2.end());
+    if (v == Vertex_handle()) {
+      // Cannot happen when D was shrunk out of O (the new conflict zone lies in D's cells or in
+      // cells created by the removal); counted as a drop if it ever does.
+      ++stats.points_dropped;
+      rec.vertex = Vertex_handle();
+      if (rays_mode) {
+        const auto t0 = Clock::now();
+        ScanRemoveRays(pt);
+        stats.time.cast += Seconds(t0, Clock::now());
+        TimedRecast(std::move(u), pt);
+      }
+      return;
+    }
+    rec.vertex = v;
+    rec.in_triangulation = true;
+    ++stats.points_moved;
+    AddCameras(rec, m.camera_ids, &added_cams);
+    if (rays_mode) {
+      const auto t0 = Clock::now();
+      ScanRemoveRays(pt);  // Rays ending at p_old, everywhere.
+      stats.time.cast += Seconds(t0, Clock::now());
+      for (uint32_t c : added_cams) u.push_back({c, pt, 0});  // New observations join U.
+      TimedRecast(std::move(u), -1);  // Rays to p now end at p_new.
+    } else {
+      for (uint32_t c : Window(rec)) TimedCast(c, pt, +1);
+    }
+  }
+
+  void InsertNewPoint(const NewPoint& np) {
+    const uint32_t pt = static_cast<uint32_t>(points.size());
+    point_index[np.id] = pt;
+    points.push_back({});
+    PointRecord& rec0 = points.back();
+    rec0.id = np.id;
+    rec0.position = np.position;
+    AddCameras(rec0, np.camera_ids, nullptr);
+    bool dup = false;
+    std::vector<RayEntry> u;
+    const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
+    Vertex_handle v = InsertPoint(ToPoint(np.position), pt, &dup, rays_mode ? &u : nullptr);
+    PointRecord& rec = points[pt];
+    if (v == Vertex_handle()) {
+      if (dup) ++stats.points_duplicate;
+      else ++stats.points_dropped;
+      return;
+    }
+    rec.vertex = v;
+    rec.in_triangulation = true;
+    ++stats.points_inserted;
+    if (rays_mode) {
+      for (uint32_t c : rec.cameras) u.push_back({c, pt, 0});
+      TimedRecast(std::move(u), -1);
+    } else {
+      for (uint32_t c : rec.cameras) TimedCast(c, pt, +1);
+    }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // grow: a priority queue by weight (highest first). Seeds: the highest-weight free cell when O is
+  // empty, else the free cells outside O touching dO among those that changed this keyframe.
+  void Grow() {
+    struct Item {
+      int64_t weight;
+      uint64_t order;
+      Cell_handle cell;
+      bool operator<(const Item& o) const {
+        return weight != o.weight ? weight < o.weight : order > o.order;
+      }
+    };
+    std::priority_queue<Item> q;
+    uint64_t order = 0;
+    auto candidate = [&](Cell_handle c) {
+      return !dt.is_infinite(c) && !c->info().in_o && IsFree(c) && !HullAdjacent(c);
+    };
+    if (cells_in_o == 0) {
+      Cell_handle best;
+      for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c)
+        if (candidate(c) && (best == Cell_handle() || c->info().weight > best->info().weight))
+          best = c;
+      if (best != Cell_handle()) q.push({best->info().weight, order++, best});
+    } else {
+      // Deterministic seed order: by weight, then by the ids of the vertices.
+      std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> seeds;
+      for (Cell_handle c : dirty)
+        if (candidate(c) && TouchesO(c)) seeds.push_back({CellKey(c), c});
+      std::sort(seeds.begin(), seeds.end(),
+                [](const auto& a, const auto& b) { return a.first < b.first; });
+      for (const auto& s : seeds) q.push({s.second->info().weight, order++, s.second});
+    }
+    dirty.clear();
+    while (!q.empty()) {
+      Cell_handle c = q.top().cell;
+      q.pop();
+      if (!candidate(c)) continue;
+      if (cells_in_o > 0 && !TouchesO(c)) continue;
+      if (!ToggleKeepsManifold(c)) continue;
+      SetInO(c, true);
+      ++stats.cells_grown;
+      for (int i = 0; i < 4; ++i) {
+        Cell_handle n = c->neighbor(i);
+        if (candidate(n)) q.push({n->info().weight, order++, n});
+      }
+    }
+  }
+
+  std::array<int64_t, 4> CellKey(Cell_handle c) const {
+    std::array<int64_t, 4> k;
+    for (int i = 0; i < 4; ++i)
+      k[i] = dt.is_infinite(c->vertex(i)) ? std::numeric_limits<int64_t>::min()
+                                          : c->vertex(i)->info().id;
+    std::sort(k.begin(), k.end());
+    return k;
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  Status ApplyUpdate(const KeyframeUpdate& u) {
+    if (!init.ok()) return init;
+    Status s = Validate(u);
+    if (!s.ok()) return s;
+    const auto t0 = Clock::now();
+    for (const Camera& c : u.cameras) {
+      if (camera_index.count(c.id)) continue;
+      camera_index[c.id] = static_cast<uint32_t>(cameras.size());
+      cameras.push_back(ToPoint(c.center));
+      camera_ids.push_back(c.id);
+      const auto ts = Clock::now();
+      GrowSteinerGrid(cameras.back());
+      stats.time.steiner += Seconds(ts, Clock::now());
+    }
+    // Removals and insertions are charged to "insert", moves to "move"; both without their ray
+    // casting and shrinking, which have their own timers.
+    auto timed = [&](double* phase, auto&& fn) {
+      const double cast0 = stats.time.cast, shrink0 = stats.time.shrink;
+      const auto a = Clock::now();
+      fn();
+      *phase += Seconds(a, Clock::now()) - (stats.time.cast - cast0) -
+                (stats.time.shrink - shrink0);
+    };
+    timed(&stats.time.insert, [&] {
+      for (uint64_t id : u.removed_points) RemovePoint(point_index.at(id));
+    });
+    timed(&stats.time.move, [&] {
+      for (const MovedPoint& m : u.moved_points) MovePoint(point_index.at(m.id), m);
+    });
+    timed(&stats.time.insert, [&] {
+      for (const NewPoint& p : u.new_points) InsertNewPoint(p);
+    });
+    const auto tg = Clock::now();
+    Grow();
+    stats.time.grow += Seconds(tg, Clock::now());
+    const double dt_s = Seconds(t0, Clock::now());
+    stats.time.total += dt_s;
+    stats.keyframe_seconds.push_back(dt_s);
+    ++stats.updates;
+    stats.vertices = static_cast<int64_t>(dt.number_of_vertices());
+    stats.cells = static_cast<int64_t>(dt.tds().number_of_cells());
+    stats.cells_in_o = cells_in_o;
+    if (opt.check_after_update) {
+      ManifoldCheckResult r = CheckInvariants();
+      if (!r.ok) return Status::Error("invariant broken after update: " + r.message);
+    }
+    return Status::Ok();
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // dO: facets between a cell of O and a cell outside O, oriented toward the O cell (free space).
+  struct Triangle {
+    Vertex_handle v[3];
+  };
+  std::vector<Triangle> Boundary() const {
+    std::vector<Triangle> out;
+    for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
+      if (!c->info().in_o) continue;
+      for (int i = 0; i < 4; ++i) {
+        if (c->neighbor(i)->info().in_o) continue;
+        // vertex_triple_index(i, .) orders facet i so that its normal points toward vertex i,
+        // i.e. into this cell of O.
+        out.push_back({{c->vertex(Dt::vertex_triple_index(i, 0)),
+                        c->vertex(Dt::vertex_triple_index(i, 1)),
+                        c->vertex(Dt::vertex_triple_index(i, 2))}});
+      }
+    }
+    return out;
+  }
+
+  Mesh ToMesh(const std::vector<Triangle>& tris, SteinerExportRule rule) const {
+    Mesh m;
+    std::unordered_map<Vertex_handle, uint32_t> index;
+    for (const Triangle& t : tris) {
+      int steiner = 0;
+      for (Vertex_handle v : t.v) steiner += v->info().id < 0 ? 1 : 0;
+      if (rule == SteinerExportRule::kAllSteiner && steiner == 3) continue;
+      if (rule == SteinerExportRule::kAnySteiner && steiner > 0) continue;
+      for (Vertex_handle v : t.v) {
+        auto [it, inserted] = index.emplace(v, static_cast<uint32_t>(index.size()));
+        if (inserted) {
+          const Point& p = v->point();
+          m.vertices.insert(m.vertices.end(), {p.x(), p.y(), p.z()});
+          const int64_t id = v->info().id;
+          m.point_ids.push_back(id >= 0 ? static_cast<int64_t>(points[id].id) : -1);
+        }
+        m.faces.push_back(it->second);
+      }
+    }
+    if (rule != SteinerExportRule::kNone) SplitPinchedVertices(&m);
+    return m;
+  }
+
+  ManifoldCheckResult CheckInvariants() const {
+    ManifoldCheckResult r;
+    std::ostringstream msg;
+    auto fail = [&](const std::string& s) {
+      if (r.ok) r.message = s;
+      r.ok = false;
+    };
+    int64_t in_o = 0;
+    for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
+      if (!c->info().in_o) continue;
+      if (dt.is_infinite(c)) fail("an infinite cell is in O");
+      ++in_o;
+    }
+    r.cells_in_o = in_o;
+    if (in_o != cells_in_o) fail("cells_in_o counter out of sync");
+    const std::vector<Triangle> tris = Boundary();
+    r.boundary_triangles = static_cast<int64_t>(tris.size());
+    // Orientation: the O cell's opposite vertex is on the positive side of each triangle.
+    for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c) {
+      if (!c->info().in_o) continue;
+      for (int i = 0; i < 4; ++i) {
+        if (c->neighbor(i)->info().in_o) continue;
+        const Point& a = c->vertex(Dt::vertex_triple_index(i, 0))->point();
+        const Point& b = c->vertex(Dt::vertex_triple_index(i, 1))->point();
+        const Point& d = c->vertex(Dt::vertex_triple_index(i, 2))->point();
+        if (CGAL::orientation(a, b, d, c->vertex(i)->point()) != CGAL::POSITIVE)
+          fail("a boundary triangle is not oriented toward free space");
+      }
+    }
+    // Every directed edge once, and its reverse once: each edge in exactly two triangles with
+    // opposite orientations.
+    std::map<std::pair<int64_t, int64_t>, int> directed;
+    std::unordered_map<int64_t, std::vector<std::pair<int64_t, int64_t>>> links;
+    for (const Triangle& t : tris) {
+      int64_t id[3];
+      for (int k = 0; k < 3; ++k) id[k] = t.v[k]->info().id;
+      for (int k = 0; k < 3; ++k) {
+        if (++directed[{id[k], id[(k + 1) % 3]}] > 1) fail("a directed boundary edge repeats");
+        links[id[k]].push_back({id[(k + 1) % 3], id[(k + 2) % 3]});
+      }
+    }
+    for (const auto& [e, n] : directed) {
+      (void)n;
+      auto it = directed.find({e.second, e.first});
+      if (it == directed.end() || it->second != 1) {
+        fail("a boundary edge is not shared by exactly two oppositely oriented triangles");
+        break;
+      }
+    }
+    r.boundary_vertices = static_cast<int64_t>(links.size());
+    for (const auto& [v, edges] : links)
+      if (!LinkIsOneCycle(edges)) {
+        msg.str("");
+        msg << "vertex " << v << " on dO is not regular (its triangles are not one fan)";
+        fail(msg.str());
+        break;
+      }
+    if (!dt.is_valid(false)) fail("the Delaunay triangulation is not valid");
+    return r;
+  }
+};
+
+// -------------------------------------------------------------------------------------------------
+
+Engine::Engine(const EngineOptions& options, WeightTransferPolicy* policy)
+    : impl_(std::make_unique<Impl>(options, policy)) {}
+Engine::~Engine() = default;
+
+const Status& Engine::init_status() const { return impl_->init; }
+
+Status Engine::ApplyUpdate(const KeyframeUpdate& update) {
+  try {
+    return impl_->ApplyUpdate(update);
+  } catch (const std::exception& e) {
+    return Status::Error(std::string("engine failure: ") + e.what());
+  } catch (...) {
+    return Status::Error("engine failure: unknown exception");
+  }
+}
+
+Mesh Engine::ExtractMesh() const {
+  const auto t0 = Clock::now();
+  Mesh m = impl_->ToMesh(impl_->Boundary(), impl_->opt.steiner_export);
+  impl_->stats.time.extract += Seconds(t0, Clock::now());
+  return m;
+}
+
+Mesh Engine::ExtractBoundary() const {
+  return impl_->ToMesh(impl_->Boundary(), SteinerExportRule::kNone);
+}
+
+const EngineStats& Engine::Stats() const { return impl_->stats; }
+const EngineOptions& Engine::options() const { return impl_->opt; }
+ManifoldCheckResult Engine::CheckInvariants() const { return impl_->CheckInvariants(); }
+
+Status Engine::CastPointRays(uint64_t point_id, const std::vector<uint64_t>& camera_ids,
+                             int sign) {
+  auto it = impl_->point_index.find(point_id);
+  if (it == impl_->point_index.end())
+    return Status::Error("unknown point " + std::to_string(point_id));
+  if (sign != 1 && sign != -1) return Status::Error("sign must be +1 or -1");
+  if (sign < 0 && impl_->opt.visibility_mode == VisibilityMode::kRays)
+    return Status::Error("backward casting exists only in weights mode");
+  for (uint64_t c : camera_ids) {
+    auto ci = impl_->camera_index.find(c);
+    if (ci == impl_->camera_index.end())
+      return Status::Error("unknown camera " + std::to_string(c));
+    impl_->CastRay(ci->second, it->second, sign);
+  }
+  return Status::Ok();
+}
+
+std::vector<std::pair<std::array<int64_t, 4>, int64_t>> Engine::CellWeights() const {
+  std::vector<std::pair<std::array<int64_t, 4>, int64_t>> out;
+  for (auto c = impl_->dt.finite_cells_begin(); c != impl_->dt.finite_cells_end(); ++c)
+    out.push_back({impl_->CellKey(c), c->info().weight});
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+bool Engine::PointPosition(uint64_t point_id, Vec3* position) const {
+  auto it = impl_->point_index.find(point_id);
+  if (it == impl_->point_index.end()) return false;
+  const auto& rec = impl_->points[it->second];
+  if (!rec.in_triangulation) return false;
+  const Point& p = rec.vertex->point();
+  *position = {p.x(), p.y(), p.z()};
+  return true;
+}
+
+size_t Engine::NumPoints() const {
+  size_t n = 0;
+  for (const auto& p : impl_->points) n += p.in_triangulation ? 1 : 0;
+  return n;
+}
+
+ManifoldCheckResult CheckMesh(const Mesh& mesh, bool closed) {
+  ManifoldCheckResult r;
+  auto fail = [&](const std::string& s) {
+    if (r.ok) r.message = s;
+    r.ok = false;
+  };
+  const size_t nv = mesh.vertices.size() / 3;
+  std::map<std::pair<uint32_t, uint32_t>, int> directed;
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> links(nv);
+  for (size_t t = 0; t + 2 < mesh.faces.size(); t += 3) {
+    const uint32_t f[3] = {mesh.faces[t], mesh.faces[t + 1], mesh.faces[t + 2]};
+    for (int k = 0; k < 3; ++k)
+      if (f[k] >= nv) {
+        fail("a face index is out of range");
+        return r;
+      }
+    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) fail("a degenerate face");
+    for (int k = 0; k < 3; ++k) {
+      if (++directed[{f[k], f[(k + 1) % 3]}] > 1) fail("a directed edge repeats");
+      links[f[k]].push_back({f[(k + 1) % 3], f[(k + 2) % 3]});
+    }
+  }
+  r.boundary_triangles = static_cast<int64_t>(mesh.faces.size() / 3);
+  for (const auto& [e, n] : directed) {
+    (void)n;
+    if (!directed.count({e.second, e.first}) && closed) {
+      fail("an edge is in only one triangle of a mesh required closed");
+      break;
+    }
+  }
+  // Each vertex: its link edges (a -> b, consistently oriented) form one cycle or one path.
+  for (size_t v = 0; v < nv; ++v) {
+    const auto& l = links[v];
+    if (l.empty()) continue;
+    ++r.boundary_vertices;
+    std::unordered_map<uint32_t, uint32_t> next;
+    std::unordered_set<uint32_t> has_prev;
+    bool bad = false;
+    for (const auto& e : l) {
+      if (!next.emplace(e.first, e.second).second || !has_prev.insert(e.second).second) bad = true;
+    }
+    uint32_t start = l[0].first;
+    int starts = 0;
+    for (const auto& e : l)
+      if (!has_prev.count(e.first)) {
+        start = e.first;
+        ++starts;
+      }
+    if (!bad && starts <= 1 && !(closed && starts == 1)) {
+      size_t steps = 0;
+      uint32_t cur = start;
+      while (next.count(cur) && steps <= l.size()) {
+        cur = next[cur];
+        ++steps;
+        if (cur == start) break;
+      }
+      bad = steps != l.size();
+    } else {
+      bad = true;
+    }
+    if (bad) {
+      fail("vertex " + std::to_string(v) + " is not one fan");
+      break;
+    }
+  }
+  return r;
+}
+
+}  // namespace imr::engine

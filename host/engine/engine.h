@@ -1,0 +1,199 @@
+// The reconstruction engine: incremental 2-manifold reconstruction with moving points
+// (Romanoni & Matteucci, sections 2-3; DESIGN §3). A Delaunay triangulation of the points and a
+// Steiner grid, tetrahedra weighted by viewing rays, and the manifold set O of outside tetrahedra
+// whose boundary dO is the surface. Per keyframe it takes new, moved and removed points and keeps
+// dO a 2-manifold. Knows nothing of files, JSON or plugins; CGAL stays behind the pimpl.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "host/engine/weight_transfer_policy.h"
+
+namespace imr::engine {
+
+using Vec3 = std::array<double, 3>;
+
+// Errors are values: ok() or a message naming what was refused.
+class Status {
+ public:
+  Status() = default;
+  static Status Ok() { return Status(); }
+  static Status Error(std::string message) { return Status(std::move(message), false); }
+  bool ok() const { return ok_; }
+  const std::string& message() const { return message_; }
+
+ private:
+  Status(std::string m, bool ok) : ok_(ok), message_(std::move(m)) {}
+  bool ok_ = true;
+  std::string message_;
+};
+
+// How visibility is stored and updated when points move.
+enum class VisibilityMode {
+  kWeights,  // The paper's efficient approach: weights only, backward casting + transfer policy.
+  kRays,     // The straightforward baseline (Lovi et al. 2011): per-cell ray lists, re-casting.
+};
+std::string ToString(VisibilityMode mode);
+bool FromString(const std::string& s, VisibilityMode* mode);
+
+// Which triangles of dO touching Steiner points the exported mesh leaves out.
+enum class SteinerExportRule {
+  kNone,         // Export all of dO (a closed surface).
+  kAllSteiner,   // Drop triangles whose three vertices are Steiner points (default).
+  kAnySteiner,   // Drop triangles with at least one Steiner vertex.
+};
+std::string ToString(SteinerExportRule rule);
+bool FromString(const std::string& s, SteinerExportRule* rule);
+
+struct EngineOptions {
+  double steiner_spacing = 5.0;       // Steiner grid step, metres (paper: 5 m).
+  double steiner_margin = 5.0;        // Grid covers each camera +- (max_ray_length + margin).
+  Vec3 steiner_origin = {0.37, 0.61, 0.23};  // Grid offset in units of spacing (off the axes
+                                      // and the z = 0 plane where synthetic surfaces lie).
+  double w1 = 1.0;                    // Weight added to cells traversed by a ray (T).
+  double w2 = 0.8;                    // Weight added to their neighbours (N1).
+  double w3 = 0.2;                    // Weight added to the neighbours of N1 (N2).
+  double free_threshold = 1.0;        // T_w: a cell is free space when weight > T_w.
+  int window = 15;                    // W: rays re-cast on a move come from the last W cameras.
+  double max_ray_length = 30.0;       // Rays longer than this (metres) are not cast.
+  VisibilityMode visibility_mode = VisibilityMode::kWeights;  // Efficient or baseline.
+  int rays_per_cell = 5;              // K of the forgetting heuristic (kRays mode only).
+  SteinerExportRule steiner_export = SteinerExportRule::kAllSteiner;  // Export filter.
+  double shrink_radius = 1.0;         // Enclosing set E: D plus cells around D's vertices that
+                                      // lie within this distance (metres) of the point.
+  int shrink_passes = 3;              // Passes of shrink over E while D still meets O.
+  double weight_unit = 1e-6;          // Weights are int64 multiples of this (exact backward cast).
+  int max_cells_per_ray = 200000;     // Safety bound on one traversal (never an endless walk).
+  bool check_after_update = false;    // Run the full dO check after every update (slow; tests).
+
+  // True when every field is usable; otherwise false and *error says which field and why.
+  bool Check(std::string* error) const;
+};
+
+struct Camera {
+  uint64_t id = 0;
+  Vec3 center{};
+};
+
+struct NewPoint {
+  uint64_t id = 0;
+  Vec3 position{};
+  std::vector<uint64_t> camera_ids;  // Observing cameras, known already or in the same update.
+};
+
+struct MovedPoint {
+  uint64_t id = 0;
+  Vec3 position{};                   // The new estimate.
+  std::vector<uint64_t> camera_ids;  // Extra observing cameras since the last update (optional).
+};
+
+// What the refiner delivers at one keyframe.
+struct KeyframeUpdate {
+  std::vector<Camera> cameras;
+  std::vector<NewPoint> new_points;
+  std::vector<MovedPoint> moved_points;
+  std::vector<uint64_t> removed_points;
+};
+
+struct Mesh {
+  std::vector<double> vertices;    // Packed xyz.
+  std::vector<uint32_t> faces;     // 3 per triangle, oriented: normals toward free space (O).
+  std::vector<int64_t> point_ids;  // Per vertex: the point id, -1 for a Steiner point.
+};
+
+struct PhaseTimes {
+  double steiner = 0.0;  // Growing the Steiner grid (seconds).
+  double shrink = 0.0;
+  double move = 0.0;     // Moves, without their ray casting.
+  double insert = 0.0;   // Insertions and removals of points, without ray casting.
+  double cast = 0.0;     // All ray casting (forward, backward, re-casting).
+  double grow = 0.0;
+  double extract = 0.0;  // ExtractMesh.
+  double total = 0.0;    // ApplyUpdate wall time.
+};
+
+struct EngineStats {
+  PhaseTimes time;                       // Accumulated over all updates.
+  std::vector<double> keyframe_seconds;  // ApplyUpdate wall time per update.
+  int64_t updates = 0;
+  int64_t rays_cast = 0;              // Forward casts (including re-casts).
+  int64_t rays_cast_backward = 0;
+  int64_t rays_skipped_too_long = 0;  // Longer than max_ray_length.
+  int64_t rays_truncated = 0;         // Hit max_cells_per_ray or a traversal failure.
+  int64_t cells_traversed = 0;        // Cells of T over all rays.
+  int64_t cells_weighted = 0;         // Cells of T, N1 and N2 over all rays.
+  int64_t points_inserted = 0;
+  int64_t points_moved = 0;
+  int64_t moves_skipped = 0;          // Move refused: its cells could not be shrunk out of O.
+  int64_t points_dropped = 0;         // New point dropped (conflict zone met O after shrink).
+  int64_t points_duplicate = 0;       // New point or move onto an existing vertex: dropped.
+  int64_t points_removed = 0;
+  int64_t steiner_points = 0;
+  int64_t steiner_dropped = 0;
+  int64_t cells_grown = 0;
+  int64_t cells_shrunk = 0;
+  int64_t policy_calls = 0;
+  int64_t rays_scan_cells = 0;        // kRays: cells visited by the whole-triangulation scans.
+  int64_t vertices = 0;               // Current finite vertices (points + Steiner).
+  int64_t cells = 0;                  // Current finite cells.
+  int64_t cells_in_o = 0;
+};
+
+struct ManifoldCheckResult {
+  bool ok = true;
+  std::string message;          // First problem found, empty when ok.
+  int64_t boundary_triangles = 0;
+  int64_t boundary_vertices = 0;
+  int64_t cells_in_o = 0;
+};
+
+class Engine {
+ public:
+  // The policy is not owned and must outlive the engine; it may be null in kRays mode.
+  Engine(const EngineOptions& options, WeightTransferPolicy* policy);
+  ~Engine();
+  Engine(const Engine&) = delete;
+  Engine& operator=(const Engine&) = delete;
+
+  // Options or policy unusable: every ApplyUpdate returns this error.
+  const Status& init_status() const;
+
+  // One keyframe: cameras, removed points, moves, new points, then growing. A bad update (NaN,
+  // unknown camera or point id, ...) is refused as a whole before anything changes.
+  Status ApplyUpdate(const KeyframeUpdate& update);
+
+  // The exported surface: dO filtered by options().steiner_export.
+  Mesh ExtractMesh() const;
+  // dO itself, unfiltered (a closed 2-manifold).
+  Mesh ExtractBoundary() const;
+
+  const EngineStats& Stats() const;
+  const EngineOptions& options() const;
+
+  // Full check of dO (not the local test): every edge in exactly two boundary triangles with
+  // opposite orientations, every vertex one fan, no infinite cell in O, Delaunay valid.
+  ManifoldCheckResult CheckInvariants() const;
+
+  // --- Lower-level access, for tests and the benchmark. ---
+  // Casts (sign +1) or casts backward (sign -1) the rays from the given cameras to a point.
+  Status CastPointRays(uint64_t point_id, const std::vector<uint64_t>& camera_ids, int sign);
+  // Weight of every finite cell as integer units, in a deterministic order (by sorted vertices).
+  std::vector<std::pair<std::array<int64_t, 4>, int64_t>> CellWeights() const;
+  // Current position of a point in the triangulation; false if absent (dropped or removed).
+  bool PointPosition(uint64_t point_id, Vec3* position) const;
+  size_t NumPoints() const;  // Points currently in the triangulation.
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Checks an exported mesh: every edge in one or two triangles (two with opposite orientation),
+// every vertex one closed or open fan. closed = true also requires every edge in two triangles.
+ManifoldCheckResult CheckMesh(const Mesh& mesh, bool closed);
+
+}  // namespace imr::engine

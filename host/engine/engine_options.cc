@@ -1,0 +1,62 @@
+// Options, enums and Status helpers of the engine (no CGAL here).
+#include <cmath>
+#include <sstream>
+
+#include "host/engine/engine.h"
+
+namespace imr::engine {
+
+std::string ToString(VisibilityMode mode) {
+  return mode == VisibilityMode::kRays ? "rays" : "weights";
+}
+
+bool FromString(const std::string& s, VisibilityMode* mode) {
+  if (s == "weights") *mode = VisibilityMode::kWeights;
+  else if (s == "rays") *mode = VisibilityMode::kRays;
+  else return false;
+  return true;
+}
+
+std::string ToString(SteinerExportRule rule) {
+  switch (rule) {
+    case SteinerExportRule::kNone: return "none";
+    case SteinerExportRule::kAllSteiner: return "all_steiner";
+    case SteinerExportRule::kAnySteiner: return "any_steiner";
+  }
+  return "all_steiner";
+}
+
+bool FromString(const std::string& s, SteinerExportRule* rule) {
+  if (s == "none") *rule = SteinerExportRule::kNone;
+  else if (s == "all_steiner") *rule = SteinerExportRule::kAllSteiner;
+  else if (s == "any_steiner") *rule = SteinerExportRule::kAnySteiner;
+  else return false;
+  return true;
+}
+
+bool EngineOptions::Check(std::string* error) const {
+  std::ostringstream e;
+  auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!finite_positive(steiner_spacing)) e << "steiner_spacing must be > 0; ";
+  if (!std::isfinite(steiner_margin) || steiner_margin < 0.0) e << "steiner_margin must be >= 0; ";
+  for (double o : steiner_origin)
+    if (!std::isfinite(o)) e << "steiner_origin must be finite; ";
+  if (!std::isfinite(w1) || !std::isfinite(w2) || !std::isfinite(w3) || w1 < 0 || w2 < 0 || w3 < 0)
+    e << "w1, w2, w3 must be finite and >= 0; ";
+  if (!std::isfinite(free_threshold)) e << "free_threshold must be finite; ";
+  if (window < 1) e << "window must be >= 1; ";
+  if (!finite_positive(max_ray_length)) e << "max_ray_length must be > 0; ";
+  if (rays_per_cell < 1) e << "rays_per_cell must be >= 1; ";
+  if (!std::isfinite(shrink_radius) || shrink_radius < 0.0) e << "shrink_radius must be >= 0; ";
+  if (shrink_passes < 1) e << "shrink_passes must be >= 1; ";
+  if (!finite_positive(weight_unit) || weight_unit > 0.1) e << "weight_unit must be in (0, 0.1]; ";
+  if (finite_positive(weight_unit) && std::isfinite(free_threshold) &&
+      std::abs(free_threshold / weight_unit) > 1e15)
+    e << "free_threshold / weight_unit too large for int64 weights; ";
+  if (max_cells_per_ray < 1) e << "max_cells_per_ray must be >= 1; ";
+  const std::string s = e.str();
+  if (error) *error = s.empty() ? std::string() : s.substr(0, s.size() - 2);
+  return s.empty();
+}
+
+}  // namespace imr::engine

@@ -1,0 +1,177 @@
+// Property tests of the engine over synthetic streams (issue 3): the manifold invariants after
+// every keyframe in every mode, exact backward casting, geometry against the known scenes,
+// efficient policies vs the baseline.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+#include <tuple>
+
+#include "host/engine/engine.h"
+#include "host/engine/testing/run_stream.h"
+
+namespace imr::engine {
+namespace {
+
+using synthetic::SceneKind;
+
+synthetic::StreamOptions SmallStream(SceneKind scene, uint64_t seed) {
+  synthetic::StreamOptions so;
+  so.scene = scene;
+  so.seed = seed;
+  so.frames = 40;  // 8 keyframes.
+  so.points_per_keyframe = 120;
+  so.noise_at_10m = 0.1;
+  return so;
+}
+
+// ---------------------------------------------------------------------------------------------
+// After every keyframe: dO is a closed, consistently oriented 2-manifold (full check), no
+// infinite cell in O; the exported mesh is a 2-manifold with boundary. Points move at every
+// keyframe after the first.
+class InvariantTest
+    : public ::testing::TestWithParam<std::tuple<std::string, SceneKind, uint64_t>> {};
+
+TEST_P(InvariantTest, ManifoldAfterEveryKeyframe) {
+  const auto& [mode, scene, seed] = GetParam();
+  synthetic::SyntheticStream stream(SmallStream(scene, seed));
+  EngineOptions eo;
+  std::unique_ptr<WeightTransferPolicy> policy;
+  ASSERT_TRUE(testing::ConfigureMode(mode, &eo, &policy));
+  Engine engine(eo, policy.get());
+  int keyframes = 0;
+  const Status s = testing::RunStream(&stream, &engine, [&](const synthetic::StreamKeyframe& kf) {
+    ++keyframes;
+    if (kf.index > 0) EXPECT_FALSE(kf.moved_points.empty()) << "keyframe " << kf.index;
+    const ManifoldCheckResult r = engine.CheckInvariants();
+    EXPECT_TRUE(r.ok) << mode << " keyframe " << kf.index << ": " << r.message;
+    const ManifoldCheckResult closed = CheckMesh(engine.ExtractBoundary(), true);
+    EXPECT_TRUE(closed.ok) << mode << " keyframe " << kf.index << ": " << closed.message;
+    const ManifoldCheckResult open = CheckMesh(engine.ExtractMesh(), false);
+    EXPECT_TRUE(open.ok) << mode << " keyframe " << kf.index << ": " << open.message;
+    return r.ok && closed.ok && open.ok;
+  });
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_EQ(keyframes, 8);
+  const EngineStats& st = engine.Stats();
+  EXPECT_GT(st.points_inserted, 150);  // mean policies drop many in the room
+  EXPECT_GT(st.points_moved, 30);
+  EXPECT_GT(st.cells_in_o, 0);
+  EXPECT_GT(st.cells_grown, 0);
+  EXPECT_EQ(st.rays_truncated, 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Modes, InvariantTest,
+    ::testing::Combine(::testing::Values("nearest", "mean", "weighted_mean", "rays5", "rays1"),
+                       ::testing::Values(SceneKind::kStreet, SceneKind::kRoom),
+                       ::testing::Values(uint64_t{1}, uint64_t{7})),
+    [](const auto& info) {
+      return std::get<0>(info.param) + "_" + synthetic::ToString(std::get<1>(info.param)) + "_" +
+             std::to_string(std::get<2>(info.param));
+    });
+
+// ---------------------------------------------------------------------------------------------
+// Casting rays forward and then backward restores every cell weight bit for bit, including with
+// weights that are not multiples of one another.
+TEST(CastingTest, ForwardThenBackwardRestoresWeightsExactly) {
+  for (const auto& weights : {std::array<double, 3>{1.0, 0.8, 0.2},
+                              std::array<double, 3>{0.7, 0.33, 0.1 / 3.0}}) {
+    synthetic::SyntheticStream stream(SmallStream(SceneKind::kStreet, 3));
+    EngineOptions eo;
+    eo.w1 = weights[0];
+    eo.w2 = weights[1];
+    eo.w3 = weights[2];
+    auto policy = testing::MakePolicy("nearest");
+    Engine engine(eo, policy.get());
+    std::vector<synthetic::StreamPoint> points;
+    std::vector<uint64_t> cams;
+    ASSERT_TRUE(testing::RunStream(&stream, &engine, [&](const synthetic::StreamKeyframe& kf) {
+                  points.insert(points.end(), kf.new_points.begin(), kf.new_points.end());
+                  for (const auto& c : kf.cameras) cams.push_back(c.id);
+                  return kf.index < 4;
+                }).ok());
+    const auto before = engine.CellWeights();
+    const int64_t rays_before = engine.Stats().rays_cast;
+    int cast = 0;
+    for (const auto& p : points) {
+      Vec3 pos;
+      if (!engine.PointPosition(p.id, &pos)) continue;
+      ASSERT_TRUE(engine.CastPointRays(p.id, cams, +1).ok());
+      ++cast;
+    }
+    ASSERT_GT(cast, 100);
+    ASSERT_GT(engine.Stats().rays_cast - rays_before, 1000);
+    EXPECT_NE(engine.CellWeights(), before) << "forward casting changed nothing";
+    // Backward in a different order than forward.
+    for (auto it = points.rbegin(); it != points.rend(); ++it) {
+      Vec3 pos;
+      if (engine.PointPosition(it->id, &pos)) ASSERT_TRUE(engine.CastPointRays(it->id, cams, -1).ok());
+    }
+    EXPECT_EQ(engine.CellWeights(), before);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Geometry against the known scenes. The exported mesh (default rule: triangles of three Steiner
+// points dropped) is measured in both directions; bounds come from measurements with margin.
+struct GeometryCase {
+  SceneKind scene;
+  std::string mode;
+};
+
+synthetic::MeshAccuracy RunGeometry(SceneKind scene, const std::string& mode, int frames,
+                                    int* points_out = nullptr) {
+  synthetic::StreamOptions so = SmallStream(scene, 11);
+  so.frames = frames;
+  so.points_per_keyframe = 250;
+  synthetic::SyntheticStream stream(so);
+  EngineOptions eo;
+  std::unique_ptr<WeightTransferPolicy> policy;
+  EXPECT_TRUE(testing::ConfigureMode(mode, &eo, &policy));
+  if (getenv("W2")) { eo.w2 = atof(getenv("W2")); eo.w3 = atof(getenv("W3")); }
+  if (getenv("TW")) eo.free_threshold = atof(getenv("TW"));
+  Engine engine(eo, policy.get());
+  EXPECT_TRUE(testing::RunStream(&stream, &engine).ok());
+  if (points_out) *points_out = static_cast<int>(engine.NumPoints());
+  EngineOptions any = eo;
+  // Triangles made only of real points, to measure where the observed surface is.
+  Mesh m = engine.ExtractBoundary();
+  Mesh real;
+  real.vertices = m.vertices;
+  for (size_t t = 0; t < m.faces.size(); t += 3) {
+    bool steiner = false;
+    for (int k = 0; k < 3; ++k) steiner = steiner || m.point_ids[m.faces[t + k]] < 0;
+    if (!steiner) real.faces.insert(real.faces.end(), m.faces.begin() + t, m.faces.begin() + t + 3);
+  }
+  const auto acc = testing::Accuracy(stream, real, 0.25);
+  std::printf("[geometry] %s %s: points %zu real triangles %zu mean mesh->scene %.3f m, "
+              "precision %.2f, truth->mesh %.3f m, completeness %.2f\n",
+              synthetic::ToString(scene).c_str(), mode.c_str(), engine.NumPoints(), acc.triangles,
+              acc.mean_mesh_to_scene, acc.precision, acc.mean_truth_to_mesh, acc.completeness);
+  return acc;
+}
+
+TEST(GeometryTest, ClosedRoomSeenFromInside) {
+  const auto acc = RunGeometry(SceneKind::kRoom, "nearest", 150);
+  EXPECT_GT(acc.triangles, 200u);
+  EXPECT_LT(acc.mean_mesh_to_scene, 0.25);
+  EXPECT_GT(acc.completeness, 0.25);
+}
+
+TEST(GeometryTest, StreetCanyon) {
+  const auto acc = RunGeometry(SceneKind::kStreet, "nearest", 60);
+  EXPECT_GT(acc.triangles, 200u);
+  EXPECT_LT(acc.mean_mesh_to_scene, 0.25);
+  EXPECT_GT(acc.completeness, 0.25);
+}
+
+// The efficient policy and the baseline on the same stream.
+TEST(GeometryTest, EfficientPolicyComparableToBaseline) {
+  const auto nearest = RunGeometry(SceneKind::kStreet, "nearest", 60);
+  const auto rays = RunGeometry(SceneKind::kStreet, "rays5", 60);
+  EXPECT_LT(std::abs(nearest.mean_mesh_to_scene - rays.mean_mesh_to_scene), 0.15);
+}
+
+}  // namespace
+}  // namespace imr::engine

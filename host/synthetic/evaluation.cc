@@ -1,0 +1,114 @@
+#include "host/synthetic/evaluation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+namespace imr::synthetic {
+
+// Closest point on a triangle (Ericson, Real-Time Collision Detection, 5.1.5).
+double PointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = Sub(b, a), ac = Sub(c, a), ap = Sub(p, a);
+  const double d1 = Dot(ab, ap), d2 = Dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return Norm(ap);
+  const Vec3 bp = Sub(p, b);
+  const double d3 = Dot(ab, bp), d4 = Dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return Norm(bp);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return Norm(Sub(p, Add(a, Scale(ab, d1 / (d1 - d3)))));
+  const Vec3 cp = Sub(p, c);
+  const double d5 = Dot(ab, cp), d6 = Dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return Norm(cp);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return Norm(Sub(p, Add(a, Scale(ac, d2 / (d2 - d6)))));
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return Norm(Sub(p, Add(b, Scale(Sub(c, b), w))));
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return Norm(Sub(p, Add(a, Add(Scale(ab, v), Scale(ac, w)))));
+}
+
+MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertices,
+                          const std::vector<uint32_t>& faces, const std::vector<Vec3>& truth,
+                          double tau, double cap) {
+  MeshAccuracy r;
+  r.tau = tau;
+  r.triangles = faces.size() / 3;
+  auto vert = [&](uint32_t i) -> Vec3 {
+    return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
+  };
+  // Mesh -> scene: four samples per triangle (centroid and three inner points), area-weighted.
+  double sum = 0.0, within = 0.0;
+  for (size_t t = 0; t < r.triangles; ++t) {
+    const Vec3 a = vert(faces[3 * t]), b = vert(faces[3 * t + 1]), c = vert(faces[3 * t + 2]);
+    const double area = 0.5 * Norm(Cross(Sub(b, a), Sub(c, a)));
+    if (area <= 0.0) continue;
+    const Vec3 g = Scale(Add(a, Add(b, c)), 1.0 / 3.0);
+    const Vec3 s[4] = {g, Scale(Add(Scale(a, 4), Add(b, c)), 1.0 / 6.0),
+                       Scale(Add(Scale(b, 4), Add(a, c)), 1.0 / 6.0),
+                       Scale(Add(Scale(c, 4), Add(a, b)), 1.0 / 6.0)};
+    for (const Vec3& q : s) {
+      const double d = scene.Distance(q);
+      sum += 0.25 * area * d;
+      if (d <= tau) within += 0.25 * area;
+    }
+    r.area += area;
+  }
+  if (r.area > 0.0) {
+    r.mean_mesh_to_scene = sum / r.area;
+    r.precision = within / r.area;
+  }
+  // Truth -> mesh through a hash grid of triangle bounding boxes.
+  if (truth.empty()) return r;
+  const double g = std::max(cap, 1.0);
+  auto key = [](int64_t x, int64_t y, int64_t z) {
+    return (static_cast<uint64_t>(x & 0x1FFFFF) << 42) | (static_cast<uint64_t>(y & 0x1FFFFF) << 21) |
+           static_cast<uint64_t>(z & 0x1FFFFF);
+  };
+  auto cell = [&](double v) { return static_cast<int64_t>(std::floor(v / g)); };
+  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
+  for (size_t t = 0; t < r.triangles; ++t) {
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 v = vert(faces[3 * t + k]);
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], v[d]);
+        hi[d] = std::max(hi[d], v[d]);
+      }
+    }
+    if (cell(hi[0]) - cell(lo[0]) > 64 || cell(hi[1]) - cell(lo[1]) > 64 ||
+        cell(hi[2]) - cell(lo[2]) > 64)
+      continue;  // Absurdly large triangle: ignore for completeness.
+    for (int64_t x = cell(lo[0]); x <= cell(hi[0]); ++x)
+      for (int64_t y = cell(lo[1]); y <= cell(hi[1]); ++y)
+        for (int64_t z = cell(lo[2]); z <= cell(hi[2]); ++z)
+          grid[key(x, y, z)].push_back(static_cast<uint32_t>(t));
+  }
+  double tsum = 0.0;
+  size_t near = 0;
+  for (const Vec3& p : truth) {
+    double best = cap;
+    const int64_t cx = cell(p[0]), cy = cell(p[1]), cz = cell(p[2]);
+    for (int64_t x = cx - 1; x <= cx + 1; ++x)
+      for (int64_t y = cy - 1; y <= cy + 1; ++y)
+        for (int64_t z = cz - 1; z <= cz + 1; ++z) {
+          auto it = grid.find(key(x, y, z));
+          if (it == grid.end()) continue;
+          for (uint32_t t : it->second)
+            best = std::min(best, PointTriangleDistance(p, vert(faces[3 * t]),
+                                                        vert(faces[3 * t + 1]),
+                                                        vert(faces[3 * t + 2])));
+        }
+    tsum += best;
+    if (best <= tau) ++near;
+  }
+  r.mean_truth_to_mesh = tsum / truth.size();
+  r.completeness = static_cast<double>(near) / truth.size();
+  return r;
+}
+
+}  // namespace imr::synthetic

@@ -1,0 +1,32 @@
+// Accuracy of a triangle mesh against a known Scene (DESIGN §8, both directions): mesh -> scene
+// (precision: is what we built on a true surface?) and true points -> mesh (completeness: is what
+// was seen covered?). Plain arrays in, no engine types.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "host/synthetic/scene.h"
+
+namespace imr::synthetic {
+
+struct MeshAccuracy {
+  size_t triangles = 0;
+  double area = 0.0;
+  double mean_mesh_to_scene = 0.0;    // Area-weighted mean distance of the mesh to the scene.
+  double precision = 0.0;             // Share of mesh area within tau of the scene.
+  double mean_truth_to_mesh = 0.0;    // Mean distance of true points to the mesh (capped at cap).
+  double completeness = 0.0;          // Share of true points within tau of the mesh.
+  double tau = 0.0;
+};
+
+// vertices: packed xyz; faces: 3 indices per triangle. Distances truth -> mesh are capped at `cap`.
+MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertices,
+                          const std::vector<uint32_t>& faces, const std::vector<Vec3>& truth,
+                          double tau, double cap = 5.0);
+
+// Distance from p to the triangle (a, b, c).
+double PointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
+}  // namespace imr::synthetic

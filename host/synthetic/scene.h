@@ -1,0 +1,74 @@
+// Known synthetic scenes for tests and benchmarks: a street canyon (facades, ground, parked boxes),
+// a closed room, a plane. Geometry only: distance to the true surface and ray intersection. The
+// observation stream (stream.h) and, later, an image renderer are built on top of it.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace imr::synthetic {
+
+using Vec3 = std::array<double, 3>;
+
+// An oriented rectangle: center + s*u + t*v with |s| <= half_u, |t| <= half_v (u, v orthonormal).
+struct Rect {
+  Vec3 center{};
+  Vec3 u{};
+  Vec3 v{};
+  double half_u = 0.0;
+  double half_v = 0.0;
+};
+
+class Scene {
+ public:
+  // Street canyon along +y from y = 0 to y = length: ground z = 0, facades at x = +-half_width
+  // (height facade_height), boxes (parked cars) along both kerbs, placed at random by seed.
+  static Scene StreetCanyon(double length, uint64_t seed, double half_width = 8.0,
+                            double facade_height = 12.0);
+  // The six inner faces of the box [min, max] (a closed room, cameras inside).
+  static Scene ClosedRoom(const Vec3& min, const Vec3& max);
+  // One horizontal square plane z = height, side 2 * half_size, centred on the origin.
+  static Scene Plane(double half_size, double height = 0.0);
+
+  void AddRect(const Rect& r);
+  // Axis-aligned box; with_bottom = false leaves out the face at min z (a box standing on a floor).
+  void AddBox(const Vec3& min, const Vec3& max, bool with_bottom);
+
+  // Unsigned distance from p to the nearest surface of the scene.
+  double Distance(const Vec3& p) const;
+  // First intersection of the ray origin + t * dir (dir unit), 0 < t <= t_max. Returns false if none.
+  bool Intersect(const Vec3& origin, const Vec3& dir, double t_max, double* t_hit) const;
+  // True when nothing in the scene lies on the segment from `from` to `to` (up to `eps` before it).
+  bool Visible(const Vec3& from, const Vec3& to, double eps = 1e-3) const;
+
+  const std::vector<Rect>& rects() const { return rects_; }
+  const std::string& name() const { return name_; }
+
+ private:
+  void Index() const;
+  std::vector<int> Candidates(double x0, double y0, double x1, double y1) const;
+
+  std::string name_;
+  std::vector<Rect> rects_;
+  // Uniform xy bins over rect bounding boxes, built lazily (scenes are immutable once built).
+  mutable bool indexed_ = false;
+  mutable double bin_ = 10.0;
+  mutable double min_x_ = 0.0, min_y_ = 0.0;
+  mutable int nx_ = 0, ny_ = 0;
+  mutable std::vector<std::vector<int>> bins_;
+};
+
+// Small vector helpers shared by the synthetic code.
+inline Vec3 Add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
+inline Vec3 Sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+inline Vec3 Scale(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
+inline double Dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+inline Vec3 Cross(const Vec3& a, const Vec3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double Norm(const Vec3& a);
+Vec3 Normalized(const Vec3& a);
+
+}  // namespace imr::synthetic

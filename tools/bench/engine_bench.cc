@@ -1,0 +1,3 @@
+namespace imr::bench {
+int RunEngineBench(int, char**) { return 0; }
+}

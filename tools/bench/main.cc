@@ -1,0 +1,30 @@
+// imr-bench: argv dispatch to subcommands. Later issues add pipeline, paper, ...
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+namespace imr::bench {
+int RunEngineBench(int argc, char** argv);
+}
+
+namespace {
+void Usage() {
+  std::fprintf(stderr,
+               "usage: imr-bench <subcommand> [options]\n"
+               "subcommands:\n"
+               "  engine [--frames N] [--seed S] [--quick] [--modes a,b,...]\n"
+               "         reconstruction engine on the synthetic street stream\n");
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
+    Usage();
+    return argc < 2 ? 2 : 0;
+  }
+  const std::string sub = argv[1];
+  if (sub == "engine") return imr::bench::RunEngineBench(argc - 2, argv + 2);
+  std::fprintf(stderr, "imr-bench: unknown subcommand '%s'\n", sub.c_str());
+  Usage();
+  return 2;
+}
