@@ -442,11 +442,11 @@ struct Engine::Impl {
     }
   }
 
-  void AssignNewCells(const std::vector<Cell_handle>& added, const Removed& r) {
+  void AssignNewCells(const std::vector<Cell_handle>& added, const Removed& r, bool transfer) {
     std::vector<Cell_handle> finite;
     for (Cell_handle c : added)
       if (!dt.is_infinite(c)) finite.push_back(c);
-    if (opt.visibility_mode == VisibilityMode::kWeights && !finite.empty()) {
+    if (transfer && opt.visibility_mode == VisibilityMode::kWeights && !finite.empty()) {
       std::vector<double> centroids;
       centroids.reserve(3 * finite.size());
       for (Cell_handle c : finite) {
@@ -471,7 +471,8 @@ struct Engine::Impl {
   // Inserts p (conflict cells -> new cells). Returns a null handle when p is dropped: duplicate of
   // a vertex (*duplicate set) or its conflict zone still meets O after shrink. `rays` receives the
   // rays stored in the conflict cells (kRays).
-  Vertex_handle InsertPoint(const Point& p, int64_t vertex_id, bool* duplicate,
+  // `transfer`: new cells get weights through the policy (weights mode); else they start at 0.
+  Vertex_handle InsertPoint(const Point& p, int64_t vertex_id, bool transfer, bool* duplicate,
                             std::vector<RayEntry>* rays) {
     *duplicate = false;
     if (dt.dimension() < 3) {
@@ -507,7 +508,7 @@ struct Engine::Impl {
     last_vertex = v;
     std::vector<Cell_handle> added;
     dt.incident_cells(v, std::back_inserter(added));
-    AssignNewCells(added, removed);
+    AssignNewCells(added, removed, transfer);
     if (rays) *rays = std::move(removed.rays);
     return v;
   }
@@ -521,7 +522,7 @@ struct Engine::Impl {
     if (last_vertex == v) last_vertex = Vertex_handle();
     std::vector<Cell_handle> added;
     dt.remove_and_give_new_cells(v, std::back_inserter(added));
-    AssignNewCells(added, removed);
+    AssignNewCells(added, removed, true);
     if (rays) *rays = std::move(removed.rays);
   }
 
@@ -580,7 +581,7 @@ struct Engine::Impl {
                         (static_cast<double>(k) + opt.steiner_origin[2]) * s);
           bool dup = false;
           std::vector<RayEntry> u;
-          Vertex_handle v = InsertPoint(p, -(steiner_count + 1), &dup, &u);
+          Vertex_handle v = InsertPoint(p, -(steiner_count + 1), opt.transfer_on_insert, &dup, &u);
           if (v == Vertex_handle()) {
             ++stats.steiner_dropped;
             continue;
@@ -749,7 +750,7 @@ struct Engine::Impl {
     rec.in_triangulation = false;
     bool dup = false;
     std::vector<RayEntry> u2;
-    Vertex_handle v = InsertPoint(p_new, pt, &dup, rays_mode ? &u2 : nullptr);
+    Vertex_handle v = InsertPoint(p_new, pt, true, &dup, rays_mode ? &u2 : nullptr);
     u.insert(u.end(), u2.begin(), u2.end());
     if (v == Vertex_handle()) {
       // Cannot happen when D was shrunk out of O (the new conflict zone lies in D's cells or in
@@ -790,7 +791,8 @@ struct Engine::Impl {
     bool dup = false;
     std::vector<RayEntry> u;
     const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
-    Vertex_handle v = InsertPoint(ToPoint(np.position), pt, &dup, rays_mode ? &u : nullptr);
+    Vertex_handle v = InsertPoint(ToPoint(np.position), pt, opt.transfer_on_insert, &dup,
+                                  rays_mode ? &u : nullptr);
     PointRecord& rec = points[pt];
     if (v == Vertex_handle()) {
       if (dup) ++stats.points_duplicate;

@@ -63,6 +63,11 @@ struct EngineOptions {
   VisibilityMode visibility_mode = VisibilityMode::kWeights;  // Efficient or baseline.
   int rays_per_cell = 5;              // K of the forgetting heuristic (kRays mode only).
   SteinerExportRule steiner_export = SteinerExportRule::kAllSteiner;  // Export filter.
+  bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
+                                      // point) get weights through the policy (DESIGN §3 step 3)
+                                      // when true; else they start at 0 and the point's own rays,
+                                      // cast right after, weight them. Moves always use the
+                                      // policy. See the note in engine.cc on why false is default.
   double shrink_radius = 1.0;         // Enclosing set E: D plus cells around D's vertices that
                                       // lie within this distance (metres) of the point.
   int shrink_passes = 3;              // Passes of shrink over E while D still meets O.
