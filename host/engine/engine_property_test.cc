@@ -42,7 +42,9 @@ TEST_P(InvariantTest, ManifoldAfterEveryKeyframe) {
   int keyframes = 0;
   const Status s = testing::RunStream(&stream, &engine, [&](const synthetic::StreamKeyframe& kf) {
     ++keyframes;
-    if (kf.index > 0) EXPECT_FALSE(kf.moved_points.empty()) << "keyframe " << kf.index;
+    if (kf.index > 0) {
+      EXPECT_FALSE(kf.moved_points.empty()) << "keyframe " << kf.index;
+    }
     const ManifoldCheckResult r = engine.CheckInvariants();
     EXPECT_TRUE(r.ok) << mode << " keyframe " << kf.index << ": " << r.message;
     const ManifoldCheckResult closed = CheckMesh(engine.ExtractBoundary(), true);
@@ -66,9 +68,10 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Combine(::testing::Values("nearest", "mean", "weighted_mean", "rays5", "rays1"),
                        ::testing::Values(SceneKind::kStreet, SceneKind::kRoom),
                        ::testing::Values(uint64_t{1}, uint64_t{7})),
-    [](const auto& info) {
-      return std::get<0>(info.param) + "_" + synthetic::ToString(std::get<1>(info.param)) + "_" +
-             std::to_string(std::get<2>(info.param));
+    [](const auto& param_info) {
+      const auto& p = param_info.param;
+      return std::get<0>(p) + "_" + synthetic::ToString(std::get<1>(p)) + "_" +
+             std::to_string(std::get<2>(p));
     });
 
 // ---------------------------------------------------------------------------------------------
@@ -106,7 +109,9 @@ TEST(CastingTest, ForwardThenBackwardRestoresWeightsExactly) {
     // Backward in a different order than forward.
     for (auto it = points.rbegin(); it != points.rend(); ++it) {
       Vec3 pos;
-      if (engine.PointPosition(it->id, &pos)) ASSERT_TRUE(engine.CastPointRays(it->id, cams, -1).ok());
+      if (engine.PointPosition(it->id, &pos)) {
+        ASSERT_TRUE(engine.CastPointRays(it->id, cams, -1).ok());
+      }
     }
     EXPECT_EQ(engine.CellWeights(), before);
   }
@@ -129,12 +134,9 @@ synthetic::MeshAccuracy RunGeometry(SceneKind scene, const std::string& mode, in
   EngineOptions eo;
   std::unique_ptr<WeightTransferPolicy> policy;
   EXPECT_TRUE(testing::ConfigureMode(mode, &eo, &policy));
-  if (getenv("W2")) { eo.w2 = atof(getenv("W2")); eo.w3 = atof(getenv("W3")); }
-  if (getenv("TW")) eo.free_threshold = atof(getenv("TW"));
   Engine engine(eo, policy.get());
   EXPECT_TRUE(testing::RunStream(&stream, &engine).ok());
   if (points_out) *points_out = static_cast<int>(engine.NumPoints());
-  EngineOptions any = eo;
   // Triangles made only of real points, to measure where the observed surface is.
   Mesh m = engine.ExtractBoundary();
   Mesh real;
@@ -152,25 +154,31 @@ synthetic::MeshAccuracy RunGeometry(SceneKind scene, const std::string& mode, in
   return acc;
 }
 
+// Measured (seed 11): room nearest 0.10 m / 0.94, street nearest 0.23 m / 0.77, street rays5
+// 0.12 m / 0.71 (mean distance of real-point triangles to the scene / completeness at 25 cm).
+// A carving that fails leaves no real-point triangles (or Steiner-only surfaces), and fails these.
 TEST(GeometryTest, ClosedRoomSeenFromInside) {
   const auto acc = RunGeometry(SceneKind::kRoom, "nearest", 150);
-  EXPECT_GT(acc.triangles, 200u);
-  EXPECT_LT(acc.mean_mesh_to_scene, 0.25);
-  EXPECT_GT(acc.completeness, 0.25);
+  EXPECT_GT(acc.triangles, 2000u);
+  EXPECT_LT(acc.mean_mesh_to_scene, 0.2);
+  EXPECT_GT(acc.completeness, 0.8);
 }
 
 TEST(GeometryTest, StreetCanyon) {
   const auto acc = RunGeometry(SceneKind::kStreet, "nearest", 60);
-  EXPECT_GT(acc.triangles, 200u);
-  EXPECT_LT(acc.mean_mesh_to_scene, 0.25);
-  EXPECT_GT(acc.completeness, 0.25);
+  EXPECT_GT(acc.triangles, 1000u);
+  EXPECT_LT(acc.mean_mesh_to_scene, 0.35);
+  EXPECT_GT(acc.completeness, 0.6);
 }
 
-// The efficient policy and the baseline on the same stream.
+// The efficient policy and the baseline on the same stream: within 0.2 m in mean distance and
+// 0.2 in completeness.
 TEST(GeometryTest, EfficientPolicyComparableToBaseline) {
   const auto nearest = RunGeometry(SceneKind::kStreet, "nearest", 60);
   const auto rays = RunGeometry(SceneKind::kStreet, "rays5", 60);
-  EXPECT_LT(std::abs(nearest.mean_mesh_to_scene - rays.mean_mesh_to_scene), 0.15);
+  EXPECT_LT(std::abs(nearest.mean_mesh_to_scene - rays.mean_mesh_to_scene), 0.2);
+  EXPECT_LT(std::abs(nearest.completeness - rays.completeness), 0.2);
+  EXPECT_GT(rays.completeness, 0.5);
 }
 
 }  // namespace

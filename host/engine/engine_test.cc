@@ -1,60 +1,283 @@
+// Unit tests of the engine: options, errors as values, degenerate input.
 #include "host/engine/engine.h"
 
 #include <gtest/gtest.h>
 
-#include <cstdio>
-#include <cstdlib>
+#include <cmath>
+#include <limits>
 
 #include "host/engine/testing/policies.h"
-#include "host/engine/testing/stream_update.h"
-#include "host/synthetic/evaluation.h"
+#include "host/engine/testing/run_stream.h"
 
 namespace imr::engine {
 namespace {
 
-TEST(Engine, SmokeStreet) {
-  synthetic::StreamOptions so;
-  so.frames = 100;
-  if (getenv("N")) so.noise_at_10m = atof(getenv("N"));
-  if (getenv("P")) so.points_per_keyframe = atoi(getenv("P"));
-  if (getenv("MR")) so.max_range = atof(getenv("MR"));
-  synthetic::SyntheticStream stream(so);
-  auto policy = testing::MakePolicy(getenv("POL") ? getenv("POL") : "nearest");
-  EngineOptions eo;
-  if (getenv("RAYS")) { eo.visibility_mode = VisibilityMode::kRays; eo.rays_per_cell = atoi(getenv("RAYS")); }
-  if (getenv("W2")) { eo.w2 = atof(getenv("W2")); eo.w3 = atof(getenv("W3")); }
-  if (getenv("TW")) eo.free_threshold = atof(getenv("TW"));
-  if (getenv("R")) eo.shrink_radius = atof(getenv("R"));
-  if (getenv("N")) so.noise_at_10m = atof(getenv("N"));
-  Engine engine(eo, policy.get());
-  synthetic::StreamKeyframe kf;
-  while (stream.Next(&kf)) {
-    Status s = engine.ApplyUpdate(testing::ToUpdate(kf));
-    ASSERT_TRUE(s.ok()) << s.message();
-    auto r = engine.CheckInvariants();
-    ASSERT_TRUE(r.ok) << "keyframe " << kf.index << ": " << r.message;
+TEST(EngineOptionsTest, DefaultsAreValidAndFollowThePaper) {
+  EngineOptions o;
+  std::string error;
+  EXPECT_TRUE(o.Check(&error)) << error;
+  EXPECT_EQ(o.steiner_spacing, 5.0);
+  EXPECT_EQ(o.w1, 1.0);
+  EXPECT_EQ(o.w2, 0.8);
+  EXPECT_EQ(o.w3, 0.2);
+  EXPECT_EQ(o.free_threshold, 1.0);
+  EXPECT_EQ(o.window, 15);
+  EXPECT_EQ(o.rays_per_cell, 5);
+  EXPECT_EQ(o.steiner_export, SteinerExportRule::kAllSteiner);
+}
+
+TEST(EngineOptionsTest, CheckNamesTheBadField) {
+  EngineOptions o;
+  o.window = 0;
+  o.steiner_spacing = -1;
+  std::string error;
+  EXPECT_FALSE(o.Check(&error));
+  EXPECT_NE(error.find("window"), std::string::npos) << error;
+  EXPECT_NE(error.find("steiner_spacing"), std::string::npos) << error;
+  EngineOptions nan;
+  nan.max_ray_length = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(nan.Check(&error));
+  EXPECT_NE(error.find("max_ray_length"), std::string::npos) << error;
+}
+
+TEST(EngineOptionsTest, EnumsRoundTrip) {
+  for (auto m : {VisibilityMode::kWeights, VisibilityMode::kRays}) {
+    VisibilityMode back;
+    ASSERT_TRUE(FromString(ToString(m), &back));
+    EXPECT_EQ(back, m);
   }
-  const auto& st = engine.Stats();
-  std::printf("pts %ld moved %ld dropped %ld skipped %ld inO %ld rays %ld cells/ray %.1f t %.2f\n",
-              (long)st.points_inserted, (long)st.points_moved, (long)st.points_dropped,
-              (long)st.moves_skipped, (long)st.cells_in_o, (long)st.rays_cast,
-              double(st.cells_traversed) / std::max<int64_t>(1, st.rays_cast + st.rays_cast_backward),
-              st.time.total);
-  for (auto rule : {SteinerExportRule::kNone, SteinerExportRule::kAllSteiner, SteinerExportRule::kAnySteiner}) {
-    EngineOptions o2 = eo; (void)o2;
-    Mesh m = engine.ExtractBoundary();
-    // filter
-    Mesh f; 
-    for (size_t t = 0; t < m.faces.size(); t += 3) {
-      int st = 0; for (int k=0;k<3;++k) st += m.point_ids[m.faces[t+k]] < 0;
-      if (rule == SteinerExportRule::kAllSteiner && st == 3) continue;
-      if (rule == SteinerExportRule::kAnySteiner && st > 0) continue;
-      for (int k=0;k<3;++k) f.faces.push_back(m.faces[t+k]);
+  for (auto r : {SteinerExportRule::kNone, SteinerExportRule::kAllSteiner,
+                 SteinerExportRule::kAnySteiner}) {
+    SteinerExportRule back;
+    ASSERT_TRUE(FromString(ToString(r), &back));
+    EXPECT_EQ(back, r);
+  }
+  VisibilityMode m;
+  EXPECT_FALSE(FromString("bogus", &m));
+}
+
+TEST(EngineTest, InvalidOptionsOrMissingPolicyAreReportedByApplyUpdate) {
+  EngineOptions o;
+  o.window = 0;
+  testing::ArrayPolicy nearest(testing::PolicyKind::kNearest);
+  Engine bad(o, &nearest);
+  Status s = bad.ApplyUpdate({});
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("window"), std::string::npos);
+  Engine no_policy(EngineOptions{}, nullptr);
+  s = no_policy.ApplyUpdate({});
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("policy"), std::string::npos);
+  EngineOptions rays;
+  rays.visibility_mode = VisibilityMode::kRays;
+  Engine baseline(rays, nullptr);
+  EXPECT_TRUE(baseline.ApplyUpdate({}).ok());
+}
+
+// A tiny hand-made scene: a camera, a wall of points at y = 10 seen from it.
+class SmallSceneTest : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(testing::ConfigureMode(GetParam(), &options_, &policy_));
+    engine_ = std::make_unique<Engine>(options_, policy_.get());
+  }
+  KeyframeUpdate Wall(uint64_t first_id, double y, int n) {
+    KeyframeUpdate u;
+    u.cameras = {{1, {0.0, 0.0, 1.5}}, {2, {0.5, 0.3, 1.5}}};
+    uint64_t id = first_id;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        u.new_points.push_back({id++, {-4.0 + 8.0 * i / (n - 1), y, 0.2 + 4.0 * j / (n - 1)},
+                                {1, 2}});
+    return u;
+  }
+  void ExpectManifold() {
+    const ManifoldCheckResult r = engine_->CheckInvariants();
+    EXPECT_TRUE(r.ok) << r.message;
+    const ManifoldCheckResult m = CheckMesh(engine_->ExtractMesh(), false);
+    EXPECT_TRUE(m.ok) << m.message;
+    EXPECT_EQ(engine_->Stats().rays_truncated, 0);
+  }
+  EngineOptions options_;
+  std::unique_ptr<WeightTransferPolicy> policy_;
+  std::unique_ptr<Engine> engine_;
+};
+
+TEST_P(SmallSceneTest, NanAndInfAreRefusedNamingThePoint) {
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 5)).ok());
+  const size_t before = engine_->NumPoints();
+  KeyframeUpdate u;
+  u.new_points.push_back({4242, {0.0, std::numeric_limits<double>::quiet_NaN(), 1.0}, {1}});
+  Status s = engine_->ApplyUpdate(u);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("4242"), std::string::npos) << s.message();
+  KeyframeUpdate m;
+  m.moved_points.push_back({3, {std::numeric_limits<double>::infinity(), 0.0, 1.0}, {}});
+  s = engine_->ApplyUpdate(m);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("moved point 3"), std::string::npos) << s.message();
+  KeyframeUpdate c;
+  c.cameras.push_back({77, {0.0, -std::numeric_limits<double>::infinity(), 0.0}});
+  s = engine_->ApplyUpdate(c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("camera 77"), std::string::npos) << s.message();
+  EXPECT_EQ(engine_->NumPoints(), before);  // Refused updates change nothing.
+  ExpectManifold();
+}
+
+TEST_P(SmallSceneTest, UnknownIdsAreRefused) {
+  KeyframeUpdate u = Wall(1, 10.0, 3);
+  u.new_points[1].camera_ids.push_back(999);
+  Status s = engine_->ApplyUpdate(u);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("999"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("new point 2"), std::string::npos) << s.message();
+  KeyframeUpdate m;
+  m.moved_points.push_back({12345, {0, 0, 0}, {}});
+  s = engine_->ApplyUpdate(m);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("12345"), std::string::npos);
+  KeyframeUpdate dup = Wall(1, 10.0, 3);
+  dup.new_points.push_back(dup.new_points[0]);
+  s = engine_->ApplyUpdate(dup);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("new point 1 "), std::string::npos) << s.message();
+}
+
+TEST_P(SmallSceneTest, WallIsCarvedAndMovesKeepTheManifold) {
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
+  ExpectManifold();
+  EXPECT_GT(engine_->Stats().cells_in_o, 0);
+  // Move every point 20 cm toward the camera, with a new observing camera.
+  KeyframeUpdate u;
+  u.cameras = {{3, {0.0, 1.0, 1.5}}};
+  for (uint64_t id = 1; id <= 81; ++id) {
+    Vec3 p;
+    ASSERT_TRUE(engine_->PointPosition(id, &p));
+    u.moved_points.push_back({id, {p[0], p[1] - 0.2, p[2]}, {3}});
+  }
+  ASSERT_TRUE(engine_->ApplyUpdate(u).ok());
+  ExpectManifold();
+  EXPECT_GT(engine_->Stats().points_moved, 40);
+  // Remove a few.
+  KeyframeUpdate r;
+  r.removed_points = {1, 2, 3, 40};
+  ASSERT_TRUE(engine_->ApplyUpdate(r).ok());
+  ExpectManifold();
+  Vec3 p;
+  EXPECT_FALSE(engine_->PointPosition(40, &p) && engine_->Stats().points_removed == 4);
+}
+
+TEST_P(SmallSceneTest, CoplanarCollinearAndDuplicatePoints) {
+  // Coplanar on a regular grid (cospherical quadruples everywhere).
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 6)).ok());
+  ExpectManifold();
+  // Collinear: a line of points along x.
+  KeyframeUpdate line;
+  for (int i = 0; i < 30; ++i)
+    line.new_points.push_back({static_cast<uint64_t>(100 + i), {-3.0 + 0.2 * i, 8.0, 1.0}, {1, 2}});
+  ASSERT_TRUE(engine_->ApplyUpdate(line).ok());
+  ExpectManifold();
+  // Duplicates: an existing position and twice the same new position.
+  KeyframeUpdate dup;
+  Vec3 p;
+  ASSERT_TRUE(engine_->PointPosition(1, &p));  // Inserted before O existed.
+  dup.new_points.push_back({200, p, {1}});
+  dup.new_points.push_back({201, {1.234, 12.0, 2.0}, {1}});  // Behind the wall: not in O.
+  dup.new_points.push_back({202, {1.234, 12.0, 2.0}, {2}});
+  ASSERT_TRUE(engine_->ApplyUpdate(dup).ok());
+  EXPECT_EQ(engine_->Stats().points_duplicate, 2);
+  EXPECT_FALSE(engine_->PointPosition(200, &p));
+  EXPECT_FALSE(engine_->PointPosition(202, &p));
+  const EngineStats& st = engine_->Stats();
+  EXPECT_EQ(st.points_inserted + st.points_dropped + st.points_duplicate, 36 + 30 + 3);
+  EXPECT_GT(st.points_inserted, 36);
+  ExpectManifold();
+}
+
+TEST_P(SmallSceneTest, PointAtCameraCentreAndRaysThroughVertices) {
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 5)).ok());
+  KeyframeUpdate u;
+  // A point exactly at camera 1's centre: its ray from camera 1 has zero length.
+  u.new_points.push_back({500, {0.0, 0.0, 1.5}, {1, 2}});
+  // Points on the line through camera 1 and wall point (0, 10, 2.2): rays to the farther ones
+  // pass exactly through the nearer vertices.
+  u.new_points.push_back({501, {0.0, 5.0, 1.85}, {1}});
+  u.new_points.push_back({502, {0.0, 7.5, 2.025}, {1}});
+  // A camera on a Steiner point and a point further along a grid line: the ray runs along
+  // Steiner edges through Steiner vertices.
+  const double s = options_.steiner_spacing;
+  const Vec3 o = options_.steiner_origin;
+  u.cameras.push_back({9, {o[0] * s, o[1] * s, o[2] * s}});
+  u.new_points.push_back({503, {o[0] * s, (o[1] + 2.0) * s + 0.5, o[2] * s}, {9}});
+  ASSERT_TRUE(engine_->ApplyUpdate(u).ok());
+  ExpectManifold();
+  // Each new point is inserted or dropped (in free space that shrink could not free), never an
+  // error; every point known to the engine is accounted for.
+  const EngineStats& st = engine_->Stats();
+  EXPECT_EQ(st.points_inserted + st.points_dropped + st.points_duplicate, 25 + 4);
+  if (options_.visibility_mode == VisibilityMode::kWeights) {
+    // Degenerate rays are cast and uncast exactly too.
+    const auto before = engine_->CellWeights();
+    std::vector<std::pair<uint64_t, std::vector<uint64_t>>> rays = {
+        {500, {1, 2}}, {501, {1}}, {502, {1}}, {503, {9}}, {13, {1, 2, 9}}};
+    int cast = 0;
+    for (const auto& [id, cams] : rays) {
+      Vec3 p;
+      if (!engine_->PointPosition(id, &p)) continue;
+      ASSERT_TRUE(engine_->CastPointRays(id, cams, +1).ok());
+      ++cast;
     }
-    auto acc = synthetic::EvaluateMesh(stream.scene(), m.vertices, f.faces, stream.TruePoints(), 0.2);
-    std::printf("%s tris %zu area %.0f mean %.3f prec %.3f compl %.3f truth->mesh %.3f\n", ToString(rule).c_str(), acc.triangles, acc.area,
-              acc.mean_mesh_to_scene, acc.precision, acc.completeness, acc.mean_truth_to_mesh);
+    EXPECT_GE(cast, 1);
+    EXPECT_NE(engine_->CellWeights(), before);
+    for (auto it = rays.rbegin(); it != rays.rend(); ++it) {
+      Vec3 p;
+      if (engine_->PointPosition(it->first, &p)) {
+        ASSERT_TRUE(engine_->CastPointRays(it->first, it->second, -1).ok());
+      }
+    }
+    EXPECT_EQ(engine_->CellWeights(), before);
   }
+  EXPECT_EQ(engine_->Stats().rays_truncated, 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Modes, SmallSceneTest,
+                         ::testing::Values("nearest", "mean", "weighted_mean", "rays5", "rays1"));
+
+TEST(EngineTest, PlaneSceneStream) {
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kPlane;
+  so.frames = 30;
+  so.points_per_keyframe = 100;
+  synthetic::SyntheticStream stream(so);
+  testing::ArrayPolicy nearest(testing::PolicyKind::kNearest);
+  EngineOptions eo;
+  eo.check_after_update = true;  // ApplyUpdate fails if dO breaks.
+  Engine engine(eo, &nearest);
+  const Status s = testing::RunStream(&stream, &engine);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_GT(engine.Stats().points_moved, 50);
+  EXPECT_GT(engine.Stats().cells_in_o, 0);
+}
+
+TEST(CheckMeshTest, DetectsNonManifoldMeshes) {
+  // Two tetrahedra surfaces sharing one vertex: closed, but the shared vertex has two fans.
+  Mesh m;
+  m.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, -1, 0, 0, 0, -1, 0, 0, 0, -1};
+  auto tet = [&](uint32_t a, uint32_t b, uint32_t c, uint32_t d) {
+    m.faces.insert(m.faces.end(), {a, c, b, a, b, d, a, d, c, b, c, d});
+  };
+  tet(0, 1, 2, 3);
+  EXPECT_TRUE(CheckMesh(m, true).ok) << CheckMesh(m, true).message;
+  tet(0, 4, 6, 5);
+  const auto r = CheckMesh(m, true);
+  EXPECT_FALSE(r.ok);
+  // An open mesh is not closed.
+  Mesh open;
+  open.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  open.faces = {0, 1, 2};
+  EXPECT_TRUE(CheckMesh(open, false).ok);
+  EXPECT_FALSE(CheckMesh(open, true).ok);
 }
 
 }  // namespace
