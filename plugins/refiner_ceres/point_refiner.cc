@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_set>
 
 namespace imr::ceres_refiner {
 
@@ -79,6 +78,8 @@ void PointRefiner::AddFrame(const imr_camera& camera,
   last_camera_id_ = camera.id;
 
   for (const imr_track_observation& o : observations) {
+    // An id is one track: a tracker that reuses an ended id gets no second point for it.
+    if (!ended_.empty() && ended_.count(o.track_id)) continue;
     Track& track = tracks_[o.track_id];
     track.last_camera = camera.id;
     if (track.rejected) continue;
@@ -96,6 +97,7 @@ void PointRefiner::ProcessKeyframe(uint64_t keyframe_id, RefinerUpdate* update) 
     track.dirty = false;
     // A track not seen in this keyframe has ended (ids are never reused): its estimate is final.
     if (track.last_camera != keyframe_id) {
+      ended_.insert(it->first);
       it = tracks_.erase(it);
       continue;
     }

@@ -13,6 +13,7 @@
 #include <span>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "triangulation.hpp"
@@ -82,6 +83,7 @@ class PointRefiner {
   RefinerOptions options_;
   std::unordered_map<uint64_t, Camera> cameras_;
   std::map<uint64_t, Track> tracks_;  // ordered: reports come in track id order
+  std::unordered_set<uint64_t> ended_;  // ids of tracks that ended; ignored should they reappear
   bool has_frame_ = false;
   uint64_t last_camera_id_ = 0;
 };

@@ -252,6 +252,20 @@ TEST_F(RefinerPlugin, InconsistentTracksAreNeverCreatedOrRemoved) {
   EXPECT_GT(run.points.size(), 100u);
 }
 
+TEST_F(RefinerPlugin, AnEndedTrackIdThatReappearsGetsNoSecondPoint) {
+  const std::vector<Eigen::Vector3d> truth = Street(100, 9);
+  const Eigen::Vector3d a(-7.0, 0.0, 60.0);
+  auto extra = [&](uint64_t f, std::vector<imr_track_observation>* obs) {
+    if (f <= 12 || f >= 16) {  // ends before keyframe 15, comes back at frame 16
+      const Eigen::Vector2d p = *Project(a, f);
+      obs->push_back({3, p.x(), p.y()});
+    }
+  };
+  const Run run = Drive("{}", truth, 26, 0.0, 0.01, extra);  // Drive fails on a second "new"
+  ASSERT_TRUE(run.points.count(3));
+  EXPECT_LT((run.points.at(3).last - a).norm(), 1e-3);
+}
+
 TEST_F(RefinerPlugin, PointsBehindTheCamerasAreRefused) {
   const std::vector<Eigen::Vector3d> truth = Street(100, 8);
   // Pixels of a point 10 m behind the first camera through a projection that ignores the sign of
