@@ -30,6 +30,7 @@ const char* kUsage =
     "\n"
     "Commands:\n"
     "  run JOB.json       run a job: every sequence, written to the job's output folders\n"
+    "                     (--export-stream FILE, --export-colmap DIR: see `imr run --help`)\n"
     "  validate JOB.json  check a job and report every problem, without running it\n"
     "  plugins            list the plugins found (kind, id, version, ABI, file) and refusals\n"
     "\n"
@@ -97,24 +98,57 @@ int CmdValidate(const std::vector<std::string>& args) {
   return kExitOk;
 }
 
+const char* kRunNotes =
+    "Export paths are templates: {sequence} (the sequence's name), {job} (the job file's stem)\n"
+    "and {output} (the sequence's output folder, from the job). Relative paths are relative to\n"
+    "the current folder. A job with several sequences needs {sequence} or {output} in them.\n"
+    "  --export-stream '{output}/stream.json'   the updates that reached the engine, as SLAM\n"
+    "      JSON 0.3 (with imr's keyframe extensions); a job with \"input\": {\"format\":\n"
+    "      \"slam_json\"} on that file reproduces the same mesh, and other meshers can read it.\n"
+    "  --export-colmap '{output}/colmap'        the final points and the cameras that see them,\n"
+    "      as a COLMAP text model (cameras.txt, images.txt, points3D.txt).\n"
+    "Exports are written (atomically) only for sequences that succeed, before the mesh and\n"
+    "report.json; the report lists them under \"exports\".\n";
+
 int CmdRun(const std::vector<std::string>& args) {
   po::options_description opts("imr run options");
-  opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)");
+  opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)")(
+      "export-stream", po::value<std::string>()->value_name("FILE"),
+      "also write the engine's input stream as SLAM JSON 0.3 (replayable)")(
+      "export-colmap", po::value<std::string>()->value_name("DIR"),
+      "also write the final points and their cameras as a COLMAP text model");
   po::positional_options_description pos;
   pos.add("job", 1);
   po::variables_map vm;
   int status = kExitOk;
-  if (!ParseCommand("run", "imr run JOB.json [-q|-v]", opts, pos, args, &vm, &status)) return status;
+  const std::string synopsis =
+      std::string("imr run JOB.json [--export-stream FILE] [--export-colmap DIR] [-q|-v]\n\n") +
+      kRunNotes;
+  if (!ParseCommand("run", synopsis, opts, pos, args, &vm, &status)) return status;
   const fs::path job = vm["job"].as<std::string>();
+  imr::pipeline::RunOptions run_options;
+  if (vm.count("export-stream")) run_options.export_stream = vm["export-stream"].as<std::string>();
+  if (vm.count("export-colmap")) run_options.export_colmap = vm["export-colmap"].as<std::string>();
+  for (const auto* flag : {&run_options.export_stream, &run_options.export_colmap})
+    if (vm.count(flag == &run_options.export_stream ? "export-stream" : "export-colmap") &&
+        flag->empty()) {
+      std::cerr << "imr run: an export path must not be empty\n";
+      return kExitUsage;
+    }
   imr::plugin::PluginRegistry registry;
   auto v = imr::pipeline::LoadAndValidateJob(job, &registry);
   if (!v.ok()) {
     PrintProblems(job, v.problems);
     return kExitUsage;
   }
+  const auto option_problems = imr::pipeline::CheckRunOptions(run_options, v);
+  if (!option_problems.empty()) {
+    for (const auto& p : option_problems) std::cerr << "imr run: " << p << "\n";
+    return kExitUsage;
+  }
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
-  auto batch = imr::pipeline::RunJob(v, registry);
+  auto batch = imr::pipeline::RunJob(v, registry, run_options);
   // One line per sequence on stdout: where the results are, or why there are none.
   for (const auto& s : batch.sequences) {
     if (s.ok) {

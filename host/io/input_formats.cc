@@ -1,5 +1,8 @@
 #include "host/io/input_formats.h"
 
+#include "host/io/colmap_model.h"
+#include "host/io/openmvg_reader.h"
+#include "host/io/slam_json.h"
 #include "host/io/synthetic_source.h"
 #include "host/synthetic/stream.h"
 
@@ -35,6 +38,38 @@ const std::vector<InputFormat>& InputFormats() {
                     {"description", "points keep their first estimate (no moves)"}}}};
     s.open = &OpenSyntheticSource;
     f.push_back(s);
+
+    InputFormat mvg;
+    mvg.name = "openmvg";
+    mvg.description = "OpenMVG sfm_data.json (views, intrinsics, extrinsics, structure); engine only";
+    mvg.needs_front_end = false;
+    mvg.options_schema = SfmReplayOptionsSchema();
+    mvg.open = [](const std::string& path, const json& o) {
+      return MakeSfmSource(ReadOpenMvg(path), SfmReplayOptionsFromJson(o));
+    };
+    f.push_back(mvg);
+
+    InputFormat colmap;
+    colmap.name = "colmap";
+    colmap.description = "COLMAP sparse model folder (cameras, images, points3D; .bin wins over "
+                         ".txt); engine only";
+    colmap.needs_front_end = false;
+    colmap.options_schema = SfmReplayOptionsSchema();
+    colmap.open = [](const std::string& path, const json& o) {
+      return MakeSfmSource(ColmapToSfm(ReadColmapModel(path), path), SfmReplayOptionsFromJson(o));
+    };
+    f.push_back(colmap);
+
+    InputFormat slam;
+    slam.name = "slam_json";
+    slam.description = "incremental SLAM JSON (slam_data_version 0.3, Piazza et al. 2018; also "
+                       "what --export-stream writes): keyframes with moving points; engine only";
+    slam.needs_front_end = false;
+    slam.options_schema = SlamJsonOptionsSchema();
+    slam.open = [](const std::string& path, const json& o) {
+      return OpenSlamJson(path, SlamJsonOptionsFromJson(o));
+    };
+    f.push_back(slam);
     return f;
   }();
   return formats;

@@ -1,6 +1,6 @@
 // Input formats a job can name in input.format. Each says what its `sequences` entries are
 // (paths that must exist, or names) and which options it takes (a schema, like plugin params).
-// Later formats (KITTI, OpenMVG, COLMAP, SLAM JSON) add rows here.
+// Formats: synthetic, openmvg, colmap, slam_json; later ones (KITTI, ...) add rows here.
 #pragma once
 
 #include "host/io/keyframe_source.h"

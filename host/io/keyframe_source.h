@@ -1,9 +1,11 @@
 // Where the engine's per-keyframe updates come from. Each input format opens a KeyframeSource
-// for one sequence: the synthetic stream, and (later) SfM/SLAM exports and the image front end.
+// for one sequence: the synthetic stream, SfM/SLAM exports (OpenMVG, COLMAP, SLAM JSON) and
+// (later) the image front end.
 // The pipeline only pulls updates from it, so a new format needs no pipeline change.
 #pragma once
 
 #include "host/engine/engine.h"
+#include "host/io/camera_model.h"
 
 #include <nlohmann/json.hpp>
 
@@ -31,6 +33,15 @@ class KeyframeSource {
     (void)mesh;
     return nullptr;
   }
+  // What the source knows of a camera beyond its centre (rotation, intrinsics, image name), for
+  // the stream and COLMAP exports; null when it knows only the centre.
+  virtual const CameraGeometry* Camera(uint64_t camera_id) const {
+    (void)camera_id;
+    return nullptr;
+  }
+  // Figures about the input for the report (views, points, observations, what was skipped and
+  // why), as a JSON object; null when there is nothing to say.
+  virtual nlohmann::json Summary() const { return nullptr; }
 };
 
 }  // namespace imr::io

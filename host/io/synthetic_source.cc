@@ -3,18 +3,35 @@
 #include "host/synthetic/evaluation.h"
 #include "host/synthetic/stream.h"
 
+#include <cmath>
+#include <unordered_map>
+
 namespace imr::io {
 namespace {
 
 class SyntheticSource : public KeyframeSource {
  public:
-  explicit SyntheticSource(const synthetic::StreamOptions& o) : stream_(o) {}
+  explicit SyntheticSource(const synthetic::StreamOptions& o) : stream_(o) {
+    // A pinhole with the stream's horizontal field of view, 1000 pixels wide (for exports).
+    const double kPi = 3.14159265358979323846;
+    intrinsics_.source_model = "pinhole";
+    intrinsics_.width = 1000;
+    intrinsics_.fx = intrinsics_.fy = 500.0 / std::tan(0.5 * o.hfov_deg * kPi / 180.0);
+    intrinsics_.height = static_cast<int>(
+        std::round(2.0 * intrinsics_.fy * std::tan(0.5 * o.vfov_deg * kPi / 180.0)));
+    intrinsics_.cx = 500.0;
+    intrinsics_.cy = 0.5 * intrinsics_.height;
+    intrinsics_.projectable = true;
+  }
 
   bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
     synthetic::StreamKeyframe kf;
     if (!stream_.Next(&kf)) return false;
     *u = engine::KeyframeUpdate{};
-    for (const auto& c : kf.cameras) u->cameras.push_back({c.id, c.center});
+    for (const auto& c : kf.cameras) {
+      u->cameras.push_back({c.id, c.center});
+      AddGeometry(c);
+    }
     for (const auto& p : kf.new_points) u->new_points.push_back({p.id, p.position, p.camera_ids});
     for (const auto& p : kf.moved_points)
       u->moved_points.push_back({p.id, p.position, p.camera_ids});
@@ -24,6 +41,11 @@ class SyntheticSource : public KeyframeSource {
   }
 
   int KeyframeCount() const override { return stream_.keyframe_count(); }
+
+  const CameraGeometry* Camera(uint64_t id) const override {
+    auto it = cameras_.find(id);
+    return it == cameras_.end() ? nullptr : &it->second;
+  }
 
   nlohmann::json Evaluate(const engine::Mesh& mesh) const override {
     const double tau = 0.2;  // metres
@@ -38,7 +60,26 @@ class SyntheticSource : public KeyframeSource {
   }
 
  private:
+  // Camera frame: x right, y down, z forward (the scene's up is +z).
+  void AddGeometry(const synthetic::StreamCamera& c) {
+    const Vec3& f = c.forward;
+    Vec3 r = {f[1], -f[0], 0.0};  // forward x up(0, 0, 1)
+    const double n = std::hypot(r[0], r[1]);
+    if (n < 1e-12) return;  // looking straight up or down: no frame
+    r = {r[0] / n, r[1] / n, 0.0};
+    const Vec3 up = {r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]};
+    CameraGeometry g;
+    g.id = c.id;
+    g.name = "frame_" + std::to_string(c.id);
+    SetFromCenter({{{r[0], r[1], r[2]}, {-up[0], -up[1], -up[2]}, {f[0], f[1], f[2]}}}, c.center, &g);
+    g.has_intrinsics = true;
+    g.intrinsics = intrinsics_;
+    cameras_[c.id] = g;
+  }
+
   synthetic::SyntheticStream stream_;
+  Intrinsics intrinsics_;
+  std::unordered_map<uint64_t, CameraGeometry> cameras_;
 };
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include "host/plugin/host_services.h"
 #include "host/plugin/policy_adapter.h"
 #include "host/io/input_formats.h"
+#include "host/io/slam_json.h"
 #include "host/util/atomic_file.h"
 #include "host/util/log.h"
 
@@ -58,8 +59,14 @@ json StatsJson(const engine::EngineStats& s) {
           {"cells_in_o", s.cells_in_o}};
 }
 
+std::string Replace(std::string s, const std::string& from, const std::string& to) {
+  for (std::size_t pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos + to.size()))
+    s.replace(pos, from.size(), to);
+  return s;
+}
+
 void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
-                 const SequenceRef& seq, SequenceResult* result) {
+                 const RunOptions& options, const SequenceRef& seq, SequenceResult* result) {
   const auto start = std::chrono::steady_clock::now();
   const io::JobSpec& job = v.job;
   result->output_directory = job.OutputDirectory(seq.name);
@@ -86,11 +93,17 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
   engine::KeyframeUpdate update;
   io::KeyframeInfo kf;
+  io::CanonicalOrder canonical;
+  std::optional<io::StreamRecorder> recorder;
+  if (!options.export_stream.empty() || !options.export_colmap.empty())
+    recorder.emplace(source.get(), std::string("imr ") + Version() + ", job " + job.Name() +
+                                       ", sequence " + seq.name);
   int keyframes = 0;
   const int total_keyframes = source->KeyframeCount();
   const std::string of_total = total_keyframes > 0 ? "/" + std::to_string(total_keyframes) : "";
   while (source->Next(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
+    canonical.Apply(&update);
     engine::Status st = engine.ApplyUpdate(update);
     if (!st.ok())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
@@ -98,6 +111,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     if (policy && policy->failed())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + ": weight policy " +
                                policy->error());
+    if (recorder) recorder->Record(update, kf);
     ++keyframes;
     if (keyframes % 20 == 0 || keyframes == total_keyframes)
       LogInfo("[" + seq.name + "] keyframe " + std::to_string(keyframes) + of_total);
@@ -108,9 +122,42 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   if (!boundary_check.ok) throw std::runtime_error("manifold check failed: " + boundary_check.message);
   if (!mesh_check.ok) throw std::runtime_error("exported mesh check failed: " + mesh_check.message);
 
+  // Rays longer than max_ray_length are not cast: most of them skipped usually means the
+  // scene is not in metres (or is much larger or smaller than the defaults assume).
+  const engine::EngineStats& stats = engine.Stats();
+  std::string scale_hint;
+  if (stats.rays_skipped_too_long > stats.rays_cast) {
+    scale_hint = std::to_string(stats.rays_skipped_too_long) + " of " +
+                 std::to_string(stats.rays_skipped_too_long + stats.rays_cast) +
+                 " rays were longer than engine.max_ray_length (" +
+                 std::to_string(v.engine_options.max_ray_length) +
+                 "): set max_ray_length and steiner_spacing to the scene's scale";
+    LogWarning("[" + seq.name + "] " + scale_hint);
+  }
   if (mesh.faces.empty())
     throw std::runtime_error("no surface was reconstructed (0 triangles after " +
-                             std::to_string(keyframes) + " keyframes): nothing to export");
+                             std::to_string(keyframes) + " keyframes): nothing to export" +
+                             (scale_hint.empty() ? "" : "; " + scale_hint));
+
+  // Exports first (each whole or absent), then the mesh, then the report.
+  json exports = json::object();
+  if (recorder && recorder->unrepresentable() > 0)
+    LogWarning("[" + seq.name + "] " + std::to_string(recorder->unrepresentable()) +
+               " points entered the engine with no camera: the exported stream cannot hold "
+               "them, so its replay will differ");
+  if (!options.export_stream.empty()) {
+    const fs::path p = ExpandExportPath(options.export_stream, v, seq.name);
+    if (p.has_parent_path()) fs::create_directories(p.parent_path());
+    WriteFileAtomically(p, recorder->SlamJson());
+    exports["stream"] = fs::absolute(p).string();
+  }
+  if (!options.export_colmap.empty()) {
+    const fs::path p = ExpandExportPath(options.export_colmap, v, seq.name);
+    StagingDirectory colmap(p);
+    io::WriteColmapText(recorder->Colmap(), colmap.path());
+    colmap.Commit();
+    exports["colmap"] = fs::absolute(p).string();
+  }
 
   const nlohmann::json accuracy = source->Evaluate(mesh);
 
@@ -124,18 +171,19 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   view.face_count = mesh.faces.size() / 3;
   view.point_ids = mesh.point_ids.data();
   std::set<std::string> written;
-  for (const std::string& format : job.output.formats) {
+  for (const std::string& mesh_format : job.output.formats) {
     for (auto& [stage, inst] : exporters) {
       const std::string list = std::string(",") + inst.instance.descriptor()->exporter->formats + ",";
-      if (list.find("," + format + ",") == std::string::npos || written.count(format)) continue;
+      if (list.find("," + mesh_format + ",") == std::string::npos || written.count(mesh_format))
+        continue;
       imr_export_request req{};
       req.mesh = &view;
       const std::string dir = staging.path().string();
       req.directory = dir.c_str();
       req.stem = job.output.stem.c_str();
-      req.format = format.c_str();
+      req.format = mesh_format.c_str();
       inst.instance.ExportMesh(&req);
-      written.insert(format);
+      written.insert(mesh_format);
     }
   }
   result->files = staging.Commit(job.output.stem + ".gltf");
@@ -145,6 +193,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   report["job"] = fs::absolute(job.file).string();
   report["sequence"] = {{"name", seq.name}, {"source", seq.source}};
   report["input"] = {{"format", job.input.format}, {"options", v.input_options}};
+  if (const json summary = source->Summary(); !summary.is_null()) report["input"]["summary"] = summary;
   report["engine_options"] = io::EngineOptionsToJson(v.engine_options);
   report["plugins"] = plugins_json;
   report["engine"] = StatsJson(engine.Stats());
@@ -154,6 +203,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                     {"boundary_closed_manifold", boundary_check.ok},
                     {"boundary_triangles", boundary_check.boundary_triangles}};
   if (!accuracy.is_null()) report["accuracy"] = accuracy;
+  if (!exports.empty()) report["exports"] = exports;
   json files = json::array();
   for (const auto& f : result->files) files.push_back(f.filename().string());
   report["files"] = files;
@@ -168,7 +218,33 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
 
 }  // namespace
 
-BatchResult RunJob(const ValidatedJob& v, const plugin::PluginRegistry& registry) {
+std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob& v) {
+  std::vector<std::string> problems;
+  const std::pair<const char*, const std::string*> flags[] = {
+      {"--export-stream", &o.export_stream}, {"--export-colmap", &o.export_colmap}};
+  for (const auto& [flag, value] : flags) {
+    if (value->empty() || v.sequences.size() < 2) continue;
+    if (value->find("{sequence}") == std::string::npos && value->find("{output}") == std::string::npos)
+      problems.push_back(std::string(flag) + " " + *value + ": the job has " +
+                         std::to_string(v.sequences.size()) +
+                         " sequences; put {sequence} or {output} in the path so that each gets "
+                         "its own (e.g. '{output}/stream.json')");
+  }
+  if (!o.export_stream.empty() && !o.export_colmap.empty() &&
+      o.export_stream == o.export_colmap)
+    problems.push_back("--export-stream and --export-colmap name the same path");
+  return problems;
+}
+
+fs::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& v, const std::string& sequence) {
+  std::string s = Replace(tmpl, "{sequence}", sequence);
+  s = Replace(s, "{job}", v.job.Name());
+  s = Replace(s, "{output}", v.job.OutputDirectory(sequence).string());
+  return fs::path(s);
+}
+
+BatchResult RunJob(const ValidatedJob& v, const plugin::PluginRegistry& registry,
+                   const RunOptions& options) {
   BatchResult batch;
   for (std::size_t i = 0; i < v.sequences.size(); ++i) {
     const SequenceRef& seq = v.sequences[i];
@@ -178,7 +254,7 @@ BatchResult RunJob(const ValidatedJob& v, const plugin::PluginRegistry& registry
     r.name = seq.name;
     const auto start = std::chrono::steady_clock::now();
     try {
-      RunSequence(v, registry, seq, &r);
+      RunSequence(v, registry, options, seq, &r);
     } catch (const std::exception& e) {
       r.ok = false;
       r.error = e.what();

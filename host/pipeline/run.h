@@ -1,6 +1,8 @@
 // Running a validated job: for each sequence, input -> engine (with the policy plugin) ->
 // exporter plugins, then a JSON report. A failing sequence is recorded and the others go on.
 // Outputs go through a staging folder and are renamed into place; report.json comes last.
+// Every update is put in a canonical order (io::CanonicalOrder) before the engine sees it, so a
+// replay of an exported stream gives the engine exactly the same input.
 #pragma once
 
 #include "host/pipeline/job_validation.h"
@@ -28,7 +30,27 @@ struct BatchResult {
   int failed() const;
 };
 
-BatchResult RunJob(const ValidatedJob& job, const plugin::PluginRegistry& registry);
+// Extra outputs of `imr run`, beside each sequence's mesh and report.
+struct RunOptions {
+  // --export-stream: the SLAM JSON 0.3 stream of the updates that reached the engine (replaying
+  // it with input format slam_json reproduces the mesh). A path template: {sequence} (sequence
+  // name), {job} (job file stem), {output} (the sequence's output folder); relative paths are
+  // relative to the current folder. Empty: not written.
+  std::string export_stream;
+  // --export-colmap: a folder (same template) for the final points and their visibility as a
+  // COLMAP text model (cameras.txt, images.txt, points3D.txt). Empty: not written.
+  std::string export_colmap;
+};
+
+// Problems with `options` for this job, e.g. a fixed export path for a job with several
+// sequences (they would overwrite each other). Empty when usable.
+std::vector<std::string> CheckRunOptions(const RunOptions& options, const ValidatedJob& job);
+// An export path template expanded for one sequence.
+std::filesystem::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& job,
+                                       const std::string& sequence);
+
+BatchResult RunJob(const ValidatedJob& job, const plugin::PluginRegistry& registry,
+                   const RunOptions& options = {});
 
 // imr's own version, for reports and `imr --version`.
 const char* Version();

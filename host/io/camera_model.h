@@ -1,0 +1,91 @@
+// Camera geometry shared by the SfM/SLAM readers and writers (DESIGN §7), in ONE convention:
+//
+//   x_cam = R * X_world + t        R: world -> camera rotation (row-major 3x3), t: translation,
+//   C = -R^T t                     C: the camera centre in world coordinates,
+//
+// camera looking down +z, x right, y down; pixels u = fx * x_d + cx, v = fy * y_d + cy, where
+// (x_d, y_d) are the normalised coordinates (x/z, y/z) after the OpenCV distortion model
+// (radial k1, k2, k3 and tangential p1, p2). Each reader converts to this on reading:
+//   - OpenMVG: extrinsics store R (world -> camera) and C; t = -R C.
+//   - COLMAP: images store qvec (qw, qx, qy, qz; scalar first) = R and tvec = t.
+//   - SLAM JSON 0.3: extrinsic{rotation (world -> camera, as OpenMVG), center}.
+// Pixel coordinates are kept as each file writes them (COLMAP puts the centre of the top-left
+// pixel at (0.5, 0.5), OpenMVG at (0, 0)); the engine never uses pixels.
+#pragma once
+
+#include "host/engine/engine.h"
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace imr::io {
+
+using engine::Vec3;
+using Mat3 = std::array<std::array<double, 3>, 3>;  // row-major: m[row][col]
+
+Mat3 Identity3();
+Mat3 Transpose(const Mat3& m);
+Vec3 Mul(const Mat3& m, const Vec3& v);
+double Determinant(const Mat3& m);
+
+// Empty when `r` is a rotation (orthonormal rows within `tolerance`, determinant +1); otherwise
+// what is wrong, e.g. "not orthonormal (|R R^T - I| = 0.3)" or "determinant -1 (a reflection)".
+std::string RotationProblem(const Mat3& r, double tolerance = 1e-4);
+
+// Unit quaternion (w, x, y, z; scalar first, as COLMAP) <-> rotation matrix.
+Mat3 QuaternionToRotation(const std::array<double, 4>& q);
+std::array<double, 4> RotationToQuaternion(const Mat3& r);
+
+// Pinhole intrinsics with OpenCV-style distortion, plus the model as the source wrote it (so a
+// COLMAP model written back keeps its camera model and parameters).
+struct Intrinsics {
+  std::string source_model;          // e.g. "pinhole_radial_k3" (OpenMVG), "SIMPLE_RADIAL" (COLMAP)
+  std::vector<double> source_params;  // as the source lists them
+  int width = 0;
+  int height = 0;
+  double fx = 0.0, fy = 0.0, cx = 0.0, cy = 0.0;
+  double k1 = 0.0, k2 = 0.0, k3 = 0.0, p1 = 0.0, p2 = 0.0;
+  bool projectable = false;  // false: a model imr keeps but cannot project (e.g. fisheye)
+};
+
+// Everything a reader knows of one camera (view / image / keyframe).
+struct CameraGeometry {
+  uint64_t id = 0;
+  std::string name;   // image file name, when known
+  Mat3 rotation = Identity3();  // R, world -> camera
+  Vec3 translation{};           // t = -R C
+  Vec3 center{};                // C
+  bool has_intrinsics = false;
+  Intrinsics intrinsics;
+};
+
+// Sets translation from rotation and center (t = -R C).
+void SetFromCenter(const Mat3& r, const Vec3& c, CameraGeometry* g);
+// Sets center from rotation and translation (C = -R^T t).
+void SetFromTranslation(const Mat3& r, const Vec3& t, CameraGeometry* g);
+
+// Pixel of world point X in camera g; false when X is not in front of the camera or the
+// intrinsics are unknown or not projectable.
+bool Project(const CameraGeometry& g, const Vec3& x, double* u, double* v);
+
+// COLMAP camera models imr can project, by COLMAP's model name and parameter order. Fills
+// `out` from `params`; false (with *error) when the count is wrong. Other models are kept with
+// projectable = false.
+bool IntrinsicsFromColmap(const std::string& model, const std::vector<double>& params, int width,
+                          int height, Intrinsics* out, std::string* error);
+// The simplest COLMAP model that represents `in` exactly (its source model when it came from
+// COLMAP); false when none does (e.g. an OpenMVG fisheye).
+bool IntrinsicsToColmap(const Intrinsics& in, std::string* model, std::vector<double>* params);
+
+// COLMAP's numeric model ids (binary files) <-> names; -1 / "" when unknown.
+int ColmapModelId(const std::string& name);
+std::string ColmapModelName(int id);
+// Number of parameters of a COLMAP model, -1 when unknown.
+int ColmapModelParamCount(const std::string& name);
+
+// Shortest text that reads back to exactly `v` (std::to_chars): for files that must round-trip.
+std::string ExactNumber(double v);
+
+}  // namespace imr::io

@@ -1,0 +1,75 @@
+// COLMAP sparse models: cameras, images and points3D, as text (cameras.txt, images.txt,
+// points3D.txt) or binary (cameras.bin, images.bin, points3D.bin; little-endian, the layout of
+// COLMAP's scene/reconstruction_io.cc). Images store the world -> camera pose as a unit
+// quaternion (qw, qx, qy, qz; scalar first) and a translation t, so C = -R^T t (camera_model.h).
+// Every image lists its 2D points (x, y, point3D id or -1); every 3D point lists its track of
+// (image id, index of the 2D point in that image).
+//
+// Memory: the model is held once in these structs (every 2D point of every image, 24 bytes each,
+// until it is converted), never as file text.
+#pragma once
+
+#include "host/io/sfm_source.h"
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace imr::io {
+
+struct ColmapModel {
+  struct Camera {
+    uint32_t id = 0;
+    std::string model;  // COLMAP model name, e.g. "PINHOLE"
+    uint64_t width = 0, height = 0;
+    std::vector<double> params;
+  };
+  struct Point2D {
+    double x = 0.0, y = 0.0;
+    int64_t point3d_id = -1;  // -1: not triangulated
+  };
+  struct Image {
+    uint32_t id = 0;
+    std::array<double, 4> qvec{1, 0, 0, 0};  // qw, qx, qy, qz: R world -> camera
+    Vec3 tvec{};                             // t
+    uint32_t camera_id = 0;
+    std::string name;
+    std::vector<Point2D> points2d;
+  };
+  struct TrackElement {
+    uint32_t image_id = 0;
+    uint32_t point2d_idx = 0;
+  };
+  struct Point3D {
+    uint64_t id = 0;
+    Vec3 xyz{};
+    std::array<uint8_t, 3> rgb{128, 128, 128};
+    double error = 0.0;
+    std::vector<TrackElement> track;
+  };
+  std::vector<Camera> cameras;
+  std::vector<Image> images;
+  std::vector<Point3D> points;
+};
+
+// Reads the model in `dir`: binary when cameras.bin, images.bin and points3D.bin are all there,
+// else text. Throws std::runtime_error naming the file and the line (text) or byte offset
+// (binary) and the id: malformed or truncated files, dangling ids (an image's camera, a track's
+// image or 2D point index, a 2D point's 3D point), a quaternion of zero length.
+ColmapModel ReadColmapModel(const std::filesystem::path& dir);
+ColmapModel ReadColmapText(const std::filesystem::path& dir);
+ColmapModel ReadColmapBinary(const std::filesystem::path& dir);
+
+// Checks the cross references (every id above); throws naming `where` and the id.
+void CheckColmapModel(const ColmapModel& m, const std::string& where);
+
+// The model in the convention of camera_model.h (observation pixels from the tracks).
+SfmModel ColmapToSfm(const ColmapModel& m, const std::string& where);
+
+// Writes cameras.txt, images.txt and points3D.txt into `dir` (created if needed), each
+// atomically, numbers with round-trip precision. Throws naming the path on failure.
+void WriteColmapText(const ColmapModel& m, const std::filesystem::path& dir);
+
+}  // namespace imr::io

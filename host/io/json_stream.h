@@ -1,0 +1,28 @@
+// Reading big JSON files (SfM/SLAM exports of hundreds of MB) without holding their whole DOM:
+// a SAX pass over the file that builds one top-level member at a time, and for the members named
+// in `streamed` (big arrays such as "views" or "structure") one array element at a time. Each is
+// handed to a callback and dropped, so the peak is the largest single element plus what the
+// caller keeps, never the file's DOM (which costs several times the file size).
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <functional>
+#include <set>
+#include <string>
+
+namespace imr::io {
+
+// `member` is called for every top-level member not in `streamed` (key, whole value), and
+// `element` for every element of a streamed member that is an array (key, index, element). A
+// streamed member that is not an array goes to `member`. Throws std::runtime_error naming the
+// file, with line and column, when it cannot be read or is not JSON (e.g. truncated), or when
+// the top level is not an object; exceptions from the callbacks pass through. Returns the
+// top-level keys seen (so a caller can tell an empty streamed array from a missing one).
+std::set<std::string> StreamJsonFile(const std::filesystem::path& file, const std::set<std::string>& streamed,
+                    const std::function<void(const std::string& key, nlohmann::json&& value)>& member,
+                    const std::function<void(const std::string& key, std::size_t index,
+                                             nlohmann::json&& element)>& element);
+
+}  // namespace imr::io

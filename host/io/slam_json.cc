@@ -1,0 +1,562 @@
+#include "host/io/slam_json.h"
+
+#include "host/io/json_fields.h"
+#include "host/io/json_stream.h"
+#include "host/io/openmvg_reader.h"
+#include "host/io/schema.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+
+namespace imr::io {
+using nlohmann::json;
+
+SlamJsonOptions SlamJsonOptionsFromJson(const json& o) {
+  SlamJsonOptions s;
+  s.min_views = o.at("min_views");
+  s.min_move = o.at("min_move");
+  s.views_per_keyframe = o.at("views_per_keyframe");
+  return s;
+}
+
+json SlamJsonOptionsSchema() {
+  const SlamJsonOptions d;
+  return {
+      {"min_views", {{"type", "integer"}, {"default", d.min_views}, {"minimum", 0},
+                     {"description", "a point enters once this many views have seen it; 0: 2, "
+                                     "or what an imr-exported stream says (1)"}}},
+      {"min_move", {{"type", "number"}, {"default", d.min_move}, {"minimum", 0.0},
+                    {"description", "a later X closer than this (scene units) to the point's "
+                                    "estimate is not a move"}}},
+      {"views_per_keyframe", {{"type", "integer"}, {"default", d.views_per_keyframe},
+                              {"minimum", 1},
+                              {"description", "views per keyframe when the views carry no "
+                                              "\"keyframe\" numbers"}}}};
+}
+
+namespace {
+
+constexpr int64_t kNone = std::numeric_limits<int64_t>::min();
+
+class SlamJsonSource : public KeyframeSource {
+ public:
+  SlamJsonSource(const std::filesystem::path& file, const SlamJsonOptions& o)
+      : f_(file.string()), opt_(o) {
+    const std::set<std::string> keys = StreamJsonFile(
+        file, {"views", "intrinsics"},
+        [&](const std::string& key, json&& v) { Member(key, v); },
+        [&](const std::string& key, std::size_t i, json&& e) {
+          if (key == "views") View(i, e);
+          else Intrinsic(i, e);
+        });
+    if (!keys.count("views")) f_.Fail("(top level)", "missing field \"views\"");
+    if (!keys.count("slam_data_version")) f_.Fail("(top level)", "missing field \"slam_data_version\"");
+    Build();
+  }
+
+  bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
+    if (next_ >= updates_.size()) return false;
+    *u = std::move(updates_[next_]);
+    *info = {static_cast<int>(next_), frames_[next_]};
+    ++next_;
+    return true;
+  }
+  int KeyframeCount() const override { return static_cast<int>(updates_.size()); }
+  const CameraGeometry* Camera(uint64_t id) const override {
+    auto it = view_by_id_.find(id);
+    return it == view_by_id_.end() ? nullptr : &views_[it->second].geometry;
+  }
+  json Summary() const override { return summary_; }
+
+ private:
+  struct ViewRec {
+    CameraGeometry geometry;
+    int64_t keyframe = kNone;
+    uint64_t intrinsic = 0;
+    bool has_intrinsic = false;
+    std::string path;
+  };
+  struct Obs {
+    uint64_t point;
+    Vec3 x;
+    int64_t keyframe;  // delivery keyframe, kNone: the view's
+    uint32_t view;
+    uint32_t index;  // within the view, for messages
+  };
+
+  void Member(const std::string& key, const json& v) {
+    if (key == "slam_data_version") {
+      const std::string ver = f_.String(v, key);
+      if (ver != "0.3" && ver != "0.2")
+        f_.Fail(key, "expected \"0.3\" (or \"0.2\"), got " + Describe(v));
+    } else if (key == "imr_stream") {
+      imr_stream_ = v;
+    } else if (key == "views" || key == "intrinsics") {
+      f_.Fail(key, "expected an array, got " + Describe(v));
+    }
+  }
+
+  void Intrinsic(std::size_t i, const json& e) {
+    const std::string path = "intrinsics[" + std::to_string(i) + "]";
+    uint64_t id = i;
+    if (const json* k = f_.Optional(e, "intrinsicId", path)) id = f_.Id(*k, path + ".intrinsicId");
+    else if (const json* k2 = f_.Optional(e, "key", path)) id = f_.Id(*k2, path + ".key");
+    const json& value = f_.Member(e, "value", path);
+    std::string name = "pinhole";
+    if (const json* n = f_.Optional(value, "polymorphic_name", path + ".value"))
+      name = f_.String(*n, path + ".value.polymorphic_name");
+    const json& w = f_.Member(value, "ptr_wrapper", path + ".value");
+    const json& d = f_.Member(w, "data", path + ".value.ptr_wrapper");
+    if (!intrinsics_.emplace(id, OpenMvgIntrinsicFromData(f_, name, d, path + ".value.ptr_wrapper.data")).second)
+      f_.Fail(path, "intrinsic " + std::to_string(id) + " is listed twice");
+  }
+
+  void View(std::size_t i, const json& v) {
+    const std::string path = "views[" + std::to_string(i) + "]";
+    ViewRec r;
+    r.path = path;
+    CameraGeometry& g = r.geometry;
+    g.id = f_.Id(f_.Member(v, "viewId", path), path + ".viewId");
+    if (!view_by_id_.emplace(g.id, views_.size()).second)
+      f_.Fail(path + ".viewId", "view " + std::to_string(g.id) +
+                                    " is listed twice (viewIds must be unique)");
+    if (const json* n = f_.Optional(v, "filename", path)) g.name = f_.String(*n, path + ".filename");
+    if (const json* k = f_.Optional(v, "id_intrinsic", path)) {
+      r.intrinsic = f_.Id(*k, path + ".id_intrinsic");
+      r.has_intrinsic = true;
+    }
+    if (const json* k = f_.Optional(v, "keyframe", path)) {
+      r.keyframe = f_.Integer(*k, path + ".keyframe");
+      if (r.keyframe < 0) f_.Fail(path + ".keyframe", "expected an integer >= 0");
+    }
+    const json& ex = f_.Member(v, "extrinsic", path);
+    const Mat3 rot = f_.Rotation(f_.Member(ex, "rotation", path + ".extrinsic"), path + ".extrinsic.rotation");
+    SetFromCenter(rot, f_.Vector3(f_.Member(ex, "center", path + ".extrinsic"), path + ".extrinsic.center"), &g);
+    const json& obs = f_.Member(v, "observations", path);
+    if (!obs.is_array()) f_.Fail(path + ".observations", "expected an array, got " + Describe(obs));
+    for (std::size_t j = 0; j < obs.size(); ++j) {
+      const std::string op = path + ".observations[" + std::to_string(j) + "]";
+      Obs o;
+      o.point = f_.Id(f_.Member(obs[j], "pointId", op), op + ".pointId");
+      o.x = f_.Vector3(f_.Member(obs[j], "X", op), op + ".X");
+      o.keyframe = kNone;
+      if (const json* k = f_.Optional(obs[j], "keyframe", op)) o.keyframe = f_.Integer(*k, op + ".keyframe");
+      o.view = static_cast<uint32_t>(views_.size());
+      o.index = static_cast<uint32_t>(j);
+      obs_.push_back(o);
+    }
+    views_.push_back(std::move(r));
+  }
+
+  std::string ObsPath(const Obs& o) const {
+    return views_[o.view].path + ".observations[" + std::to_string(o.index) + "]";
+  }
+
+  void Build() {
+    // Intrinsics of the views.
+    for (ViewRec& v : views_) {
+      if (!v.has_intrinsic) continue;
+      auto it = intrinsics_.find(v.intrinsic);
+      if (it == intrinsics_.end())
+        f_.Fail(v.path + ".id_intrinsic", "view " + std::to_string(v.geometry.id) + " uses intrinsic " +
+                                              std::to_string(v.intrinsic) + ", which intrinsics does not list");
+      v.geometry.intrinsics = it->second;
+      v.geometry.has_intrinsics = true;
+    }
+    // Keyframe of each view: its own number, or views_per_keyframe consecutive views.
+    const bool numbered = !views_.empty() && views_[0].keyframe != kNone;
+    for (std::size_t i = 0; i < views_.size(); ++i) {
+      ViewRec& v = views_[i];
+      if ((v.keyframe != kNone) != numbered)
+        f_.Fail(v.path, numbered ? "missing field \"keyframe\" (the first view has one: all need one)"
+                                 : "has a \"keyframe\" but the first view has none (all or none)");
+      if (!numbered) v.keyframe = static_cast<int64_t>(i) / opt_.views_per_keyframe;
+      if (i > 0 && v.keyframe < views_[i - 1].keyframe)
+        f_.Fail(v.path + ".keyframe", "keyframe " + std::to_string(v.keyframe) +
+                                          " comes after keyframe " + std::to_string(views_[i - 1].keyframe) +
+                                          " (views must be in keyframe order)");
+    }
+    // The keyframes: imr_stream's list (every update, removals), else those of the views.
+    std::vector<int64_t> numbers;
+    std::vector<int> frames;
+    std::vector<std::vector<uint64_t>> removed;
+    int min_views = opt_.min_views;
+    if (!imr_stream_.is_null()) {
+      const json* mv = f_.Optional(imr_stream_, "min_views", "imr_stream");
+      if (mv != nullptr && min_views == 0) min_views = static_cast<int>(f_.Integer(*mv, "imr_stream.min_views"));
+      const json& ks = f_.Member(imr_stream_, "keyframes", "imr_stream");
+      if (!ks.is_array()) f_.Fail("imr_stream.keyframes", "expected an array");
+      for (std::size_t i = 0; i < ks.size(); ++i) {
+        const std::string p = "imr_stream.keyframes[" + std::to_string(i) + "]";
+        numbers.push_back(f_.Integer(f_.Member(ks[i], "keyframe", p), p + ".keyframe"));
+        if (i > 0 && numbers[i] <= numbers[i - 1]) f_.Fail(p + ".keyframe", "keyframes must increase");
+        frames.push_back(static_cast<int>(f_.Integer(f_.Member(ks[i], "frame", p), p + ".frame")));
+        removed.emplace_back();
+        if (const json* r = f_.Optional(ks[i], "removed_points", p)) {
+          if (!r->is_array()) f_.Fail(p + ".removed_points", "expected an array of point ids");
+          for (std::size_t j = 0; j < r->size(); ++j)
+            removed.back().push_back(f_.Id((*r)[j], p + ".removed_points[" + std::to_string(j) + "]"));
+        }
+      }
+    } else {
+      for (std::size_t i = 0; i < views_.size(); ++i) {
+        if (numbers.empty() || numbers.back() != views_[i].keyframe) {
+          numbers.push_back(views_[i].keyframe);
+          frames.push_back(0);
+          removed.emplace_back();
+        }
+        frames.back() = static_cast<int>(i);
+      }
+    }
+    if (min_views <= 0) min_views = 2;
+    std::unordered_map<int64_t, std::size_t> slot;
+    for (std::size_t i = 0; i < numbers.size(); ++i) slot[numbers[i]] = i;
+    for (const ViewRec& v : views_)
+      if (!slot.count(v.keyframe))
+        f_.Fail(v.path + ".keyframe", "keyframe " + std::to_string(v.keyframe) + " is not in imr_stream.keyframes");
+    // Observations in delivery order: (keyframe, view order, order in the view).
+    for (Obs& o : obs_) {
+      const int64_t vk = views_[o.view].keyframe;
+      if (o.keyframe == kNone) o.keyframe = vk;
+      if (o.keyframe < vk)
+        f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) +
+                                              " is before its view's keyframe " + std::to_string(vk));
+      if (!slot.count(o.keyframe))
+        f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) + " is not in imr_stream.keyframes");
+    }
+    std::stable_sort(obs_.begin(), obs_.end(), [](const Obs& a, const Obs& b) { return a.keyframe < b.keyframe; });
+
+    struct State {
+      bool entered = false, removed = false;
+      Vec3 position{};
+      std::vector<uint64_t> cameras;
+    };
+    std::unordered_map<uint64_t, State> points;
+    updates_.resize(numbers.size());
+    frames_ = frames;
+    std::size_t vi = 0, oi = 0;
+    int64_t moves = 0, observations = 0;
+    for (std::size_t k = 0; k < numbers.size(); ++k) {
+      engine::KeyframeUpdate& u = updates_[k];
+      for (; vi < views_.size() && views_[vi].keyframe == numbers[k]; ++vi)
+        u.cameras.push_back({views_[vi].geometry.id, views_[vi].geometry.center});
+      for (uint64_t id : removed[k]) {
+        auto it = points.find(id);
+        if (it == points.end() || !it->second.entered || it->second.removed)
+          f_.Fail("imr_stream.keyframes[" + std::to_string(k) + "].removed_points",
+                  "point " + std::to_string(id) + " is not in the stream at keyframe " + std::to_string(numbers[k]));
+        it->second.removed = true;
+      }
+      u.removed_points = removed[k];
+      std::vector<uint64_t> touched;
+      struct Move {
+        engine::MovedPoint m;
+        Vec3 before;  // the estimate the engine has
+      };
+      std::unordered_map<uint64_t, Move> moved;
+      for (; oi < obs_.size() && obs_[oi].keyframe == numbers[k]; ++oi) {
+        const Obs& o = obs_[oi];
+        ++observations;
+        State& s = points[o.point];
+        if (s.removed)
+          f_.Fail(ObsPath(o), "point " + std::to_string(o.point) + " is observed after it was removed");
+        const uint64_t cam = views_[o.view].geometry.id;
+        const bool new_cam = std::find(s.cameras.begin(), s.cameras.end(), cam) == s.cameras.end();
+        if (new_cam) s.cameras.push_back(cam);
+        if (!s.entered) {
+          s.position = o.x;
+          touched.push_back(o.point);
+          continue;
+        }
+        auto [it, first] = moved.try_emplace(o.point, Move{{o.point, s.position, {}}, s.position});
+        if (first) touched.push_back(o.point);
+        if (new_cam) it->second.m.camera_ids.push_back(cam);
+        const double d = std::hypot(o.x[0] - s.position[0], o.x[1] - s.position[1], o.x[2] - s.position[2]);
+        if (o.x != s.position && d > opt_.min_move) {
+          s.position = o.x;
+          it->second.m.position = o.x;
+        }
+      }
+      std::sort(touched.begin(), touched.end());
+      touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+      for (uint64_t id : touched) {
+        State& s = points[id];
+        auto m = moved.find(id);
+        if (m != moved.end()) {
+          const bool move = m->second.m.position != m->second.before;
+          if (move) ++moves;
+          if (move || !m->second.m.camera_ids.empty()) u.moved_points.push_back(std::move(m->second.m));
+        } else if (!s.entered && static_cast<int>(s.cameras.size()) >= min_views) {
+          s.entered = true;
+          u.new_points.push_back({id, s.position, s.cameras});
+        }
+      }
+    }
+    int64_t pending = 0;
+    for (const auto& [id, s] : points) pending += s.entered ? 0 : 1;
+    summary_ = {{"file", f_.file()},
+                {"views", views_.size()},
+                {"observations", observations},
+                {"points", points.size()},
+                {"points_never_entered", pending},
+                {"moves", moves},
+                {"min_views", min_views},
+                {"keyframes", updates_.size()},
+                {"imr_stream", !imr_stream_.is_null()}};
+    obs_ = {};
+  }
+
+  JsonFields f_;
+  SlamJsonOptions opt_;
+  json imr_stream_;
+  std::map<uint64_t, Intrinsics> intrinsics_;
+  std::vector<ViewRec> views_;
+  std::unordered_map<uint64_t, std::size_t> view_by_id_;
+  std::vector<Obs> obs_;
+  std::vector<engine::KeyframeUpdate> updates_;
+  std::vector<int> frames_;
+  std::size_t next_ = 0;
+  json summary_;
+};
+
+}  // namespace
+
+std::unique_ptr<KeyframeSource> OpenSlamJson(const std::filesystem::path& file, const SlamJsonOptions& options) {
+  return std::make_unique<SlamJsonSource>(file, options);
+}
+
+// -----------------------------------------------------------------------------------------------
+
+void CanonicalOrder::Apply(engine::KeyframeUpdate* u) {
+  for (const engine::Camera& c : u->cameras) arrival_.emplace(c.id, arrival_.size());
+  auto order = [&](std::vector<uint64_t>* ids) {
+    std::vector<uint64_t> out;
+    for (uint64_t id : *ids)
+      if (std::find(out.begin(), out.end(), id) == out.end()) out.push_back(id);
+    std::stable_sort(out.begin(), out.end(), [&](uint64_t a, uint64_t b) {
+      auto ia = arrival_.find(a), ib = arrival_.find(b);
+      const uint64_t ra = ia == arrival_.end() ? UINT64_MAX : ia->second;
+      const uint64_t rb = ib == arrival_.end() ? UINT64_MAX : ib->second;
+      return ra < rb;
+    });
+    *ids = std::move(out);
+  };
+  for (auto& p : u->new_points) order(&p.camera_ids);
+  for (auto& p : u->moved_points) order(&p.camera_ids);
+  auto by_id = [](const auto& a, const auto& b) { return a.id < b.id; };
+  std::stable_sort(u->new_points.begin(), u->new_points.end(), by_id);
+  std::stable_sort(u->moved_points.begin(), u->moved_points.end(), by_id);
+  std::sort(u->removed_points.begin(), u->removed_points.end());
+}
+
+// -----------------------------------------------------------------------------------------------
+
+StreamRecorder::StreamRecorder(const KeyframeSource* source, std::string written_by)
+    : source_(source), written_by_(std::move(written_by)) {}
+
+void StreamRecorder::Record(const engine::KeyframeUpdate& u, const KeyframeInfo& info) {
+  const int64_t k = static_cast<int64_t>(keyframes_.size());
+  for (const engine::Camera& c : u.cameras) {
+    if (view_index_.count(c.id)) continue;  // the engine keeps a camera's first centre
+    view_index_[c.id] = views_.size();
+    views_.push_back({c.id, c.center, k, source_ ? source_->Camera(c.id) : nullptr, {}});
+  }
+  for (uint64_t id : u.removed_points) {
+    auto it = points_.find(id);
+    if (it != points_.end()) it->second.removed = true;
+  }
+  auto observe = [&](uint64_t cam, uint64_t point, const Vec3& x) {
+    auto it = view_index_.find(cam);
+    if (it != view_index_.end()) views_[it->second].observations.push_back({point, x, k});
+  };
+  for (const engine::MovedPoint& m : u.moved_points) {
+    auto it = points_.find(m.id);
+    if (it == points_.end()) continue;
+    PointState& s = it->second;
+    std::vector<uint64_t> added;
+    for (uint64_t c : m.camera_ids)
+      if (std::find(s.cameras.begin(), s.cameras.end(), c) == s.cameras.end() &&
+          std::find(added.begin(), added.end(), c) == added.end())
+        added.push_back(c);
+    if (added.empty() && m.position == s.position) continue;  // nothing reaches the engine
+    if (added.empty()) {
+      if (s.cameras.empty()) ++unrepresentable_;
+      else observe(s.cameras.back(), m.id, m.position);  // a move seen by no new camera
+    }
+    for (uint64_t c : added) {
+      observe(c, m.id, m.position);
+      s.cameras.push_back(c);
+    }
+    s.position = m.position;
+  }
+  for (const engine::NewPoint& p : u.new_points) {
+    PointState s;
+    s.position = p.position;
+    for (uint64_t c : p.camera_ids)
+      if (std::find(s.cameras.begin(), s.cameras.end(), c) == s.cameras.end()) {
+        s.cameras.push_back(c);
+        observe(c, p.id, p.position);
+      }
+    if (s.cameras.empty()) ++unrepresentable_;
+    points_[p.id] = std::move(s);
+  }
+  std::vector<uint64_t> removed = u.removed_points;
+  std::sort(removed.begin(), removed.end());
+  keyframes_.push_back({info.frame, std::move(removed)});
+}
+
+namespace {
+
+std::string Vec(const Vec3& v) {
+  return "[" + ExactNumber(v[0]) + ", " + ExactNumber(v[1]) + ", " + ExactNumber(v[2]) + "]";
+}
+
+// A placeholder for cameras whose intrinsics the source does not know (said in the file).
+Intrinsics PlaceholderIntrinsics() {
+  Intrinsics k;
+  k.source_model = "pinhole";
+  k.width = 1000, k.height = 1000;
+  k.fx = k.fy = 500.0, k.cx = k.cy = 500.0;
+  k.projectable = true;
+  return k;
+}
+
+bool SameIntrinsics(const Intrinsics& a, const Intrinsics& b) {
+  return a.source_model == b.source_model && a.source_params == b.source_params &&
+         a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
+         a.cx == b.cx && a.cy == b.cy && a.k1 == b.k1 && a.k2 == b.k2 && a.k3 == b.k3 &&
+         a.p1 == b.p1 && a.p2 == b.p2;
+}
+
+}  // namespace
+
+std::string StreamRecorder::SlamJson() const {
+  // Distinct intrinsics, in order of first use.
+  std::vector<Intrinsics> intr;
+  std::vector<std::size_t> view_intr(views_.size());
+  bool placeholder = false;
+  for (std::size_t i = 0; i < views_.size(); ++i) {
+    const CameraGeometry* g = views_[i].geometry;
+    const Intrinsics k = g && g->has_intrinsics ? g->intrinsics : PlaceholderIntrinsics();
+    placeholder |= !(g && g->has_intrinsics);
+    std::size_t j = 0;
+    while (j < intr.size() && !SameIntrinsics(intr[j], k)) ++j;
+    if (j == intr.size()) intr.push_back(k);
+    view_intr[i] = j;
+  }
+  std::string s;
+  s.reserve(1 << 20);
+  s += "{\n\"slam_data_version\": \"0.3\",\n\"root_path\": \"\",\n";
+  json note = {{"written_by", written_by_},
+               {"what", "the per-keyframe updates (cameras, new points, moves, removals) that "
+                        "reached imr's engine; replaying this file with imr's slam_json format "
+                        "reproduces the run"},
+               {"min_views", 1}};
+  if (placeholder) note["placeholder_intrinsics"] = "some cameras' intrinsics were unknown: pinhole f=500, 1000x1000";
+  std::string head = note.dump();
+  head.pop_back();  // reopen the object to append the keyframes
+  s += "\"imr_stream\": " + head + ", \"keyframes\": [\n";
+  for (std::size_t k = 0; k < keyframes_.size(); ++k) {
+    s += "  {\"keyframe\": " + std::to_string(k) + ", \"frame\": " + std::to_string(keyframes_[k].frame) +
+         ", \"removed_points\": [";
+    for (std::size_t i = 0; i < keyframes_[k].removed.size(); ++i)
+      s += (i ? ", " : "") + std::to_string(keyframes_[k].removed[i]);
+    s += k + 1 < keyframes_.size() ? "]},\n" : "]}\n";
+  }
+  s += "]},\n\"intrinsics\": [\n";
+  for (std::size_t j = 0; j < intr.size(); ++j) {
+    std::string name;
+    json data;
+    OpenMvgIntrinsicToData(intr[j], &name, &data);
+    const json e = {{"intrinsicId", j},
+                    {"value", {{"polymorphic_id", 2147483649u}, {"polymorphic_name", name},
+                               {"ptr_wrapper", {{"id", 2147483649u + j}, {"data", data}}}}}};
+    s += "  " + e.dump() + (j + 1 < intr.size() ? ",\n" : "\n");
+  }
+  s += "],\n\"views\": [\n";
+  for (std::size_t i = 0; i < views_.size(); ++i) {
+    const View& v = views_[i];
+    const Mat3 r = v.geometry ? v.geometry->rotation : Identity3();
+    const json name = v.geometry && !v.geometry->name.empty() ? v.geometry->name : "view_" + std::to_string(v.id);
+    s += "  {\"viewId\": " + std::to_string(v.id) + ", \"keyframe\": " + std::to_string(v.keyframe) +
+         ", \"local_path\": \"\", \"filename\": " + name.dump() +
+         ", \"width\": " + std::to_string(intr[view_intr[i]].width) +
+         ", \"height\": " + std::to_string(intr[view_intr[i]].height) +
+         ", \"id_intrinsic\": " + std::to_string(view_intr[i]) + ",\n   \"extrinsic\": {\"rotation\": [" +
+         Vec(r[0]) + ", " + Vec(r[1]) + ", " + Vec(r[2]) + "], \"center\": " + Vec(v.center) +
+         "},\n   \"observations\": [";
+    for (std::size_t j = 0; j < v.observations.size(); ++j) {
+      const Observation& o = v.observations[j];
+      s += (j ? ",\n    " : "\n    ");
+      s += "{\"pointId\": " + std::to_string(o.point) + ", \"X\": " + Vec(o.x);
+      if (o.keyframe != v.keyframe) s += ", \"keyframe\": " + std::to_string(o.keyframe);
+      s += "}";
+    }
+    s += i + 1 < views_.size() ? "]},\n" : "]}\n";
+  }
+  s += "]\n}\n";
+  return s;
+}
+
+ColmapModel StreamRecorder::Colmap() const {
+  ColmapModel m;
+  // Image ids: the view ids when they fit COLMAP's 32 bits, else 1..N in arrival order.
+  bool fits = true;
+  for (const View& v : views_) fits &= v.id < 0xFFFFFFFFu;
+  std::unordered_map<uint64_t, std::size_t> image_of;
+  std::vector<Intrinsics> intr;
+  for (std::size_t i = 0; i < views_.size(); ++i) {
+    const View& v = views_[i];
+    const CameraGeometry* g = v.geometry;
+    const Intrinsics k = g && g->has_intrinsics ? g->intrinsics : PlaceholderIntrinsics();
+    std::size_t j = 0;
+    while (j < intr.size() && !SameIntrinsics(intr[j], k)) ++j;
+    if (j == intr.size()) {
+      intr.push_back(k);
+      ColmapModel::Camera c;
+      c.id = static_cast<uint32_t>(j + 1);
+      if (!IntrinsicsToColmap(k, &c.model, &c.params)) {
+        c.model = "PINHOLE";  // e.g. an OpenMVG fisheye: its pinhole part
+        c.params = {k.fx, k.fy, k.cx, k.cy};
+      }
+      c.width = static_cast<uint64_t>(std::max(k.width, 0));
+      c.height = static_cast<uint64_t>(std::max(k.height, 0));
+      m.cameras.push_back(std::move(c));
+    }
+    ColmapModel::Image im;
+    im.id = fits ? static_cast<uint32_t>(v.id) : static_cast<uint32_t>(i + 1);
+    const Mat3 r = g ? g->rotation : Identity3();
+    im.qvec = RotationToQuaternion(r);
+    const Vec3 rc = Mul(r, v.center);
+    im.tvec = {-rc[0], -rc[1], -rc[2]};
+    im.camera_id = static_cast<uint32_t>(j + 1);
+    im.name = g && !g->name.empty() ? g->name : "view_" + std::to_string(v.id);
+    image_of[v.id] = m.images.size();
+    m.images.push_back(std::move(im));
+  }
+  for (const auto& [id, s] : points_) {
+    if (s.removed || s.cameras.empty()) continue;
+    ColmapModel::Point3D p;
+    p.id = id;
+    p.xyz = s.position;
+    for (uint64_t cam : s.cameras) {
+      ColmapModel::Image& im = m.images[image_of.at(cam)];
+      const View& v = views_[view_index_.at(cam)];
+      CameraGeometry g;
+      if (v.geometry) g = *v.geometry;
+      else g.intrinsics = PlaceholderIntrinsics(), g.has_intrinsics = true;
+      SetFromCenter(g.rotation, v.center, &g);
+      double x = 0.0, y = 0.0;
+      if (!Project(g, s.position, &x, &y)) x = y = 0.0;
+      p.track.push_back({im.id, static_cast<uint32_t>(im.points2d.size())});
+      im.points2d.push_back({x, y, static_cast<int64_t>(id)});
+    }
+    m.points.push_back(std::move(p));
+  }
+  return m;
+}
+
+}  // namespace imr::io

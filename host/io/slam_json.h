@@ -1,0 +1,112 @@
+// The incremental SLAM JSON of the real-time manifold mesher of Piazza et al. 2018
+// (slam_data_version 0.3; DESIGN §7), read as a keyframe stream and written by --export-stream.
+//
+//   {"slam_data_version": "0.3", "root_path": "...",
+//    "intrinsics": [{"intrinsicId": 0, "value": {"polymorphic_name": "pinhole",
+//                    "ptr_wrapper": {"data": {"width", "height", "focal_length",
+//                                             "principal_point": [cx, cy], "disto_*"}}}}],
+//    "views": [{"viewId": 7, "id_intrinsic": 0, "filename": "...",
+//               "extrinsic": {"rotation": R (world -> camera, rows), "center": C},
+//               "observations": [{"pointId": 3, "X": [x, y, z]}, ...]}, ...]}
+//
+// Views come in order, each with a unique viewId; X is the point's estimate as of that view.
+// Reading rule: a point enters (a new point) once min_views views have seen it, with all of
+// them as its cameras and its latest X; afterwards a view that sees it adds its camera, and an X
+// that differs from the last one by more than min_move is a move. A keyframe is
+// views_per_keyframe consecutive views, unless the views carry "keyframe" numbers.
+//
+// imr extensions (written by --export-stream; other readers ignore them) make a replay exact:
+//   - view "keyframe": k  - the views of one engine update share k;
+//   - observation "keyframe": d  - the observation reached the engine at keyframe d, later than
+//     its view's (a point that entered later, or a move that brought no new camera);
+//   - top-level "imr_stream": {"min_views": 1, "keyframes": [{"keyframe", "frame",
+//     "removed_points": [ids]}]}  - every update, even an empty one, and removals.
+//
+// Memory: one SAX pass (json_stream.h), views converted one at a time; the peak is the compact
+// observation list (about 56 bytes per observation) plus the updates built from it.
+#pragma once
+
+#include "host/io/colmap_model.h"
+#include "host/io/keyframe_source.h"
+
+#include <filesystem>
+#include <map>
+#include <unordered_map>
+
+namespace imr::io {
+
+struct SlamJsonOptions {
+  int min_views = 0;           // 0: 2, or what the file's imr_stream says (1 for imr exports)
+  double min_move = 0.0;       // a later X closer than this to the current estimate is no move
+  int views_per_keyframe = 1;  // used when the views carry no "keyframe" numbers
+};
+SlamJsonOptions SlamJsonOptionsFromJson(const nlohmann::json& options);
+nlohmann::json SlamJsonOptionsSchema();
+
+// Throws std::runtime_error naming the file and the JSON path or id: missing fields, a repeated
+// viewId, a dangling id_intrinsic or removed point, a rotation that is not one, malformed or
+// truncated JSON.
+std::unique_ptr<KeyframeSource> OpenSlamJson(const std::filesystem::path& file,
+                                             const SlamJsonOptions& options);
+
+// Puts an update in imr's canonical order before the engine sees it: new, moved and removed
+// points sorted by id, each point's camera ids without repeats and in camera arrival order.
+// The pipeline applies it to every source, so a run and the replay of its exported stream give
+// the engine the same input whatever the file layout.
+class CanonicalOrder {
+ public:
+  void Apply(engine::KeyframeUpdate* update);
+
+ private:
+  std::unordered_map<uint64_t, uint64_t> arrival_;
+};
+
+// Records the updates that reached the engine and writes them as SLAM JSON 0.3 (with the imr
+// extensions: the replay reproduces the run exactly) or, at the end, the final points with their
+// visibility as a COLMAP text model. Camera rotations and intrinsics come from the source when it
+// knows them (else identity and a placeholder pinhole, said in the file).
+class StreamRecorder {
+ public:
+  explicit StreamRecorder(const KeyframeSource* source, std::string written_by = "imr");
+  void Record(const engine::KeyframeUpdate& update, const KeyframeInfo& info);
+
+  std::string SlamJson() const;
+  // Live points (not removed, seen by a camera) at their last estimate; every view becomes an
+  // image whose 2D points are the projections of the points it sees (0 0 where it cannot be
+  // projected), and every track entry indexes one of them.
+  ColmapModel Colmap() const;
+  // Points that entered with no camera: a SLAM JSON file cannot hold them (replay then differs).
+  int64_t unrepresentable() const { return unrepresentable_; }
+
+ private:
+  struct Observation {
+    uint64_t point;
+    Vec3 x;
+    int64_t keyframe;  // when it reached the engine
+  };
+  struct View {
+    uint64_t id;
+    Vec3 center;
+    int64_t keyframe;
+    const CameraGeometry* geometry;  // owned by the source, may be null
+    std::vector<Observation> observations;
+  };
+  struct PointState {
+    Vec3 position;
+    std::vector<uint64_t> cameras;
+    bool removed = false;
+  };
+  struct Keyframe {
+    int64_t frame;
+    std::vector<uint64_t> removed;
+  };
+  const KeyframeSource* source_;
+  std::string written_by_;
+  std::vector<View> views_;
+  std::unordered_map<uint64_t, std::size_t> view_index_;
+  std::map<uint64_t, PointState> points_;
+  std::vector<Keyframe> keyframes_;
+  int64_t unrepresentable_ = 0;
+};
+
+}  // namespace imr::io
