@@ -68,9 +68,10 @@ struct EngineOptions {
                                       // when true; else they start at 0 and the point's own rays,
                                       // cast right after, weight them. Moves always use the
                                       // policy. See the note in engine.cc on why false is default.
-  double shrink_radius = 1.0;         // Enclosing set E: D plus cells around D's vertices that
+  double shrink_radius = 3.0;         // Enclosing set E: D plus cells around D's vertices that
                                       // lie within this distance (metres) of the point.
-  int shrink_passes = 3;              // Passes of shrink over E while D still meets O.
+  int shrink_passes = 3;              // Shrink work bound: tries per cell of E (a refused cell
+                                      // is retried when a neighbour leaves O).
   double weight_unit = 1e-6;          // Weights are int64 multiples of this (exact backward cast).
   int max_cells_per_ray = 200000;     // Safety bound on one traversal (never an endless walk).
   bool check_after_update = false;    // Run the full dO check after every update (slow; tests).
@@ -81,7 +82,10 @@ struct EngineOptions {
 
 struct Camera {
   uint64_t id = 0;
-  Vec3 center{};
+  Vec3 center{};  // Camera centre in world coordinates: the start of its viewing rays.
+  // Not used by the engine (rays need only the centre); carried for callers and future use.
+  std::array<double, 9> rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};  // World -> camera, row-major.
+  std::array<double, 4> intrinsics{};                        // fx, fy, cx, cy (0 = unknown).
 };
 
 struct NewPoint {

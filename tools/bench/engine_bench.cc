@@ -62,6 +62,8 @@ struct RunResult {
   synthetic::MeshAccuracy accuracy_real;  // Only triangles of real points.
 };
 
+EngineOptions g_base_options;
+
 RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptions& base,
               bool evaluate) {
   RunResult r;
@@ -70,7 +72,7 @@ RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptio
   synthetic::StreamOptions so = base;
   so.frozen = frozen;
   synthetic::SyntheticStream stream(so);
-  EngineOptions eo;
+  EngineOptions eo = g_base_options;
   std::unique_ptr<engine::WeightTransferPolicy> policy;
   engine::testing::ConfigureMode(mode, &eo, &policy);
   const long rss0 = RssKb();
@@ -141,6 +143,9 @@ int RunEngineBench(int argc, char** argv) {
     else if (a == "--seed") so.seed = std::strtoull(next(), nullptr, 10);
     else if (a == "--points") so.points_per_keyframe = std::atoi(next());
     else if (a == "--quick") so.frames = 200;
+    else if (a == "--shrink-radius") g_base_options.shrink_radius = std::atof(next());
+    else if (a == "--window") g_base_options.window = std::atoi(next());
+    else if (a == "--transfer-on-insert") g_base_options.transfer_on_insert = true;
     else if (a == "--modes") {
       modes.clear();
       std::stringstream ss(next());
@@ -149,9 +154,15 @@ int RunEngineBench(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: imr-bench engine [--frames N] [--seed S] [--quick] [--points P] "
-                   "[--modes nearest,mean,weighted_mean,rays5,rays1]\n");
+                   "[--modes nearest,mean,weighted_mean,rays5,rays1] [--shrink-radius R] [--window W] "
+                   "[--transfer-on-insert]\n");
       return 2;
     }
+  }
+  std::string option_error;
+  if (!g_base_options.Check(&option_error)) {
+    std::fprintf(stderr, "imr-bench engine: %s\n", option_error.c_str());
+    return 2;
   }
   if (so.frames < 10 || so.points_per_keyframe < 1) {
     std::fprintf(stderr, "imr-bench engine: --frames must be >= 10 and --points >= 1\n");
