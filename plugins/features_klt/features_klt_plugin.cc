@@ -5,7 +5,6 @@
 #include <string>
 
 #include "edge_klt_tracker.hpp"
-#include "params_schema.hpp"
 
 namespace imr::edge_klt {
 namespace {
@@ -64,7 +63,7 @@ class EdgeKltFeatures : public imr::sdk::Features {
 
  private:
   static TrackerOptions Options(const imr::sdk::Params& params) {
-    const SchemaParams p(params, kParamsSchema);
+    const imr::sdk::Params& p = params;  // checked, defaults filled (plugin.hpp)
     TrackerOptions o;
     o.detector = p.Get<std::string>("detector") == "edge" ? Detector::kEdge : Detector::kShiTomasi;
     o.max_features = p.Get<int>("max_features");

@@ -4,7 +4,6 @@
 
 #include <string>
 
-#include "params_schema.hpp"
 #include "point_refiner.hpp"
 
 namespace imr::ceres_refiner {
@@ -62,7 +61,7 @@ class CeresRefiner : public imr::sdk::Refiner {
 
  private:
   static RefinerOptions Options(const imr::sdk::Params& params) {
-    const SchemaParams p(params, kParamsSchema);
+    const imr::sdk::Params& p = params;  // checked, defaults filled (plugin.hpp)
     RefinerOptions o;
     o.min_keyframes = p.Get<int>("min_keyframes");
     o.min_parallax_deg = p.Get<double>("min_parallax_deg");

@@ -20,6 +20,7 @@
 
 #include <imr/sdk/plugin.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -44,8 +45,9 @@ class Cancelled : public std::runtime_error {
   Cancelled() : std::runtime_error("cancelled by the host") {}
 };
 
-// Plugin parameters: the job's `params` object, with defaults from kParamsSchema already filled
-// in by the host (so every declared parameter is present).
+// Plugin parameters: the job's `params` object, checked against the class's kParamsSchema and
+// with its defaults filled in by the wrapper before the constructor runs (so every declared
+// parameter is present, and a default is written once, in the schema).
 class Params {
  public:
   Params() = default;
@@ -59,6 +61,19 @@ class Params {
   }
 
   bool Has(const std::string& name) const { return json_.contains(name); }
+
+  // The value of a parameter declared in kParamsSchema (its default when the job gave none).
+  template <typename T>
+  T Get(const std::string& name) const {
+    auto it = json_.find(name);
+    if (it == json_.end() || it->is_null())
+      throw InvalidArgument("params." + name + ": missing (is it declared in kParamsSchema?)");
+    try {
+      return it->get<T>();
+    } catch (const std::exception&) {
+      throw InvalidArgument("params." + name + ": unexpected type (" + it->dump() + ")");
+    }
+  }
 
   // The value of `name`, or `fallback` when absent. Throws InvalidArgument on a wrong type.
   template <typename T>
@@ -199,6 +214,55 @@ imr_status Guard(imr_error* error, F&& body) noexcept {
   }
 }
 
+// Checks `params` against a schema in the language of plugin.h (the host validates jobs too; this
+// covers hosts and tests that do not) and returns them with the schema's defaults filled in.
+// Throws InvalidArgument naming the first unknown, mistyped or out-of-range parameter.
+inline Params CheckedAgainstSchema(const char* schema_text, const Params& params) {
+  const nlohmann::json schema = nlohmann::json::parse(
+      schema_text && *schema_text ? schema_text : "{}", nullptr, /*allow_exceptions=*/false);
+  if (!schema.is_object()) throw std::runtime_error("plugin bug: kParamsSchema is not a JSON object");
+  nlohmann::json out = params.Json();
+  for (const auto& [name, v] : out.items()) {
+    auto it = schema.find(name);
+    if (it == schema.end()) {
+      std::string known;
+      for (const auto& [k, _] : schema.items()) known += (known.empty() ? "" : ", ") + k;
+      throw InvalidArgument("params." + name + ": unknown parameter" +
+                            (known.empty() ? std::string(" (none accepted)") : " (known: " + known + ")"));
+    }
+    const nlohmann::json& spec = *it;
+    const std::string type = spec.value("type", "");
+    const auto fail = [&](const std::string& why) {
+      throw InvalidArgument("params." + name + ": " + why + " (got " + v.dump() + ")");
+    };
+    if (type == "integer" && !v.is_number_integer()) fail("expected an integer");
+    if (type == "number" && (!v.is_number() || !std::isfinite(v.get<double>())))
+      fail("expected a finite number");
+    if (type == "boolean" && !v.is_boolean()) fail("expected true or false");
+    if (type == "string" && !v.is_string()) fail("expected a string");
+    if (type == "string_array") {
+      bool ok = v.is_array();
+      for (const auto& e : v) ok = ok && e.is_string();
+      if (!ok) fail("expected an array of strings");
+    }
+    if (v.is_number()) {
+      const double x = v.get<double>();
+      if (spec.contains("minimum") && x < spec["minimum"].get<double>())
+        fail("below the minimum " + spec["minimum"].dump());
+      if (spec.contains("maximum") && x > spec["maximum"].get<double>())
+        fail("above the maximum " + spec["maximum"].dump());
+    }
+    if (spec.contains("enum")) {
+      bool found = false;
+      for (const auto& e : spec["enum"]) found = found || e == v;
+      if (!found) fail("expected one of " + spec["enum"].dump());
+    }
+  }
+  for (const auto& [name, spec] : schema.items())
+    if (!out.contains(name) && spec.is_object() && spec.contains("default")) out[name] = spec["default"];
+  return Params(std::move(out));
+}
+
 template <typename T>
 T* Self(imr_instance* instance) {
   return static_cast<T*>(reinterpret_cast<PluginBase*>(instance));
@@ -210,7 +274,8 @@ imr_status Create(const char* params_json, const imr_host_services* host, imr_in
   if (out == nullptr) return IMR_INVALID_ARGUMENT;
   *out = nullptr;
   return Guard(error, [&] {
-    PluginBase* p = new T(Params::Parse(params_json), Host(host));
+    PluginBase* p = new T(CheckedAgainstSchema(T::kParamsSchema, Params::Parse(params_json)),
+                          Host(host));
     *out = reinterpret_cast<imr_instance*>(p);
   });
 }
