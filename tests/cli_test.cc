@@ -207,7 +207,11 @@ TEST_F(Cli, RunWritesMeshesAndAReport) {
   EXPECT_GT(report["mesh"]["faces"].get<int>(), 100);
   EXPECT_GT(report["engine"]["points_moved"].get<int>(), 0);  // points do move
   EXPECT_EQ(report["plugins"][0]["id"], "org.imr.policy.nearest");
-  EXPECT_LT(report["accuracy"]["mean_mesh_to_scene"].get<double>(), 1.0);
+  // Truth -> mesh: the true surface points are covered (a failed carving leaves them far away).
+  // Mesh -> scene is not bounded here: with the default Steiner rule it includes triangles that
+  // touch Steiner points (engine tests bound the real-point surface).
+  EXPECT_LT(report["accuracy"]["mean_truth_to_mesh"].get<double>(), 0.5);
+  EXPECT_GT(report["accuracy"]["completeness"].get<double>(), 0.6);
   EXPECT_NE(r.out.find("1 sequence, 0 failed"), std::string::npos) << r.out;
 }
 
