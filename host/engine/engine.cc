@@ -704,7 +704,7 @@ struct Engine::Impl {
     if (rays_mode) {
       const auto t0 = Clock::now();
       ScanRemoveRays(pt);
-      stats.time.cast += Seconds(t0, Clock::now());
+      stats.time.scan += Seconds(t0, Clock::now());
       TimedRecast(std::move(u), pt);
     }
   }
@@ -774,7 +774,7 @@ struct Engine::Impl {
       if (rays_mode) {
         const auto t0 = Clock::now();
         ScanRemoveRays(pt);
-        stats.time.cast += Seconds(t0, Clock::now());
+        stats.time.scan += Seconds(t0, Clock::now());
         TimedRecast(std::move(u), pt);
       }
       return;
@@ -786,7 +786,7 @@ struct Engine::Impl {
     if (rays_mode) {
       const auto t0 = Clock::now();
       ScanRemoveRays(pt);  // Rays ending at p_old, everywhere.
-      stats.time.cast += Seconds(t0, Clock::now());
+      stats.time.scan += Seconds(t0, Clock::now());
       for (uint32_t c : added_cams) u.push_back({c, pt, 0});  // New observations join U.
       TimedRecast(std::move(u), -1);  // Rays to p now end at p_new.
     } else {
@@ -900,10 +900,11 @@ struct Engine::Impl {
     // casting and shrinking, which have their own timers.
     auto timed = [&](double* phase, auto&& fn) {
       const double cast0 = stats.time.cast, shrink0 = stats.time.shrink;
+      const double scan0 = stats.time.scan;
       const auto a = Clock::now();
       fn();
       *phase += Seconds(a, Clock::now()) - (stats.time.cast - cast0) -
-                (stats.time.shrink - shrink0);
+                (stats.time.shrink - shrink0) - (stats.time.scan - scan0);
     };
     timed(&stats.time.insert, [&] {
       for (uint64_t id : u.removed_points) RemovePoint(point_index.at(id));

@@ -120,6 +120,7 @@ struct PhaseTimes {
   double move = 0.0;     // Moves, without their ray casting.
   double insert = 0.0;   // Insertions and removals of points, without ray casting.
   double cast = 0.0;     // All ray casting (forward, backward, re-casting).
+  double scan = 0.0;     // kRays: whole-triangulation scans removing a moved point's rays.
   double grow = 0.0;
   double extract = 0.0;  // ExtractMesh.
   double total = 0.0;    // ApplyUpdate wall time.

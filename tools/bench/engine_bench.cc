@@ -6,11 +6,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include <malloc.h>
 #include <sys/resource.h>
 
 #include "host/engine/engine.h"
@@ -34,14 +34,8 @@ double Quantile(std::vector<double> v, double q) {
 
 double Median(std::vector<double> v) { return Quantile(std::move(v), 0.5); }
 
-// Resident set size now (kB), from /proc/self/status.
-long RssKb() {
-  std::ifstream f("/proc/self/status");
-  std::string line;
-  while (std::getline(f, line))
-    if (line.rfind("VmRSS:", 0) == 0) return std::strtol(line.c_str() + 6, nullptr, 10);
-  return 0;
-}
+// Bytes allocated and in use on the heap (glibc), independent of memory kept by the allocator.
+long HeapInUseBytes() { return static_cast<long>(mallinfo2().uordblks); }
 
 long PeakRssKb() {
   rusage u{};
@@ -57,7 +51,7 @@ struct RunResult {
   EngineStats stats;
   double total = 0.0;
   double late_vs_early = 0.0;
-  long rss_delta_kb = 0;
+  long heap_bytes = 0;  // Heap in use by the engine (and the stream) at the end of the run.
   synthetic::MeshAccuracy accuracy;
   synthetic::MeshAccuracy accuracy_real;  // Only triangles of real points.
 };
@@ -75,7 +69,7 @@ RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptio
   EngineOptions eo = g_base_options;
   std::unique_ptr<engine::WeightTransferPolicy> policy;
   engine::testing::ConfigureMode(mode, &eo, &policy);
-  const long rss0 = RssKb();
+  const long heap0 = HeapInUseBytes();
   Engine eng(eo, policy.get());
   const int total_kf = stream.keyframe_count();
   int done = 0;
@@ -89,7 +83,7 @@ RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptio
       });
   r.ok = s.ok();
   r.error = s.message();
-  r.rss_delta_kb = RssKb() - rss0;
+  r.heap_bytes = HeapInUseBytes() - heap0;
   r.stats = eng.Stats();
   for (double t : r.stats.keyframe_seconds) r.total += t;
   const auto& k = r.stats.keyframe_seconds;
@@ -207,13 +201,14 @@ int RunEngineBench(int argc, char** argv) {
     if (!f.ok) std::printf("  error (frozen): %s\n", f.error.c_str());
   }
   // Phase breakdown and cost per traversed cell.
-  std::printf("\n%-14s %8s %8s %8s %8s %8s %8s %8s %10s %11s\n", "mode", "steiner", "shrink",
-              "move", "insert", "cast", "grow", "total", "rays", "ns/cell");
+  std::printf("\n%-14s %8s %8s %8s %8s %8s %8s %8s %8s %10s %11s\n", "mode", "steiner",
+              "shrink", "move", "insert", "cast", "scan", "grow", "total", "rays", "ns/cell");
   for (const RunResult& r : moving) {
     const auto& t = r.stats.time;
     const double cells = static_cast<double>(std::max<int64_t>(1, r.stats.cells_weighted));
-    std::printf("%-14s %8.2f %8.2f %8.2f %8.2f %8.2f %8.2f %8.2f %10lld %11.1f\n", r.mode.c_str(),
-                t.steiner, t.shrink, t.move, t.insert, t.cast, t.grow, t.total,
+    std::printf("%-14s %8.2f %8.2f %8.2f %8.2f %8.2f %8.2f %8.2f %8.2f %10lld %11.1f\n",
+                r.mode.c_str(), t.steiner, t.shrink, t.move, t.insert, t.cast, t.scan, t.grow,
+                t.total,
                 static_cast<long long>(r.stats.rays_cast + r.stats.rays_cast_backward),
                 1e9 * t.cast / cells);
   }
@@ -236,14 +231,15 @@ int RunEngineBench(int argc, char** argv) {
   const long peak = PeakRssKb();
   const double bytes_per_vertex =
       nearest && nearest->stats.vertices > 0
-          ? 1024.0 * static_cast<double>(nearest->rss_delta_kb) /
+          ? static_cast<double>(nearest->heap_bytes) /
                 static_cast<double>(nearest->stats.vertices)
           : 0.0;
   std::printf("\noverhead_ratio_rays5_vs_nearest %.2f (target >= 10)\n", ratio);
   if (nearest)
     std::printf("late_vs_early_keyframe_time (nearest) %.2f (target <= 1.5)\n",
                 nearest->late_vs_early);
-  std::printf("peak RSS %.1f MB; %.0f bytes per triangulation vertex (nearest: %lld vertices)\n",
+  std::printf("peak RSS %.1f MB; %.0f heap bytes per triangulation vertex (nearest: %lld "
+              "vertices)\n",
               peak / 1024.0, bytes_per_vertex,
               static_cast<long long>(nearest ? nearest->stats.vertices : 0));
   // The JSON object, last line.
