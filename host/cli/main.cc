@@ -129,12 +129,11 @@ int CmdRun(const std::vector<std::string>& args) {
   imr::pipeline::RunOptions run_options;
   if (vm.count("export-stream")) run_options.export_stream = vm["export-stream"].as<std::string>();
   if (vm.count("export-colmap")) run_options.export_colmap = vm["export-colmap"].as<std::string>();
-  for (const auto* flag : {&run_options.export_stream, &run_options.export_colmap})
-    if (vm.count(flag == &run_options.export_stream ? "export-stream" : "export-colmap") &&
-        flag->empty()) {
-      std::cerr << "imr run: an export path must not be empty\n";
-      return kExitUsage;
-    }
+  if ((vm.count("export-stream") && run_options.export_stream.empty()) ||
+      (vm.count("export-colmap") && run_options.export_colmap.empty())) {
+    std::cerr << "imr run: an export path must not be empty\n";
+    return kExitUsage;
+  }
   imr::plugin::PluginRegistry registry;
   auto v = imr::pipeline::LoadAndValidateJob(job, &registry);
   if (!v.ok()) {
