@@ -672,7 +672,6 @@ struct Engine::Impl {
     }
   }
 
-  double cast_seconds_before = 0.0;
   void TimedCast(uint32_t cam, uint32_t pt, int sign) {
     const auto t0 = Clock::now();
     CastRay(cam, pt, sign);

@@ -183,3 +183,44 @@ TEST(GeometryTest, EfficientPolicyComparableToBaseline) {
 
 }  // namespace
 }  // namespace imr::engine
+
+namespace imr::engine {
+namespace {
+
+// Same input, same output: the engine is deterministic (no order taken from addresses). The
+// order in which cells are stored may differ between runs, the triangulation, weights and dO not.
+TEST(DeterminismTest, SameStreamSameMesh) {
+  auto run = [](const std::string& mode) {
+    synthetic::SyntheticStream stream(SmallStream(SceneKind::kStreet, 5));
+    EngineOptions eo;
+    std::unique_ptr<WeightTransferPolicy> policy;
+    EXPECT_TRUE(testing::ConfigureMode(mode, &eo, &policy));
+    Engine engine(eo, policy.get());
+    EXPECT_TRUE(testing::RunStream(&stream, &engine).ok());
+    // Canonical surface: the sorted list of triangles, each as its sorted vertex coordinates.
+    const Mesh m = engine.ExtractBoundary();
+    std::vector<std::array<double, 9>> tris;
+    for (size_t t = 0; t < m.faces.size(); t += 3) {
+      std::array<std::array<double, 3>, 3> v;
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 3; ++d) v[k][d] = m.vertices[3 * m.faces[t + k] + d];
+      std::sort(v.begin(), v.end());
+      tris.push_back({v[0][0], v[0][1], v[0][2], v[1][0], v[1][1], v[1][2], v[2][0], v[2][1],
+                      v[2][2]});
+    }
+    std::sort(tris.begin(), tris.end());
+    return std::make_pair(tris, engine.CellWeights());
+  };
+  for (const std::string mode : {"nearest", "rays5"}) {
+    const auto a = run(mode);
+    // Allocate and free some memory so the second run sees different addresses.
+    std::vector<std::unique_ptr<int[]>> noise;
+    for (int i = 0; i < 1000; ++i) noise.emplace_back(new int[37 + i % 13]);
+    const auto b = run(mode);
+    EXPECT_EQ(a.first, b.first) << mode;
+    EXPECT_EQ(a.second, b.second) << mode;
+  }
+}
+
+}  // namespace
+}  // namespace imr::engine
