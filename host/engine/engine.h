@@ -68,7 +68,7 @@ struct EngineOptions {
                                       // when true; else they start at 0 and the point's own rays,
                                       // cast right after, weight them. Moves always use the
                                       // policy. See the note in engine.cc on why false is default.
-  double shrink_radius = 3.0;         // Enclosing set E: D plus cells around D's vertices that
+  double shrink_radius = 6.0;         // Enclosing set E: D plus cells around D's vertices that
                                       // lie within this distance (metres) of the point.
   int shrink_passes = 3;              // Shrink work bound: tries per cell of E (a refused cell
                                       // is retried when a neighbour leaves O).

@@ -154,8 +154,8 @@ synthetic::MeshAccuracy RunGeometry(SceneKind scene, const std::string& mode, in
   return acc;
 }
 
-// Measured (seed 11): room nearest 0.13 m / 0.95, street nearest 0.23 m / 0.83, street rays5
-// 0.11 m / 0.73 (mean distance of real-point triangles to the scene / completeness at 25 cm).
+// Measured (seed 11): room nearest 0.11 m / 0.94, street nearest 0.24 m / 0.80, street rays5
+// 0.13 m / 0.68 (mean distance of real-point triangles to the scene / completeness at 25 cm).
 // A carving that fails leaves no real-point triangles (or Steiner-only surfaces), and fails these.
 TEST(GeometryTest, ClosedRoomSeenFromInside) {
   const auto acc = RunGeometry(SceneKind::kRoom, "nearest", 150);
