@@ -75,6 +75,15 @@ void PrintProblems(const fs::path& job, const std::vector<imr::io::Problem>& pro
   for (const auto& p : problems) std::cerr << "  " << p.ToString() << "\n";
 }
 
+// Loads the plugins a job can see and validates it; prints every problem when it is invalid.
+bool LoadJob(const fs::path& job, imr::plugin::PluginRegistry* registry,
+             imr::pipeline::ValidatedJob* v) {
+  *v = imr::pipeline::LoadAndValidateJob(job, registry);
+  if (v->ok()) return true;
+  PrintProblems(job, v->problems);
+  return false;
+}
+
 int CmdValidate(const std::vector<std::string>& args) {
   po::options_description opts("imr validate options");
   opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)");
@@ -85,11 +94,8 @@ int CmdValidate(const std::vector<std::string>& args) {
   if (!ParseCommand("validate", "imr validate JOB.json", opts, pos, args, &vm, &status)) return status;
   const fs::path job = vm["job"].as<std::string>();
   imr::plugin::PluginRegistry registry;
-  auto v = imr::pipeline::LoadAndValidateJob(job, &registry);
-  if (!v.ok()) {
-    PrintProblems(job, v.problems);
-    return kExitUsage;
-  }
+  imr::pipeline::ValidatedJob v;
+  if (!LoadJob(job, &registry, &v)) return kExitUsage;
   std::cout << job.string() << ": valid (" << v.sequences.size() << " sequence"
             << (v.sequences.size() == 1 ? "" : "s") << ", " << v.job.pipeline.size()
             << " stages)\n";
@@ -135,11 +141,8 @@ int CmdRun(const std::vector<std::string>& args) {
     return kExitUsage;
   }
   imr::plugin::PluginRegistry registry;
-  auto v = imr::pipeline::LoadAndValidateJob(job, &registry);
-  if (!v.ok()) {
-    PrintProblems(job, v.problems);
-    return kExitUsage;
-  }
+  imr::pipeline::ValidatedJob v;
+  if (!LoadJob(job, &registry, &v)) return kExitUsage;
   const auto option_problems = imr::pipeline::CheckRunOptions(run_options, v);
   if (!option_problems.empty()) {
     for (const auto& p : option_problems) std::cerr << "imr run: " << p << "\n";
