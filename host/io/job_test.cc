@@ -117,7 +117,11 @@ TEST(EngineOptionsJson, DefaultsRoundTripAndErrorsNameTheField) {
   ASSERT_TRUE(EngineOptionsFromJson(nlohmann::json::object(), &o, &p)) << Dump(p);
   EXPECT_EQ(o.window, 15);
   EXPECT_EQ(o.steiner_spacing, 5.0);
-  ASSERT_TRUE(EngineOptionsFromJson({{"visibility_mode", "rays"}, {"rays_per_cell", 1}}, &o, &p));
+  EXPECT_FALSE(o.transfer_on_insert);
+  ASSERT_TRUE(EngineOptionsFromJson(
+      {{"visibility_mode", "rays"}, {"rays_per_cell", 1}, {"transfer_on_insert", true}}, &o, &p));
+  EXPECT_TRUE(o.transfer_on_insert);
+  EXPECT_EQ(EngineOptionsToJson(o)["transfer_on_insert"], true);
   EXPECT_EQ(o.visibility_mode, engine::VisibilityMode::kRays);
   EXPECT_EQ(o.rays_per_cell, 1);
   EXPECT_EQ(EngineOptionsToJson(o)["visibility_mode"], "rays");
