@@ -972,6 +972,7 @@ struct Engine::Impl {
       }
     }
     if (rule != SteinerExportRule::kNone) SplitPinchedVertices(&m);
+    CanonicalizeMesh(&m);
     return m;
   }
 

@@ -202,6 +202,12 @@ class Engine {
   std::unique_ptr<Impl> impl_;
 };
 
+// Puts a mesh in a canonical order that depends only on its geometry and point ids (faces sorted,
+// each starting at its smallest vertex, orientation kept; vertices numbered by first use), so the
+// same surface is written identically by every run. ExtractMesh and ExtractBoundary return
+// canonical meshes.
+void CanonicalizeMesh(Mesh* mesh);
+
 // Checks an exported mesh: every edge in one or two triangles (two with opposite orientation),
 // every vertex one closed or open fan. closed = true also requires every edge in two triangles.
 ManifoldCheckResult CheckMesh(const Mesh& mesh, bool closed);

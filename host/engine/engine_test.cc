@@ -282,3 +282,50 @@ TEST(CheckMeshTest, DetectsNonManifoldMeshes) {
 
 }  // namespace
 }  // namespace imr::engine
+
+namespace imr::engine {
+namespace {
+
+// The same surface stored in another order (vertices renumbered, faces shuffled and rotated)
+// comes out identical, and every triangle keeps its orientation.
+TEST(CanonicalizeMeshTest, OrderIndependentAndOrientationKept) {
+  // A tetrahedron's surface, outward-oriented, with one Steiner vertex.
+  Mesh a;
+  a.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  a.point_ids = {7, 3, -1, 5};
+  a.faces = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  // b: vertices in reverse order, faces shuffled and each rotated.
+  Mesh b;
+  const std::vector<uint32_t> to_b = {3, 2, 1, 0};
+  b.vertices.resize(12);
+  b.point_ids.resize(4);
+  for (uint32_t v = 0; v < 4; ++v) {
+    for (int k = 0; k < 3; ++k) b.vertices[3 * to_b[v] + k] = a.vertices[3 * v + k];
+    b.point_ids[to_b[v]] = a.point_ids[v];
+  }
+  const std::vector<std::array<uint32_t, 3>> shuffled = {{2, 3, 1}, {3, 0, 1}, {0, 3, 2}, {1, 0, 2}};
+  for (const auto& f : shuffled)
+    for (uint32_t v : f) b.faces.push_back(to_b[v]);
+  CanonicalizeMesh(&a);
+  CanonicalizeMesh(&b);
+  EXPECT_EQ(a.vertices, b.vertices);
+  EXPECT_EQ(a.point_ids, b.point_ids);
+  EXPECT_EQ(a.faces, b.faces);
+  EXPECT_TRUE(CheckMesh(a, /*closed=*/true).ok) << CheckMesh(a, true).message;
+  // Idempotent.
+  Mesh c = a;
+  CanonicalizeMesh(&c);
+  EXPECT_EQ(c.faces, a.faces);
+  // Orientation: the first face is still counter-clockwise seen from outside (normal away from
+  // the centroid (0.25, 0.25, 0.25)).
+  auto p = [&](uint32_t v) { return Vec3{a.vertices[3 * v], a.vertices[3 * v + 1], a.vertices[3 * v + 2]}; };
+  const Vec3 p0 = p(a.faces[0]), p1 = p(a.faces[1]), p2 = p(a.faces[2]);
+  const Vec3 u = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+  const Vec3 w = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+  const Vec3 n = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  const Vec3 out = {p0[0] - 0.25, p0[1] - 0.25, p0[2] - 0.25};
+  EXPECT_GT(n[0] * out[0] + n[1] * out[1] + n[2] * out[2], 0.0);
+}
+
+}  // namespace
+}  // namespace imr::engine
