@@ -11,6 +11,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace imr::io {
 
@@ -42,6 +43,27 @@ class KeyframeSource {
   // Figures about the input for the report (views, points, observations, what was skipped and
   // why), as a JSON object; null when there is nothing to say.
   virtual nlohmann::json Summary() const { return nullptr; }
+};
+
+// A source whose updates are all built up front (SfM exports, SLAM JSON files): subclasses fill
+// updates_ and frames_ (one frame number per update); Next hands them out in order.
+class PrecomputedKeyframeSource : public KeyframeSource {
+ public:
+  bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
+    if (next_ >= updates_.size()) return false;
+    *u = std::move(updates_[next_]);
+    *info = {static_cast<int>(next_), frames_[next_]};
+    ++next_;
+    return true;
+  }
+  int KeyframeCount() const override { return static_cast<int>(updates_.size()); }
+
+ protected:
+  std::vector<engine::KeyframeUpdate> updates_;
+  std::vector<int> frames_;
+
+ private:
+  std::size_t next_ = 0;
 };
 
 }  // namespace imr::io

@@ -32,20 +32,12 @@ json SfmReplayOptionsSchema() {
 
 namespace {
 
-class SfmSource : public KeyframeSource {
+class SfmSource : public PrecomputedKeyframeSource {
  public:
   SfmSource(SfmModel model, const SfmReplayOptions& o) : model_(std::move(model)), opt_(o) {
     Build();
   }
 
-  bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
-    if (next_ >= updates_.size()) return false;
-    *u = std::move(updates_[next_]);
-    *info = {static_cast<int>(next_), frames_[next_]};
-    ++next_;
-    return true;
-  }
-  int KeyframeCount() const override { return static_cast<int>(updates_.size()); }
   const CameraGeometry* Camera(uint64_t id) const override {
     auto it = by_id_.find(id);
     return it == by_id_.end() ? nullptr : &model_.views[it->second];
@@ -121,9 +113,6 @@ class SfmSource : public KeyframeSource {
   SfmModel model_;
   SfmReplayOptions opt_;
   std::unordered_map<uint64_t, std::size_t> by_id_;
-  std::vector<engine::KeyframeUpdate> updates_;
-  std::vector<int> frames_;
-  std::size_t next_ = 0;
   json summary_;
 };
 

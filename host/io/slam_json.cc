@@ -41,7 +41,7 @@ namespace {
 
 constexpr int64_t kNone = std::numeric_limits<int64_t>::min();
 
-class SlamJsonSource : public KeyframeSource {
+class SlamJsonSource : public PrecomputedKeyframeSource {
  public:
   SlamJsonSource(const std::filesystem::path& file, const SlamJsonOptions& o)
       : f_(file.string()), opt_(o) {
@@ -57,14 +57,6 @@ class SlamJsonSource : public KeyframeSource {
     Build();
   }
 
-  bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
-    if (next_ >= updates_.size()) return false;
-    *u = std::move(updates_[next_]);
-    *info = {static_cast<int>(next_), frames_[next_]};
-    ++next_;
-    return true;
-  }
-  int KeyframeCount() const override { return static_cast<int>(updates_.size()); }
   const CameraGeometry* Camera(uint64_t id) const override {
     auto it = view_by_id_.find(id);
     return it == view_by_id_.end() ? nullptr : &views_[it->second].geometry;
@@ -316,9 +308,6 @@ class SlamJsonSource : public KeyframeSource {
   std::vector<ViewRec> views_;
   std::unordered_map<uint64_t, std::size_t> view_by_id_;
   std::vector<Obs> obs_;
-  std::vector<engine::KeyframeUpdate> updates_;
-  std::vector<int> frames_;
-  std::size_t next_ = 0;
   json summary_;
 };
 
