@@ -70,6 +70,34 @@ const std::vector<InputFormat>& InputFormats() {
       return OpenSlamJson(path, SlamJsonOptionsFromJson(o));
     };
     f.push_back(slam);
+
+    // Image sequences with known poses: run through the features and refiner plugins.
+    const auto image_format = [](const std::string& name, const std::string& description,
+                                 ImageSequence (*read)(const std::string&,
+                                                       const ImageSequenceOptions&)) {
+      InputFormat i;
+      i.name = name;
+      i.description = description;
+      i.needs_front_end = true;
+      i.sequences_are_paths = true;
+      i.options_schema = ImageSequenceOptionsSchema();
+      i.open_images = [read](const std::string& path, const json& o) {
+        return read(path, ImageSequenceOptionsFromJson(o));
+      };
+      return i;
+    };
+    f.push_back(image_format("kitti_odometry",
+                             "KITTI odometry sequence folder (image_0..3, calib.txt, times.txt; "
+                             "poses file: camera i -> camera 0)",
+                             &ReadKittiOdometry));
+    f.push_back(image_format("kitti_raw",
+                             "KITTI raw drive folder (<date>/<date>_drive_NNNN_sync: "
+                             "image_0X/data, calibration in the date folder; poses from "
+                             "poses*.txt or oxts)",
+                             &ReadKittiRaw));
+    f.push_back(image_format("middlebury",
+                             "Middlebury multi-view *_par.txt (or its folder): K, R, t per view",
+                             &ReadMiddlebury));
     return f;
   }();
   return formats;

@@ -1,0 +1,135 @@
+// Options of the image-sequence formats and the text helpers the layout readers share; the
+// readers are in kitti_reader.cc and middlebury_reader.cc.
+#include "host/io/image_sequence.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+namespace imr::io {
+using nlohmann::json;
+
+std::string ImageSequenceOptions::Check() const {
+  if (camera < -1 || camera > 3) return "camera: " + std::to_string(camera) + " is not -1 or 0..3";
+  if (poses_camera < -1 || poses_camera > 3)
+    return "poses_camera: " + std::to_string(poses_camera) + " is not -1 or 0..3";
+  if (first_frame < 0) return "first_frame: " + std::to_string(first_frame) + " is negative";
+  if (frame_count == 0 || frame_count < -1)
+    return "frame_count: " + std::to_string(frame_count) + " selects no frames (-1 = all)";
+  if (frame_step < 1) return "frame_step: " + std::to_string(frame_step) + " is below 1";
+  return "";
+}
+
+json ImageSequenceOptionsSchema() {
+  const ImageSequenceOptions d;
+  return {{"camera",
+           {{"type", "integer"},
+            {"default", d.camera},
+            {"minimum", -1},
+            {"maximum", 3},
+            {"description",
+             "KITTI camera 0..3 (0, 1 gray; 2, 3 colour); -1: the "
+             "lowest-numbered image folder present"}}},
+          {"poses",
+           {{"type", "string"},
+            {"default", d.poses},
+            {"description",
+             "poses file (12 numbers a line, camera i -> world); \"\": the "
+             "layout's default (KITTI odometry: poses.txt or "
+             "../../poses/<seq>.txt; KITTI raw: poses*.txt, else oxts)"}}},
+          {"poses_camera",
+           {{"type", "integer"},
+            {"default", d.poses_camera},
+            {"minimum", -1},
+            {"maximum", 3},
+            {"description",
+             "the camera the poses file gives; -1: from its name "
+             "(poses_cam2* -> 2), else 0"}}},
+          {"first_frame",
+           {{"type", "integer"},
+            {"default", d.first_frame},
+            {"minimum", 0},
+            {"description", "first source frame used"}}},
+          {"frame_count",
+           {{"type", "integer"},
+            {"default", d.frame_count},
+            {"minimum", -1},
+            {"description", "at most this many frames; -1: all to the end"}}},
+          {"frame_step",
+           {{"type", "integer"},
+            {"default", d.frame_step},
+            {"minimum", 1},
+            {"description", "use every n-th source frame"}}}};
+}
+
+ImageSequenceOptions ImageSequenceOptionsFromJson(const json& o) {
+  ImageSequenceOptions r;
+  r.camera = o.at("camera");
+  r.poses = o.at("poses").get<std::string>();
+  r.poses_camera = o.at("poses_camera");
+  r.first_frame = o.at("first_frame");
+  r.frame_count = o.at("frame_count");
+  r.frame_step = o.at("frame_step");
+  if (const std::string problem = r.Check(); !problem.empty())
+    throw std::runtime_error("input.options." + problem);
+  return r;
+}
+
+std::vector<std::string> ReadTextLines(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw std::runtime_error(path + ": no such file (" + what + ")");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open for reading (" + what + ")");
+  std::vector<std::string> lines;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();  // files written on Windows
+    lines.push_back(std::move(line));
+  }
+  return lines;
+}
+
+std::vector<double> ParseNumbers(const std::string& text, const std::string& file, int line) {
+  std::vector<double> numbers;
+  const auto blank = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
+  std::size_t i = 0;
+  while (i < text.size()) {
+    while (i < text.size() && blank(text[i])) ++i;
+    if (i == text.size()) break;
+    std::size_t end = i;
+    while (end < text.size() && !blank(text[end])) ++end;
+    const char* first = text.data() + i;
+    if (*first == '+') ++first;  // from_chars takes no leading '+'
+    double v = 0.0;
+    const auto [ptr, ec] = std::from_chars(first, text.data() + end, v);
+    if (ec != std::errc() || ptr != text.data() + end || !std::isfinite(v))
+      throw std::runtime_error(file + ":" + std::to_string(line) + ": column " +
+                               std::to_string(i + 1) + " (number " +
+                               std::to_string(numbers.size() + 1) + "): '" +
+                               text.substr(i, end - i) + "' is not a finite number");
+    numbers.push_back(v);
+    i = end;
+  }
+  return numbers;
+}
+
+std::vector<int> SelectSourceFrames(int source_count, const ImageSequenceOptions& o,
+                                    const std::string& sequence) {
+  if (source_count <= 0) throw std::runtime_error(sequence + ": the sequence has no frames");
+  if (o.first_frame >= source_count)
+    throw std::runtime_error(sequence + ": first_frame " + std::to_string(o.first_frame) +
+                             " is past the last frame (the sequence has " +
+                             std::to_string(source_count) + ", numbered from 0)");
+  std::vector<int> frames;
+  for (int i = o.first_frame; i < source_count; i += std::max(o.frame_step, 1)) {
+    if (o.frame_count >= 0 && static_cast<int>(frames.size()) >= o.frame_count) break;
+    frames.push_back(i);
+  }
+  return frames;
+}
+
+}  // namespace imr::io
