@@ -13,6 +13,8 @@ PACKAGES=(
   nlohmann-json3-dev libassimp-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # the cross-check of `imr evaluate` (tests/evaluate_test: CloudCompare's cloud-to-mesh distance)
+  cloudcompare
 )
 
 SUDO=()

@@ -5,6 +5,9 @@
 
 namespace imr::bench {
 int RunEngineBench(int argc, char** argv);
+#ifdef IMR_BENCH_EVALUATE
+int RunEvaluateBench(int argc, char** argv);
+#endif
 }
 
 namespace {
@@ -13,7 +16,9 @@ void Usage() {
                "usage: imr-bench <subcommand> [options]\n"
                "subcommands:\n"
                "  engine [--frames N] [--seed S] [--quick] [--modes a,b,...]\n"
-               "         reconstruction engine on the synthetic street stream\n");
+               "         reconstruction engine on the synthetic street stream\n"
+               "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
+               "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n");
 }
 }  // namespace
 
@@ -24,6 +29,9 @@ int main(int argc, char** argv) {
   }
   const std::string sub = argv[1];
   if (sub == "engine") return imr::bench::RunEngineBench(argc - 2, argv + 2);
+#ifdef IMR_BENCH_EVALUATE
+  if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
+#endif
   std::fprintf(stderr, "imr-bench: unknown subcommand '%s'\n", sub.c_str());
   Usage();
   return 2;

@@ -1,0 +1,53 @@
+// Reading meshes and point clouds for evaluation, natively: the host does not link assimp (only
+// the exporter plugin does), yet must read every format that plugin writes (plugins/
+// exporter_assimp/README.md) plus the usual ground-truth point formats.
+//
+//   .obj          v / f lines (f "i", "i/t", "i//n", "i/t/n", negative = relative); polygons are
+//                 fan-triangulated; everything else (vn, vt, g, usemtl, ...) is ignored.
+//   .ply          ascii, binary_little_endian, binary_big_endian; element vertex with x, y, z of
+//                 any numeric type (other properties, e.g. imr's nx ny nz point_id, are skipped);
+//                 element face with a list "vertex_indices" or "vertex_index" (any integer count
+//                 and index types), polygons fan-triangulated; other elements skipped.
+//   .gltf / .glb  glTF 2.0: every triangle primitive (mode 4, 5, 6) of the nodes of the default
+//                 scene, with the nodes' transforms (matrix or TRS) applied; POSITION of any
+//                 component type (normalised integers as KHR_mesh_quantization), indices of any
+//                 unsigned type or none; buffers from files beside it, base64 data URIs, or the
+//                 GLB BIN chunk. Other attributes (NORMAL, imr's _POINT_ID) are ignored.
+//   .xyz .txt .asc  points only: one point per line, x y z then any further columns ignored
+//                 (separated by spaces, tabs or commas); empty lines, '#' and '//' lines skipped.
+//
+// Every error is a std::runtime_error whose message starts with the file's path and says what is
+// wrong and where (line, element, accessor), e.g. "m.ply: truncated: face 12 of 40 ends past the
+// end of the file".
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace imr::eval {
+
+using Vec3 = std::array<double, 3>;
+
+struct TriangleMesh {
+  std::vector<Vec3> vertices;
+  std::vector<std::array<uint32_t, 3>> triangles;  // indices into vertices
+};
+
+// "obj", "ply", "gltf", "glb" or "xyz" (also for .txt / .asc) from the extension, case-insensitive;
+// "" when it is none of them.
+std::string GeometryFormat(const std::filesystem::path& path);
+
+// Vertices and triangles of any format above (a point format gives no triangles). Throws on an
+// unknown extension, a missing or unreadable file, or bad contents.
+TriangleMesh ReadGeometry(const std::filesystem::path& path);
+
+// As ReadGeometry, and also throws when the file holds no triangle or is a point format.
+TriangleMesh ReadMesh(const std::filesystem::path& path);
+
+// Total area of the triangles.
+double MeshArea(const TriangleMesh& mesh);
+
+}  // namespace imr::eval
