@@ -20,6 +20,8 @@ std::string ImageSequenceOptions::Check() const {
   if (frame_count == 0 || frame_count < -1)
     return "frame_count: " + std::to_string(frame_count) + " selects no frames (-1 = all)";
   if (frame_step < 1) return "frame_step: " + std::to_string(frame_step) + " is below 1";
+  if (keyframe_every < 1)
+    return "keyframe_every: " + std::to_string(keyframe_every) + " is below 1";
   return "";
 }
 
@@ -62,7 +64,14 @@ json ImageSequenceOptionsSchema() {
            {{"type", "integer"},
             {"default", d.frame_step},
             {"minimum", 1},
-            {"description", "use every n-th source frame"}}}};
+            {"description", "use every n-th source frame"}}},
+          {"keyframe_every",
+           {{"type", "integer"},
+            {"default", d.keyframe_every},
+            {"minimum", 1},
+            {"description",
+             "a keyframe every this many frames (paper: 5): tracks are replenished and points "
+             "triangulated, refined and handed to the engine there"}}}};
 }
 
 ImageSequenceOptions ImageSequenceOptionsFromJson(const json& o) {
@@ -73,6 +82,7 @@ ImageSequenceOptions ImageSequenceOptionsFromJson(const json& o) {
   r.first_frame = o.at("first_frame");
   r.frame_count = o.at("frame_count");
   r.frame_step = o.at("frame_step");
+  r.keyframe_every = o.at("keyframe_every");
   if (const std::string problem = r.Check(); !problem.empty())
     throw std::runtime_error("input.options." + problem);
   return r;

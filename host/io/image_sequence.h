@@ -66,6 +66,7 @@ struct ImageSequenceOptions {
   int first_frame = 0;    // first source frame used
   int frame_count = -1;   // at most this many frames; -1 = all to the end
   int frame_step = 1;     // use every n-th source frame
+  int keyframe_every = 5; // the front end makes every n-th selected frame a keyframe (paper: 5)
 
   // Empty when usable, else which field and why.
   std::string Check() const;

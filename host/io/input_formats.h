@@ -1,8 +1,10 @@
 // Input formats a job can name in input.format. Each says what its `sequences` entries are
 // (paths that must exist, or names) and which options it takes (a schema, like plugin params).
-// Formats: synthetic, openmvg, colmap, slam_json; later ones (KITTI, ...) add rows here.
+// Formats: synthetic, openmvg, colmap, slam_json (engine only: `open`); kitti_odometry,
+// kitti_raw, middlebury (images: `open_images`, run through the front-end plugins).
 #pragma once
 
+#include "host/io/image_sequence.h"
 #include "host/io/keyframe_source.h"
 
 #include <nlohmann/json.hpp>
@@ -27,6 +29,10 @@ struct InputFormat {
   std::function<std::unique_ptr<KeyframeSource>(const std::string& source,
                                                 const nlohmann::json& options)>
       open;
+  // Image formats (needs_front_end): reads the layout into frames with cameras; the pipeline
+  // runs the features and refiner plugins over it. Throws like `open`.
+  std::function<ImageSequence(const std::string& source, const nlohmann::json& options)>
+      open_images;
 };
 
 const std::vector<InputFormat>& InputFormats();

@@ -72,6 +72,22 @@ class ObjectReader {
     return out;
   }
 
+  std::optional<int64_t> Integer(const std::string& key, bool required, int64_t minimum) {
+    const json* v = Get(key, required);
+    if (v == nullptr) return std::nullopt;
+    if (!v->is_number_integer()) {
+      Wrong(key, "integer", *v);
+      return std::nullopt;
+    }
+    const int64_t i = v->get<int64_t>();
+    if (i < minimum) {
+      problems_->push_back({Path(key), "expected an integer >= " + std::to_string(minimum) +
+                                           ", got " + std::to_string(i)});
+      return std::nullopt;
+    }
+    return i;
+  }
+
   const json* Object(const std::string& key, bool required) {
     const json* v = Get(key, required);
     if (v != nullptr && !v->is_object()) {
@@ -251,6 +267,7 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
         job.output.stem = *s;
     }
     if (auto f = orr.Strings("formats", false, true)) job.output.formats = *f;
+    if (auto n = orr.Integer("snapshot_every", false, 0)) job.output.snapshot_every = static_cast<int>(*n);
     orr.RejectUnknown();
   }
 

@@ -33,6 +33,9 @@ struct OutputSpec {
   std::string directory = "runs/{sequence}";
   std::string stem = "mesh";                           // output file name without extension
   std::vector<std::string> formats = {"obj", "ply", "glb"};  // handed to the exporter stage(s)
+  // Also write the mesh every this many keyframes, as snapshots/<stem>_kf<NNNNNN>.<format>
+  // (watching a reconstruction grow; the paper's Figure 3). 0: no snapshots.
+  int snapshot_every = 0;
 };
 
 struct JobSpec {

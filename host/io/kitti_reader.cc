@@ -355,6 +355,16 @@ FrameSource ReadFrameSource(const fs::path& image_dir, int digits) {
 }
 
 void CheckPoseCount(const std::string& poses_path, std::size_t poses, const FrameSource& s) {
+  if (static_cast<int>(poses) == s.count) return;
+  // Fewer images than poses is usually one image lost from the middle: name it.
+  for (std::size_t i = 0; i < poses && static_cast<int>(poses) > s.count; ++i) {
+    const fs::path image = s.image_dir / Numbered(static_cast<int>(i), s.digits, ".png");
+    std::error_code ec;
+    if (!fs::is_regular_file(image, ec))
+      Fail(image.string() + ": no such file (the image of pose line " + std::to_string(i + 1) +
+           " of " + poses_path + "; " + s.image_dir.string() + " has " + std::to_string(s.count) +
+           " images for " + std::to_string(poses) + " poses (lines))");
+  }
   if (static_cast<int>(poses) != s.count)
     Fail(poses_path + ": " + std::to_string(poses) + " poses (lines), but " + s.image_dir.string() +
          " has " + std::to_string(s.count) + " images (.png); expected one pose per image");
@@ -560,6 +570,13 @@ ImageSequence ReadKittiOdometry(const std::string& root_arg, const ImageSequence
     AddLidar(velodyne, 6, selected, tr, &seq);
   }
   s["has_lidar"] = seq.has_lidar;
+  // A sequence rendered by imr-synth says what scene it shows (exact ground truth). Its world is
+  // the frame of poses.txt (camera 0), so it applies only when the poses are the generator's own.
+  const fs::path scene = root / "ground_truth" / "scene.json";
+  if (fs::is_regular_file(scene, ec) && o.poses.empty() && pc.camera == 0) {
+    seq.synthetic_scene = scene.string();
+    s["ground_truth"] = scene.string();
+  }
   return seq;
 }
 

@@ -1,6 +1,7 @@
 #include "host/pipeline/run.h"
 
 #include "host/io/engine_options.h"
+#include "host/pipeline/front_end.h"
 #include "host/plugin/host_services.h"
 #include "host/plugin/policy_adapter.h"
 #include "host/io/input_formats.h"
@@ -65,6 +66,37 @@ std::string Replace(std::string s, const std::string& from, const std::string& t
   return s;
 }
 
+using Exporters = std::vector<std::pair<const io::StageSpec*, plugin::LoadedInstance>>;
+
+// Writes `mesh` into `directory` as stem.<format> for every format, each through the first
+// exporter stage that writes it.
+void ExportMesh(const engine::Mesh& mesh, const std::vector<std::string>& formats,
+                const Exporters& exporters, const fs::path& directory, const std::string& stem) {
+  imr_mesh_view view{};
+  view.struct_size = sizeof(view);
+  view.vertices = mesh.vertices.data();
+  view.vertex_count = mesh.vertices.size() / 3;
+  view.faces = mesh.faces.data();
+  view.face_count = mesh.faces.size() / 3;
+  view.point_ids = mesh.point_ids.data();
+  std::set<std::string> written;
+  const std::string dir = directory.string();
+  for (const std::string& mesh_format : formats) {
+    for (const auto& [stage, inst] : exporters) {
+      const std::string list = std::string(",") + inst.instance.descriptor()->exporter->formats + ",";
+      if (list.find("," + mesh_format + ",") == std::string::npos || written.count(mesh_format))
+        continue;
+      imr_export_request req{};
+      req.mesh = &view;
+      req.directory = dir.c_str();
+      req.stem = stem.c_str();
+      req.format = mesh_format.c_str();
+      inst.instance.ExportMesh(&req);
+      written.insert(mesh_format);
+    }
+  }
+}
+
 void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                  const RunOptions& options, const SequenceRef& seq, SequenceResult* result) {
   const auto start = std::chrono::steady_clock::now();
@@ -73,7 +105,8 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
 
   // Plugins: one policy (weights mode) and the exporters.
   std::optional<plugin::PluginWeightPolicy> policy;
-  std::vector<std::pair<const io::StageSpec*, plugin::LoadedInstance>> exporters;
+  Exporters exporters;
+  std::optional<plugin::LoadedInstance> features, refiner;
   json plugins_json = json::array();
   for (std::size_t i = 0; i < job.pipeline.size(); ++i) {
     const io::StageSpec& stage = job.pipeline[i];
@@ -84,11 +117,27 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
       policy.emplace(std::move(instance), info->id());
     else if (stage.kind == "exporter")
       exporters.emplace_back(&stage, std::move(instance));
+    else if (stage.kind == "features")
+      features.emplace(std::move(instance));
+    else if (stage.kind == "refiner")
+      refiner.emplace(std::move(instance));
   }
 
   // Input -> engine, keyframe by keyframe.
   const io::InputFormat* format = io::FindInputFormat(job.input.format);
-  std::unique_ptr<io::KeyframeSource> source = format->open(seq.source, v.input_options);
+  std::unique_ptr<io::KeyframeSource> source;
+  const ImageFrontEndSource* front_end = nullptr;
+  if (format->needs_front_end) {
+    // Images: the features and refiner plugins make the points (validation checked both exist).
+    FrontEndOptions fo;
+    fo.keyframe_every = io::ImageSequenceOptionsFromJson(v.input_options).keyframe_every;
+    auto fe = std::make_unique<ImageFrontEndSource>(format->open_images(seq.source, v.input_options),
+                                                    features->instance, refiner->instance, fo);
+    front_end = fe.get();
+    source = std::move(fe);
+  } else {
+    source = format->open(seq.source, v.input_options);
+  }
   engine::Engine engine(v.engine_options, policy ? &*policy : nullptr);
   if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
   engine::KeyframeUpdate update;
@@ -99,12 +148,16 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     recorder.emplace(source.get(), std::string("imr ") + Version() + ", job " + job.Name() +
                                        ", sequence " + seq.name);
   int keyframes = 0;
+  double engine_seconds = 0.0, snapshot_seconds = 0.0;
+  json snapshots = json::array();
   const int total_keyframes = source->KeyframeCount();
   const std::string of_total = total_keyframes > 0 ? "/" + std::to_string(total_keyframes) : "";
   while (source->Next(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
     canonical.Apply(&update);
+    const auto engine_start = std::chrono::steady_clock::now();
     engine::Status st = engine.ApplyUpdate(update);
+    engine_seconds += Seconds(engine_start);
     if (!st.ok())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
                                std::to_string(kf.frame) + "): " + st.message());
@@ -113,6 +166,22 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                                policy->error());
     if (recorder) recorder->Record(update, kf);
     ++keyframes;
+    if (job.output.snapshot_every > 0 && keyframes % job.output.snapshot_every == 0) {
+      // Each snapshot is committed at once (whole files), so a running job can be watched.
+      const auto snap_start = std::chrono::steady_clock::now();
+      const engine::Mesh snap = engine.ExtractMesh();
+      if (!snap.faces.empty()) {
+        char stem[64];
+        std::snprintf(stem, sizeof(stem), "_kf%06d", keyframes);
+        StagingDirectory dir(result->output_directory / "snapshots");
+        ExportMesh(snap, job.output.formats, exporters, dir.path(), job.output.stem + stem);
+        dir.Commit();
+        snapshots.push_back({{"keyframe", keyframes}, {"frame", kf.frame},
+                             {"stem", "snapshots/" + job.output.stem + stem},
+                             {"faces", snap.faces.size() / 3}});
+      }
+      snapshot_seconds += Seconds(snap_start);
+    }
     if (keyframes % 20 == 0 || keyframes == total_keyframes)
       LogInfo("[" + seq.name + "] keyframe " + std::to_string(keyframes) + of_total);
   }
@@ -161,32 +230,11 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
 
   const nlohmann::json accuracy = source->Evaluate(mesh);
 
-  // Export every requested format once, through the first exporter stage that writes it.
+  const auto export_start = std::chrono::steady_clock::now();
   StagingDirectory staging(result->output_directory);
-  imr_mesh_view view{};
-  view.struct_size = sizeof(view);
-  view.vertices = mesh.vertices.data();
-  view.vertex_count = mesh.vertices.size() / 3;
-  view.faces = mesh.faces.data();
-  view.face_count = mesh.faces.size() / 3;
-  view.point_ids = mesh.point_ids.data();
-  std::set<std::string> written;
-  for (const std::string& mesh_format : job.output.formats) {
-    for (auto& [stage, inst] : exporters) {
-      const std::string list = std::string(",") + inst.instance.descriptor()->exporter->formats + ",";
-      if (list.find("," + mesh_format + ",") == std::string::npos || written.count(mesh_format))
-        continue;
-      imr_export_request req{};
-      req.mesh = &view;
-      const std::string dir = staging.path().string();
-      req.directory = dir.c_str();
-      req.stem = job.output.stem.c_str();
-      req.format = mesh_format.c_str();
-      inst.instance.ExportMesh(&req);
-      written.insert(mesh_format);
-    }
-  }
+  ExportMesh(mesh, job.output.formats, exporters, staging.path(), job.output.stem);
   result->files = staging.Commit(job.output.stem + ".gltf");
+  const double export_seconds = Seconds(export_start);
 
   json report;
   report["imr_version"] = Version();
@@ -203,6 +251,19 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                     {"boundary_closed_manifold", boundary_check.ok},
                     {"boundary_triangles", boundary_check.boundary_triangles}};
   if (!accuracy.is_null()) report["accuracy"] = accuracy;
+  // Wall time per stage of the chain (reader -> features -> refiner -> engine -> exporter).
+  json stages = json::object();
+  if (front_end != nullptr) {
+    const FrontEndStats& fs_ = front_end->stats();
+    stages["read_images"] = fs_.read_seconds;
+    stages["features"] = fs_.features_seconds;
+    stages["refiner"] = fs_.refiner_seconds;
+  }
+  stages["engine"] = engine_seconds;
+  stages["export"] = export_seconds;
+  if (!snapshots.empty()) stages["snapshots"] = snapshot_seconds;
+  report["stage_seconds"] = stages;
+  if (!snapshots.empty()) report["snapshots"] = snapshots;
   if (!exports.empty()) report["exports"] = exports;
   json files = json::array();
   for (const auto& f : result->files) files.push_back(f.filename().string());

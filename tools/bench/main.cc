@@ -5,6 +5,7 @@
 
 namespace imr::bench {
 int RunEngineBench(int argc, char** argv);
+int RunPipelineBench(int argc, char** argv);
 #ifdef IMR_BENCH_EVALUATE
 int RunEvaluateBench(int argc, char** argv);
 #endif
@@ -17,6 +18,8 @@ void Usage() {
                "subcommands:\n"
                "  engine [--frames N] [--seed S] [--quick] [--modes a,b,...]\n"
                "         reconstruction engine on the synthetic street stream\n"
+               "  pipeline [--frames N] [--width W --height H] [--cores C] [--kitti DIR]\n"
+               "         the whole image pipeline (imr run) on one core: synthetic + KITTI\n"
                "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
                "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n");
 }
@@ -29,6 +32,7 @@ int main(int argc, char** argv) {
   }
   const std::string sub = argv[1];
   if (sub == "engine") return imr::bench::RunEngineBench(argc - 2, argv + 2);
+  if (sub == "pipeline") return imr::bench::RunPipelineBench(argc - 2, argv + 2);
 #ifdef IMR_BENCH_EVALUATE
   if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
 #endif

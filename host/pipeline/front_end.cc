@@ -1,0 +1,349 @@
+#include "host/pipeline/front_end.h"
+
+#include "host/io/image_io.h"
+#include "host/synthetic/evaluation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+
+namespace imr::pipeline {
+using nlohmann::json;
+
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+imr_camera ToPluginCamera(const io::CameraGeometry& g, int width, int height) {
+  imr_camera c{};
+  c.id = g.id;
+  const io::Intrinsics& k = g.intrinsics;
+  const double K[9] = {k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0};
+  std::copy(std::begin(K), std::end(K), c.K);
+  for (int r = 0; r < 3; ++r) {
+    for (int col = 0; col < 3; ++col) c.R[3 * r + col] = g.rotation[r][col];
+    c.t[r] = g.translation[r];
+  }
+  c.width = width;
+  c.height = height;
+  return c;
+}
+
+engine::Camera ToEngineCamera(const io::CameraGeometry& g) {
+  engine::Camera c;
+  c.id = g.id;
+  c.center = g.center;
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col) c.rotation[3 * r + col] = g.rotation[r][col];
+  c.intrinsics = {g.intrinsics.fx, g.intrinsics.fy, g.intrinsics.cx, g.intrinsics.cy};
+  return c;
+}
+
+std::vector<uint64_t> Slice(const imr_refiner_update& u, const imr_point_estimate& p) {
+  if (p.camera_count == 0) return {};
+  if (p.first_camera + p.camera_count > u.camera_id_count)
+    throw std::runtime_error("refiner: point " + std::to_string(p.id) + " refers to cameras " +
+                             std::to_string(p.first_camera) + ".." +
+                             std::to_string(p.first_camera + p.camera_count - 1) + " of only " +
+                             std::to_string(u.camera_id_count) + " camera ids");
+  return {u.camera_ids + p.first_camera, u.camera_ids + p.first_camera + p.camera_count};
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+}  // namespace
+
+std::string FrontEndOptions::Check() const {
+  if (keyframe_every < 1) return "keyframe_every: expected >= 1";
+  if (truth_pixel_step < 1) return "truth_pixel_step: expected >= 1";
+  if (!(truth_range > 0.0)) return "truth_range: expected > 0";
+  if (!(tau > 0.0)) return "tau: expected > 0";
+  return {};
+}
+
+io::Vec3 SyntheticTruth::ToScene(const io::Vec3& w) const {
+  return io::Mul(io::Transpose(rotation),
+                 {w[0] - translation[0], w[1] - translation[1], w[2] - translation[2]});
+}
+
+SyntheticTruth ReadSyntheticTruth(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open the synthetic scene description");
+  json j;
+  try {
+    in >> j;
+  } catch (const json::exception& e) {
+    throw std::runtime_error(path + ": not valid JSON (" + e.what() + ")");
+  }
+  auto number = [&](const char* key) {
+    if (!j.contains(key) || !j[key].is_number())
+      throw std::runtime_error(path + ": field '" + key + "': expected a number");
+    return j[key].get<double>();
+  };
+  if (!j.contains("scene") || j["scene"] != "street")
+    throw std::runtime_error(path + ": field 'scene': expected \"street\"");
+  SyntheticTruth t;
+  if (!j.contains("seed") || !j["seed"].is_number_unsigned())
+    throw std::runtime_error(path + ": field 'seed': expected a non-negative integer");
+  t.scene = synthetic::Scene::StreetCanyon(number("length"), j["seed"].get<uint64_t>(),
+                                           number("half_width"), number("facade_height"));
+  const json& m = j.contains("world_from_scene") ? j["world_from_scene"] : json();
+  std::vector<double> v;
+  if (m.is_array() && m.size() == 4) {
+    for (const json& row : m)
+      if (row.is_array())
+        for (const json& x : row)
+          if (x.is_number()) v.push_back(x.get<double>());
+  } else if (m.is_array()) {
+    for (const json& x : m)
+      if (x.is_number()) v.push_back(x.get<double>());
+  }
+  if (v.size() != 16)
+    throw std::runtime_error(path + ": field 'world_from_scene': expected a 4x4 matrix "
+                             "(4 rows of 4 numbers, or 16 numbers row-major)");
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) t.rotation[r][c] = v[4 * r + c];
+    t.translation[r] = v[4 * r + 3];
+  }
+  if (const std::string p = io::RotationProblem(t.rotation, 1e-6); !p.empty())
+    throw std::runtime_error(path + ": field 'world_from_scene': rotation part " + p);
+  return t;
+}
+
+ImageFrontEndSource::ImageFrontEndSource(io::ImageSequence sequence,
+                                         const imr::sdk::Instance& features,
+                                         const imr::sdk::Instance& refiner,
+                                         const FrontEndOptions& options)
+    : sequence_(std::move(sequence)), features_(features), refiner_(refiner), options_(options) {
+  if (const std::string e = options_.Check(); !e.empty())
+    throw std::invalid_argument("front end options: " + e);
+  if (sequence_.frames.empty())
+    throw std::runtime_error(sequence_.root + ": the sequence has no frames");
+  if (!sequence_.synthetic_scene.empty())
+    truth_ = std::make_unique<SyntheticTruth>(ReadSyntheticTruth(sequence_.synthetic_scene));
+}
+
+ImageFrontEndSource::~ImageFrontEndSource() = default;
+
+bool ImageFrontEndSource::IsKeyframe(int frame) const {
+  return frame % options_.keyframe_every == 0 ||
+         frame + 1 == static_cast<int>(sequence_.frames.size());
+}
+
+int ImageFrontEndSource::KeyframeCount() const {
+  int n = 0;
+  for (std::size_t f = 0; f < sequence_.frames.size(); ++f) n += IsKeyframe(static_cast<int>(f));
+  return n;
+}
+
+void ImageFrontEndSource::TrackPointError(uint64_t id, const io::Vec3& position, bool is_new) {
+  if (!truth_) return;
+  const double d = truth_->scene.Distance(truth_->ToScene(position));
+  if (is_new) {
+    point_errors_[id] = {d, d, 0};
+    return;
+  }
+  auto it = point_errors_.find(id);
+  if (it == point_errors_.end()) return;
+  it->second.latest = d;
+  ++it->second.moves;
+}
+
+bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo* info) {
+  *update = engine::KeyframeUpdate{};
+  while (next_frame_ < sequence_.frames.size()) {
+    const io::ImageFrame& frame = sequence_.frames[next_frame_];
+    const int index = static_cast<int>(next_frame_);
+    ++next_frame_;
+    const bool keyframe = IsKeyframe(index);
+
+    auto t0 = std::chrono::steady_clock::now();
+    const io::Image image = io::ReadImage(frame.image_path);
+    if (width_ == 0) {
+      width_ = image.width;
+      height_ = image.height;
+    } else if (image.width != width_ || image.height != height_) {
+      throw std::runtime_error(frame.image_path + ": image is " + std::to_string(image.width) +
+                               "x" + std::to_string(image.height) + ", the sequence's first is " +
+                               std::to_string(width_) + "x" + std::to_string(height_));
+    }
+    stats_.read_seconds += SecondsSince(t0);
+
+    const imr_camera camera = ToPluginCamera(frame.camera, width_, height_);
+    imr_image_view view{};
+    view.struct_size = sizeof(view);
+    view.width = image.width;
+    view.height = image.height;
+    view.channels = image.channels;
+    view.stride_bytes = image.stride_bytes;
+    view.pixels = image.pixels.data();
+
+    t0 = std::chrono::steady_clock::now();
+    imr_track_view tracks{};
+    try {
+      tracks = features_.ProcessFrame(camera, view, keyframe);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("frame " + std::to_string(index) + " (" + frame.image_path +
+                               "): " + e.what());
+    }
+    stats_.features_seconds += SecondsSince(t0);
+    if (tracks.count > 0 && tracks.observations == nullptr)
+      throw std::runtime_error("features plugin returned " + std::to_string(tracks.count) +
+                               " observations but no array");
+    stats_.observations += static_cast<int64_t>(tracks.count);
+
+    if (keyframe) {
+      // Track survival over the interval that ends here, then this keyframe's set.
+      std::vector<uint64_t> ids(tracks.count);
+      for (uint64_t i = 0; i < tracks.count; ++i) ids[i] = tracks.observations[i].track_id;
+      std::sort(ids.begin(), ids.end());
+      if (!keyframe_tracks_.empty() && index % options_.keyframe_every == 0) {
+        std::vector<uint64_t> common;
+        std::set_intersection(ids.begin(), ids.end(), keyframe_tracks_.begin(),
+                              keyframe_tracks_.end(), std::back_inserter(common));
+        stats_.tracks_at_keyframes += static_cast<int64_t>(keyframe_tracks_.size());
+        stats_.tracks_surviving_interval += static_cast<int64_t>(common.size());
+      }
+      keyframe_tracks_ = std::move(ids);
+    }
+
+    t0 = std::chrono::steady_clock::now();
+    imr_refiner_update out{};
+    try {
+      out = refiner_.AddFrame(camera, tracks.observations, tracks.count, keyframe);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("frame " + std::to_string(index) + ": " + e.what());
+    }
+    stats_.refiner_seconds += SecondsSince(t0);
+    ++stats_.frames;
+
+    update->cameras.push_back(ToEngineCamera(frame.camera));
+    if (!keyframe) continue;
+
+    for (uint64_t i = 0; i < out.new_count; ++i) {
+      const imr_point_estimate& p = out.new_points[i];
+      engine::NewPoint n;
+      n.id = p.id;
+      n.position = {p.position[0], p.position[1], p.position[2]};
+      n.camera_ids = Slice(out, p);
+      TrackPointError(n.id, n.position, true);
+      update->new_points.push_back(std::move(n));
+    }
+    for (uint64_t i = 0; i < out.moved_count; ++i) {
+      const imr_point_estimate& p = out.moved_points[i];
+      engine::MovedPoint m;
+      m.id = p.id;
+      m.position = {p.position[0], p.position[1], p.position[2]};
+      m.camera_ids = Slice(out, p);
+      TrackPointError(m.id, m.position, false);
+      update->moved_points.push_back(std::move(m));
+    }
+    update->removed_points.assign(out.removed_ids, out.removed_ids + out.removed_count);
+    for (uint64_t id : update->removed_points) point_errors_.erase(id);
+    stats_.new_points += static_cast<int64_t>(out.new_count);
+    stats_.moved_points += static_cast<int64_t>(out.moved_count);
+    stats_.removed_points += static_cast<int64_t>(out.removed_count);
+    *info = {next_keyframe_++, index};
+    ++stats_.keyframes;
+    return true;
+  }
+  return false;
+}
+
+const io::CameraGeometry* ImageFrontEndSource::Camera(uint64_t camera_id) const {
+  if (camera_id >= sequence_.frames.size()) return nullptr;
+  return &sequence_.frames[camera_id].camera;
+}
+
+json ImageFrontEndSource::Summary() const {
+  const FrontEndStats& s = stats_;
+  auto fps = [&](double seconds) { return seconds > 0.0 ? s.frames / seconds : 0.0; };
+  json j = sequence_.summary;
+  j["frames_processed"] = s.frames;
+  j["keyframes"] = s.keyframes;
+  j["keyframe_every"] = options_.keyframe_every;
+  if (width_ > 0) j["image_size"] = {width_, height_};
+  j["seconds"] = {{"read_images", s.read_seconds},
+                  {"features", s.features_seconds},
+                  {"refiner", s.refiner_seconds}};
+  j["frames_per_second"] = {{"read_images", fps(s.read_seconds)},
+                            {"features", fps(s.features_seconds)},
+                            {"refiner", fps(s.refiner_seconds)}};
+  j["observations"] = s.observations;
+  j["observations_per_frame"] = s.frames > 0 ? static_cast<double>(s.observations) / s.frames : 0.0;
+  j["points"] = {{"new", s.new_points}, {"moved", s.moved_points}, {"removed", s.removed_points}};
+  j["track_survival"] = {
+      {"tracks_at_keyframes", s.tracks_at_keyframes},
+      {"surviving_one_interval", s.tracks_surviving_interval},
+      {"ratio", s.tracks_at_keyframes > 0
+                    ? static_cast<double>(s.tracks_surviving_interval) / s.tracks_at_keyframes
+                    : 0.0}};
+  if (truth_) {
+    // The refiner's promise: estimates get closer to the true surface as observations accumulate.
+    std::vector<double> first_all, first_moved, latest_moved;
+    for (const auto& [id, e] : point_errors_) {
+      first_all.push_back(e.first);
+      if (e.moves == 0) continue;
+      first_moved.push_back(e.first);
+      latest_moved.push_back(e.latest);
+    }
+    j["point_error"] = {{"reference", "distance to the true synthetic surface, metres"},
+                        {"points", first_all.size()},
+                        {"median_first_estimate", Median(first_all)},
+                        {"moved_points", first_moved.size()},
+                        {"moved_median_first_estimate", Median(first_moved)},
+                        {"moved_median_latest_estimate", Median(latest_moved)}};
+  }
+  return j;
+}
+
+json ImageFrontEndSource::Evaluate(const engine::Mesh& mesh) const {
+  if (!truth_) return nullptr;
+  // Mesh into the scene's frame, where the analytic distance lives.
+  std::vector<double> vertices(mesh.vertices.size());
+  for (std::size_t i = 0; i + 2 < mesh.vertices.size(); i += 3) {
+    const io::Vec3 s = truth_->ToScene({mesh.vertices[i], mesh.vertices[i + 1], mesh.vertices[i + 2]});
+    std::copy(s.begin(), s.end(), vertices.begin() + static_cast<std::ptrdiff_t>(i));
+  }
+  // True surface samples the keyframes saw: rays on a pixel grid, first hit within range.
+  std::vector<synthetic::Vec3> truth;
+  const io::Mat3 scene_from_world = io::Transpose(truth_->rotation);
+  for (std::size_t f = 0; f < next_frame_; ++f) {
+    if (!IsKeyframe(static_cast<int>(f))) continue;
+    const io::CameraGeometry& g = sequence_.frames[f].camera;
+    const io::Intrinsics& k = g.intrinsics;
+    const io::Mat3 cam_to_world = io::Transpose(g.rotation);
+    const io::Vec3 origin = truth_->ToScene(g.center);
+    for (int v = options_.truth_pixel_step / 2; v < height_; v += options_.truth_pixel_step) {
+      for (int u = options_.truth_pixel_step / 2; u < width_; u += options_.truth_pixel_step) {
+        const io::Vec3 dc = {(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
+        const synthetic::Vec3 d =
+            synthetic::Normalized(io::Mul(scene_from_world, io::Mul(cam_to_world, dc)));
+        double t = 0.0;
+        if (truth_->scene.Intersect(origin, d, options_.truth_range, &t))
+          truth.push_back(synthetic::Add(origin, synthetic::Scale(d, t)));
+      }
+    }
+  }
+  const synthetic::MeshAccuracy a =
+      synthetic::EvaluateMesh(truth_->scene, vertices, mesh.faces, truth, options_.tau);
+  return {{"reference", "known synthetic scene (" + sequence_.synthetic_scene + ")"},
+          {"tau", a.tau},
+          {"mean_mesh_to_scene", a.mean_mesh_to_scene},
+          {"precision", a.precision},
+          {"mean_truth_to_mesh", a.mean_truth_to_mesh},
+          {"completeness", a.completeness},
+          {"truth_samples", truth.size()}};
+}
+
+}  // namespace imr::pipeline

@@ -1,0 +1,104 @@
+// The image front end (DESIGN §5): an image sequence with known poses, driven frame by frame
+// through a features plugin (2D tracks) and a refiner plugin (3D points), becomes the engine's
+// keyframe updates. It is a KeyframeSource like the SfM readers, so the pipeline downstream does
+// not know whether points came from images or from a file.
+//
+// Frame k is a keyframe when k % keyframe_every == 0, and the last frame is one too, so every
+// frame's camera reaches the engine. Both plugins see the same is_keyframe; camera ids are the
+// frame indices (strictly increasing). Plugin output views are used before the plugin's next call.
+#pragma once
+
+#include "host/io/image_sequence.h"
+#include "host/io/keyframe_source.h"
+#include "host/synthetic/scene.h"
+
+#include <imr/sdk/host.hpp>
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace imr::pipeline {
+
+struct FrontEndOptions {
+  int keyframe_every = 5;  // a keyframe every this many frames (paper: 5)
+  // Ground-truth evaluation of synthetic sequences: true surface samples are taken by casting
+  // rays from every keyframe's camera on a grid of this many pixels, up to truth_range metres.
+  int truth_pixel_step = 16;
+  double truth_range = 30.0;
+  double tau = 0.2;  // metres: a mesh or true point within tau counts as precise / complete
+
+  // Empty when usable, else which field and why.
+  std::string Check() const;
+};
+
+// Per-stage time and counts over a sequence.
+struct FrontEndStats {
+  int frames = 0;
+  int keyframes = 0;
+  double read_seconds = 0.0;      // image decoding
+  double features_seconds = 0.0;  // the features plugin
+  double refiner_seconds = 0.0;   // the refiner plugin
+  int64_t observations = 0;       // track observations over all frames
+  int64_t new_points = 0;
+  int64_t moved_points = 0;
+  int64_t removed_points = 0;
+  // Tracks seen in a keyframe that are still seen keyframe_every frames later (the next
+  // keyframe), summed over keyframe intervals; their ratio is the track survival.
+  int64_t tracks_at_keyframes = 0;
+  int64_t tracks_surviving_interval = 0;
+};
+
+// A synthetic sequence's ground truth (written by imr-synth as ground_truth/scene.json): the
+// analytic scene and where it sits in the sequence's world frame.
+struct SyntheticTruth {
+  synthetic::Scene scene;
+  io::Mat3 rotation = io::Identity3();  // scene -> world: x_w = R x_s + t
+  io::Vec3 translation{};
+  io::Vec3 ToScene(const io::Vec3& world) const;  // x_s = R^T (x_w - t)
+};
+// Reads scene.json; throws std::runtime_error naming the file and field.
+SyntheticTruth ReadSyntheticTruth(const std::string& path);
+
+class ImageFrontEndSource : public io::KeyframeSource {
+ public:
+  // The instances must outlive the source.
+  ImageFrontEndSource(io::ImageSequence sequence, const imr::sdk::Instance& features,
+                      const imr::sdk::Instance& refiner, const FrontEndOptions& options);
+  ~ImageFrontEndSource() override;
+
+  bool Next(engine::KeyframeUpdate* update, io::KeyframeInfo* info) override;
+  int KeyframeCount() const override;
+  nlohmann::json Evaluate(const engine::Mesh& mesh) const override;
+  const io::CameraGeometry* Camera(uint64_t camera_id) const override;
+  nlohmann::json Summary() const override;
+
+  const FrontEndStats& stats() const { return stats_; }
+  const io::ImageSequence& sequence() const { return sequence_; }
+
+ private:
+  bool IsKeyframe(int frame) const;
+  void TrackPointError(uint64_t id, const io::Vec3& position, bool is_new);
+
+  io::ImageSequence sequence_;
+  const imr::sdk::Instance& features_;
+  const imr::sdk::Instance& refiner_;
+  FrontEndOptions options_;
+  FrontEndStats stats_;
+  std::size_t next_frame_ = 0;
+  int next_keyframe_ = 0;
+  int width_ = 0, height_ = 0;
+  std::vector<uint64_t> keyframe_tracks_;  // sorted track ids seen at the last keyframe
+  std::unique_ptr<SyntheticTruth> truth_;
+  // Synthetic truth only: distance to the true surface of each point's first and latest estimate.
+  struct PointError {
+    double first = 0.0;
+    double latest = 0.0;
+    int moves = 0;
+  };
+  std::unordered_map<uint64_t, PointError> point_errors_;
+};
+
+}  // namespace imr::pipeline

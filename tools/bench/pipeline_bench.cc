@@ -1,0 +1,248 @@
+// imr-bench pipeline: the whole image pipeline (reader -> features -> refiner -> engine ->
+// exporter) as users run it — the real `imr run` on a job file — pinned to one core, on the
+// synthetic sequence from imr-synth and on the real KITTI raw sample when ../shared/data has it.
+// Figures come from each sequence's report.json (stage_seconds, frames). Target (issue 5): the
+// whole pipeline >= 10 frames/s at 1242x375 on one core. Prints a table, then one JSON object as
+// the last line.
+#include <sched.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace imr::bench {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct PipelineArgs {
+  int frames = 300;             // synthetic frames
+  int width = 1242, height = 375;
+  int cores = 1;                // CPUs the run may use (pinned)
+  std::string work;             // scratch folder; default under the temp folder
+  std::string kitti;            // KITTI raw drive folder; default from IMR_SHARED_DIR
+  bool keep = false;
+};
+
+fs::path ExeDir() { return fs::canonical("/proc/self/exe").parent_path(); }
+
+std::string Quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+int Run(const std::string& command) {
+  std::fprintf(stderr, "+ %s\n", command.c_str());
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
+double Seconds(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+// The settings of configs/default.json (the README's first command), one output format.
+json Job(const std::string& format, const std::string& sequence, const fs::path& out) {
+  return {{"description", "imr-bench pipeline"},
+          {"sequences", {sequence}},
+          {"input", {{"format", format}, {"options", json::object()}}},
+          {"engine", {{"window", 15}, {"steiner_export", "any_steiner"}}},
+          {"pipeline",
+           {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+            {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
+             {"params", {{"max_distance", 30.0}}}},
+            {{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
+            {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+          {"output", {{"directory", out.string()}, {"formats", {"ply"}}}}};
+}
+
+struct Measured {
+  std::string name;
+  bool ok = false;
+  int frames = 0;
+  int width = 0, height = 0;
+  double wall = 0.0;  // the imr process, start to exit
+  json stages;        // seconds per stage from the report
+  double sequence_seconds = 0.0;
+  json mesh, accuracy;
+};
+
+Measured RunImr(const std::string& name, const std::string& format, const std::string& sequence,
+                const fs::path& work) {
+  Measured m;
+  m.name = name;
+  const fs::path job_file = work / (name + ".json");
+  const fs::path out = work / ("out-" + name);
+  std::ofstream(job_file) << Job(format, sequence, out).dump(2);
+  const auto start = std::chrono::steady_clock::now();
+  const int rc = Run(Quote((ExeDir() / "imr").string()) + " run " + Quote(job_file.string()) +
+                     " 2>" + Quote((work / (name + ".log")).string()));
+  m.wall = Seconds(start);
+  std::ifstream in(out / "report.json");
+  if (rc != 0 || !in) {
+    std::fprintf(stderr, "%s: imr run failed (exit %d); log in %s\n", name.c_str(), rc,
+                 (work / (name + ".log")).c_str());
+    return m;
+  }
+  json r;
+  in >> r;
+  const json& s = r["input"]["summary"];
+  m.frames = s.value("frames_processed", 0);
+  if (s.contains("image_size")) {
+    m.width = s["image_size"][0];
+    m.height = s["image_size"][1];
+  }
+  m.stages = r["stage_seconds"];
+  m.sequence_seconds = r["seconds"];
+  m.mesh = r["mesh"];
+  if (r.contains("accuracy")) m.accuracy = r["accuracy"];
+  m.ok = true;
+  return m;
+}
+
+json Figures(const Measured& m) {
+  json j = {{"ok", m.ok}};
+  if (!m.ok) return j;
+  json fps = json::object();
+  for (const auto& [stage, seconds] : m.stages.items())
+    if (seconds.get<double>() > 0.0) fps[stage] = m.frames / seconds.get<double>();
+  j["frames"] = m.frames;
+  j["image_size"] = {m.width, m.height};
+  j["stage_seconds"] = m.stages;
+  j["stage_frames_per_second"] = fps;
+  j["pipeline_frames_per_second"] = m.frames / m.sequence_seconds;
+  j["process_frames_per_second"] = m.frames / m.wall;
+  j["mesh"] = m.mesh;
+  if (!m.accuracy.is_null()) j["accuracy"] = m.accuracy;
+  return j;
+}
+
+void PrintRow(const Measured& m) {
+  if (!m.ok) {
+    std::printf("%-10s failed\n", m.name.c_str());
+    return;
+  }
+  auto fps = [&](const char* stage) {
+    const double s = m.stages.value(stage, 0.0);
+    return s > 0.0 ? m.frames / s : 0.0;
+  };
+  std::printf("%-10s %5d %4dx%-4d %8.1f %8.1f %8.1f %8.1f %8.1f | %6.1f fps whole (%.1f s)\n",
+              m.name.c_str(), m.frames, m.width, m.height, fps("read_images"), fps("features"),
+              fps("refiner"), fps("engine"), fps("export"), m.frames / m.sequence_seconds,
+              m.sequence_seconds);
+}
+
+}  // namespace
+
+int RunPipelineBench(int argc, char** argv) {
+  PipelineArgs a;
+  for (int i = 0; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "imr-bench pipeline: %s needs a value\n", k.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (k == "--frames") a.frames = std::atoi(value().c_str());
+    else if (k == "--width") a.width = std::atoi(value().c_str());
+    else if (k == "--height") a.height = std::atoi(value().c_str());
+    else if (k == "--cores") a.cores = std::atoi(value().c_str());
+    else if (k == "--work") a.work = value();
+    else if (k == "--kitti") a.kitti = value();
+    else if (k == "--keep") a.keep = true;
+    else {
+      std::fprintf(stderr,
+                   "usage: imr-bench pipeline [--frames N] [--width W --height H] [--cores C]\n"
+                   "                          [--kitti DRIVE_DIR] [--work DIR] [--keep]\n");
+      return 2;
+    }
+  }
+  if (a.frames < 10 || a.width < 64 || a.height < 32 || a.cores < 1) {
+    std::fprintf(stderr, "imr-bench pipeline: need frames >= 10, size >= 64x32, cores >= 1\n");
+    return 2;
+  }
+  // One core (or --cores): the affinity is inherited by imr-synth and imr and every thread of
+  // theirs (OpenCV, Ceres), so "one core" holds for everything the pipeline runs.
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  cpu_set_t allowed;
+  sched_getaffinity(0, sizeof(allowed), &allowed);
+  int picked = 0;
+  for (int c = 0; c < CPU_SETSIZE && picked < a.cores; ++c)
+    if (CPU_ISSET(c, &allowed)) {
+      CPU_SET(c, &set);
+      ++picked;
+    }
+  if (sched_setaffinity(0, sizeof(set), &set) != 0) std::perror("sched_setaffinity");
+
+  const fs::path work = a.work.empty()
+                            ? fs::temp_directory_path() / ("imr-bench-pipeline-" + std::to_string(getpid()))
+                            : fs::path(a.work);
+  fs::create_directories(work);
+  std::vector<Measured> runs;
+
+  // Synthetic: generated, then run.
+  const fs::path synth = work / "synthetic-street";
+  const auto gen_start = std::chrono::steady_clock::now();
+  const int gen_rc = Run(Quote((ExeDir() / "imr-synth").string()) + " --out " +
+                         Quote(synth.string()) + " --frames " + std::to_string(a.frames) +
+                         " --width " + std::to_string(a.width) + " --height " +
+                         std::to_string(a.height) + " --no-lidar --force >/dev/null");
+  const double gen_seconds = Seconds(gen_start);
+  if (gen_rc != 0) {
+    std::fprintf(stderr, "imr-bench pipeline: imr-synth failed (exit %d)\n", gen_rc);
+    return 1;
+  }
+  runs.push_back(RunImr("synthetic", "kitti_odometry", synth.string(), work));
+
+  // Real: the KITTI raw sample, when the team's data is beside the checkout.
+  std::string kitti = a.kitti;
+  if (kitti.empty()) {
+    const char* shared = std::getenv("IMR_SHARED_DIR");
+    const fs::path base = shared ? fs::path(shared) : ExeDir() / "../../../shared";
+    kitti = (base / "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync")
+                .lexically_normal()
+                .string();
+  }
+  bool kitti_ran = false;
+  if (fs::is_directory(kitti)) {
+    runs.push_back(RunImr("kitti_raw", "kitti_raw", kitti, work));
+    kitti_ran = true;
+  } else {
+    std::fprintf(stderr, "imr-bench pipeline: no KITTI raw sample at %s; skipped\n", kitti.c_str());
+  }
+
+  std::printf("\nimr-bench pipeline: %d core(s); frames per second of each stage and of the whole\n"
+              "pipeline (imr run, one sequence; target >= 10 fps at 1242x375 on one core)\n\n",
+              a.cores);
+  std::printf("%-10s %5s %9s %8s %8s %8s %8s %8s | whole\n", "input", "frames", "size",
+              "read", "features", "refiner", "engine", "export");
+  for (const Measured& m : runs) PrintRow(m);
+  std::printf("\nsynthetic generation (imr-synth, %d frames, no lidar): %.1f s, %.1f frames/s\n",
+              a.frames, gen_seconds, a.frames / gen_seconds);
+
+  json result = {{"bench", "pipeline"}, {"cores", a.cores},
+                 {"generator_frames_per_second", a.frames / gen_seconds}};
+  for (const Measured& m : runs) result[m.name] = Figures(m);
+  if (!kitti_ran) result["kitti_raw"] = {{"skipped", "no sample at " + kitti}};
+  bool ok = true;
+  for (const Measured& m : runs) ok = ok && m.ok;
+  if (!a.keep && ok) fs::remove_all(work);
+  std::printf("%s\n", result.dump().c_str());
+  return ok ? 0 : 1;
+}
+
+}  // namespace imr::bench
