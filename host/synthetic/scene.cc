@@ -7,6 +7,18 @@
 
 namespace imr::synthetic {
 
+std::string ToString(Material material) {
+  switch (material) {
+    case Material::kPlain: return "plain";
+    case Material::kGround: return "ground";
+    case Material::kFacade: return "facade";
+    case Material::kBoxSide: return "box_side";
+    case Material::kBoxEnd: return "box_end";
+    case Material::kBoxTop: return "box_top";
+  }
+  return "plain";
+}
+
 double Norm(const Vec3& a) { return std::sqrt(Dot(a, a)); }
 Vec3 Normalized(const Vec3& a) {
   const double n = Norm(a);
@@ -54,19 +66,33 @@ Scene Scene::StreetCanyon(double length, uint64_t seed, double half_width, doubl
   const double y0 = -40.0, y1 = length + 40.0;
   const double cy = 0.5 * (y0 + y1), hy = 0.5 * (y1 - y0);
   // Ground, normal +z.
-  s.AddRect({{0.0, cy, 0.0}, {1, 0, 0}, {0, 1, 0}, half_width, hy});
+  s.AddRect({{0.0, cy, 0.0}, {1, 0, 0}, {0, 1, 0}, half_width, hy, Material::kGround});
   // Facades facing the street.
-  s.AddRect({{-half_width, cy, 0.5 * facade_height}, {0, 1, 0}, {0, 0, 1}, hy, 0.5 * facade_height});
-  s.AddRect({{half_width, cy, 0.5 * facade_height}, {0, 0, 1}, {0, 1, 0}, 0.5 * facade_height, hy});
+  s.AddRect({{-half_width, cy, 0.5 * facade_height}, {0, 1, 0}, {0, 0, 1}, hy, 0.5 * facade_height,
+             Material::kFacade, 0});
+  s.AddRect({{half_width, cy, 0.5 * facade_height}, {0, 0, 1}, {0, 1, 0}, 0.5 * facade_height, hy,
+             Material::kFacade, 1});
   // Parked boxes along both kerbs.
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> gap(1.5, 9.0), len(3.8, 4.8), height(1.3, 1.7);
+  int box = 0;
   for (int side = -1; side <= 1; side += 2) {
     double y = y0 + gap(rng);
     while (y < y1 - 5.0) {
       const double l = len(rng), h = height(rng);
       const double xin = side * (half_width - 3.2), xout = side * (half_width - 1.4);
+      const size_t first = s.rects_.size();
       s.AddBox({std::min(xin, xout), y, 0.0}, {std::max(xin, xout), y + l, h}, false);
+      // Boxes are long along y: faces with a +-x normal are the sides, +-y the ends.
+      for (size_t i = first; i < s.rects_.size(); ++i) {
+        Rect& r = s.rects_[i];
+        const Vec3 n = Cross(r.u, r.v);
+        r.material = std::abs(n[2]) > 0.5   ? Material::kBoxTop
+                     : std::abs(n[0]) > 0.5 ? Material::kBoxSide
+                                            : Material::kBoxEnd;
+        r.group = box;
+      }
+      ++box;
       y += l + gap(rng);
     }
   }

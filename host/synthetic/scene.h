@@ -1,6 +1,7 @@
 // Known synthetic scenes for tests and benchmarks: a street canyon (facades, ground, parked boxes),
-// a closed room, a plane. Geometry only: distance to the true surface and ray intersection. The
-// observation stream (stream.h) and, later, an image renderer are built on top of it.
+// a closed room, a plane. Geometry: distance to the true surface and ray intersection; each rect
+// also says what it is (Material) so that texture.h can give it an appearance. The observation
+// stream (stream.h) and the image renderer (tools/synth) are built on top of it.
 #pragma once
 
 #include <array>
@@ -12,6 +13,17 @@ namespace imr::synthetic {
 
 using Vec3 = std::array<double, 3>;
 
+// What a rect is, for its appearance only (texture.h); geometry ignores it.
+enum class Material : uint8_t {
+  kPlain,    // No role (rooms, planes, hand-made scenes): a neutral tiled pattern.
+  kGround,   // Street surface: asphalt, lane markings, kerbs and pavements.
+  kFacade,   // A row of buildings: windows, bricks or plaster.
+  kBoxSide,  // Long vertical side of a box (a parked car).
+  kBoxEnd,   // Short vertical side of a box (front or back of a car).
+  kBoxTop,   // Top of a box (a car roof).
+};
+std::string ToString(Material material);
+
 // An oriented rectangle: center + s*u + t*v with |s| <= half_u, |t| <= half_v (u, v orthonormal).
 struct Rect {
   Vec3 center{};
@@ -19,6 +31,8 @@ struct Rect {
   Vec3 v{};
   double half_u = 0.0;
   double half_v = 0.0;
+  Material material = Material::kPlain;
+  int group = -1;  // The object it belongs to (box number, facade side 0 = -x / 1 = +x); -1: none.
 };
 
 class Scene {

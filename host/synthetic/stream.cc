@@ -24,6 +24,12 @@ bool FromString(const std::string& s, SceneKind* kind) {
   return true;
 }
 
+Vec3 StreetCameraCenter(int frame, double speed) {
+  return {0.6 * std::sin(frame * 0.01), frame * speed, 1.65};
+}
+
+double StreetLength(int frames, double speed) { return frames * speed + 10.0; }
+
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr Vec3 kUp{0.0, 0.0, 1.0};
@@ -49,7 +55,7 @@ struct SyntheticStream::Impl {
   explicit Impl(const StreamOptions& o) : opt(o), rng(o.seed * 0x9E3779B97F4A7C15ull + 17) {
     switch (opt.scene) {
       case SceneKind::kStreet:
-        scene = Scene::StreetCanyon(opt.frames * opt.speed + 10.0, opt.seed);
+        scene = Scene::StreetCanyon(StreetLength(opt.frames, opt.speed), opt.seed);
         break;
       case SceneKind::kRoom: scene = Scene::ClosedRoom({-5, -4, 0}, {5, 4, 3}); break;
       case SceneKind::kPlane: scene = Scene::Plane(opt.frames * opt.speed + 60.0, 0.0); break;
@@ -58,7 +64,7 @@ struct SyntheticStream::Impl {
 
   Vec3 Center(int f) const {
     switch (opt.scene) {
-      case SceneKind::kStreet: return {0.6 * std::sin(f * 0.01), f * opt.speed, 1.65};
+      case SceneKind::kStreet: return StreetCameraCenter(f, opt.speed);
       case SceneKind::kRoom: {
         const double a = f * 0.1 * opt.speed / 2.0;
         return {2.0 * std::cos(a), 1.5 * std::sin(a), 1.5 + 0.2 * std::sin(3 * a)};

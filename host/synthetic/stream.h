@@ -18,6 +18,15 @@ enum class SceneKind { kStreet, kRoom, kPlane };
 std::string ToString(SceneKind kind);
 bool FromString(const std::string& s, SceneKind* kind);
 
+// The street camera path (SceneKind::kStreet), shared with the image renderer (tools/synth) so
+// that rendered sequences and observation streams drive through the same scene: the camera centre
+// of frame `frame` sways 0.6 m sideways around the street axis, advances `speed` metres per frame
+// along +y and stays 1.65 m above the ground (KITTI's camera height); it looks along +y.
+Vec3 StreetCameraCenter(int frame, double speed);
+// Length of the street canyon built for `frames` frames at `speed` (the path plus 10 m; the scene
+// itself reaches 40 m further at both ends, see Scene::StreetCanyon).
+double StreetLength(int frames, double speed);
+
 struct StreamOptions {
   SceneKind scene = SceneKind::kStreet;  // Which known scene to drive through.
   uint64_t seed = 1;                     // Everything random derives from this.
