@@ -1,0 +1,288 @@
+#include "host/render/render_cli.h"
+
+#include "host/eval/mesh_io.h"
+#include "host/io/image_io.h"
+#include "host/io/image_sequence.h"
+#include "host/render/rasterizer.h"
+
+#include <boost/program_options.hpp>
+
+#include <unistd.h>
+
+#include <charconv>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace imr::render {
+namespace {
+
+namespace fs = std::filesystem;
+namespace po = boost::program_options;
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailed = 1;
+constexpr int kExitUsage = 2;
+
+const char* kSynopsis =
+    "imr render MESH --sequence DIR --format kitti_odometry|kitti_raw|middlebury [--camera K]\n"
+    "           [--frames FIRST[:COUNT[:STEP]]] --frame N [--mode shaded|wireframe|both]\n"
+    "           [--opacity A] [--no-image] --out out.png\n"
+    "imr render MESH --top-down [--sequence DIR --format F ...] [--keyframe-every N] [--size PX]\n"
+    "           [--up X,Y,Z] [--mode shaded|wireframe|both] --out top.png\n";
+
+const char* kNotes =
+    "Draws MESH (.obj, .ply, .gltf, .glb) into frame N's camera over its image, with a z-buffer:\n"
+    "faces shaded flat by their normal (orange: facing the camera, blue: seen from behind), edges\n"
+    "in green (--mode wireframe or both; hidden edges are not drawn). Frames are numbered after\n"
+    "--frames selects them, as in a job's input options. --top-down draws the whole mesh seen\n"
+    "from above (orthographic; the direction of travel to the right) with the camera path: red\n"
+    "line through the camera centres, blue discs at keyframes (every --keyframe-every frames, as\n"
+    "the image front end picks them), a green ring at the first camera. Up is the cameras' mean\n"
+    "up direction unless --up gives it. The PNG is written whole or not at all.\n"
+    "Exit status: 0 written; 1 a file is missing or bad; 2 bad usage.\n";
+
+// "0.5,1,-2" -> three numbers; false otherwise.
+bool ParseVec3(const std::string& s, Vec3* out) {
+  std::stringstream ss(s);
+  std::size_t n = 0;
+  for (std::string item; std::getline(ss, item, ',');) {
+    if (n == 3) return false;
+    const auto r = std::from_chars(item.data(), item.data() + item.size(), (*out)[n]);
+    if (r.ec != std::errc() || r.ptr != item.data() + item.size()) return false;
+    ++n;
+  }
+  return n == 3;
+}
+
+// "FIRST[:COUNT[:STEP]]" -> the sequence's frame selection; false when malformed.
+bool ParseFrames(const std::string& s, io::ImageSequenceOptions* o) {
+  int v[3] = {0, -1, 1};
+  std::stringstream ss(s);
+  int n = 0;
+  for (std::string item; std::getline(ss, item, ':'); ++n) {
+    if (n == 3) return false;
+    const auto r = std::from_chars(item.data(), item.data() + item.size(), v[n]);
+    if (r.ec != std::errc() || r.ptr != item.data() + item.size()) return false;
+  }
+  if (n == 0) return false;
+  o->first_frame = v[0];
+  o->frame_count = v[1];
+  o->frame_step = v[2];
+  return true;
+}
+
+Camera CameraOf(const io::CameraGeometry& g) {
+  Camera c;
+  const io::Intrinsics& k = g.intrinsics;
+  c.width = k.width;
+  c.height = k.height;
+  c.fx = k.fx;
+  c.fy = k.fy;
+  c.cx = k.cx;
+  c.cy = k.cy;
+  c.rotation = g.rotation;
+  c.translation = g.translation;
+  return c;
+}
+
+// Writes the PNG under a temporary name beside `path` and renames it into place.
+void WritePngAtomically(const fs::path& path, const io::Image& image) {
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const fs::path tmp = dir / ("." + path.stem().string() + ".partial-" + std::to_string(::getpid()) +
+                              path.extension().string());
+  try {
+    io::WriteImage(tmp.string(), image);
+    fs::rename(tmp, path);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw;
+  }
+}
+
+std::string Percent(double share) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f%%", 100.0 * share);
+  return buf;
+}
+
+int Run(const std::vector<std::string>& args) {
+  RenderOptions d;
+  TopDownOptions td;
+  po::options_description opts("imr render options");
+  opts.add_options()("help,h", "show this help")(
+      "mesh", po::value<std::string>()->required(), "mesh to draw (.obj, .ply, .gltf, .glb)")(
+      "sequence", po::value<std::string>()->value_name("DIR"),
+      "image sequence: a KITTI folder (odometry: with calib.txt; raw: a drive folder) or a "
+      "Middlebury *_par.txt (or its folder)")(
+      "format", po::value<std::string>()->value_name("FMT"),
+      "the sequence's layout: kitti_odometry, kitti_raw or middlebury")(
+      "camera", po::value<int>()->default_value(-1), "KITTI camera 0..3 (-1: the lowest present)")(
+      "frames", po::value<std::string>()->value_name("FIRST[:COUNT[:STEP]]"),
+      "frames of the sequence to use, as the job's input options")(
+      "frame", po::value<int>()->value_name("N"), "the frame to draw into (0-based, after --frames)")(
+      "top-down", "draw the whole mesh from above, with the camera path")(
+      "mode", po::value<std::string>()->default_value("shaded"), "shaded, wireframe or both")(
+      "opacity", po::value<double>()->default_value(d.opacity),
+      "mesh over the image: 0 = image only, 1 = mesh hides the image")(
+      "no-image", "draw on black instead of the frame's image")(
+      "keyframe-every", po::value<int>()->default_value(io::ImageSequenceOptions{}.keyframe_every),
+      "top-down: mark every n-th frame as a keyframe (0: none)")(
+      "size", po::value<int>()->default_value(td.size), "top-down: pixels along the longer side")(
+      "up", po::value<std::string>()->value_name("X,Y,Z"),
+      "top-down: the world's up direction (default: the cameras' mean up)")(
+      "out,o", po::value<std::string>()->value_name("FILE")->required(), "the PNG to write");
+  po::positional_options_description pos;
+  pos.add("mesh", 1);
+  po::variables_map vm;
+  const std::string usage_text = std::string("Usage: ") + kSynopsis + "\n" + kNotes;
+  try {
+    po::store(po::command_line_parser(args).options(opts).positional(pos).run(), vm);
+    if (vm.count("help")) {
+      std::cout << usage_text << "\n" << opts << "\n";
+      return kExitOk;
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    std::cerr << "imr render: " << e.what() << "\n\n" << usage_text << "\n" << opts << "\n";
+    return kExitUsage;
+  }
+  auto usage = [](const std::string& what) {
+    std::cerr << "imr render: " << what << " (imr render --help)\n";
+    return kExitUsage;
+  };
+
+  const bool top_down = vm.count("top-down") > 0;
+  const std::string mode = vm["mode"].as<std::string>();
+  RenderOptions ro = top_down ? td.render : d;
+  if (mode == "shaded") {
+    ro.shaded = true;
+    ro.wireframe = false;
+  } else if (mode == "wireframe") {
+    ro.shaded = false;
+    ro.wireframe = true;
+  } else if (mode == "both") {
+    ro.shaded = ro.wireframe = true;
+  } else {
+    return usage("--mode: expected shaded, wireframe or both, got '" + mode + "'");
+  }
+  if (!top_down) ro.opacity = vm["opacity"].as<double>();
+  if (const std::string p = ro.Check(); !p.empty()) return usage(p);
+
+  const bool has_sequence = vm.count("sequence") > 0;
+  if (has_sequence != (vm.count("format") > 0))
+    return usage("--sequence and --format go together");
+  if (!top_down && !has_sequence) return usage("give --sequence DIR --format F (or --top-down)");
+  if (!top_down && !vm.count("frame")) return usage("give --frame N (the frame to draw into)");
+  if (top_down && vm.count("frame")) return usage("--frame does not apply to --top-down");
+  io::ImageSequenceOptions so;
+  if (vm.count("frames") && !ParseFrames(vm["frames"].as<std::string>(), &so))
+    return usage("--frames: expected FIRST[:COUNT[:STEP]], got '" + vm["frames"].as<std::string>() + "'");
+  so.camera = vm["camera"].as<int>();
+  std::string format;
+  if (has_sequence) {
+    format = vm["format"].as<std::string>();
+    if (format != "kitti_odometry" && format != "kitti_raw" && format != "middlebury")
+      return usage("--format: expected kitti_odometry, kitti_raw or middlebury, got '" + format + "'");
+    if (format == "middlebury" && !vm["camera"].defaulted())
+      return usage("--camera does not apply to middlebury (each view has its own camera)");
+  } else if (vm.count("frames") || !vm["camera"].defaulted()) {
+    return usage("--frames and --camera need --sequence");
+  }
+  if (const std::string p = so.Check(); !p.empty()) return usage(p);
+  const int keyframe_every = vm["keyframe-every"].as<int>();
+  if (keyframe_every < 0) return usage("--keyframe-every must be >= 0");
+  td.size = vm["size"].as<int>();
+  td.render = ro;
+  if (vm.count("up")) {
+    Vec3 up{};
+    if (!ParseVec3(vm["up"].as<std::string>(), &up))
+      return usage("--up: expected X,Y,Z, got '" + vm["up"].as<std::string>() + "'");
+    td.up = up;
+  }
+  if (top_down)
+    if (const std::string p = td.Check(); !p.empty()) return usage(p);
+  const fs::path out = vm["out"].as<std::string>();
+  if (out.extension() != ".png" && out.extension() != ".PNG")
+    return usage("--out: the file must end in .png, got '" + out.string() + "'");
+
+  try {
+    const fs::path out_dir = fs::absolute(out).parent_path();
+    if (!fs::is_directory(out_dir)) throw std::runtime_error(out_dir.string() + ": no such folder (for --out)");
+    io::ImageSequence seq;
+    if (has_sequence) {
+      const std::string root = vm["sequence"].as<std::string>();
+      if (format == "middlebury") {
+        seq = io::ReadMiddlebury(root, so);
+      } else {
+        seq = format == "kitti_odometry" ? io::ReadKittiOdometry(root, so) : io::ReadKittiRaw(root, so);
+      }
+    }
+    const eval::TriangleMesh read = eval::ReadMesh(vm["mesh"].as<std::string>());
+    std::vector<double> xyz;
+    std::vector<uint32_t> faces;
+    xyz.reserve(3 * read.vertices.size());
+    for (const auto& v : read.vertices) xyz.insert(xyz.end(), v.begin(), v.end());
+    faces.reserve(3 * read.triangles.size());
+    for (const auto& t : read.triangles) faces.insert(faces.end(), t.begin(), t.end());
+    const MeshRef mesh = MeshRefOf(xyz, faces);
+
+    if (top_down) {
+      CameraPath path;
+      for (const io::ImageFrame& f : seq.frames) {
+        path.cameras.push_back(CameraOf(f.camera));
+        path.keyframe.push_back(keyframe_every > 0 && f.index % keyframe_every == 0);
+      }
+      const TopDownRendering r = RenderTopDown(mesh, path, td);
+      WritePngAtomically(out, r.rendering.image);
+      std::cout << out.string() << ": top-down " << r.rendering.image.width << "x"
+                << r.rendering.image.height << ", " << r.rendering.faces_drawn << " of "
+                << faces.size() / 3 << " triangles visible, " << path.cameras.size()
+                << " cameras, " << r.view.scale << " px per unit\n";
+      return kExitOk;
+    }
+    const int n = vm["frame"].as<int>();
+    if (n < 0 || n >= static_cast<int>(seq.frames.size())) {
+      std::cerr << "imr render: --frame " << n << ": the sequence has " << seq.frames.size()
+                << " frames (0.." << seq.frames.size() - 1 << ")\n";
+      return kExitUsage;
+    }
+    const io::ImageFrame& frame = seq.frames[static_cast<std::size_t>(n)];
+    io::Image image;
+    if (!vm.count("no-image")) image = io::ReadImage(frame.image_path);
+    const Camera camera = CameraOf(frame.camera);
+    if (!vm.count("no-image") && (image.width != camera.width || image.height != camera.height))
+      throw std::runtime_error(frame.image_path + ": image is " + std::to_string(image.width) + "x" +
+                               std::to_string(image.height) + ", its camera " +
+                               std::to_string(camera.width) + "x" + std::to_string(camera.height));
+    const Rendering r = RenderIntoCamera(mesh, camera, vm.count("no-image") ? nullptr : &image, ro);
+    WritePngAtomically(out, r.image);
+    std::cout << out.string() << ": frame " << n << " (" << frame.image_path << "), "
+              << r.image.width << "x" << r.image.height << ", " << r.faces_drawn << " of "
+              << faces.size() / 3 << " triangles visible, " << Percent(r.Coverage())
+              << " of the pixels covered\n";
+    return kExitOk;
+  } catch (const std::exception& e) {
+    std::cerr << "imr render: " << e.what() << "\n";
+    return kExitFailed;
+  }
+}
+
+}  // namespace
+
+int RenderMain(int argc, char** argv) {
+  std::vector<std::string> args;
+  for (int i = 1; i < argc; ++i) args.emplace_back(argv[i]);
+  try {
+    return Run(args);
+  } catch (const std::exception& e) {
+    std::cerr << "imr render: " << e.what() << "\n";
+    return kExitFailed;
+  }
+}
+
+}  // namespace imr::render

@@ -1,0 +1,599 @@
+#include "host/report/viewer_page.h"
+
+#include "host/util/atomic_file.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+
+#ifndef IMR_MODEL_VIEWER_SOURCE
+#define IMR_MODEL_VIEWER_SOURCE ""
+#endif
+
+namespace imr::report {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr const char* kModelViewerName = "model-viewer-umd.min.js";
+
+std::string ReadBytes(const fs::path& path, const std::string& what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path.string() + ": cannot read (" + what + ")");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string Lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string HtmlEscape(const std::string& s) {
+  std::string out;
+  out.reserve(s.size());
+  for (char c : s) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\'': out += "&#39;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+// A relative path as a URL path: each segment percent-encoded (RFC 3986 unreserved kept).
+std::string UrlPath(const fs::path& relative) {
+  std::string out;
+  for (const auto& part : relative) {
+    if (!out.empty()) out += '/';
+    for (unsigned char c : part.string()) {
+      if (std::isalnum(c) || c == '-' || c == '.' || c == '_' || c == '~') {
+        out += static_cast<char>(c);
+      } else {
+        char buf[4];
+        std::snprintf(buf, sizeof(buf), "%%%02X", c);
+        out += buf;
+      }
+    }
+  }
+  return out;
+}
+
+constexpr char kBase64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+std::string Base64Encode(const std::string& in) {
+  std::string out;
+  out.reserve((in.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const uint32_t v = (uint32_t(uint8_t(in[i])) << 16) | (uint32_t(uint8_t(in[i + 1])) << 8) |
+                       uint32_t(uint8_t(in[i + 2]));
+    for (int k = 3; k >= 0; --k) out += kBase64[(v >> (6 * k)) & 63];
+  }
+  if (i < in.size()) {
+    uint32_t v = uint32_t(uint8_t(in[i])) << 16;
+    if (i + 1 < in.size()) v |= uint32_t(uint8_t(in[i + 1])) << 8;
+    out += kBase64[(v >> 18) & 63];
+    out += kBase64[(v >> 12) & 63];
+    out += i + 1 < in.size() ? kBase64[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+// Decodes base64 (whitespace ignored); false on anything else.
+bool Base64Decode(const std::string& in, std::string* out) {
+  out->clear();
+  uint32_t acc = 0;
+  int bits = 0;
+  for (char c : in) {
+    if (c == '=' ) break;
+    if (std::isspace(static_cast<unsigned char>(c))) continue;
+    const char* p = std::strchr(kBase64, c);
+    if (p == nullptr || c == '\0') return false;
+    acc = (acc << 6) | static_cast<uint32_t>(p - kBase64);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out->push_back(static_cast<char>((acc >> bits) & 0xff));
+    }
+  }
+  return true;
+}
+
+// "%20" -> ' ' (URIs in glTF files are percent-encoded).
+std::string PercentDecode(const std::string& s) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit(static_cast<unsigned char>(s[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(s[i + 2]))) {
+      out += static_cast<char>(std::stoi(s.substr(i + 1, 2), nullptr, 16));
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+void PutU32(std::string* s, uint32_t v) {
+  for (int k = 0; k < 4; ++k) s->push_back(static_cast<char>((v >> (8 * k)) & 0xff));
+}
+
+std::string FormatNumber(double v, const char* format) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, v);
+  return buf;
+}
+
+// A value at a JSON pointer, or null.
+json At(const json& j, const char* pointer) {
+  const json::json_pointer p(pointer);
+  return j.is_object() && j.contains(p) ? j.at(p) : json();
+}
+
+std::string LocalTime() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char buf[64];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%d %H:%M", &tm);
+  return buf;
+}
+
+// One table row, from either summary shape (see the header).
+struct Row {
+  std::string name;
+  std::string status;  // "ok", "failed", "not run", ...
+  bool ok = false;
+  std::string error;
+  fs::path output;     // absolute
+  std::vector<fs::path> files;
+  std::optional<double> seconds;
+  json report;         // null when none
+  json row;            // the summary row itself
+  fs::path mesh;       // the mesh shown in 3D (GLB or glTF), empty when none
+};
+
+fs::path Absolute(const fs::path& p, const fs::path& run_dir) {
+  return (p.is_absolute() ? p : run_dir / p).lexically_normal();
+}
+
+Row ReadRow(const json& s, std::size_t index, const fs::path& run_dir, std::vector<std::string>* notes) {
+  const std::string where = "summary: sequences[" + std::to_string(index) + "]";
+  if (!s.is_object()) throw std::invalid_argument(where + ": expected an object");
+  Row r;
+  r.row = s;
+  if (!s.contains("name") || !s["name"].is_string())
+    throw std::invalid_argument(where + ".name: expected a string");
+  r.name = s["name"].get<std::string>();
+  if (s.contains("ok")) {
+    if (!s["ok"].is_boolean()) throw std::invalid_argument(where + ".ok: expected true or false");
+    r.ok = s["ok"].get<bool>();
+    r.status = r.ok ? "ok" : "failed";
+  } else if (s.contains("status") && s["status"].is_string()) {
+    r.status = s["status"].get<std::string>();
+    r.ok = r.status == "ok";
+  } else {
+    throw std::invalid_argument(where + ": neither \"ok\" (bool) nor \"status\" (string)");
+  }
+  if (s.contains("error") && s["error"].is_string()) r.error = s["error"].get<std::string>();
+  for (const char* key : {"output_directory", "output"})
+    if (s.contains(key) && s[key].is_string() && r.output.empty())
+      r.output = Absolute(s[key].get<std::string>(), run_dir);
+  if (s.contains("files")) {
+    if (!s["files"].is_array()) throw std::invalid_argument(where + ".files: expected an array");
+    for (const json& f : s["files"]) {
+      if (!f.is_string()) throw std::invalid_argument(where + ".files: expected strings");
+      r.files.push_back(Absolute(f.get<std::string>(), run_dir));
+    }
+  }
+  if (s.contains("seconds") && s["seconds"].is_number()) r.seconds = s["seconds"].get<double>();
+  if (s.contains("report") && s["report"].is_object()) {
+    r.report = s["report"];
+  } else if (!r.output.empty() && fs::is_regular_file(r.output / "report.json")) {
+    try {
+      r.report = json::parse(ReadBytes(r.output / "report.json", "the sequence's report"));
+    } catch (const std::exception& e) {
+      notes->push_back(r.name + ": report not read: " + e.what());
+    }
+  }
+  if (!r.ok) return r;
+  // The mesh: the first .glb listed, else the first .gltf; without a file list, the output
+  // folder's (not its snapshots/).
+  std::vector<fs::path> candidates = r.files;
+  if (candidates.empty() && !r.output.empty() && fs::is_directory(r.output)) {
+    for (const auto& e : fs::directory_iterator(r.output))
+      if (e.is_regular_file()) candidates.push_back(e.path());
+    std::sort(candidates.begin(), candidates.end());
+  }
+  for (const char* ext : {".glb", ".gltf"}) {
+    for (const fs::path& f : candidates)
+      if (Lower(f.extension().string()) == ext && f.filename().string().front() != '.') {
+        r.mesh = f;
+        break;
+      }
+    if (!r.mesh.empty()) break;
+  }
+  if (r.mesh.empty()) notes->push_back(r.name + ": no .glb or .gltf mesh among its outputs: no 3D view");
+  return r;
+}
+
+std::string FramesCell(const Row& r) {
+  for (const json& v : {At(r.report, "/input/summary/frames"), At(r.row, "/frames")})
+    if (v.is_number_integer()) return std::to_string(v.get<int64_t>());
+  const json k = At(r.report, "/engine/keyframes");
+  if (k.is_number_integer()) return std::to_string(k.get<int64_t>()) + " keyframes";
+  const json rk = At(r.row, "/keyframes");
+  if (rk.is_number_integer()) return std::to_string(rk.get<int64_t>()) + " keyframes";
+  return "";
+}
+
+// The paper's accuracy: the mean distance from the ground truth to the mesh.
+std::optional<double> Accuracy(const json& accuracy) {
+  for (const char* p : {"/truth_to_mesh/mean", "/mean_truth_to_mesh"}) {
+    const json v = At(accuracy, p);
+    if (v.is_number()) return v.get<double>();
+  }
+  return std::nullopt;
+}
+
+json AccuracyOf(const Row& r) {
+  const json a = At(r.report, "/accuracy");
+  return a.is_null() ? At(r.row, "/accuracy") : a;
+}
+
+const char* kStyle = R"CSS(
+body { font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }
+h1 { font-size: 1.5em; margin-bottom: 0.2em; }
+.sub { color: #666; margin-top: 0; }
+table { border-collapse: collapse; margin: 1em 0; }
+th, td { border: 1px solid #ccc; padding: 0.3em 0.6em; text-align: left; vertical-align: top; }
+th { background: #f0f0f0; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+tr.failed td { background: #fff0f0; }
+.status-ok { color: #070; font-weight: 600; }
+.status-bad { color: #b00; font-weight: 600; }
+.error { color: #b00; max-width: 40em; white-space: pre-wrap; }
+#viewer { width: 100%; height: 520px; background: #eef1f4; border: 1px solid #ccc; }
+#viewer-status { color: #555; margin: 0.3em 0; }
+.plots img { max-width: 100%; border: 1px solid #ddd; margin: 0.5em 0; }
+button { cursor: pointer; }
+.note { color: #666; }
+)CSS";
+
+// The page's script: loads a mesh's script on demand and shows it in <model-viewer>.
+const char* kScript = R"JS(
+(function () {
+  'use strict';
+  const meshes = JSON.parse(document.getElementById('imr-meshes').textContent);
+  const viewer = document.getElementById('viewer');
+  const status = document.getElementById('viewer-status');
+  const urls = {};
+  let current = -1;
+  // For tests and the curious: what the viewer has done.
+  window.imrViewer = { loads: 0, errors: [], shown: null };
+  function say(text) { if (status) status.textContent = text; }
+  window.imrMeshLoaded = function (i, b64) {
+    const bin = atob(b64);
+    const bytes = new Uint8Array(bin.length);
+    for (let k = 0; k < bin.length; ++k) bytes[k] = bin.charCodeAt(k);
+    urls[i] = URL.createObjectURL(new Blob([bytes], { type: 'model/gltf-binary' }));
+    if (i === current) viewer.src = urls[i];
+  };
+  function show(i) {
+    const m = meshes[i];
+    if (!m || !viewer) return;
+    current = i;
+    say('Loading ' + m.name + ' ...');
+    document.querySelectorAll('button[data-mesh]').forEach(function (b) {
+      b.disabled = Number(b.dataset.mesh) === i;
+    });
+    if (urls[i]) { viewer.src = urls[i]; return; }
+    const s = document.createElement('script');
+    s.src = m.script;
+    s.onerror = function () { say('Could not load ' + m.script); };
+    document.head.appendChild(s);
+  }
+  if (viewer) {
+    viewer.addEventListener('load', function () {
+      window.imrViewer.loads += 1;
+      window.imrViewer.shown = current;
+      const m = meshes[current];
+      say(m.name + ': ' + m.faces + ' triangles. Drag to turn, scroll to zoom, right-drag to pan.');
+      try {  // the meshes carry no material: give them a colour that shows their shape
+        for (const mat of viewer.model.materials) {
+          mat.pbrMetallicRoughness.setBaseColorFactor([0.92, 0.65, 0.3, 1]);
+          mat.pbrMetallicRoughness.setMetallicFactor(0);
+          mat.pbrMetallicRoughness.setRoughnessFactor(0.8);
+          mat.setDoubleSided(true);
+        }
+      } catch (e) { /* the view works without */ }
+    });
+    viewer.addEventListener('error', function (e) {
+      window.imrViewer.errors.push(String(e.detail && e.detail.type));
+      say('Could not show the mesh (' + String(e.detail && e.detail.type) + ')');
+    });
+  }
+  document.querySelectorAll('button[data-mesh]').forEach(function (b) {
+    b.addEventListener('click', function () {
+      show(Number(b.dataset.mesh));
+      viewer.scrollIntoView({ behavior: 'smooth' });
+    });
+  });
+  const first = meshes.findIndex(function (m) { return m !== null; });
+  if (viewer && first >= 0) show(first);
+})();
+)JS";
+
+}  // namespace
+
+std::string ViewerPageOptions::Check() const {
+  if (max_mesh_bytes == 0) return "max_mesh_bytes must be positive";
+  if (!model_viewer_script.empty() && !fs::is_regular_file(model_viewer_script))
+    return "model_viewer_script " + model_viewer_script.string() + ": no such file";
+  return "";
+}
+
+fs::path FindModelViewerScript() {
+  if (const char* env = std::getenv("IMR_MODEL_VIEWER_JS"); env != nullptr && *env != '\0')
+    return fs::is_regular_file(env) ? fs::path(env) : fs::path();
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = exe.parent_path().parent_path() / "share" / "imr" / kModelViewerName;
+    if (fs::is_regular_file(installed, ec)) return installed;
+  }
+  const fs::path source = IMR_MODEL_VIEWER_SOURCE;
+  if (!source.empty() && fs::is_regular_file(source, ec)) return source;
+  return {};
+}
+
+std::string ReadAsGlb(const fs::path& path) {
+  const std::string bytes = ReadBytes(path, "a glTF mesh");
+  if (bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0) return bytes;
+  json g;
+  try {
+    g = json::parse(bytes);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path.string() + ": neither a GLB nor glTF JSON (" + e.what() + ")");
+  }
+  if (!g.is_object() || !g.contains("asset") || At(g, "/asset/version") != "2.0")
+    throw std::runtime_error(path.string() + ": not glTF 2.0 (asset.version is not \"2.0\")");
+  if (g.contains("images"))
+    for (const json& im : g["images"])
+      if (im.contains("uri"))
+        throw std::runtime_error(path.string() + ": images with a uri cannot be packed (imr's meshes have none)");
+  // Buffers, concatenated, each 4-byte aligned.
+  std::string bin;
+  std::vector<std::size_t> base;
+  if (g.contains("buffers")) {
+    for (std::size_t i = 0; i < g["buffers"].size(); ++i) {
+      const json& b = g["buffers"][i];
+      std::string data;
+      if (!b.contains("uri") || !b["uri"].is_string())
+        throw std::runtime_error(path.string() + ": buffers[" + std::to_string(i) + "] has no uri");
+      const std::string uri = b["uri"].get<std::string>();
+      if (uri.rfind("data:", 0) == 0) {
+        const std::size_t comma = uri.find(',');
+        if (comma == std::string::npos || uri.substr(0, comma).find(";base64") == std::string::npos ||
+            !Base64Decode(uri.substr(comma + 1), &data))
+          throw std::runtime_error(path.string() + ": buffers[" + std::to_string(i) + "]: bad data URI");
+      } else {
+        data = ReadBytes(path.parent_path() / PercentDecode(uri),
+                         "buffers[" + std::to_string(i) + "] of " + path.string());
+      }
+      const std::size_t length = b.value("byteLength", std::size_t{0});
+      if (data.size() < length)
+        throw std::runtime_error(path.string() + ": buffers[" + std::to_string(i) + "] holds " +
+                                 std::to_string(data.size()) + " bytes, byteLength says " +
+                                 std::to_string(length));
+      data.resize(length);
+      base.push_back(bin.size());
+      bin += data;
+      while (bin.size() % 4 != 0) bin.push_back('\0');
+    }
+  }
+  if (g.contains("bufferViews"))
+    for (json& v : g["bufferViews"]) {
+      const std::size_t b = v.value("buffer", std::size_t{0});
+      if (b >= base.size()) throw std::runtime_error(path.string() + ": a bufferView names a missing buffer");
+      v["buffer"] = 0;
+      v["byteOffset"] = v.value("byteOffset", std::size_t{0}) + base[b];
+    }
+  if (base.empty()) g.erase("buffers");
+  else g["buffers"] = json::array({{{"byteLength", bin.size()}}});
+  std::string text = g.dump();
+  while (text.size() % 4 != 0) text.push_back(' ');
+  std::string glb = "glTF";
+  PutU32(&glb, 2);
+  PutU32(&glb, static_cast<uint32_t>(12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size())));
+  PutU32(&glb, static_cast<uint32_t>(text.size()));
+  glb += "JSON";
+  glb += text;
+  if (!bin.empty()) {
+    PutU32(&glb, static_cast<uint32_t>(bin.size()));
+    glb += std::string("BIN\0", 4);
+    glb += bin;
+  }
+  return glb;
+}
+
+ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
+                                const ViewerPageOptions& options) {
+  if (const std::string p = options.Check(); !p.empty()) throw std::invalid_argument("viewer page options: " + p);
+  if (!summary.is_object() || !summary.contains("sequences") || !summary["sequences"].is_array())
+    throw std::invalid_argument("summary: expected an object with a \"sequences\" array");
+  const fs::path run_dir = fs::absolute(run_dir_in).lexically_normal();
+  if (!fs::is_directory(run_dir)) throw std::runtime_error(run_dir.string() + ": no such folder");
+  ViewerPageResult result;
+  result.page = run_dir / "index.html";
+
+  std::vector<Row> rows;
+  for (std::size_t i = 0; i < summary["sequences"].size(); ++i)
+    rows.push_back(ReadRow(summary["sequences"][i], i, run_dir, &result.notes));
+
+  // <model-viewer> beside the page.
+  const fs::path assets = run_dir / "assets";
+  fs::path script = options.model_viewer_script.empty() ? FindModelViewerScript() : options.model_viewer_script;
+  const bool viewer = !script.empty();
+  if (viewer) {
+    fs::create_directories(assets / "meshes");
+    WriteFileAtomically(assets / kModelViewerName, ReadBytes(script, "the <model-viewer> script"));
+    result.files.push_back(assets / kModelViewerName);
+  } else {
+    result.notes.push_back("no 3D view: <model-viewer> not found (run tools/setup.sh, or set IMR_MODEL_VIEWER_JS)");
+  }
+
+  // Meshes as scripts, for the 3D view.
+  json meshes = json::array();
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Row& r = rows[i];
+    if (!viewer || r.mesh.empty()) {
+      meshes.push_back(nullptr);
+      continue;
+    }
+    std::string glb;
+    try {
+      glb = ReadAsGlb(r.mesh);
+    } catch (const std::exception& e) {
+      result.notes.push_back(r.name + ": no 3D view: " + e.what());
+      meshes.push_back(nullptr);
+      continue;
+    }
+    if (glb.size() > options.max_mesh_bytes) {
+      result.notes.push_back(r.name + ": no 3D view: " + r.mesh.string() + " is " +
+                             std::to_string(glb.size() >> 20) + " MiB, more than max_mesh_bytes");
+      meshes.push_back(nullptr);
+      continue;
+    }
+    const fs::path js = assets / "meshes" / (std::to_string(i) + ".js");
+    WriteFileAtomically(js, "imrMeshLoaded(" + std::to_string(i) + ",\"" + Base64Encode(glb) + "\");\n");
+    result.files.push_back(js);
+    const json faces = At(r.report, "/mesh/faces");
+    meshes.push_back({{"name", r.name},
+                      {"script", UrlPath(js.lexically_relative(run_dir))},
+                      {"faces", faces.is_null() ? json("?") : faces}});
+    ++result.meshes_viewable;
+  }
+
+  // Plots.
+  std::vector<fs::path> plots;
+  if (!options.plots.empty()) {
+    for (const fs::path& p : options.plots) {
+      const fs::path a = Absolute(p, run_dir);
+      if (!fs::is_regular_file(a)) result.notes.push_back(a.string() + ": no such plot");
+      else plots.push_back(a);
+    }
+  } else {
+    for (const fs::path& dir : {run_dir, run_dir / "plots"}) {
+      if (!fs::is_directory(dir)) continue;
+      std::vector<fs::path> found;
+      for (const auto& e : fs::directory_iterator(dir))
+        if (e.is_regular_file() && Lower(e.path().extension().string()) == ".png" &&
+            e.path().filename().string().front() != '.')
+          found.push_back(e.path());
+      std::sort(found.begin(), found.end());
+      plots.insert(plots.end(), found.begin(), found.end());
+    }
+  }
+
+  // The page.
+  const std::string title = summary.value("title", options.title);
+  std::ostringstream h;
+  h << "<!doctype html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+    << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
+    << "<title>" << HtmlEscape(title) << "</title>\n<style>" << kStyle << "</style>\n";
+  if (viewer) h << "<script src=\"assets/" << kModelViewerName << "\"></script>\n";
+  h << "</head>\n<body>\n<h1>" << HtmlEscape(title) << "</h1>\n<p class=\"sub\">";
+  if (summary.contains("job") && summary["job"].is_string())
+    h << "Job <code>" << HtmlEscape(summary["job"].get<std::string>()) << "</code> &middot; ";
+  int ok = 0;
+  for (const Row& r : rows) ok += r.ok ? 1 : 0;
+  h << rows.size() << " sequence" << (rows.size() == 1 ? "" : "s") << ", " << ok << " ok, "
+    << rows.size() - static_cast<std::size_t>(ok) << " not &middot; page written " << LocalTime()
+    << "</p>\n";
+
+  h << "<h2>Sequences</h2>\n<table id=\"summary\">\n<thead><tr><th>#</th><th>sequence</th>"
+       "<th>status</th><th>frames</th><th>time (s)</th><th>vertices</th><th>faces</th>"
+       "<th title=\"mean distance from the ground truth to the mesh (DESIGN §8), scene units\">"
+       "accuracy</th><th>error</th><th>files</th><th>3D</th></tr></thead>\n<tbody>\n";
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Row& r = rows[i];
+    h << "<tr class=\"" << (r.ok ? "ok" : "failed") << "\"><td class=\"num\">" << i + 1 << "</td><td>"
+      << HtmlEscape(r.name) << "</td><td class=\"" << (r.ok ? "status-ok" : "status-bad") << "\">"
+      << HtmlEscape(r.status) << "</td><td class=\"num\">" << FramesCell(r) << "</td><td class=\"num\">"
+      << (r.seconds ? FormatNumber(*r.seconds, "%.1f") : "") << "</td>";
+    json vertices = At(r.report, "/mesh/vertices"), faces = At(r.report, "/mesh/faces");
+    if (vertices.is_null()) vertices = At(r.row, "/mesh/vertices");
+    if (faces.is_null()) faces = At(r.row, "/mesh/faces");
+    h << "<td class=\"num\">" << (vertices.is_number() ? vertices.dump() : "") << "</td><td class=\"num\">"
+      << (faces.is_number() ? faces.dump() : "") << "</td>";
+    const json accuracy = AccuracyOf(r);
+    const std::optional<double> mean = Accuracy(accuracy);
+    h << "<td class=\"num\"" << (accuracy.is_null() ? "" : " title=\"" + HtmlEscape(accuracy.dump()) + "\"")
+      << ">" << (mean ? FormatNumber(*mean, "%.4g") : "") << "</td>";
+    h << "<td class=\"error\">" << HtmlEscape(r.error) << "</td><td>";
+    std::vector<std::pair<std::string, fs::path>> links;
+    if (!r.output.empty() && fs::is_regular_file(r.output / "report.json"))
+      links.emplace_back("report", r.output / "report.json");
+    if (!r.mesh.empty()) links.emplace_back(r.mesh.extension().string().substr(1), r.mesh);
+    for (std::size_t k = 0; k < links.size(); ++k)
+      h << (k ? " " : "") << "<a href=\"" << HtmlEscape(UrlPath(links[k].second.lexically_relative(run_dir)))
+        << "\">" << HtmlEscape(links[k].first) << "</a>";
+    h << "</td><td>";
+    if (!meshes[i].is_null()) h << "<button data-mesh=\"" << i << "\">view</button>";
+    h << "</td></tr>\n";
+  }
+  h << "</tbody>\n</table>\n";
+
+  if (viewer) {
+    h << "<h2>Mesh</h2>\n<p id=\"viewer-status\">"
+      << (result.meshes_viewable > 0 ? "Loading ..." : "No mesh to show.") << "</p>\n"
+      << "<model-viewer id=\"viewer\" camera-controls interaction-prompt=\"none\" "
+         "shadow-intensity=\"0\" exposure=\"1.1\" alt=\"the selected sequence's mesh\">"
+         "</model-viewer>\n";
+  }
+  if (!plots.empty()) {
+    h << "<h2>Plots</h2>\n<div class=\"plots\">\n";
+    for (const fs::path& p : plots) {
+      const fs::path rel = p.lexically_relative(run_dir);
+      h << "<figure><img src=\"" << HtmlEscape(UrlPath(rel)) << "\" alt=\"" << HtmlEscape(p.stem().string())
+        << "\"><figcaption>" << HtmlEscape(rel.generic_string()) << "</figcaption></figure>\n";
+    }
+    h << "</div>\n";
+  }
+  if (!result.notes.empty()) {
+    h << "<h2>Notes</h2>\n<ul class=\"note\">\n";
+    for (const std::string& n : result.notes) h << "<li>" << HtmlEscape(n) << "</li>\n";
+    h << "</ul>\n";
+  }
+  // The mesh table as JSON; "</" cannot end the script element early once escaped.
+  std::string meshes_json = meshes.dump();
+  for (std::size_t pos = 0; (pos = meshes_json.find("</", pos)) != std::string::npos; pos += 3)
+    meshes_json.replace(pos, 2, "<\\/");
+  h << "<script type=\"application/json\" id=\"imr-meshes\">" << meshes_json << "</script>\n"
+    << "<script>" << kScript << "</script>\n</body>\n</html>\n";
+  WriteFileAtomically(result.page, h.str());
+  result.files.push_back(result.page);
+  return result;
+}
+
+}  // namespace imr::report

@@ -1,0 +1,94 @@
+// The batch viewer page (issue 6): one self-contained HTML page per batch folder with the summary
+// table, the plots, and each sequence's mesh viewable in 3D in the browser — with Google's
+// <model-viewer> (npm @google/model-viewer, its UMD build, which bundles three.js) copied into
+// RUN_DIR/assets/, so nothing is fetched from the network when the page is viewed.
+//
+// It works opened straight from disk (file://), where browsers refuse fetch() of local files:
+// each mesh is written as a small script, assets/meshes/<n>.js, holding the GLB in base64; the
+// page loads it with a <script> tag when the mesh is asked for (the first one at once) and hands
+// the bytes to <model-viewer> as a blob: URL. A .gltf with its .bin (no .glb beside it) is packed
+// into a GLB on the way. The meshes stay where they are; the page also links them.
+//
+// Written files (each atomically; index.html last): RUN_DIR/index.html,
+// RUN_DIR/assets/model-viewer-umd.min.js, RUN_DIR/assets/meshes/<n>.js.
+//
+// The `summary` it reads (what `imr run` / `imr report` hand over):
+//
+//   {
+//     "title": "...",            optional: the page's heading (else options.title)
+//     "job": "/path/job.json",   optional: shown under the heading
+//     "sequences": [             one row each, in this order
+//       {
+//         "name": "street",                       string
+//         "ok": true,                             bool (or "status": "ok" | "failed" | "not run"
+//                                                 | ..., as host/batch's summary.json writes it)
+//         "error": "",                            string: why it failed ("" or null when ok)
+//         "output_directory": "/runs/street",     string (or "output"); relative: to RUN_DIR
+//         "files": ["/runs/street/mesh.glb", ...],  written outputs (absolute, or relative to
+//                                                 RUN_DIR); when absent, output_directory is
+//                                                 searched for *.glb / *.gltf
+//         "seconds": 12.5,                        number (or null)
+//         "report": { ... }                       the sequence's report.json contents; when
+//                                                 absent, output_directory/report.json is read
+//       }, ...
+//     ]
+//   }
+//
+// These are pipeline::SequenceResult's fields (host/pipeline/run.h); host/batch's summary.json
+// rows ({name, status, output, seconds, frames, keyframes, mesh, accuracy, error}) work as well.
+// From each report the table shows: frames (report.input.summary.frames, else the row's
+// "frames", else the engine's keyframes), mesh vertices/faces (report.mesh), accuracy (the mean
+// distance from ground truth to the mesh: report.accuracy.truth_to_mesh.mean from `imr
+// evaluate`, else report.accuracy.mean_truth_to_mesh from the synthetic sources).
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace imr::report {
+
+struct ViewerPageOptions {
+  std::string title = "imr batch";  // the page's heading when the summary has no "title"
+  // The <model-viewer> script to copy (model-viewer-umd.min.js). Empty: FindModelViewerScript().
+  // When none is found the page is still written, without the 3D view, and says why.
+  std::filesystem::path model_viewer_script;
+  // PNGs to show, absolute or relative to RUN_DIR. Empty: every *.png in RUN_DIR and
+  // RUN_DIR/plots (sorted by name).
+  std::vector<std::filesystem::path> plots;
+  // Meshes (GLB bytes) larger than this are linked but not embedded for the 3D view.
+  std::uintmax_t max_mesh_bytes = std::uintmax_t{128} << 20;
+
+  // Empty when usable, else which field and why.
+  std::string Check() const;
+};
+
+struct ViewerPageResult {
+  std::filesystem::path page;                // RUN_DIR/index.html
+  std::vector<std::filesystem::path> files;  // everything written, the page last
+  int meshes_viewable = 0;                   // sequences with a 3D view
+  std::vector<std::string> notes;            // what is missing and why (no model-viewer, a mesh
+                                             // too large, a report that could not be read, ...)
+};
+
+// Writes the page into `run_dir` (which must exist). Throws std::invalid_argument for a summary
+// of the wrong shape (naming the key) or bad options, std::runtime_error naming the file when
+// something cannot be read or written.
+ViewerPageResult WriteBatchPage(const std::filesystem::path& run_dir,
+                                const nlohmann::json& summary,
+                                const ViewerPageOptions& options = {});
+
+// Where <model-viewer>'s UMD build is: $IMR_MODEL_VIEWER_JS if set; else
+// <executable's folder>/../share/imr/model-viewer-umd.min.js (an install); else the copy
+// tools/setup.sh put in the source tree's tools/node/node_modules. Empty when none exists.
+std::filesystem::path FindModelViewerScript();
+
+// A glTF 2.0 file with external or data-URI buffers packed into one GLB (bytes); a .glb is
+// returned as it is. Throws std::runtime_error naming the file when it cannot (not glTF 2.0,
+// a missing buffer, external images).
+std::string ReadAsGlb(const std::filesystem::path& path);
+
+}  // namespace imr::report
