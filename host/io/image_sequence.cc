@@ -142,4 +142,12 @@ std::vector<int> SelectSourceFrames(int source_count, const ImageSequenceOptions
   return frames;
 }
 
+std::string FileLine(const std::string& file, int line) {
+  return file + ":" + std::to_string(line);
+}
+
+bool IsBlankLine(const std::string& line) {
+  return line.find_first_not_of(" \t\r") == std::string::npos;
+}
+
 }  // namespace imr::io

@@ -103,6 +103,11 @@ ImageSequence ReadMiddlebury(const std::string& path, const ImageSequenceOptions
 
 // --- Text helpers the layout readers share (image_sequence.cc) ---------------------------------
 
+// "<file>:<line>" (1-based), the prefix of every message about one line of a file.
+std::string FileLine(const std::string& file, int line);
+// True for a line of only blanks, tabs and a carriage return.
+bool IsBlankLine(const std::string& line);
+
 // The lines of a text file, without line ends. Throws "<path>: no such file (<what>)" when it is
 // absent, e.g. what = "the poses file".
 std::vector<std::string> ReadTextLines(const std::string& path, const std::string& what);

@@ -5,6 +5,7 @@
 #include "host/io/image_sequence.h"
 #include "host/io/input_formats.h"
 #include "host/io/schema.h"
+#include "host/io/testing/temp_dir.h"
 
 #include <gtest/gtest.h>
 
@@ -20,27 +21,12 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-class TempDir {
+using testing::Write;
+// Scratch folders of this file's tests.
+class TempDir : public testing::TempDir {
  public:
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "imr-imageseq-XXXXXX").string();
-    path_ = ::mkdtemp(tmpl.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  fs::path operator/(const std::string& p) const { return path_ / p; }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
+  TempDir() : testing::TempDir("imr-imageseq") {}
 };
-
-void Write(const fs::path& p, const std::string& text) {
-  fs::create_directories(p.parent_path());
-  std::ofstream(p, std::ios::binary) << text;
-}
 
 Image Gray(int w, int h) {
   Image im;

@@ -23,10 +23,6 @@ constexpr double kRotationTolerance = 1e-4;
 
 [[noreturn]] void Fail(const std::string& message) { throw std::runtime_error(message); }
 
-std::string At(const std::string& file, int line) { return file + ":" + std::to_string(line); }
-
-bool IsBlank(const std::string& s) { return s.find_first_not_of(" \t\r") == std::string::npos; }
-
 // Rigid transform x' = r x + t.
 struct Rigid {
   Mat3 r = Identity3();
@@ -134,7 +130,7 @@ class CalibFile {
     if (it == entries_.end()) Fail(path_ + ": no line '" + key + ":' (" + what + ")");
     std::vector<double> v = ParseNumbers(it->second.text, path_, it->second.line);
     if (v.size() != count)
-      Fail(At(path_, it->second.line) + ": " + key + " has " + std::to_string(v.size()) +
+      Fail(FileLine(path_, it->second.line) + ": " + key + " has " + std::to_string(v.size()) +
            " numbers, expected " + std::to_string(count) + " (" + what + ")");
     if (line != nullptr) *line = it->second.line;
     return v;
@@ -144,7 +140,7 @@ class CalibFile {
     int line = 0;
     const Mat3 r = FromRowMajor9(Numbers(key, 9, what, &line));
     if (const std::string p = RotationProblem(r, kRotationTolerance); !p.empty())
-      Fail(At(path_, line) + ": " + key + " " + p);
+      Fail(FileLine(path_, line) + ": " + key + " " + p);
     return r;
   }
 
@@ -162,7 +158,7 @@ class CalibFile {
     int line = 0;
     const Rigid a = FromRowMajor12(Numbers(key, 12, what + ", row-major 3x4", &line));
     if (const std::string p = RotationProblem(a.r, kRotationTolerance); !p.empty())
-      Fail(At(path_, line) + ": the rotation of " + key + " " + p);
+      Fail(FileLine(path_, line) + ": the rotation of " + key + " " + p);
     return a;
   }
 
@@ -192,7 +188,7 @@ RectifiedCamera ReadProjection(const CalibFile& calib, const std::string& key, i
   // Row 3 = (0 0 1 b_z), no skew, positive focal lengths: K [I | b] with K upper triangular.
   if (!zero(p[1]) || !zero(p[4]) || !zero(p[8]) || !zero(p[9]) || !zero(p[10] - 1.0) ||
       !(p[0] > 0) || !(p[5] > 0))
-    Fail(At(calib.path(), line) + ": " + key + " is not a rectified projection K [I | b] (" + what +
+    Fail(FileLine(calib.path(), line) + ": " + key + " is not a rectified projection K [I | b] (" + what +
          "): expected fx 0 cx _ / 0 fy cy _ / 0 0 1 _ with fx, fy > 0");
   c.fx = p[0];
   c.fy = p[5];
@@ -209,18 +205,18 @@ RectifiedCamera ReadProjection(const CalibFile& calib, const std::string& key, i
 std::vector<Rigid> ReadPosesFile(const std::string& path) {
   std::vector<std::string> lines =
       ReadTextLines(path, "the poses file: 12 numbers a line, camera i -> world");
-  while (!lines.empty() && IsBlank(lines.back())) lines.pop_back();
+  while (!lines.empty() && IsBlankLine(lines.back())) lines.pop_back();
   std::vector<Rigid> poses;
   poses.reserve(lines.size());
   for (std::size_t i = 0; i < lines.size(); ++i) {
     const int line = static_cast<int>(i + 1);
     const std::vector<double> v = ParseNumbers(lines[i], path, line);
     if (v.size() != 12)
-      Fail(At(path, line) + ": " + std::to_string(v.size()) +
+      Fail(FileLine(path, line) + ": " + std::to_string(v.size()) +
            " numbers, expected 12 (row-major 3x4 [R | t], camera -> world)");
     poses.push_back(FromRowMajor12(v));
     if (const std::string p = RotationProblem(poses.back().r, kRotationTolerance); !p.empty())
-      Fail(At(path, line) + ": the rotation (numbers 1-3, 5-7, 9-11) " + p);
+      Fail(FileLine(path, line) + ": the rotation (numbers 1-3, 5-7, 9-11) " + p);
   }
   return poses;
 }
@@ -229,7 +225,7 @@ std::vector<Rigid> ReadPosesFile(const std::string& path) {
 std::vector<double> ReadTimesFile(const std::string& path, int image_count,
                                   const std::string& image_dir) {
   std::vector<std::string> lines = ReadTextLines(path, "timestamps: seconds, one line per image");
-  while (!lines.empty() && IsBlank(lines.back())) lines.pop_back();
+  while (!lines.empty() && IsBlankLine(lines.back())) lines.pop_back();
   if (static_cast<int>(lines.size()) != image_count)
     Fail(path + ": " + std::to_string(lines.size()) + " timestamps (lines), but " + image_dir +
          " has " + std::to_string(image_count) + " images; expected one per image");
@@ -238,7 +234,7 @@ std::vector<double> ReadTimesFile(const std::string& path, int image_count,
     const int line = static_cast<int>(i + 1);
     const std::vector<double> v = ParseNumbers(lines[i], path, line);
     if (v.size() != 1)
-      Fail(At(path, line) + ": " + std::to_string(v.size()) + " numbers, expected 1 (seconds)");
+      Fail(FileLine(path, line) + ": " + std::to_string(v.size()) + " numbers, expected 1 (seconds)");
     times.push_back(v[0]);
   }
   return times;
@@ -260,7 +256,7 @@ std::vector<double> ReadDateTimestamps(const std::string& path, int image_count,
                                        const std::string& image_dir) {
   std::vector<std::string> lines =
       ReadTextLines(path, "timestamps: 'YYYY-MM-DD hh:mm:ss.fraction', one line per image");
-  while (!lines.empty() && IsBlank(lines.back())) lines.pop_back();
+  while (!lines.empty() && IsBlankLine(lines.back())) lines.pop_back();
   if (static_cast<int>(lines.size()) != image_count)
     Fail(path + ": " + std::to_string(lines.size()) + " timestamps (lines), but " + image_dir +
          " has " + std::to_string(image_count) + " images; expected one per image");
@@ -272,10 +268,10 @@ std::vector<double> ReadDateTimestamps(const std::string& path, int image_count,
     double s = 0;
     const int fields = std::sscanf(lines[i].c_str(), " %4d-%2d-%2d %2d:%2d:%lf%n", &y, &mo, &d, &h,
                                    &mi, &s, &used);
-    if (fields != 6 || !IsBlank(lines[i].substr(static_cast<std::size_t>(used))) || mo < 1 ||
+    if (fields != 6 || !IsBlankLine(lines[i].substr(static_cast<std::size_t>(used))) || mo < 1 ||
         mo > 12 || d < 1 || d > 31 || h < 0 || h > 23 || mi < 0 || mi > 59 || !(s >= 0) ||
         !(s < 61))
-      Fail(At(path, static_cast<int>(i + 1)) + ": '" + lines[i] +
+      Fail(FileLine(path, static_cast<int>(i + 1)) + ": '" + lines[i] +
            "' is not a date 'YYYY-MM-DD hh:mm:ss.fraction'");
     const int64_t day = DaysFromCivil(y, static_cast<unsigned>(mo), static_cast<unsigned>(d));
     const double second = h * 3600.0 + mi * 60.0 + s;
@@ -462,16 +458,16 @@ OxtsRecord ReadOxts(const fs::path& path) {
   std::vector<std::string> lines =
       ReadTextLines(path.string(), "oxts record: 30 numbers, lat lon alt roll pitch yaw ...");
   std::size_t i = 0;
-  while (i < lines.size() && IsBlank(lines[i])) ++i;
+  while (i < lines.size() && IsBlankLine(lines[i])) ++i;
   if (i == lines.size()) Fail(path.string() + ": empty (expected one oxts record of 30 numbers)");
   const int line = static_cast<int>(i + 1);
   const std::vector<double> v = ParseNumbers(lines[i], path.string(), line);
   if (v.size() != 30)
-    Fail(At(path.string(), line) + ": " + std::to_string(v.size()) +
+    Fail(FileLine(path.string(), line) + ": " + std::to_string(v.size()) +
          " numbers, expected 30 (lat lon alt roll pitch yaw vn ve vf vl vu ax ay az af al au wx "
          "wy wz wf wl wu pos_accuracy vel_accuracy navstat numsats posmode velmode orimode)");
   if (!(std::abs(v[0]) < 90.0))
-    Fail(At(path.string(), line) + ": latitude " + std::to_string(v[0]) +
+    Fail(FileLine(path.string(), line) + ": latitude " + std::to_string(v[0]) +
          " is not within (-90, 90) degrees");
   return {v[0], v[1], v[2], v[3], v[4], v[5]};
 }

@@ -19,10 +19,6 @@ constexpr double kRotationTolerance = 1e-4;
 
 [[noreturn]] void Fail(const std::string& message) { throw std::runtime_error(message); }
 
-std::string At(const std::string& file, int line) { return file + ":" + std::to_string(line); }
-
-bool IsBlank(const std::string& s) { return s.find_first_not_of(" \t\r") == std::string::npos; }
-
 // The one *_par.txt in a folder, or the file itself.
 fs::path FindParFile(const fs::path& path) {
   std::error_code ec;
@@ -58,20 +54,20 @@ ImageSequence ReadMiddlebury(const std::string& path, const ImageSequenceOptions
       ReadTextLines(file,
                     "Middlebury camera parameters: a count, then per line: image name, "
                     "K (9), R (9), t (3)");
-  while (!lines.empty() && IsBlank(lines.back())) lines.pop_back();
+  while (!lines.empty() && IsBlankLine(lines.back())) lines.pop_back();
 
   std::size_t first = 0;
-  while (first < lines.size() && IsBlank(lines[first])) ++first;
+  while (first < lines.size() && IsBlankLine(lines[first])) ++first;
   if (first == lines.size()) Fail(file + ": empty (expected a count, then one line per view)");
   const int count_line = static_cast<int>(first + 1);
   const std::vector<double> count = ParseNumbers(lines[first], file, count_line);
   if (count.size() != 1 || count[0] != std::floor(count[0]) || count[0] < 1)
-    Fail(At(file, count_line) + ": expected the number of views (one integer >= 1), got '" +
+    Fail(FileLine(file, count_line) + ": expected the number of views (one integer >= 1), got '" +
          lines[first] + "'");
   const int views = static_cast<int>(count[0]);
   const int view_lines = static_cast<int>(lines.size() - first - 1);
   if (view_lines != views)
-    Fail(At(file, count_line) + ": says " + std::to_string(views) + " views, but the file has " +
+    Fail(FileLine(file, count_line) + ": says " + std::to_string(views) + " views, but the file has " +
          std::to_string(view_lines) + " view lines after it");
 
   // Every line is checked, the selected ones become frames.
@@ -90,33 +86,33 @@ ImageSequence ReadMiddlebury(const std::string& path, const ImageSequenceOptions
     const std::string& text = lines[i];
     const std::size_t name_begin = text.find_first_not_of(" \t");
     if (name_begin == std::string::npos)
-      Fail(At(file, line) + ": empty, expected an image name and 21 numbers (K, R, t)");
+      Fail(FileLine(file, line) + ": empty, expected an image name and 21 numbers (K, R, t)");
     const std::size_t name_end = std::min(text.find_first_of(" \t", name_begin), text.size());
     const std::string name = text.substr(name_begin, name_end - name_begin);
     // The name blanked out, so that columns in messages are the file's.
     const std::vector<double> v =
         ParseNumbers(std::string(name_end, ' ') + text.substr(name_end), file, line);
     if (v.size() != 21)
-      Fail(At(file, line) + ": " + std::to_string(v.size()) +
+      Fail(FileLine(file, line) + ": " + std::to_string(v.size()) +
            " numbers after the image name, expected 21 (K 3x3, R 3x3, t 3; row-major)");
     const auto zero = [](double x) { return std::abs(x) <= 1e-9; };
     if (!zero(v[1]) || !zero(v[3]) || !zero(v[6]) || !zero(v[7]) || !zero(v[8] - 1.0) ||
         !(v[0] > 0) || !(v[4] > 0))
-      Fail(At(file, line) +
+      Fail(FileLine(file, line) +
            ": K is not fx 0 cx / 0 fy cy / 0 0 1 with fx, fy > 0 (a skewed "
            "or scaled K is not supported)");
     Mat3 r{};
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) r[a][b] = v[9 + a * 3 + b];
     if (const std::string p = RotationProblem(r, kRotationTolerance); !p.empty())
-      Fail(At(file, line) + ": R (numbers 10-18) " + p);
+      Fail(FileLine(file, line) + ": R (numbers 10-18) " + p);
     const int j = frame_of[static_cast<std::size_t>(src)];
     if (j < 0) continue;
 
     const fs::path image = folder / name;
     std::error_code ec;
     if (!fs::is_regular_file(image, ec))
-      Fail(image.string() + ": no such file (the image of " + At(file, line) + ")");
+      Fail(image.string() + ": no such file (the image of " + FileLine(file, line) + ")");
 
     ImageFrame f;
     f.index = j;

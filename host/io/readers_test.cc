@@ -6,6 +6,7 @@
 #include "host/io/openmvg_reader.h"
 #include "host/io/schema.h"
 #include "host/io/slam_json.h"
+#include "host/io/testing/temp_dir.h"
 
 #include <gtest/gtest.h>
 
@@ -37,27 +38,12 @@ const char* kR1 = "[[0, 1, 0], [-1, 0, 0], [0, 0, 1]]";
 const char* kR2 = "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]";
 const char* kQ1 = "0.70710678118654757 0 0 -0.70710678118654757";
 
-class TempDir {
+using testing::Write;
+// Scratch folders of this file's tests.
+class TempDir : public testing::TempDir {
  public:
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "imr-readers-XXXXXX").string();
-    path_ = ::mkdtemp(tmpl.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  fs::path operator/(const std::string& p) const { return path_ / p; }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
+  TempDir() : testing::TempDir("imr-readers") {}
 };
-
-void Write(const fs::path& p, const std::string& text) {
-  fs::create_directories(p.parent_path());
-  std::ofstream(p, std::ios::binary) << text;
-}
 
 std::string Read(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
