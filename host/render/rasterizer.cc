@@ -145,6 +145,19 @@ Rgb ShadeFace(const Vec3& normal, const Vec3& to_viewer, const Vec3& light,
   return {Channel(base[0] * intensity), Channel(base[1] * intensity), Channel(base[2] * intensity)};
 }
 
+// The height ramp of the top-down view: t in [0, 1] -> RGB.
+Rgb HeightColor(double t) {
+  static constexpr double kStops[5][3] = {
+      {175, 175, 165}, {110, 160, 225}, {80, 185, 115}, {240, 200, 60}, {215, 70, 40}};
+  t = std::clamp(t, 0.0, 1.0) * 4.0;
+  const int i = std::min(3, static_cast<int>(t));
+  const double s = t - i;
+  Rgb c{};
+  for (std::size_t k = 0; k < 3; ++k)
+    c[k] = Channel(kStops[i][k] * (1.0 - s) + kStops[i + 1][k] * s);
+  return c;
+}
+
 Vec3 FaceNormal(const MeshRef& mesh, std::size_t f) {
   const Vec3 a = VertexOf(mesh, mesh.faces[3 * f]);
   const Vec3 b = VertexOf(mesh, mesh.faces[3 * f + 1]);
@@ -465,9 +478,16 @@ TopDownRendering RenderTopDown(const MeshRef& mesh, const CameraPath& path,
   Target target(width, height, /*perspective=*/false);
   // Light from above, a little from the upper left of the picture, so slopes show.
   const Vec3 light = Normalized(Add(Scale(up, 2.0), Sub(Scale(view.down, -0.6), Scale(view.right, 0.6))));
+  double bottom = top;
+  for (std::size_t i = 0; i < 3 * mesh.face_count; ++i) bottom = std::min(bottom, Dot(VertexOf(mesh, mesh.faces[i]), up));
   std::vector<Rgb> face_color(mesh.face_count);
   for (std::size_t f = 0; f < mesh.face_count; ++f) {
-    face_color[f] = ShadeFace(FaceNormal(mesh, f), up, light, options.render);
+    RenderOptions shade = options.render;
+    if (options.color_by_height) {
+      const double t = top > bottom ? (Dot(FaceCentroid(mesh, f), up) - bottom) / (top - bottom) : 0.0;
+      shade.front_color = shade.back_color = HeightColor(t);
+    }
+    face_color[f] = ShadeFace(FaceNormal(mesh, f), up, light, shade);
     ScreenVertex sv[3];
     for (int k = 0; k < 3; ++k) {
       const Vec3 x = VertexOf(mesh, mesh.faces[3 * f + static_cast<std::size_t>(k)]);

@@ -116,6 +116,9 @@ struct TopDownOptions {
   double keyframe_radius = 4.0;      // pixels
   Rgb start_color{0, 160, 0};        // a ring around the first camera
   bool draw_path = true;
+  // Colour faces by the height of their centre (grey at the lowest, through blue, green and
+  // yellow to red at the highest), shaded; false: front_color / back_color as in a camera.
+  bool color_by_height = true;
 
   std::string Check() const;
 };

@@ -39,10 +39,11 @@ const char* kNotes =
     "faces shaded flat by their normal (orange: facing the camera, blue: seen from behind), edges\n"
     "in green (--mode wireframe or both; hidden edges are not drawn). Frames are numbered after\n"
     "--frames selects them, as in a job's input options. --top-down draws the whole mesh seen\n"
-    "from above (orthographic; the direction of travel to the right) with the camera path: red\n"
-    "line through the camera centres, blue discs at keyframes (every --keyframe-every frames, as\n"
-    "the image front end picks them), a green ring at the first camera. Up is the cameras' mean\n"
-    "up direction unless --up gives it. The PNG is written whole or not at all.\n"
+    "from above (orthographic; the direction of travel to the right), faces coloured by height\n"
+    "(grey lowest, then blue, green, yellow, red highest), with the camera path: red line through\n"
+    "the camera centres, blue discs at keyframes (every --keyframe-every frames, as the image\n"
+    "front end picks them), a green ring at the first camera. Up is the cameras' mean up\n"
+    "direction unless --up gives it. The PNG is written whole or not at all.\n"
     "Exit status: 0 written; 1 a file is missing or bad; 2 bad usage.\n";
 
 // "0.5,1,-2" -> three numbers; false otherwise.
