@@ -15,6 +15,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # the cross-check of `imr evaluate` (tests/evaluate_test: CloudCompare's cloud-to-mesh distance)
   cloudcompare
+  # tests/slurm_test: a one-node Slurm cluster started on localhost (imr submit, array jobs)
+  slurm-wlm munge
   # plots of reports (tools/plots/imr_plots.py) and the viewer page's browser test (headless)
   python3-matplotlib chromium
 )

@@ -1,6 +1,11 @@
-// imr: the command-line host. Subcommands: run, validate, plugins, evaluate; --version, --help.
-// Exit status: 0 success; 1 a sequence failed (the others still ran) or an evaluation failed;
-// 2 bad usage or invalid job.
+// imr: the command-line host. Subcommands: run, submit, report, validate, plugins, evaluate;
+// --version, --help. Exit status: 0 success; 2 bad usage or invalid job; for run and report 1
+// when one sequence failed and failed + 1 when more did (at most 101); for evaluate 1 when it
+// failed.
+#include "host/batch/batch.h"
+#include "host/batch/child.h"
+#include "host/batch/slurm.h"
+#include "host/batch/summary.h"
 #include "host/eval/evaluate.h"
 #include "host/pipeline/job_validation.h"
 #include "host/pipeline/run.h"
@@ -11,8 +16,11 @@
 
 #include <boost/program_options.hpp>
 
+#include <unistd.h>
+
 #include <charconv>
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -34,8 +42,13 @@ const char* kUsage =
     "Usage: imr <command> [options]\n"
     "\n"
     "Commands:\n"
-    "  run JOB.json       run a job: every sequence, written to the job's output folders\n"
-    "                     (--export-stream FILE, --export-colmap DIR: see `imr run --help`)\n"
+    "  run JOB.json       run a job: every sequence (each in its own process), written to the\n"
+    "                     job's output folders, with a batch summary; finished sequences are\n"
+    "                     skipped on a re-run (--shard I/N, --jobs J, --force, --max-rss SIZE,\n"
+    "                     --export-stream FILE, --export-colmap DIR: see `imr run --help`)\n"
+    "  submit JOB.json    run a job on a Slurm cluster: an array of --tasks N tasks, then a job\n"
+    "                     that writes the batch summary (see `imr submit --help`)\n"
+    "  report RUN_DIR     merge the sequences' reports of a batch folder into summary.json/.md\n"
     "  validate JOB.json  check a job and report every problem, without running it\n"
     "  plugins            list the plugins found (kind, id, version, ABI, file) and refusals\n"
     "  evaluate MESH      accuracy of a mesh against ground truth (points, a reference mesh or\n"
@@ -47,8 +60,8 @@ const char* kUsage =
     "\n"
     "Plugins are searched in a job's plugin_paths, then IMR_PLUGIN_PATH (':'-separated),\n"
     "then the installed folder next to the executable (../lib/imr/plugins).\n"
-    "Exit status: 0 success, 1 a sequence failed (the others still ran) or an evaluation failed,\n"
-    "2 bad usage or job.\n";
+    "Exit status: 0 success; 2 bad usage or job; run and report: 1 one sequence failed (the\n"
+    "others still ran), failed + 1 when more failed (at most 101); evaluate: 1 it failed.\n";
 
 void OnSignal(int) { imr::plugin::RequestCancel(); }
 
@@ -122,7 +135,49 @@ const char* kRunNotes =
     "  --export-colmap '{output}/colmap'        the final points and the cameras that see them,\n"
     "      as a COLMAP text model (cameras.txt, images.txt, points3D.txt).\n"
     "Exports are written (atomically) only for sequences that succeed, before the mesh and\n"
-    "report.json; the report lists them under \"exports\".\n";
+    "report.json; the report lists them under \"exports\".\n"
+    "\n"
+    "Batches: each sequence runs in its own process (a crash fails that sequence only); when it\n"
+    "succeeds, manifest.json (its files with SHA-256, and the job's hash) is written last, and a\n"
+    "re-run skips it while the job and the files still match (--force: redo all). The batch\n"
+    "folder (the part of output.directory before {sequence}) gets summary.json and summary.md.\n"
+    "--shard I/N runs the I-th of N balanced, deterministic shares (inside a Slurm array task\n"
+    "the share comes from SLURM_ARRAY_TASK_ID/COUNT/MIN); a shard writes no summary: run\n"
+    "`imr report RUN_DIR` when all are done. Progress: a bar on a terminal, else a line every\n"
+    "few seconds; -q: none.\n"
+    "Exit status: 0 every sequence ok or up to date; 1 one failed; failed + 1 when more failed\n"
+    "(at most 101); 2 bad usage or job (nothing ran).\n";
+
+// This executable, for the child processes and the Slurm scripts.
+std::string SelfPath(const char* argv0) {
+  std::error_code ec;
+  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? fs::absolute(argv0).string() : p.string();
+}
+std::string g_argv0;
+
+bool ReadExports(const po::variables_map& vm, const char* cmd, imr::pipeline::RunOptions* o) {
+  if (vm.count("export-stream")) o->export_stream = vm["export-stream"].as<std::string>();
+  if (vm.count("export-colmap")) o->export_colmap = vm["export-colmap"].as<std::string>();
+  if ((vm.count("export-stream") && o->export_stream.empty()) ||
+      (vm.count("export-colmap") && o->export_colmap.empty())) {
+    std::cerr << "imr " << cmd << ": an export path must not be empty\n";
+    return false;
+  }
+  return true;
+}
+
+bool ParseSize(const po::variables_map& vm, const char* cmd, uint64_t* bytes) {
+  if (!vm.count("max-rss")) return true;
+  const auto b = imr::batch::ParseBytes(vm["max-rss"].as<std::string>());
+  if (!b) {
+    std::cerr << "imr " << cmd << ": --max-rss: expected a size like 512M or 4G, got '"
+              << vm["max-rss"].as<std::string>() << "'\n";
+    return false;
+  }
+  *bytes = *b;
+  return true;
+}
 
 int CmdRun(const std::vector<std::string>& args) {
   po::options_description opts("imr run options");
@@ -130,47 +185,271 @@ int CmdRun(const std::vector<std::string>& args) {
       "export-stream", po::value<std::string>()->value_name("FILE"),
       "also write the engine's input stream as SLAM JSON 0.3 (replayable)")(
       "export-colmap", po::value<std::string>()->value_name("DIR"),
-      "also write the final points and their cameras as a COLMAP text model");
+      "also write the final points and their cameras as a COLMAP text model")(
+      "shard", po::value<std::string>()->value_name("I/N"),
+      "run only the I-th of N shares of the sequences (default: from a Slurm array task)")(
+      "jobs,j", po::value<int>()->default_value(1)->value_name("J"), "sequences run at once")(
+      "force", "redo every sequence, even those whose manifest matches")(
+      "max-rss", po::value<std::string>()->value_name("SIZE"),
+      "kill a sequence whose process uses more resident memory (e.g. 4G)")(
+      "sequences-from", po::value<std::string>()->value_name("FILE"),
+      "only the sequences named in FILE, one per line (imr submit's frozen list)");
   po::positional_options_description pos;
   pos.add("job", 1);
   po::variables_map vm;
   int status = kExitOk;
   const std::string synopsis =
-      std::string("imr run JOB.json [--export-stream FILE] [--export-colmap DIR] [-q|-v]\n\n") +
+      std::string("imr run JOB.json [--shard I/N] [--jobs J] [--force] [--max-rss SIZE]\n"
+                  "       [--export-stream FILE] [--export-colmap DIR] [-q|-v]\n\n") +
       kRunNotes;
   if (!ParseCommand("run", synopsis, opts, pos, args, &vm, &status)) return status;
   const fs::path job = vm["job"].as<std::string>();
   imr::pipeline::RunOptions run_options;
-  if (vm.count("export-stream")) run_options.export_stream = vm["export-stream"].as<std::string>();
-  if (vm.count("export-colmap")) run_options.export_colmap = vm["export-colmap"].as<std::string>();
-  if ((vm.count("export-stream") && run_options.export_stream.empty()) ||
-      (vm.count("export-colmap") && run_options.export_colmap.empty())) {
-    std::cerr << "imr run: an export path must not be empty\n";
+  if (!ReadExports(vm, "run", &run_options)) return kExitUsage;
+
+  imr::batch::BatchOptions batch;
+  batch.jobs = vm["jobs"].as<int>();
+  batch.force = vm.count("force") > 0;
+  batch.verbose = vm.count("verbose") > 0;
+  batch.executable = SelfPath(g_argv0.c_str());
+  if (!ParseSize(vm, "run", &batch.max_rss)) return kExitUsage;
+  if (vm.count("sequences-from")) batch.sequences_from = vm["sequences-from"].as<std::string>();
+  std::string error;
+  if (vm.count("shard")) {
+    auto shard = imr::batch::ParseShard(vm["shard"].as<std::string>(), &error);
+    if (!shard) {
+      std::cerr << "imr run: --shard: " << error << "\n";
+      return kExitUsage;
+    }
+    batch.shard = *shard;
+    batch.shard_origin = "--shard";
+  } else if (auto shard = imr::batch::ShardFromSlurm(&std::getenv, &error)) {
+    batch.shard = *shard;
+    batch.shard_origin = std::string("Slurm array task ") + std::getenv("SLURM_ARRAY_TASK_ID");
+  } else if (!error.empty()) {
+    std::cerr << "imr run: " << error << "\n";
     return kExitUsage;
   }
+  batch.progress = vm.count("quiet") ? imr::batch::ProgressMode::kNone
+                   : ::isatty(STDERR_FILENO) ? imr::batch::ProgressMode::kBar
+                                             : imr::batch::ProgressMode::kLines;
+
   imr::plugin::PluginRegistry registry;
   imr::pipeline::ValidatedJob v;
   if (!LoadJob(job, &registry, &v)) return kExitUsage;
-  const auto option_problems = imr::pipeline::CheckRunOptions(run_options, v);
-  if (!option_problems.empty()) {
-    for (const auto& p : option_problems) std::cerr << "imr run: " << p << "\n";
+  auto problems = imr::pipeline::CheckRunOptions(run_options, v);
+  for (auto& p : imr::batch::CheckBatch(v, batch)) problems.push_back(p);
+  if (!problems.empty()) {
+    for (const auto& p : problems) std::cerr << "imr run: " << p << "\n";
     return kExitUsage;
   }
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
-  auto batch = imr::pipeline::RunJob(v, registry, run_options);
+  const auto result = imr::batch::RunBatch(v, registry, run_options, batch);
   // One line per sequence on stdout: where the results are, or why there are none.
-  for (const auto& s : batch.sequences) {
-    if (s.ok) {
-      std::printf("ok      %-20s %7.2f s  %s\n", s.name.c_str(), s.seconds,
-                  s.output_directory.string().c_str());
-    } else {
-      std::printf("FAILED  %-20s %7.2f s  %s\n", s.name.c_str(), s.seconds, s.error.c_str());
+  using imr::batch::SequenceStatus;
+  for (const auto& s : result.outcomes) {
+    const char* name = s.name.c_str();
+    switch (s.status) {
+      case SequenceStatus::kOk:
+        std::printf("ok      %-20s %7.2f s  %s\n", name, s.seconds, s.output_directory.string().c_str());
+        break;
+      case SequenceStatus::kSkipped:
+        std::printf("skipped %-20s up to date  %s\n", name, s.output_directory.string().c_str());
+        break;
+      case SequenceStatus::kFailed:
+        std::printf("FAILED  %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
+        break;
+      case SequenceStatus::kNotRun:
+        std::printf("not run %-20s %s\n", name, s.detail.c_str());
+        break;
     }
   }
-  std::printf("%zu sequence%s, %d failed\n", batch.sequences.size(),
-              batch.sequences.size() == 1 ? "" : "s", batch.failed());
-  return batch.failed() > 0 ? kExitFailed : kExitOk;
+  const int failed = result.Count(SequenceStatus::kFailed) + result.Count(SequenceStatus::kNotRun);
+  std::printf("%zu sequence%s, %d failed", result.outcomes.size(),
+              result.outcomes.size() == 1 ? "" : "s", result.Count(SequenceStatus::kFailed));
+  if (const int n = result.Count(SequenceStatus::kSkipped)) std::printf(", %d skipped (up to date)", n);
+  if (const int n = result.Count(SequenceStatus::kNotRun)) std::printf(", %d not run", n);
+  if (batch.shard.active())
+    std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
+                batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
+  else if (result.summary_written)
+    std::printf("\nsummary: %s\n", (result.batch_directory / "summary.md").string().c_str());
+  else
+    std::printf("\n");
+  return imr::batch::ExitStatusForFailures(failed);
+}
+
+const char* kSubmitNotes =
+    "Writes two sbatch scripts into RUN_DIR/imr-batch/slurm/ (RUN_DIR: the part of the job's\n"
+    "output.directory before {sequence}) and submits them: an array of --tasks tasks, each\n"
+    "running `imr run` on its share of the sequences (its shard comes from the array task id),\n"
+    "and a reduce job that runs `imr report RUN_DIR` after every task has ended\n"
+    "(--dependency=afterany), writing RUN_DIR/summary.md and summary.json. The sequence list is\n"
+    "frozen in RUN_DIR/imr-batch/sequences.txt. Task logs: RUN_DIR/imr-batch/slurm/logs/.\n"
+    "Submitting again (or `sbatch` on the array script) redoes only unfinished sequences.\n"
+    "--dry-run writes the scripts and prints the sbatch commands without submitting.\n"
+    "Exit status: 0 submitted; 1 sbatch failed (its message is shown); 2 bad usage or job.\n";
+
+int CmdSubmit(const std::vector<std::string>& args) {
+  imr::batch::SubmitOptions d;
+  po::options_description opts("imr submit options");
+  opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)")(
+      "tasks,n", po::value<int>()->required()->value_name("N"), "array tasks")(
+      "partition,p", po::value<std::string>()->value_name("P"), "Slurm partition")(
+      "time,t", po::value<std::string>()->value_name("T"), "time limit per task (e.g. 2:00:00)")(
+      "mem", po::value<std::string>()->value_name("M"), "memory per task (e.g. 8G)")(
+      "cpus-per-task,c", po::value<int>()->default_value(d.cpus_per_task), "CPUs per task")(
+      "jobs,j", po::value<int>()->value_name("J"),
+      "sequences at once in a task (default: --cpus-per-task)")(
+      "account,A", po::value<std::string>(), "Slurm account")(
+      "qos", po::value<std::string>(), "Slurm quality of service")(
+      "sbatch-arg", po::value<std::vector<std::string>>()->value_name("ARG"),
+      "another sbatch option for the array, e.g. --sbatch-arg=--constraint=avx2 (repeatable)")(
+      "max-rss", po::value<std::string>()->value_name("SIZE"),
+      "imr run --max-rss for the tasks: kill a sequence over this resident memory")(
+      "force", "redo every sequence, even finished ones")(
+      "dry-run", "write the scripts and print the sbatch commands; submit nothing")(
+      "export-stream", po::value<std::string>()->value_name("FILE"), "as for imr run")(
+      "export-colmap", po::value<std::string>()->value_name("DIR"), "as for imr run");
+  po::positional_options_description pos;
+  pos.add("job", 1);
+  po::variables_map vm;
+  int status = kExitOk;
+  const std::string synopsis =
+      std::string("imr submit JOB.json --tasks N [--partition P] [--time T] [--mem M]\n"
+                  "       [--cpus-per-task C] [--jobs J] [--max-rss SIZE] [--force] [--dry-run]\n\n") +
+      kSubmitNotes;
+  if (!ParseCommand("submit", synopsis, opts, pos, args, &vm, &status)) return status;
+  imr::batch::SubmitOptions o;
+  o.tasks = vm["tasks"].as<int>();
+  o.cpus_per_task = vm["cpus-per-task"].as<int>();
+  if (vm.count("jobs")) o.jobs = vm["jobs"].as<int>();
+  if (vm.count("partition")) o.partition = vm["partition"].as<std::string>();
+  if (vm.count("time")) o.time = vm["time"].as<std::string>();
+  if (vm.count("mem")) o.mem = vm["mem"].as<std::string>();
+  if (vm.count("account")) o.account = vm["account"].as<std::string>();
+  if (vm.count("qos")) o.qos = vm["qos"].as<std::string>();
+  if (vm.count("sbatch-arg")) o.sbatch_args = vm["sbatch-arg"].as<std::vector<std::string>>();
+  o.force = vm.count("force") > 0;
+  o.dry_run = vm.count("dry-run") > 0;
+  o.executable = SelfPath(g_argv0.c_str());
+  if (!ParseSize(vm, "submit", &o.max_rss)) return kExitUsage;
+  if (std::string e = o.Check(); !e.empty()) {
+    std::cerr << "imr submit: " << e << "\n";
+    return kExitUsage;
+  }
+  imr::pipeline::RunOptions run_options;
+  if (!ReadExports(vm, "submit", &run_options)) return kExitUsage;
+  const fs::path job = vm["job"].as<std::string>();
+  imr::plugin::PluginRegistry registry;
+  imr::pipeline::ValidatedJob v;
+  if (!LoadJob(job, &registry, &v)) return kExitUsage;
+  imr::batch::BatchOptions batch_check;
+  batch_check.executable = o.executable;
+  auto problems = imr::pipeline::CheckRunOptions(run_options, v);
+  for (auto& p : imr::batch::CheckBatch(v, batch_check)) problems.push_back(p);
+  if (!problems.empty()) {
+    for (const auto& p : problems) std::cerr << "imr submit: " << p << "\n";
+    return kExitUsage;
+  }
+  const auto r = imr::batch::Submit(v, registry, run_options, o);
+  auto join = [](const std::vector<std::string>& words) {
+    std::string s;
+    for (const auto& w : words) s += (s.empty() ? "" : " ") + imr::batch::ShellQuote(w);
+    return s;
+  };
+  std::printf("batch folder: %s\n", r.batch_directory.string().c_str());
+  std::printf("array script: %s (%d task%s over %zu sequences)\n", r.array_script.string().c_str(),
+              r.tasks, r.tasks == 1 ? "" : "s", v.sequences.size());
+  std::printf("reduce script: %s (imr report %s)\n", r.reduce_script.string().c_str(),
+              r.batch_directory.string().c_str());
+  if (o.dry_run) {
+    std::printf("dry run, nothing submitted; to submit:\n  %s\n  %s\n", join(r.array_command).c_str(),
+                join(r.reduce_command).c_str());
+  } else {
+    std::printf("submitted array job %s and reduce job %s (runs after the array ends)\n",
+                r.array_job_id.c_str(), r.reduce_job_id.c_str());
+    std::printf("logs: %s\n", r.log_directory.string().c_str());
+    std::printf("summary (when job %s has run): %s\n", r.reduce_job_id.c_str(),
+                (r.batch_directory / "summary.md").string().c_str());
+  }
+  return kExitOk;
+}
+
+int CmdReport(const std::vector<std::string>& args) {
+  po::options_description opts("imr report options");
+  opts.add_options()("dir", po::value<std::string>()->required(),
+                     "batch folder (RUN_DIR), or the job file whose batch folder it is");
+  po::positional_options_description pos;
+  pos.add("dir", 1);
+  po::variables_map vm;
+  int status = kExitOk;
+  const std::string synopsis =
+      "imr report RUN_DIR|JOB.json [-q]\n\n"
+      "Merges the per-sequence results of a batch folder (the part of the job's\n"
+      "output.directory before {sequence}) into RUN_DIR/summary.json and summary.md: every\n"
+      "sequence's status (its manifest and files are checked), frames, time, mesh size,\n"
+      "accuracy, and for failures the cause and last log lines. Needs no plugins.\n"
+      "Exit status: 0 every sequence ok; 1 one failed or did not run; that count + 1 when more\n"
+      "(at most 101); 2 not a batch folder or bad usage.";
+  if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
+  fs::path dir = vm["dir"].as<std::string>();
+  std::error_code ec;
+  if (fs::is_regular_file(dir, ec)) {
+    auto parsed = imr::io::ParseJobFile(dir);
+    if (!parsed.ok()) {
+      PrintProblems(dir, parsed.problems);
+      return kExitUsage;
+    }
+    dir = imr::batch::BatchDirectory(parsed.job);
+  }
+  nlohmann::json summary;
+  try {
+    summary = imr::batch::WriteSummary(dir, "imr report");
+  } catch (const std::exception& e) {
+    std::cerr << "imr report: " << e.what() << "\n";
+    return kExitUsage;
+  }
+  for (const auto& r : summary["sequences"]) {
+    const std::string st = r["status"].get<std::string>();
+    const std::string label = st == "ok" ? "ok" : st == "failed" ? "FAILED" : st;
+    std::printf("%-7s %-20s %s\n", label.c_str(), r["name"].get<std::string>().c_str(),
+                r["error"].is_string() ? r["error"].get<std::string>().c_str()
+                                       : r["output"].get<std::string>().c_str());
+  }
+  const auto& c = summary["counts"];
+  std::printf("%d sequences: %d ok, %d failed, %d not run\nsummary: %s\n",
+              c["sequences"].get<int>(), c["ok"].get<int>(), c["failed"].get<int>(),
+              c["not_run"].get<int>(), (dir / "summary.md").string().c_str());
+  return imr::batch::ExitStatusForFailures(c["failed"].get<int>() + c["not_run"].get<int>());
+}
+
+// The hidden per-sequence command of `imr run`'s child processes.
+int CmdRunSequence(const std::vector<std::string>& args) {
+  imr::batch::ChildArguments a;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& k = args[i];
+    const bool has_value = i + 1 < args.size();
+    if (k == "-v") a.verbose = true;
+    else if (k == "--job" && has_value) a.job = args[++i];
+    else if (k == "--sequence" && has_value) a.sequence = args[++i];
+    else if (k == "--parent-pid" && has_value) a.parent_pid = std::atoi(args[++i].c_str());
+    else if (k == "--export-stream" && has_value) a.run_options.export_stream = args[++i];
+    else if (k == "--export-colmap" && has_value) a.run_options.export_colmap = args[++i];
+    else {
+      std::cerr << "imr " << imr::batch::kChildCommand << ": unexpected argument '" << k
+                << "' (an internal command of imr run)\n";
+      return kExitUsage;
+    }
+  }
+  if (a.job.empty() || a.sequence.empty()) {
+    std::cerr << "imr " << imr::batch::kChildCommand << ": needs --job and --sequence\n";
+    return kExitUsage;
+  }
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  return imr::batch::RunSequenceChild(a);
 }
 
 int CmdPlugins(const std::vector<std::string>& args) {
@@ -335,6 +614,7 @@ int CmdEvaluate(const std::vector<std::string>& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  g_argv0 = argv[0];
   std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty()) {
     std::cerr << kUsage;
@@ -353,6 +633,9 @@ int main(int argc, char** argv) {
       return kExitOk;
     }
     if (cmd == "run") return CmdRun(args);
+    if (cmd == "submit") return CmdSubmit(args);
+    if (cmd == "report") return CmdReport(args);
+    if (cmd == imr::batch::kChildCommand) return CmdRunSequence(args);
     if (cmd == "validate") return CmdValidate(args);
     if (cmd == "plugins") return CmdPlugins(args);
     if (cmd == "evaluate") return CmdEvaluate(args);

@@ -18,6 +18,40 @@ namespace {
 
 bool HasGlobChars(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
 
+std::vector<std::string> Components(const std::string& path) {
+  std::vector<std::string> out;
+  for (std::size_t pos = 0; pos <= path.size();) {
+    const std::size_t slash = std::min(path.find('/', pos), path.size());
+    if (slash > pos) out.push_back(path.substr(pos, slash - pos));
+    pos = slash + 1;
+  }
+  return out;
+}
+
+// The name of a path given without wildcards: its last component ("data/00/" -> "00").
+std::string PathName(const std::string& path) {
+  const auto c = Components(path);
+  return c.empty() ? path : c.back();
+}
+
+// "data/00/" -> "data/00": sources are named the same however the folder was written.
+std::string StripSlash(std::string path) {
+  while (path.size() > 1 && path.back() == '/') path.pop_back();
+  return path;
+}
+
+// The name of a glob match: the parts the wildcards matched, joined by '-', so that
+// "seqs/*/sfm_data.json" names its matches after their folders ("seqs/dino/sfm_data.json" ->
+// "dino") and "seqs/*/" after themselves; "seqs/*.json" keeps the file name, as before.
+std::string GlobMatchName(const std::string& pattern, const std::string& match) {
+  const auto p = Components(pattern), m = Components(match);
+  if (p.size() != m.size()) return PathName(match);
+  std::string name;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (HasGlobChars(p[i])) name += (name.empty() ? "" : "-") + m[i];
+  return name.empty() ? PathName(match) : name;
+}
+
 void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
   const io::JobSpec& job = v->job;
   std::set<std::string> seen_names;
@@ -40,7 +74,7 @@ void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
       const int rc = ::glob(pattern.c_str(), 0, nullptr, &g);
       if (rc == 0)
         for (std::size_t k = 0; k < g.gl_pathc; ++k)
-          found.push_back({fs::path(g.gl_pathv[k]).filename().string(), g.gl_pathv[k]});
+          found.push_back({GlobMatchName(pattern, g.gl_pathv[k]), StripSlash(g.gl_pathv[k])});
       ::globfree(&g);
       if (found.empty()) v->problems.push_back({path, "pattern matches nothing: " + pattern});
       std::sort(found.begin(), found.end(),
@@ -52,7 +86,7 @@ void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
         v->problems.push_back({path, "no such file or folder: " + p.string()});
         continue;
       }
-      found.push_back({p.filename().string(), p.string()});
+      found.push_back({PathName(p.string()), StripSlash(p.string())});
     }
     for (auto& s : found) {
       if (!seen_names.insert(s.name).second) {
@@ -63,6 +97,13 @@ void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
       v->sequences.push_back(std::move(s));
     }
   }
+  // A pattern can stand for several sequences; the parser only saw one entry.
+  if (job.sequences.size() == 1 && v->sequences.size() > 1 &&
+      job.output.directory.find("{sequence}") == std::string::npos)
+    v->problems.push_back({"output.directory", "sequences[0] matches " +
+                                                   std::to_string(v->sequences.size()) +
+                                                   " sequences, which would share one folder: "
+                                                   "put {sequence} in the template"});
 }
 
 void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry& registry,

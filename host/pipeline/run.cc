@@ -175,13 +175,14 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
         std::snprintf(stem, sizeof(stem), "_kf%06d", keyframes);
         StagingDirectory dir(result->output_directory / "snapshots");
         ExportMesh(snap, job.output.formats, exporters, dir.path(), job.output.stem + stem);
-        dir.Commit();
+        for (auto& f : dir.Commit()) result->extra_files.push_back(std::move(f));
         snapshots.push_back({{"keyframe", keyframes}, {"frame", kf.frame},
                              {"stem", "snapshots/" + job.output.stem + stem},
                              {"faces", snap.faces.size() / 3}});
       }
       snapshot_seconds += Seconds(snap_start);
     }
+    if (options.progress) options.progress({keyframes, total_keyframes, kf.frame});
     if (keyframes % 20 == 0 || keyframes == total_keyframes)
       LogInfo("[" + seq.name + "] keyframe " + std::to_string(keyframes) + of_total);
   }
@@ -219,12 +220,13 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     if (p.has_parent_path()) fs::create_directories(p.parent_path());
     WriteFileAtomically(p, recorder->SlamJson());
     exports["stream"] = fs::absolute(p).string();
+    result->extra_files.push_back(p);
   }
   if (!options.export_colmap.empty()) {
     const fs::path p = ExpandExportPath(options.export_colmap, v, seq.name);
     StagingDirectory colmap(p);
     io::WriteColmapText(recorder->Colmap(), colmap.path());
-    colmap.Commit();
+    for (auto& f : colmap.Commit()) result->extra_files.push_back(std::move(f));
     exports["colmap"] = fs::absolute(p).string();
   }
 
@@ -304,6 +306,22 @@ fs::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& v, const 
   return fs::path(s);
 }
 
+SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
+                              const RunOptions& options, const SequenceRef& seq) {
+  SequenceResult r;
+  r.name = seq.name;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    RunSequence(v, registry, options, seq, &r);
+  } catch (const std::exception& e) {
+    r.ok = false;
+    r.error = e.what();
+    r.seconds = Seconds(start);
+    LogError("sequence " + seq.name + " failed: " + r.error);
+  }
+  return r;
+}
+
 BatchResult RunJob(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                    const RunOptions& options) {
   BatchResult batch;
@@ -311,18 +329,7 @@ BatchResult RunJob(const ValidatedJob& v, const plugin::PluginRegistry& registry
     const SequenceRef& seq = v.sequences[i];
     LogInfo("[" + std::to_string(i + 1) + "/" + std::to_string(v.sequences.size()) +
             "] sequence " + seq.name);
-    SequenceResult r;
-    r.name = seq.name;
-    const auto start = std::chrono::steady_clock::now();
-    try {
-      RunSequence(v, registry, options, seq, &r);
-    } catch (const std::exception& e) {
-      r.ok = false;
-      r.error = e.what();
-      r.seconds = Seconds(start);
-      LogError("sequence " + seq.name + " failed: " + r.error);
-    }
-    batch.sequences.push_back(std::move(r));
+    batch.sequences.push_back(RunOneSequence(v, registry, options, seq));
   }
   return batch;
 }

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,8 @@ struct SequenceResult {
   std::string error;                        // why it failed (names the file or field)
   std::filesystem::path output_directory;
   std::vector<std::filesystem::path> files;  // written outputs, report last
+  // Also written, before the mesh: snapshots and exports (for the sequence's manifest).
+  std::vector<std::filesystem::path> extra_files;
   double seconds = 0.0;
   nlohmann::json report;                    // the report written as report.json
 };
@@ -28,6 +31,13 @@ struct SequenceResult {
 struct BatchResult {
   std::vector<SequenceResult> sequences;
   int failed() const;
+};
+
+// Where a running sequence is, for progress displays.
+struct SequenceProgress {
+  int keyframes = 0;        // keyframes applied so far
+  int total_keyframes = -1; // -1: not known in advance
+  int frame = 0;            // frame number of the latest keyframe
 };
 
 // Extra outputs of `imr run`, beside each sequence's mesh and report.
@@ -40,6 +50,8 @@ struct RunOptions {
   // --export-colmap: a folder (same template) for the final points and their visibility as a
   // COLMAP text model (cameras.txt, images.txt, points3D.txt). Empty: not written.
   std::string export_colmap;
+  // Called after every keyframe (from the running thread); empty: not called.
+  std::function<void(const SequenceProgress&)> progress;
 };
 
 // Problems with `options` for this job, e.g. a fixed export path for a job with several
@@ -49,6 +61,12 @@ std::vector<std::string> CheckRunOptions(const RunOptions& options, const Valida
 std::filesystem::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& job,
                                        const std::string& sequence);
 
+// Runs one sequence in this process; never throws for a failing sequence (ok false, error set).
+SequenceResult RunOneSequence(const ValidatedJob& job, const plugin::PluginRegistry& registry,
+                              const RunOptions& options, const SequenceRef& seq);
+
+// Every sequence in turn, in this process (`imr run` isolates each in a child process instead:
+// host/batch).
 BatchResult RunJob(const ValidatedJob& job, const plugin::PluginRegistry& registry,
                    const RunOptions& options = {});
 

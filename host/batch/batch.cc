@@ -1,0 +1,492 @@
+#include "host/batch/batch.h"
+
+#include "host/batch/child.h"
+#include "host/batch/manifest.h"
+#include "host/batch/summary.h"
+#include "host/plugin/host_services.h"
+#include "host/util/log.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <set>
+
+namespace imr::batch {
+namespace fs = std::filesystem;
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string Hostname() {
+  char buf[256] = {};
+  return ::gethostname(buf, sizeof(buf) - 1) == 0 ? std::string(buf) : std::string("?");
+}
+
+// Names, one per line; blank lines and '#' comments ignored.
+std::vector<std::string> ReadNames(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": cannot read");
+  std::vector<std::string> names;
+  for (std::string line; std::getline(in, line);) {
+    const auto b = line.find_first_not_of(" \t\r");
+    const auto e = line.find_last_not_of(" \t\r");
+    if (b == std::string::npos || line[b] == '#') continue;
+    names.push_back(line.substr(b, e - b + 1));
+  }
+  return names;
+}
+
+// One child running one sequence.
+struct Running {
+  std::size_t index = 0;  // into the job's sequences
+  ChildProcess proc;
+  LineBuffer out, msg;
+  bool out_open = true, msg_open = true;
+  LogTail tail{20};
+  json result;
+  RunningSequence shown;
+  bool killed_for_memory = false;
+  uint64_t peak_rss = 0;
+  bool exited = false;
+  int wait_status = 0;
+};
+
+// Writes JSON lines to the parent, if there is one listening on fd 3.
+class MessageChannel {
+ public:
+  MessageChannel() : ok_(::fcntl(kChildMessageFd, F_GETFD) != -1) {}
+  void Send(const json& j) {
+    if (!ok_) return;
+    const std::string line = j.dump() + "\n";
+    for (std::size_t done = 0; done < line.size();) {
+      const ssize_t n = ::write(kChildMessageFd, line.data() + done, line.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        ok_ = false;  // the parent is gone; the run goes on, its files say how it ended
+        return;
+      }
+      done += static_cast<std::size_t>(n);
+    }
+  }
+
+ private:
+  bool ok_;
+};
+
+}  // namespace
+
+const char* ToString(SequenceStatus s) {
+  switch (s) {
+    case SequenceStatus::kOk: return "ok";
+    case SequenceStatus::kSkipped: return "skipped";
+    case SequenceStatus::kFailed: return "failed";
+    case SequenceStatus::kNotRun: return "not run";
+  }
+  return "?";
+}
+
+int BatchRunResult::Count(SequenceStatus s) const {
+  return static_cast<int>(std::count_if(outcomes.begin(), outcomes.end(),
+                                        [s](const SequenceOutcome& o) { return o.status == s; }));
+}
+
+int ExitStatusForFailures(int failed) {
+  if (failed <= 0) return 0;
+  if (failed == 1) return 1;
+  return std::min(failed + 1, 101);
+}
+
+std::string BatchOptions::Check() const {
+  if (jobs < 1 || jobs > 1024) return "--jobs must be in 1..1024, got " + std::to_string(jobs);
+  if (std::string e = shard.Check(); !e.empty()) return "--shard: " + e;
+  if (!(progress_interval > 0)) return "progress interval must be positive";
+  if (executable.empty()) return "no imr executable for the child processes";
+  return {};
+}
+
+std::vector<std::string> CheckBatch(const pipeline::ValidatedJob& v, const BatchOptions& o) {
+  std::vector<std::string> problems;
+  if (std::string e = o.Check(); !e.empty()) problems.push_back(e);
+  if (!o.sequences_from.empty()) {
+    try {
+      std::set<std::string> known;
+      for (const auto& s : v.sequences) known.insert(s.name);
+      for (const auto& n : ReadNames(o.sequences_from))
+        if (!known.count(n))
+          problems.push_back("--sequences-from " + o.sequences_from.string() + ": '" + n +
+                             "' is not a sequence of the job");
+    } catch (const std::exception& e) {
+      problems.push_back(std::string("--sequences-from: ") + e.what());
+    }
+  }
+  const fs::path reserved = BatchDirectory(v.job) / kBatchSubdir;
+  for (const auto& s : v.sequences) {
+    const fs::path out = fs::absolute(v.job.OutputDirectory(s.name)).lexically_normal();
+    const fs::path rel = out.lexically_relative(reserved);
+    if (!rel.empty() && *rel.begin() != "..")
+      problems.push_back("sequence '" + s.name + "': its output folder " + out.string() +
+                         " is inside the batch folder's own " + reserved.string());
+  }
+  return problems;
+}
+
+void RecordBatch(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& registry,
+                 const pipeline::RunOptions& run_options) {
+  BatchInfo info;
+  info.job_file = fs::absolute(v.job.file).lexically_normal();
+  info.job_name = v.job.Name();
+  info.output_stem = v.job.output.stem;
+  for (const auto& s : v.sequences)
+    info.sequences.push_back(
+        {s.name, s.source, fs::absolute(v.job.OutputDirectory(s.name)).lexically_normal(),
+         HashIdentity(JobIdentity(v, registry, run_options, s))});
+  WriteBatchInfo(BatchDirectory(v.job), info);
+}
+
+BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& registry,
+                        const pipeline::RunOptions& run_options, const BatchOptions& options) {
+  BatchRunResult result;
+  result.batch_directory = BatchDirectory(v.job);
+  const fs::path& batch_dir = result.batch_directory;
+  RecordBatch(v, registry, run_options);
+
+  // Which sequences: the frozen list, then this process's shard of it.
+  std::vector<std::size_t> candidates;
+  if (options.sequences_from.empty()) {
+    for (std::size_t i = 0; i < v.sequences.size(); ++i) candidates.push_back(i);
+  } else {
+    std::set<std::string> listed;
+    for (const auto& n : ReadNames(options.sequences_from)) listed.insert(n);
+    for (std::size_t i = 0; i < v.sequences.size(); ++i)
+      if (listed.count(v.sequences[i].name)) candidates.push_back(i);
+  }
+  std::vector<std::string> names;
+  for (std::size_t i : candidates) names.push_back(v.sequences[i].name);
+  std::vector<std::size_t> selected;
+  for (std::size_t k : SelectShard(names, options.shard)) selected.push_back(candidates[k]);
+  if (options.shard.active())
+    LogInfo("shard " + options.shard.ToString() +
+            (options.shard_origin.empty() ? "" : " (" + options.shard_origin + ")") + ": " +
+            std::to_string(selected.size()) + " of " + std::to_string(candidates.size()) +
+            " sequences");
+
+  ProgressDisplay display(options.progress, options.progress_interval);
+  auto say = [&](LogLevel level, const std::string& m) {
+    if (level != LogLevel::kError && static_cast<int>(level) < static_cast<int>(GetLogLevel())) return;
+    display.Clear();
+    Log(level, m);
+  };
+
+  BatchProgress shown;
+  shown.total = static_cast<int>(selected.size());
+  std::map<std::size_t, SequenceOutcome> outcomes;
+  std::vector<std::unique_ptr<Running>> running;
+  std::size_t next = 0;
+  bool cancelled = false;
+  const std::string host = Hostname();
+
+  auto record = [&](const SequenceOutcome& o) {
+    StatusRecord r;
+    r.sequence = o.name;
+    r.status = ToString(o.status);
+    r.seconds = o.seconds;
+    r.error = o.detail;
+    r.exit_code = o.exit_code;
+    r.signal = o.signal != 0 ? SignalName(o.signal) : "";
+    r.log_tail = o.log_tail;
+    r.host = host;
+    r.finished_at = UtcNow();
+    try {
+      WriteStatusRecord(batch_dir, r);
+    } catch (const std::exception& e) {
+      say(LogLevel::kError, std::string("cannot record the outcome of ") + o.name + ": " + e.what());
+    }
+  };
+
+  auto start_next = [&]() {
+    const std::size_t index = selected[next++];
+    const pipeline::SequenceRef& seq = v.sequences[index];
+    SequenceOutcome o;
+    o.name = seq.name;
+    o.output_directory = v.job.OutputDirectory(seq.name);
+    const std::string hash = HashIdentity(JobIdentity(v, registry, run_options, seq));
+    const std::string position = "[" + std::to_string(next) + "/" + std::to_string(selected.size()) + "] ";
+    if (!options.force) {
+      const ManifestCheck check = CheckManifest(o.output_directory, hash,
+                                                JobIdentity(v, registry, run_options, seq));
+      if (check.up_to_date) {
+        o.status = SequenceStatus::kSkipped;
+        o.detail = "up to date (" + check.reason + ")";
+        say(LogLevel::kInfo, position + seq.name + ": skipped, " + o.detail);
+        record(o);
+        ++shown.done;
+        ++shown.skipped;
+        outcomes[index] = o;
+        return;
+      }
+      o.detail = check.reason;
+    } else {
+      o.detail = "--force";
+    }
+    say(LogLevel::kInfo, position + seq.name + ": running (" + o.detail + ")");
+    RemoveStatusRecord(batch_dir, seq.name);
+    std::vector<std::string> argv = {options.executable, kChildCommand,
+                                     "--job", fs::absolute(v.job.file).string(),
+                                     "--sequence", seq.name,
+                                     "--parent-pid", std::to_string(::getpid())};
+    if (!run_options.export_stream.empty()) {
+      argv.push_back("--export-stream");
+      argv.push_back(run_options.export_stream);
+    }
+    if (!run_options.export_colmap.empty()) {
+      argv.push_back("--export-colmap");
+      argv.push_back(run_options.export_colmap);
+    }
+    if (options.verbose) argv.push_back("-v");
+    auto r = std::make_unique<Running>();
+    r->index = index;
+    r->shown = {seq.name, {}, Clock::now()};
+    try {
+      r->proc = SpawnChild(argv);
+    } catch (const std::exception& e) {
+      o.status = SequenceStatus::kFailed;
+      o.detail = e.what();
+      record(o);
+      ++shown.done;
+      ++shown.failed;
+      outcomes[index] = o;
+      return;
+    }
+    outcomes[index] = o;
+    running.push_back(std::move(r));
+  };
+
+  auto handle_output = [&](Running& r, const std::string& line) {
+    r.tail.Add(line);
+    const std::string& name = v.sequences[r.index].name;
+    const std::string shown_line =
+        line.find("[" + name + "]") != std::string::npos ? line : "[" + name + "] " + line;
+    if (options.verbose)
+      say(LogLevel::kInfo, shown_line);
+    else if (line.rfind("warning: ", 0) == 0)
+      say(LogLevel::kWarning, "[" + name + "] " + line.substr(9));
+  };
+
+  auto handle_message = [&](Running& r, const std::string& line) {
+    try {
+      const json m = json::parse(line);
+      if (m.contains("progress")) {
+        const json& p = m["progress"];
+        r.shown.progress = {p.at(0).get<int>(), p.at(1).get<int>(), p.at(2).get<int>()};
+      } else if (m.contains("result")) {
+        r.result = m["result"];
+      }
+    } catch (const std::exception&) {
+      r.tail.Add("(unreadable message from the child: " + line + ")");
+    }
+  };
+
+  auto drain = [&](Running& r, bool to_end) {
+    std::string line;
+    if (r.out_open) {
+      r.out_open = ReadAvailable(r.proc.output_fd, &r.out);
+      while (r.out.Next(&line, to_end || !r.out_open)) handle_output(r, line);
+    }
+    if (r.msg_open) {
+      r.msg_open = ReadAvailable(r.proc.message_fd, &r.msg);
+      while (r.msg.Next(&line, to_end || !r.msg_open)) handle_message(r, line);
+    }
+  };
+
+  auto finish = [&](Running& r) {
+    drain(r, true);
+    ::close(r.proc.output_fd);
+    ::close(r.proc.message_fd);
+    SequenceOutcome& o = outcomes[r.index];
+    o.seconds = Since(r.shown.started);
+    o.peak_rss = r.peak_rss;
+    const int st = r.wait_status;
+    const bool result_ok = r.result.is_object() && r.result.value("ok", false);
+    if (WIFEXITED(st) && WEXITSTATUS(st) == 0 && result_ok) {
+      o.status = SequenceStatus::kOk;
+      o.detail.clear();
+    } else {
+      o.status = SequenceStatus::kFailed;
+      o.log_tail = r.tail.Lines();
+      if (WIFEXITED(st)) {
+        o.exit_code = WEXITSTATUS(st);
+        o.detail = r.result.is_object() && r.result.contains("error")
+                       ? r.result["error"].get<std::string>()
+                       : "the sequence's process exited with status " + std::to_string(o.exit_code) +
+                             " without a result";
+      } else if (WIFSIGNALED(st)) {
+        o.signal = WTERMSIG(st);
+        if (r.killed_for_memory)
+          o.detail = "killed: resident memory reached " + FormatBytes(r.peak_rss) +
+                     ", over --max-rss " + FormatBytes(options.max_rss);
+        else if (cancelled)
+          o.detail = "cancelled (" + DescribeSignal(o.signal) + ")";
+        else
+          o.detail = "crashed: " + DescribeSignal(o.signal);
+        if (!o.log_tail.empty() && !r.killed_for_memory)
+          o.detail += "; last log line: " + o.log_tail.back();
+      }
+    }
+    record(o);
+    ++shown.done;
+    if (o.status == SequenceStatus::kFailed) {
+      ++shown.failed;
+      say(LogLevel::kError, o.name + " failed: " + o.detail);
+    } else {
+      say(LogLevel::kInfo, o.name + ": done in " + FormatDuration(o.seconds));
+    }
+  };
+
+  display.Update(shown, true);
+  for (;;) {
+    if (!cancelled && plugin::CancelRequested()) {
+      cancelled = true;
+      say(LogLevel::kWarning, "cancelled: no more sequences start; stopping the running ones");
+      for (auto& r : running) ::kill(r->proc.pid, SIGTERM);
+    }
+    while (!cancelled && running.size() < static_cast<std::size_t>(options.jobs) &&
+           next < selected.size())
+      start_next();
+    if (running.empty() && (cancelled || next >= selected.size())) break;
+
+    std::vector<pollfd> fds;
+    for (auto& r : running) {
+      if (r->out_open) fds.push_back({r->proc.output_fd, POLLIN, 0});
+      if (r->msg_open) fds.push_back({r->proc.message_fd, POLLIN, 0});
+    }
+    ::poll(fds.data(), fds.size(), 100);
+    for (auto& r : running) drain(*r, false);
+
+    for (auto it = running.begin(); it != running.end();) {
+      Running& r = **it;
+      const pid_t w = ::waitpid(r.proc.pid, &r.wait_status, WNOHANG);
+      if (w == r.proc.pid) {
+        finish(r);
+        it = running.erase(it);
+        continue;
+      }
+      if (options.max_rss > 0) {
+        if (auto rss = ResidentBytes(r.proc.pid)) {
+          r.peak_rss = std::max(r.peak_rss, *rss);
+          if (*rss > options.max_rss && !r.killed_for_memory) {
+            r.killed_for_memory = true;
+            ::kill(r.proc.pid, SIGKILL);
+          }
+        }
+      }
+      ++it;
+    }
+    shown.running.clear();
+    for (auto& r : running) shown.running.push_back(r->shown);
+    display.Update(shown);
+  }
+  shown.running.clear();
+  display.Update(shown, true);
+  display.Clear();
+
+  for (std::size_t i : selected) {
+    auto it = outcomes.find(i);
+    if (it != outcomes.end()) {
+      result.outcomes.push_back(it->second);
+    } else {
+      SequenceOutcome o;
+      o.name = v.sequences[i].name;
+      o.output_directory = v.job.OutputDirectory(o.name);
+      o.detail = "not started (cancelled)";
+      result.outcomes.push_back(o);
+    }
+  }
+  if (!options.shard.active()) {
+    try {
+      WriteSummary(batch_dir, "imr run");
+      result.summary_written = true;
+    } catch (const std::exception& e) {
+      LogError(std::string("cannot write the batch summary: ") + e.what());
+    }
+  }
+  return result;
+}
+
+int RunSequenceChild(const ChildArguments& args) {
+  if (args.parent_pid > 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != args.parent_pid) return 1;  // the batch died before prctl
+  }
+  SetLogLevel(args.verbose ? LogLevel::kDebug : LogLevel::kInfo);
+  MessageChannel channel;
+  auto fail = [&](const std::string& error) {
+    LogError("sequence " + args.sequence + " failed: " + error);
+    channel.Send({{"result", {{"ok", false}, {"error", error}}}});
+    return 1;
+  };
+  // The batch already logged the plugin scan's warnings; once is enough.
+  SetLogLevel(LogLevel::kError);
+  plugin::PluginRegistry registry;
+  const pipeline::ValidatedJob v = pipeline::LoadAndValidateJob(args.job, &registry);
+  SetLogLevel(args.verbose ? LogLevel::kDebug : LogLevel::kInfo);
+  if (!v.ok()) return fail(args.job.string() + " is no longer valid: " + v.problems[0].ToString());
+  const auto seq = std::find_if(v.sequences.begin(), v.sequences.end(),
+                                [&](const pipeline::SequenceRef& s) { return s.name == args.sequence; });
+  if (seq == v.sequences.end()) return fail("the job has no sequence '" + args.sequence + "' any more");
+
+  const fs::path output = v.job.OutputDirectory(seq->name);
+  const json identity = JobIdentity(v, registry, args.run_options, *seq);
+  // Redoing: the old manifest goes first (its files are being replaced), with what a killed run
+  // left behind. Its file list is kept to remove files this run no longer writes.
+  std::string error;
+  const std::optional<Manifest> old = ReadManifest(output, &error);
+  std::error_code ec;
+  fs::remove(output / kManifestFile, ec);
+  if (const int n = RemoveLeftovers(output); n > 0)
+    LogInfo("[" + seq->name + "] removed " + std::to_string(n) + " leftover(s) of an interrupted run");
+
+  pipeline::RunOptions run_options = args.run_options;
+  auto last = Clock::now() - std::chrono::seconds(1);
+  run_options.progress = [&](const pipeline::SequenceProgress& p) {
+    // At most 10 messages a second, and always the last keyframe.
+    if (p.keyframes != p.total_keyframes && Since(last) < 0.1) return;
+    last = Clock::now();
+    channel.Send({{"progress", {p.keyframes, p.total_keyframes, p.frame}}});
+  };
+  const pipeline::SequenceResult r = pipeline::RunOneSequence(v, registry, run_options, *seq);
+  if (!r.ok) {
+    channel.Send({{"result", {{"ok", false}, {"error", r.error}}}});
+    return 1;
+  }
+  try {
+    std::vector<fs::path> files = r.extra_files;
+    files.insert(files.end(), r.files.begin(), r.files.end());
+    const Manifest m = MakeManifest(seq->name, identity, files, output);
+    WriteManifest(m, output);
+    if (old) {
+      std::set<std::string> kept;
+      for (const auto& e : m.files) kept.insert(e.path);
+      for (const auto& e : old->files)
+        if (!kept.count(e.path) && !fs::path(e.path).is_absolute()) fs::remove(output / e.path, ec);
+    }
+  } catch (const std::exception& e) {
+    return fail(std::string("cannot write the manifest: ") + e.what());
+  }
+  channel.Send({{"result", {{"ok", true}, {"seconds", r.seconds}}}});
+  return 0;
+}
+
+}  // namespace imr::batch

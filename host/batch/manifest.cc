@@ -1,0 +1,152 @@
+#include "host/batch/manifest.h"
+
+#include "host/batch/sha256.h"
+#include "host/io/engine_options.h"
+#include "host/util/atomic_file.h"
+
+#include <fstream>
+#include <sstream>
+
+namespace imr::batch {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+json JobIdentity(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& registry,
+                 const pipeline::RunOptions& options, const pipeline::SequenceRef& seq) {
+  const io::JobSpec& job = v.job;
+  json stages = json::array();
+  for (std::size_t i = 0; i < job.pipeline.size(); ++i) {
+    const io::StageSpec& s = job.pipeline[i];
+    const plugin::PluginInfo* info = registry.Find(s.plugin);
+    stages.push_back({{"kind", s.kind},
+                      {"plugin", s.plugin},
+                      {"version", info != nullptr ? info->version() : std::string("?")},
+                      {"params", i < v.stage_params.size() ? v.stage_params[i] : s.params}});
+  }
+  json exports = json::object();
+  if (!options.export_stream.empty())
+    exports["stream"] = fs::absolute(pipeline::ExpandExportPath(options.export_stream, v, seq.name)).string();
+  if (!options.export_colmap.empty())
+    exports["colmap"] = fs::absolute(pipeline::ExpandExportPath(options.export_colmap, v, seq.name)).string();
+  // nlohmann's objects keep keys sorted, so dump() is canonical.
+  return {{"imr", pipeline::Version()},
+          {"sequence", {{"name", seq.name}, {"source", seq.source}}},
+          {"input", {{"format", job.input.format}, {"options", v.input_options}}},
+          {"engine", io::EngineOptionsToJson(v.engine_options)},
+          {"pipeline", stages},
+          {"output", {{"stem", job.output.stem},
+                      {"formats", job.output.formats},
+                      {"snapshot_every", job.output.snapshot_every}}},
+          {"exports", exports}};
+}
+
+std::string HashIdentity(const json& identity) { return Sha256Hex(identity.dump()); }
+
+fs::path EntryPath(const ManifestEntry& e, const fs::path& output_directory) {
+  const fs::path p(e.path);
+  return p.is_absolute() ? p : output_directory / p;
+}
+
+Manifest MakeManifest(const std::string& sequence, const json& identity,
+                      const std::vector<fs::path>& files, const fs::path& output_directory) {
+  Manifest m;
+  m.sequence = sequence;
+  m.job_identity = identity;
+  m.job_hash = HashIdentity(identity);
+  const fs::path base = fs::absolute(output_directory).lexically_normal();
+  for (const fs::path& f : files) {
+    const fs::path abs = fs::absolute(f).lexically_normal();
+    const fs::path rel = abs.lexically_relative(base);
+    ManifestEntry e;
+    const bool inside = !rel.empty() && *rel.begin() != "..";
+    e.path = inside ? rel.string() : abs.string();
+    std::error_code ec;
+    e.bytes = fs::file_size(abs, ec);
+    if (ec) throw std::runtime_error(abs.string() + ": " + ec.message());
+    e.sha256 = Sha256File(abs);
+    m.files.push_back(std::move(e));
+  }
+  return m;
+}
+
+void WriteManifest(const Manifest& m, const fs::path& output_directory) {
+  json files = json::array();
+  for (const auto& e : m.files)
+    files.push_back({{"path", e.path}, {"bytes", e.bytes}, {"sha256", e.sha256}});
+  const json j = {{"imr_manifest", 1},
+                  {"sequence", m.sequence},
+                  {"job_hash", m.job_hash},
+                  {"job_identity", m.job_identity},
+                  {"files", files}};
+  WriteFileAtomically(output_directory / kManifestFile, j.dump(2) + "\n");
+}
+
+std::optional<Manifest> ReadManifest(const fs::path& output_directory, std::string* error) {
+  const fs::path p = output_directory / kManifestFile;
+  std::error_code ec;
+  if (!fs::exists(p, ec)) return std::nullopt;
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  try {
+    const json j = json::parse(ss.str());
+    Manifest m;
+    m.sequence = j.at("sequence").get<std::string>();
+    m.job_hash = j.at("job_hash").get<std::string>();
+    m.job_identity = j.value("job_identity", json());
+    for (const json& f : j.at("files"))
+      m.files.push_back({f.at("path").get<std::string>(), f.at("bytes").get<uint64_t>(),
+                         f.at("sha256").get<std::string>()});
+    return m;
+  } catch (const std::exception& e) {
+    *error = p.string() + ": unreadable manifest: " + e.what();
+    return std::nullopt;
+  }
+}
+
+ManifestCheck CheckManifest(const fs::path& output_directory, const std::string& job_hash,
+                            const json& identity) {
+  std::string error;
+  const std::optional<Manifest> m = ReadManifest(output_directory, &error);
+  if (!m) return {false, error.empty() ? "no manifest: not finished by an earlier run" : error};
+  if (m->job_hash != job_hash) {
+    // Name the parts of the job that changed, when both identities are known.
+    std::string what;
+    if (identity.is_object() && m->job_identity.is_object())
+      for (const auto& [key, value] : identity.items())
+        if (!m->job_identity.contains(key) || m->job_identity[key] != value)
+          what += (what.empty() ? "" : ", ") + key;
+    return {false, "the job changed since the last run" + (what.empty() ? "" : " (" + what + ")")};
+  }
+  for (const ManifestEntry& e : m->files) {
+    const fs::path p = EntryPath(e, output_directory);
+    std::error_code ec;
+    const uint64_t size = fs::file_size(p, ec);
+    if (ec) return {false, e.path + " is missing"};
+    if (size != e.bytes || Sha256File(p) != e.sha256)
+      return {false, e.path + " changed since it was written (checksum)"};
+  }
+  return {true, "manifest matches"};
+}
+
+int RemoveLeftovers(const fs::path& output_directory) {
+  int removed = 0;
+  for (const fs::path& dir : {output_directory, output_directory / "snapshots"}) {
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) continue;
+    std::vector<fs::path> doomed;
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind(".imr-staging-", 0) == 0 ||
+          (name.size() > 1 && name[0] == '.' && name.find(".tmp-") != std::string::npos))
+        doomed.push_back(e.path());
+    }
+    for (const auto& p : doomed) {
+      fs::remove_all(p, ec);
+      if (!ec) ++removed;
+    }
+  }
+  return removed;
+}
+
+}  // namespace imr::batch

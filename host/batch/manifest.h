@@ -1,0 +1,71 @@
+// Per-sequence manifests: what makes a finished sequence "finished". After a sequence's outputs
+// and report.json are in place, manifest.json is written last (atomically) with every file the
+// run wrote, its size and SHA-256, and the job identity it was made from: imr's version, the
+// input format and options, the sequence's source, engine options, every stage's plugin id,
+// version and params (defaults filled in), the output stem/formats and export paths. A re-run
+// skips a sequence only when the identity's hash matches and every file still matches.
+#pragma once
+
+#include "host/pipeline/run.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace imr::batch {
+
+inline constexpr const char* kManifestFile = "manifest.json";
+
+struct ManifestEntry {
+  std::string path;    // relative to the sequence's output folder, or absolute when outside it
+  uint64_t bytes = 0;
+  std::string sha256;  // hex
+};
+
+struct Manifest {
+  std::string sequence;
+  std::string job_hash;      // SHA-256 of job_identity.dump()
+  nlohmann::json job_identity;  // what the hash covers, kept to say what changed
+  std::vector<ManifestEntry> files;
+};
+
+// The identity of one sequence's run (see the file comment) and its hash.
+nlohmann::json JobIdentity(const pipeline::ValidatedJob& job, const plugin::PluginRegistry& registry,
+                           const pipeline::RunOptions& options, const pipeline::SequenceRef& seq);
+std::string HashIdentity(const nlohmann::json& identity);
+
+// Hashes `files` (absolute paths) into a manifest for `output_directory`. Throws naming a file
+// that cannot be read.
+Manifest MakeManifest(const std::string& sequence, const nlohmann::json& identity,
+                      const std::vector<std::filesystem::path>& files,
+                      const std::filesystem::path& output_directory);
+void WriteManifest(const Manifest& m, const std::filesystem::path& output_directory);
+// nullopt when there is none; `error` set when it exists but cannot be read or parsed.
+std::optional<Manifest> ReadManifest(const std::filesystem::path& output_directory,
+                                     std::string* error);
+
+struct ManifestCheck {
+  bool up_to_date = false;
+  std::string reason;  // why not (or "manifest matches"), for logs and the summary
+};
+
+// Whether the outputs in `output_directory` are those of a finished run with `job_hash`: the
+// manifest exists and parses, its hash matches, and every file it lists exists with the same
+// size and SHA-256. `identity`, when given, lets the reason name what changed in the job.
+ManifestCheck CheckManifest(const std::filesystem::path& output_directory,
+                            const std::string& job_hash,
+                            const nlohmann::json& identity = nullptr);
+
+// The absolute path of a manifest entry.
+std::filesystem::path EntryPath(const ManifestEntry& e, const std::filesystem::path& output_directory);
+
+// Removes what a killed run may leave in an output folder (and its snapshots/): staging folders
+// (.imr-staging-*) and temporaries of atomic writes (.<name>.tmp-*). Never a file under a final
+// name. Returns the number of entries removed.
+int RemoveLeftovers(const std::filesystem::path& output_directory);
+
+}  // namespace imr::batch

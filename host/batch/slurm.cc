@@ -1,0 +1,147 @@
+#include "host/batch/slurm.h"
+
+#include "host/batch/batch.h"
+#include "host/batch/child.h"
+#include "host/batch/summary.h"
+#include "host/util/atomic_file.h"
+
+#include <sys/stat.h>
+
+#include <sstream>
+
+namespace imr::batch {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string Join(const std::vector<std::string>& words) {
+  std::string s;
+  for (const auto& w : words) s += (s.empty() ? "" : " ") + ShellQuote(w);
+  return s;
+}
+
+// "Submitted batch job 123" with --parsable is "123" or "123;cluster".
+std::string ParseJobId(const std::string& out) {
+  std::string id = out.substr(0, out.find_first_of(";\n"));
+  if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos)
+    throw std::runtime_error("sbatch printed no job id: '" + out + "'");
+  return id;
+}
+
+std::string SubmitScript(const SubmitOptions& o, const std::vector<std::string>& command) {
+  std::string out, err;
+  const int status = RunAndCapture(command, &out, &err);
+  if (status != 0)
+    throw std::runtime_error(Join(command) + " failed (status " + std::to_string(status) + "): " +
+                             (err.empty() ? out : err));
+  (void)o;
+  return ParseJobId(out);
+}
+
+}  // namespace
+
+std::string SubmitOptions::Check() const {
+  if (tasks < 1) return "--tasks must be at least 1, got " + std::to_string(tasks);
+  if (cpus_per_task < 1) return "--cpus-per-task must be at least 1";
+  if (jobs < 0) return "--jobs must be at least 1";
+  if (executable.empty()) return "no imr executable for the tasks";
+  return {};
+}
+
+SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& registry,
+                    const pipeline::RunOptions& run_options, const SubmitOptions& o) {
+  SubmitResult r;
+  r.batch_directory = BatchDirectory(v.job);
+  const fs::path batch = r.batch_directory / kBatchSubdir;
+  const fs::path slurm = batch / "slurm";
+  r.log_directory = slurm / "logs";
+  EnsureWritableDirectory(r.log_directory);
+  RecordBatch(v, registry, run_options);
+
+  // The frozen list: tasks that start hours apart shard the same set.
+  std::string list = "# the sequences of " + fs::absolute(v.job.file).string() +
+                     " when `imr submit` ran; the array tasks shard this list\n";
+  for (const auto& s : v.sequences) list += s.name + "\n";
+  const fs::path list_file = batch / "sequences.txt";
+  WriteFileAtomically(list_file, list);
+
+  r.tasks = std::min<int>(o.tasks, static_cast<int>(v.sequences.size()));
+  const std::string job_file = fs::absolute(v.job.file).lexically_normal().string();
+  const std::string name = "imr-" + v.job.Name();
+  const int jobs = o.jobs > 0 ? o.jobs : o.cpus_per_task;
+
+  std::vector<std::string> run = {o.executable, "run", job_file, "--sequences-from",
+                                  list_file.string(), "--jobs", std::to_string(jobs)};
+  if (o.max_rss > 0) {
+    run.push_back("--max-rss");
+    run.push_back(std::to_string(o.max_rss));
+  }
+  if (o.force) run.push_back("--force");
+  if (!run_options.export_stream.empty()) {
+    run.push_back("--export-stream");
+    run.push_back(run_options.export_stream);
+  }
+  if (!run_options.export_colmap.empty()) {
+    run.push_back("--export-colmap");
+    run.push_back(run_options.export_colmap);
+  }
+
+  auto common = [&](std::ostringstream& s) {
+    if (!o.partition.empty()) s << "#SBATCH --partition=" << o.partition << "\n";
+    if (!o.account.empty()) s << "#SBATCH --account=" << o.account << "\n";
+    if (!o.qos.empty()) s << "#SBATCH --qos=" << o.qos << "\n";
+  };
+  const std::string cwd = fs::current_path().string();
+  std::ostringstream a;
+  a << "#!/bin/bash\n"
+    << "# imr array job, written by `imr submit` (imr " << pipeline::Version() << ") at "
+    << UtcNow() << ".\n"
+    << "# Job " << job_file << ": " << v.sequences.size() << " sequences in " << r.tasks
+    << " tasks. Each task runs `imr run` on its\n"
+    << "# share of " << list_file.string() << " (its shard comes from SLURM_ARRAY_TASK_ID,\n"
+    << "# SLURM_ARRAY_TASK_COUNT and SLURM_ARRAY_TASK_MIN); each sequence runs in a child process.\n"
+    << "# Submitting this script again redoes only what is not finished: sequences whose\n"
+    << "# manifest matches are skipped. Then run `imr report " << r.batch_directory.string()
+    << "`.\n"
+    << "#SBATCH --job-name=" << name << "\n"
+    << "#SBATCH --array=0-" << (r.tasks - 1) << "\n"
+    << "#SBATCH --output=" << (r.log_directory / "array-%A_%a.out").string() << "\n"
+    << "#SBATCH --cpus-per-task=" << o.cpus_per_task << "\n";
+  common(a);
+  if (!o.time.empty()) a << "#SBATCH --time=" << o.time << "\n";
+  if (!o.mem.empty()) a << "#SBATCH --mem=" << o.mem << "\n";
+  for (const auto& extra : o.sbatch_args) a << "#SBATCH " << extra << "\n";
+  a << "set -eu\n"
+    << "cd " << ShellQuote(cwd) << "  # where imr submit ran: relative export paths resolve here\n"
+    << "exec " << Join(run) << "\n";
+  r.array_script = slurm / "array.sbatch";
+  WriteFileAtomically(r.array_script, a.str());
+  ::chmod(r.array_script.c_str(), 0755);
+
+  std::ostringstream b;
+  b << "#!/bin/bash\n"
+    << "# imr reduce job, written by `imr submit`: after every task of the array has ended (however\n"
+    << "# it ended), merge the sequences' reports into " << (r.batch_directory / "summary.md").string()
+    << "\n# and summary.json. Its exit status tells how many sequences failed or did not run.\n"
+    << "#SBATCH --job-name=" << name << "-report\n"
+    << "#SBATCH --output=" << (r.log_directory / "report-%j.out").string() << "\n"
+    << "#SBATCH --cpus-per-task=1\n";
+  common(b);
+  if (!o.time.empty()) b << "#SBATCH --time=" << o.time << "\n";
+  b << "set -eu\n"
+    << "exec " << Join({o.executable, "report", r.batch_directory.string()}) << "\n";
+  r.reduce_script = slurm / "report.sbatch";
+  WriteFileAtomically(r.reduce_script, b.str());
+  ::chmod(r.reduce_script.c_str(), 0755);
+
+  r.array_command = {o.sbatch, "--parsable", r.array_script.string()};
+  r.reduce_command = {o.sbatch, "--parsable", "--dependency=afterany:<array job id>",
+                      r.reduce_script.string()};
+  if (o.dry_run) return r;
+  r.array_job_id = SubmitScript(o, r.array_command);
+  r.reduce_command[2] = "--dependency=afterany:" + r.array_job_id;
+  r.reduce_job_id = SubmitScript(o, r.reduce_command);
+  return r;
+}
+
+}  // namespace imr::batch

@@ -1,0 +1,293 @@
+#include "host/batch/summary.h"
+
+#include "host/batch/manifest.h"
+#include "host/util/atomic_file.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <ctime>
+#include <fstream>
+#include <sstream>
+
+namespace imr::batch {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+json ReadJson(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw std::runtime_error(p.string() + ": cannot read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  try {
+    return json::parse(ss.str());
+  } catch (const json::exception& e) {
+    throw std::runtime_error(p.string() + ": malformed JSON: " + e.what());
+  }
+}
+
+fs::path StatusPath(const fs::path& batch_dir, const std::string& sequence) {
+  return batch_dir / kBatchSubdir / "status" / (sequence + ".json");
+}
+
+json OrNull(const json& j, const json::json_pointer& p) {
+  return j.contains(p) ? j.at(p) : json();
+}
+
+// Markdown table cells: no pipes or line breaks.
+std::string Cell(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = ' ';
+  std::string out;
+  for (char c : s) out += c == '|' ? std::string("\\|") : std::string(1, c);
+  return out;
+}
+
+std::string Number(const json& v, const char* format) {
+  if (!v.is_number()) return "";
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, v.get<double>());
+  return buf;
+}
+
+std::string Bytes(uint64_t b) {
+  char buf[32];
+  if (b >= (1u << 20))
+    std::snprintf(buf, sizeof(buf), "%.1f MiB", static_cast<double>(b) / (1 << 20));
+  else
+    std::snprintf(buf, sizeof(buf), "%.0f KiB", static_cast<double>(b) / 1024);
+  return buf;
+}
+
+}  // namespace
+
+std::string UtcNow() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  ::gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+fs::path BatchDirectory(const io::JobSpec& job) {
+  const fs::path tmpl(job.output.directory);
+  fs::path prefix;
+  bool has_sequence = false;
+  for (const fs::path& c : tmpl) {
+    if (c.string().find("{sequence}") != std::string::npos) {
+      has_sequence = true;
+      break;
+    }
+    prefix /= c;
+  }
+  fs::path dir = job.OutputDirectory("");  // no {sequence}: the one output folder
+  if (has_sequence) {
+    std::string s = prefix.string();
+    for (std::size_t pos; (pos = s.find("{job}")) != std::string::npos;) s.replace(pos, 5, job.Name());
+    dir = job.Resolve(s.empty() ? "." : s);
+  }
+  dir = dir.lexically_normal();
+  if (dir.has_relative_path() && dir.filename().empty()) dir = dir.parent_path();
+  return fs::absolute(dir);
+}
+
+void WriteBatchInfo(const fs::path& batch_dir, const BatchInfo& info) {
+  json seqs = json::array();
+  for (const auto& s : info.sequences)
+    seqs.push_back({{"name", s.name}, {"source", s.source}, {"output", s.output.string()},
+                    {"job_hash", s.job_hash}});
+  const json j = {{"imr_batch", 1},
+                  {"job", info.job_file.string()},
+                  {"job_name", info.job_name},
+                  {"output_stem", info.output_stem},
+                  {"sequences", seqs}};
+  EnsureWritableDirectory(batch_dir / kBatchSubdir);
+  // No timestamps: concurrent array tasks write the same bytes.
+  WriteFileAtomically(batch_dir / kBatchSubdir / "batch.json", j.dump(2) + "\n");
+}
+
+BatchInfo ReadBatchInfo(const fs::path& batch_dir) {
+  const fs::path p = batch_dir / kBatchSubdir / "batch.json";
+  std::error_code ec;
+  if (!fs::exists(p, ec))
+    throw std::runtime_error(p.string() + ": not found: " + batch_dir.string() +
+                             " is not a batch folder of imr run or imr submit");
+  const json j = ReadJson(p);
+  BatchInfo info;
+  try {
+    info.job_file = j.at("job").get<std::string>();
+    info.job_name = j.at("job_name").get<std::string>();
+    info.output_stem = j.value("output_stem", "mesh");
+    for (const json& s : j.at("sequences"))
+      info.sequences.push_back({s.at("name").get<std::string>(), s.at("source").get<std::string>(),
+                                s.at("output").get<std::string>(),
+                                s.at("job_hash").get<std::string>()});
+  } catch (const json::exception& e) {
+    throw std::runtime_error(p.string() + ": " + e.what());
+  }
+  return info;
+}
+
+void WriteStatusRecord(const fs::path& batch_dir, const StatusRecord& r) {
+  json j = {{"sequence", r.sequence}, {"status", r.status}, {"seconds", r.seconds},
+            {"host", r.host},         {"finished_at", r.finished_at}};
+  if (r.status == "failed") {
+    j["error"] = r.error;
+    j["exit_code"] = r.exit_code >= 0 ? json(r.exit_code) : json();
+    j["signal"] = r.signal.empty() ? json() : json(r.signal);
+    j["log_tail"] = r.log_tail;
+  }
+  EnsureWritableDirectory(StatusPath(batch_dir, r.sequence).parent_path());
+  WriteFileAtomically(StatusPath(batch_dir, r.sequence), j.dump(2) + "\n");
+}
+
+void RemoveStatusRecord(const fs::path& batch_dir, const std::string& sequence) {
+  std::error_code ec;
+  fs::remove(StatusPath(batch_dir, sequence), ec);
+}
+
+json BuildSummary(const fs::path& batch_dir) {
+  const BatchInfo info = ReadBatchInfo(batch_dir);
+  json rows = json::array();
+  int ok = 0, reused = 0, failed = 0, not_run = 0;
+  for (const BatchSequence& s : info.sequences) {
+    json row = {{"name", s.name},   {"source", s.source},   {"output", s.output.string()},
+                {"reused", false},  {"seconds", nullptr},   {"frames", nullptr},
+                {"keyframes", nullptr}, {"mesh", nullptr},  {"accuracy", nullptr},
+                {"error", nullptr}};
+    json record = json::object();
+    const fs::path record_path = StatusPath(batch_dir, s.name);
+    std::error_code ec;
+    if (fs::exists(record_path, ec)) {
+      try {
+        record = ReadJson(record_path);
+      } catch (const std::exception& e) {
+        record = {{"status", "failed"}, {"error", e.what()}};
+      }
+    }
+    const std::string recorded = record.value("status", "");
+    const ManifestCheck check = CheckManifest(s.output, s.job_hash);
+    if (check.up_to_date) {
+      row["status"] = "ok";
+      row["reused"] = recorded == "skipped";
+      ++ok;
+      reused += recorded == "skipped" ? 1 : 0;
+      const fs::path report_path = s.output / "report.json";
+      try {
+        const json report = ReadJson(report_path);
+        row["seconds"] = OrNull(report, "/seconds"_json_pointer);
+        json frames = OrNull(report, "/input/summary/frames_processed"_json_pointer);
+        if (frames.is_null()) frames = OrNull(report, "/input/options/frames"_json_pointer);
+        row["frames"] = frames;
+        row["keyframes"] = OrNull(report, "/engine/keyframes"_json_pointer);
+        std::string error;
+        uint64_t bytes = 0;
+        if (auto m = ReadManifest(s.output, &error))
+          for (const ManifestEntry& e : m->files)
+            if (fs::path(e.path).stem() == info.output_stem && !fs::path(e.path).has_parent_path())
+              bytes += e.bytes;
+        row["mesh"] = {{"vertices", OrNull(report, "/mesh/vertices"_json_pointer)},
+                       {"faces", OrNull(report, "/mesh/faces"_json_pointer)},
+                       {"bytes", bytes}};
+        row["accuracy"] = OrNull(report, "/accuracy"_json_pointer);
+      } catch (const std::exception& e) {
+        row["error"] = e.what();
+      }
+    } else if (recorded == "failed") {
+      row["status"] = "failed";
+      ++failed;
+      row["seconds"] = record.value("seconds", json());
+      row["error"] = record.value("error", "failed");
+      for (const char* k : {"exit_code", "signal", "log_tail", "host", "finished_at"})
+        if (record.contains(k)) row[k] = record[k];
+    } else if (recorded == "ok" || recorded == "skipped") {
+      // It finished, but its outputs no longer match its manifest.
+      row["status"] = "failed";
+      ++failed;
+      row["error"] = "outputs changed after the run: " + check.reason;
+    } else {
+      row["status"] = "not run";
+      ++not_run;
+    }
+    rows.push_back(std::move(row));
+  }
+  return {{"imr_summary", 1},
+          {"job", info.job_file.string()},
+          {"job_name", info.job_name},
+          {"batch_directory", fs::absolute(batch_dir).string()},
+          {"counts", {{"sequences", info.sequences.size()}, {"ok", ok}, {"reused", reused},
+                      {"failed", failed}, {"not_run", not_run}}},
+          {"sequences", rows}};
+}
+
+std::string SummaryMarkdown(const json& s) {
+  std::ostringstream md;
+  const json& c = s.at("counts");
+  md << "# imr batch summary: " << s.value("job_name", "") << "\n\n";
+  md << "Job `" << s.value("job", "") << "`, batch folder `" << s.value("batch_directory", "")
+     << "`";
+  if (s.contains("written_by"))
+    md << ", written by `" << s["written_by"].get<std::string>() << "` at "
+       << s.value("written_at", "");
+  md << ".\n\n";
+  md << c.at("sequences").get<int>() << " sequences: " << c.at("ok").get<int>() << " ok";
+  if (c.at("reused").get<int>() > 0) md << " (" << c.at("reused").get<int>() << " from an earlier run)";
+  md << ", " << c.at("failed").get<int>() << " failed, " << c.at("not_run").get<int>()
+     << " not run.\n\n";
+  md << "| sequence | status | frames | keyframes | time (s) | triangles | mesh files | "
+        "accuracy (mean, truth → mesh) | completeness | error |\n";
+  md << "|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  for (const json& r : s.at("sequences")) {
+    std::string status = r.value("status", "");
+    if (r.value("reused", false)) status += " (earlier run)";
+    std::string faces, bytes;
+    if (r["mesh"].is_object()) {
+      faces = r["mesh"]["faces"].is_number() ? std::to_string(r["mesh"]["faces"].get<long long>()) : "";
+      bytes = Bytes(r["mesh"].value("bytes", uint64_t{0}));
+    }
+    std::string mean, completeness;
+    if (r["accuracy"].is_object()) {
+      const json& a = r["accuracy"];
+      mean = Number(a.contains("mean_truth_to_mesh") ? a["mean_truth_to_mesh"] : a.value("mean", json()), "%.4f");
+      completeness = Number(a.value("completeness", json()), "%.3f");
+    }
+    std::string error = r["error"].is_string() ? r["error"].get<std::string>() : "";
+    if (error.size() > 160) error = error.substr(0, 157) + "...";
+    md << "| " << Cell(r.value("name", "")) << " | " << status << " | "
+       << (r["frames"].is_number() ? std::to_string(r["frames"].get<long long>()) : "") << " | "
+       << (r["keyframes"].is_number() ? std::to_string(r["keyframes"].get<long long>()) : "")
+       << " | " << Number(r["seconds"], "%.2f") << " | " << faces << " | " << bytes << " | "
+       << mean << " | " << completeness << " | " << Cell(error) << " |\n";
+  }
+  bool heading = false;
+  for (const json& r : s.at("sequences")) {
+    if (r.value("status", "") != "failed") continue;
+    if (!heading) md << "\n## Failures\n";
+    heading = true;
+    md << "\n### " << r.value("name", "") << "\n\n" << r.value("error", "") << "\n";
+    if (r.contains("signal") && r["signal"].is_string())
+      md << "\nEnded by " << r["signal"].get<std::string>() << ".\n";
+    else if (r.contains("exit_code") && r["exit_code"].is_number())
+      md << "\nExit status " << r["exit_code"].get<int>() << ".\n";
+    if (r.contains("log_tail") && !r["log_tail"].empty()) {
+      md << "\nLast log lines:\n\n```\n";
+      for (const json& l : r["log_tail"]) md << l.get<std::string>() << "\n";
+      md << "```\n";
+    }
+  }
+  return md.str();
+}
+
+json WriteSummary(const fs::path& batch_dir, const std::string& written_by) {
+  json s = BuildSummary(batch_dir);
+  s["written_by"] = written_by;
+  s["written_at"] = UtcNow();
+  WriteFileAtomically(batch_dir / "summary.json", s.dump(2) + "\n");
+  WriteFileAtomically(batch_dir / "summary.md", SummaryMarkdown(s));
+  return s;
+}
+
+}  // namespace imr::batch
