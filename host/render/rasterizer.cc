@@ -32,11 +32,16 @@ Vec3 VertexOf(const MeshRef& mesh, uint32_t i) {
 void CheckMesh(const MeshRef& mesh) {
   if ((mesh.vertex_count > 0 && mesh.xyz == nullptr) || (mesh.face_count > 0 && mesh.faces == nullptr))
     throw std::invalid_argument("mesh: null vertex or face array");
-  for (std::size_t i = 0; i < 3 * mesh.face_count; ++i)
+  for (std::size_t i = 0; i < 3 * mesh.face_count; ++i) {
     if (mesh.faces[i] >= mesh.vertex_count)
       throw std::invalid_argument("mesh: face " + std::to_string(i / 3) + " has vertex index " +
                                   std::to_string(mesh.faces[i]) + " (" +
                                   std::to_string(mesh.vertex_count) + " vertices)");
+    const Vec3 x = VertexOf(mesh, mesh.faces[i]);
+    if (!std::isfinite(x[0]) || !std::isfinite(x[1]) || !std::isfinite(x[2]))
+      throw std::invalid_argument("mesh: vertex " + std::to_string(mesh.faces[i]) +
+                                  " (of face " + std::to_string(i / 3) + ") is not finite");
+  }
 }
 
 std::string CheckColorRange(const char* name, double v, double lo, double hi) {

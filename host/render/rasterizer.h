@@ -92,8 +92,8 @@ struct Rendering {
 
 // Draws `mesh` into `camera`. `background`: the camera's image (gray or BGR, same size as the
 // camera; nullptr: options.background). Throws std::invalid_argument when the camera or the
-// options are unusable (their Check()), a face index is out of range, or the background's size
-// differs from the camera's.
+// options are unusable (their Check()), a face index is out of range or a face's vertex is not
+// finite, or the background's size differs from the camera's.
 Rendering RenderIntoCamera(const MeshRef& mesh, const Camera& camera, const io::Image* background,
                            const RenderOptions& options);
 

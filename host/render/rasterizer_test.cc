@@ -315,6 +315,9 @@ TEST(Rasterizer, BadInputIsRefusedWithTheReason) {
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(), "mesh: face 1 has vertex index 99 (5 vertices)");
   }
+  bad = m;
+  bad.xyz[4] = std::nan("");
+  EXPECT_THROW(RenderTopDown(bad.ref(), CameraPath{}, TopDownOptions{}), std::invalid_argument);
   TopDownOptions t;
   t.size = 4;
   EXPECT_NE(t.Check().find("size"), std::string::npos);
