@@ -84,7 +84,7 @@ class Batch : public ::testing::Test {
 };
 
 TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
-  const fs::path job = WriteJob(Job(20));
+  const fs::path job = WriteJob(Job(12));
   auto r = Imr("run " + Quote(job.string()) + " --jobs 2");
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_EQ(Listed(r.out, "ok"), (std::set<std::string>{"street", "room", "plane"})) << r.out;
@@ -98,7 +98,7 @@ TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
   EXPECT_EQ(summary["written_by"], "imr run");
   for (const json& s : summary["sequences"]) {
     EXPECT_EQ(s["status"], "ok") << s.dump();
-    EXPECT_EQ(s["frames"], 20);
+    EXPECT_EQ(s["frames"], 12);
     EXPECT_GT(s["keyframes"].get<int>(), 0);
     EXPECT_GT(s["mesh"]["faces"].get<int>(), 100);
     EXPECT_GT(s["mesh"]["bytes"].get<int>(), 1000);
@@ -106,7 +106,7 @@ TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
   }
   const std::string md = ReadText(dir_ / "runs" / "summary.md");
   EXPECT_NE(md.find("3 sequences: 3 ok, 0 failed, 0 not run."), std::string::npos) << md;
-  EXPECT_NE(md.find("| street | ok | 20 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| street | ok | 12 |"), std::string::npos) << md;
 
   // Nothing changed: nothing is redone.
   r = Imr("run -q " + Quote(job.string()));
@@ -120,7 +120,7 @@ TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
   EXPECT_EQ(Listed(r.out, "ok"), std::set<std::string>{"room"}) << r.out;
   EXPECT_NE(r.err.find("room: running (mesh.glb changed since it was written (checksum))"),
             std::string::npos) << r.err;
-  json changed = Job(20);
+  json changed = Job(12);
   changed["pipeline"][1]["params"] = {{"point_ids", true}};
   WriteJob(changed);
   r = Imr("run -q " + Quote(job.string()));
@@ -188,7 +188,7 @@ TEST_F(Batch, ACrashingPluginFailsOnlyItsSequence) {
   j["output"]["formats"] = {"ply", "crash"};
   const fs::path job = WriteJob(j);
   auto r = Imr("run --jobs 2 --max-rss 400M " + Quote(job.string()));
-  EXPECT_EQ(r.status, 3) << "2 failed -> 3\n" << r.out << r.err;
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
   EXPECT_EQ(Listed(r.out, "ok"), std::set<std::string>{"street"}) << r.out;
   EXPECT_EQ(Listed(r.out, "FAILED"), (std::set<std::string>{"room", "plane"})) << r.out;
   EXPECT_NE(r.out.find("crashed: signal SIGSEGV (Segmentation fault)"), std::string::npos) << r.out;
@@ -210,7 +210,7 @@ TEST_F(Batch, ACrashingPluginFailsOnlyItsSequence) {
   EXPECT_NE(md.find("| room | failed |"), std::string::npos) << md;
   EXPECT_NE(md.find("Ended by SIGSEGV."), std::string::npos) << md;
 
-  // abort() is named too; one failure -> exit status 1.
+  // abort() is named too.
   j["sequences"] = {"street"};
   j["pipeline"][2]["params"] = {{"abort_in", "runs/street"}};
   r = Imr("run -q " + Quote(WriteJob(j, "abort.json").string()));
@@ -219,9 +219,9 @@ TEST_F(Batch, ACrashingPluginFailsOnlyItsSequence) {
 }
 
 TEST_F(Batch, AKilledBatchResumesWithoutPartialFiles) {
-  json j = Job(100);
+  json j = Job(40);
   j["output"]["formats"] = {"ply"};
-  j["output"]["snapshot_every"] = 3;
+  j["output"]["snapshot_every"] = 2;
   const fs::path job = WriteJob(j);
   const pid_t pid = ::fork();
   ASSERT_GE(pid, 0);
@@ -257,8 +257,9 @@ TEST_F(Batch, AKilledBatchResumesWithoutPartialFiles) {
   EXPECT_FALSE(fs::exists(Out("room") / "report.json"));
   // What is there under a final name is whole: every mesh reads back.
   for (const auto& e : fs::recursive_directory_iterator(Out("room"))) {
-    const std::string name = e.path().filename().string();
-    if (!e.is_regular_file() || name[0] == '.') continue;
+    bool temporary = false;  // a dot name, or inside a staging folder
+    for (const auto& c : fs::relative(e.path(), Out("room"))) temporary |= c.string()[0] == '.';
+    if (!e.is_regular_file() || temporary) continue;
     auto r = Imr("evaluate " + Quote(e.path().string()) + " --truth " + Quote(e.path().string()) +
                  " --precision-samples 100");
     EXPECT_EQ(r.status, 0) << e.path() << " does not read back: " << r.err;
@@ -304,9 +305,9 @@ TEST_F(Batch, SubmitDryRunWritesReadableScripts) {
             false);
   EXPECT_NE(r.out.find("--dependency=afterany:<array job id>"), std::string::npos) << r.out;
   EXPECT_EQ(RunShell("bash -n " + Quote((slurm / "array.sbatch").string())).status, 0);
-  // Before any task ran, the report says nothing ran (3 -> exit status 4).
+  // Before any task ran, the report says nothing ran.
   auto rep = Imr("report " + Quote(job.string()));
-  EXPECT_EQ(rep.status, 4) << rep.out << rep.err;
+  EXPECT_EQ(rep.status, 1) << rep.out << rep.err;
   EXPECT_NE(rep.out.find("3 sequences: 0 ok, 0 failed, 3 not run"), std::string::npos) << rep.out;
 }
 

@@ -103,11 +103,7 @@ int BatchRunResult::Count(SequenceStatus s) const {
                                         [s](const SequenceOutcome& o) { return o.status == s; }));
 }
 
-int ExitStatusForFailures(int failed) {
-  if (failed <= 0) return 0;
-  if (failed == 1) return 1;
-  return std::min(failed + 1, 101);
-}
+int ExitStatusForFailures(int failed) { return failed > 0 ? 1 : 0; }
 
 std::string BatchOptions::Check() const {
   if (jobs < 1 || jobs > 1024) return "--jobs must be in 1..1024, got " + std::to_string(jobs);
@@ -281,8 +277,11 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
         line.find("[" + name + "]") != std::string::npos ? line : "[" + name + "] " + line;
     if (options.verbose)
       say(LogLevel::kInfo, shown_line);
-    else if (line.rfind("warning: ", 0) == 0)
-      say(LogLevel::kWarning, "[" + name + "] " + line.substr(9));
+    else if (line.rfind("warning: ", 0) == 0) {
+      const std::string text = line.substr(9);
+      say(LogLevel::kWarning,
+          text.find("[" + name + "]") != std::string::npos ? text : "[" + name + "] " + text);
+    }
   };
 
   auto handle_message = [&](Running& r, const std::string& line) {
@@ -351,11 +350,13 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
       ++shown.failed;
       say(LogLevel::kError, o.name + " failed: " + o.detail);
     } else {
-      say(LogLevel::kInfo, o.name + ": done in " + FormatDuration(o.seconds));
+      char took[32];
+      std::snprintf(took, sizeof(took), "%.2f s", o.seconds);
+      say(LogLevel::kInfo, o.name + ": done in " + took);
     }
   };
 
-  display.Update(shown, true);
+  if (display.mode() == ProgressMode::kBar) display.Update(shown, true);
   for (;;) {
     if (!cancelled && plugin::CancelRequested()) {
       cancelled = true;

@@ -122,7 +122,7 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   b << "#!/bin/bash\n"
     << "# imr reduce job, written by `imr submit`: after every task of the array has ended (however\n"
     << "# it ended), merge the sequences' reports into " << (r.batch_directory / "summary.md").string()
-    << "\n# and summary.json. Its exit status tells how many sequences failed or did not run.\n"
+    << "\n# and summary.json. It exits with 1 when a sequence failed or did not run.\n"
     << "#SBATCH --job-name=" << name << "-report\n"
     << "#SBATCH --output=" << (r.log_directory / "report-%j.out").string() << "\n"
     << "#SBATCH --cpus-per-task=1\n";

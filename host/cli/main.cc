@@ -1,7 +1,6 @@
 // imr: the command-line host. Subcommands: run, submit, report, validate, plugins, evaluate;
-// --version, --help. Exit status: 0 success; 2 bad usage or invalid job; for run and report 1
-// when one sequence failed and failed + 1 when more did (at most 101); for evaluate 1 when it
-// failed.
+// --version, --help. Exit status: 0 success; 1 a sequence failed (the others still ran; the last
+// line and the summary say how many) or an evaluation failed; 2 bad usage or invalid job.
 #include "host/batch/batch.h"
 #include "host/batch/child.h"
 #include "host/batch/slurm.h"
@@ -60,8 +59,8 @@ const char* kUsage =
     "\n"
     "Plugins are searched in a job's plugin_paths, then IMR_PLUGIN_PATH (':'-separated),\n"
     "then the installed folder next to the executable (../lib/imr/plugins).\n"
-    "Exit status: 0 success; 2 bad usage or job; run and report: 1 one sequence failed (the\n"
-    "others still ran), failed + 1 when more failed (at most 101); evaluate: 1 it failed.\n";
+    "Exit status: 0 success, 1 a sequence failed (the others still ran; the last line and the\n"
+    "summary say how many) or an evaluation failed, 2 bad usage or job.\n";
 
 void OnSignal(int) { imr::plugin::RequestCancel(); }
 
@@ -122,6 +121,8 @@ int CmdValidate(const std::vector<std::string>& args) {
             << " stages)\n";
   for (const auto& s : v.sequences)
     std::cout << "  " << s.name << " -> " << v.job.OutputDirectory(s.name).string() << "\n";
+  std::cout << "batch folder (summary, imr report): "
+            << imr::batch::BatchDirectory(v.job).string() << "\n";
   return kExitOk;
 }
 
@@ -145,8 +146,8 @@ const char* kRunNotes =
     "the share comes from SLURM_ARRAY_TASK_ID/COUNT/MIN); a shard writes no summary: run\n"
     "`imr report RUN_DIR` when all are done. Progress: a bar on a terminal, else a line every\n"
     "few seconds; -q: none.\n"
-    "Exit status: 0 every sequence ok or up to date; 1 one failed; failed + 1 when more failed\n"
-    "(at most 101); 2 bad usage or job (nothing ran).\n";
+    "Exit status: 0 every sequence ok or up to date; 1 a sequence failed (the last line and the\n"
+    "summary say how many); 2 bad usage or job (nothing ran).\n";
 
 // This executable, for the child processes and the Slurm scripts.
 std::string SelfPath(const char* argv0) {
@@ -391,8 +392,8 @@ int CmdReport(const std::vector<std::string>& args) {
       "output.directory before {sequence}) into RUN_DIR/summary.json and summary.md: every\n"
       "sequence's status (its manifest and files are checked), frames, time, mesh size,\n"
       "accuracy, and for failures the cause and last log lines. Needs no plugins.\n"
-      "Exit status: 0 every sequence ok; 1 one failed or did not run; that count + 1 when more\n"
-      "(at most 101); 2 not a batch folder or bad usage.";
+      "Exit status: 0 every sequence ok; 1 a sequence failed or did not run (the last line says\n"
+      "how many); 2 not a batch folder or bad usage.";
   if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
   fs::path dir = vm["dir"].as<std::string>();
   std::error_code ec;
