@@ -175,7 +175,7 @@ TEST_F(Batch, TwoShardsCoverEverySequenceExactlyOnce) {
 
   auto rep = Imr("report " + Quote((dir_ / "runs").string()));
   EXPECT_EQ(rep.status, 0) << rep.out << rep.err;
-  EXPECT_NE(rep.out.find("3 sequences: 3 ok, 0 failed, 0 not run"), std::string::npos) << rep.out;
+  EXPECT_NE(rep.out.find("3 sequences: 3 ok, 0 failed, 0 interrupted, 0 not run"), std::string::npos) << rep.out;
   EXPECT_EQ(ReadJson(dir_ / "runs" / "summary.json")["written_by"], "imr report");
 }
 
@@ -265,6 +265,13 @@ TEST_F(Batch, AKilledBatchResumesWithoutPartialFiles) {
     EXPECT_EQ(r.status, 0) << e.path() << " does not read back: " << r.err;
   }
 
+  // The report tells what the kill left: street done, room interrupted, plane not started.
+  auto rep = Imr("report " + Quote((dir_ / "runs").string()));
+  EXPECT_EQ(rep.status, 1);
+  EXPECT_NE(rep.out.find("3 sequences: 1 ok, 0 failed, 1 interrupted, 1 not run"), std::string::npos)
+      << rep.out;
+  EXPECT_EQ(ReadJson(dir_ / "runs" / "summary.json")["sequences"][1]["status"], "interrupted");
+
   auto r = Imr("run " + Quote(job.string()));
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_EQ(Listed(r.out, "skipped"), std::set<std::string>{"street"}) << r.out;
@@ -308,7 +315,7 @@ TEST_F(Batch, SubmitDryRunWritesReadableScripts) {
   // Before any task ran, the report says nothing ran.
   auto rep = Imr("report " + Quote(job.string()));
   EXPECT_EQ(rep.status, 1) << rep.out << rep.err;
-  EXPECT_NE(rep.out.find("3 sequences: 0 ok, 0 failed, 3 not run"), std::string::npos) << rep.out;
+  EXPECT_NE(rep.out.find("3 sequences: 0 ok, 0 failed, 0 interrupted, 3 not run"), std::string::npos) << rep.out;
 }
 
 TEST_F(Batch, BadOptionsAreUsageErrors) {

@@ -238,7 +238,18 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
       o.detail = "--force";
     }
     say(LogLevel::kInfo, position + seq.name + ": running (" + o.detail + ")");
-    RemoveStatusRecord(batch_dir, seq.name);
+    // Until it ends, the record says where and when it started: a run killed with it (a time
+    // limit, SIGKILL) then shows as interrupted, not as its previous outcome.
+    StatusRecord started;
+    started.sequence = seq.name;
+    started.status = "running";
+    started.host = host;
+    started.started_at = UtcNow();
+    try {
+      WriteStatusRecord(batch_dir, started);
+    } catch (const std::exception& e) {
+      say(LogLevel::kError, std::string("cannot record the start of ") + seq.name + ": " + e.what());
+    }
     std::vector<std::string> argv = {options.executable, kChildCommand,
                                      "--job", fs::absolute(v.job.file).string(),
                                      "--sequence", seq.name,

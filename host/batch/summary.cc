@@ -132,8 +132,13 @@ BatchInfo ReadBatchInfo(const fs::path& batch_dir) {
 }
 
 void WriteStatusRecord(const fs::path& batch_dir, const StatusRecord& r) {
-  json j = {{"sequence", r.sequence}, {"status", r.status}, {"seconds", r.seconds},
-            {"host", r.host},         {"finished_at", r.finished_at}};
+  json j = {{"sequence", r.sequence}, {"status", r.status}, {"host", r.host}};
+  if (r.status == "running") {
+    j["started_at"] = r.started_at;
+  } else {
+    j["seconds"] = r.seconds;
+    j["finished_at"] = r.finished_at;
+  }
   if (r.status == "failed") {
     j["error"] = r.error;
     j["exit_code"] = r.exit_code >= 0 ? json(r.exit_code) : json();
@@ -144,15 +149,10 @@ void WriteStatusRecord(const fs::path& batch_dir, const StatusRecord& r) {
   WriteFileAtomically(StatusPath(batch_dir, r.sequence), j.dump(2) + "\n");
 }
 
-void RemoveStatusRecord(const fs::path& batch_dir, const std::string& sequence) {
-  std::error_code ec;
-  fs::remove(StatusPath(batch_dir, sequence), ec);
-}
-
 json BuildSummary(const fs::path& batch_dir) {
   const BatchInfo info = ReadBatchInfo(batch_dir);
   json rows = json::array();
-  int ok = 0, reused = 0, failed = 0, not_run = 0;
+  int ok = 0, reused = 0, failed = 0, interrupted = 0, not_run = 0;
   for (const BatchSequence& s : info.sequences) {
     json row = {{"name", s.name},   {"source", s.source},   {"output", s.output.string()},
                 {"reused", false},  {"seconds", nullptr},   {"frames", nullptr},
@@ -203,6 +203,14 @@ json BuildSummary(const fs::path& batch_dir) {
       row["error"] = record.value("error", "failed");
       for (const char* k : {"exit_code", "signal", "log_tail", "host", "finished_at"})
         if (record.contains(k)) row[k] = record[k];
+    } else if (recorded == "running") {
+      row["status"] = "interrupted";
+      ++interrupted;
+      row["error"] = "started on " + record.value("host", std::string("?")) + " at " +
+                     record.value("started_at", std::string("?")) +
+                     " and never ended: its process was killed (SIGKILL, a time limit, a lost "
+                     "node), or it is still running";
+      row["host"] = record.value("host", json());
     } else if (recorded == "ok" || recorded == "skipped") {
       // It finished, but its outputs no longer match its manifest.
       row["status"] = "failed";
@@ -219,7 +227,7 @@ json BuildSummary(const fs::path& batch_dir) {
           {"job_name", info.job_name},
           {"batch_directory", fs::absolute(batch_dir).string()},
           {"counts", {{"sequences", info.sequences.size()}, {"ok", ok}, {"reused", reused},
-                      {"failed", failed}, {"not_run", not_run}}},
+                      {"failed", failed}, {"interrupted", interrupted}, {"not_run", not_run}}},
           {"sequences", rows}};
 }
 
@@ -235,8 +243,9 @@ std::string SummaryMarkdown(const json& s) {
   md << ".\n\n";
   md << c.at("sequences").get<int>() << " sequences: " << c.at("ok").get<int>() << " ok";
   if (c.at("reused").get<int>() > 0) md << " (" << c.at("reused").get<int>() << " from an earlier run)";
-  md << ", " << c.at("failed").get<int>() << " failed, " << c.at("not_run").get<int>()
-     << " not run.\n\n";
+  md << ", " << c.at("failed").get<int>() << " failed, ";
+  if (c.value("interrupted", 0) > 0) md << c["interrupted"].get<int>() << " interrupted, ";
+  md << c.at("not_run").get<int>() << " not run.\n\n";
   md << "| sequence | status | frames | keyframes | time (s) | triangles | mesh files | "
         "accuracy (mean, truth → mesh) | completeness | error |\n";
   md << "|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n";

@@ -4,7 +4,8 @@
 // the output folder itself. It holds:
 //   summary.json, summary.md     the batch summary (one row per sequence)
 //   imr-batch/batch.json         the job and its sequences (name, source, output folder, hash)
-//   imr-batch/status/<name>.json the latest outcome of each sequence (ok, skipped, failed + cause)
+//   imr-batch/status/<name>.json the latest outcome of each sequence (running, ok, skipped,
+//                                failed + cause)
 //   imr-batch/sequences.txt      the frozen sequence list of `imr submit`
 //   imr-batch/slurm/             the sbatch scripts of `imr submit` and the tasks' logs
 // The summary is built from these files and the sequences' manifests and reports only, so
@@ -47,22 +48,21 @@ BatchInfo ReadBatchInfo(const std::filesystem::path& batch_dir);
 // The latest outcome of one sequence, as `imr run` records it.
 struct StatusRecord {
   std::string sequence;
-  std::string status;  // "ok", "skipped" (manifest matched) or "failed"
+  std::string status;  // "running" (started, not ended), "ok", "skipped" (manifest matched),
+                       // or "failed"
   double seconds = 0.0;
   std::string error;   // failed: the cause, one line
   int exit_code = -1;  // failed: the child's exit status, -1 when it did not exit
   std::string signal;  // failed: "SIGSEGV" when a signal ended it
   std::vector<std::string> log_tail;  // failed: its last log lines
   std::string host;    // where it ran
-  std::string finished_at;  // UTC, ISO 8601
+  std::string finished_at;  // UTC, ISO 8601; empty while running
+  std::string started_at;   // UTC, ISO 8601; running only
 };
 
 void WriteStatusRecord(const std::filesystem::path& batch_dir, const StatusRecord& r);
-// Removes a sequence's record (it is being redone).
-void RemoveStatusRecord(const std::filesystem::path& batch_dir, const std::string& sequence);
-
-// Builds the summary from the batch folder: per sequence the status ("ok", "failed" or
-// "not run"), whether an earlier run made it ("reused"), time, frames, keyframes, mesh size,
+// Builds the summary from the batch folder: per sequence the status ("ok", "failed",
+// "interrupted" (started, never ended: killed, a time limit, a lost node) or "not run"), whether an earlier run made it ("reused"), time, frames, keyframes, mesh size,
 // accuracy (the report's "accuracy" object), and for failures the error, exit code or signal
 // and last log lines. Outputs whose manifest no longer matches count as failed, saying why.
 nlohmann::json BuildSummary(const std::filesystem::path& batch_dir);

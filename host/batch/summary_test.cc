@@ -64,7 +64,7 @@ TEST_F(SummaryTest, OneRowPerSequenceWithStatusFiguresAndCauses) {
   info.job_file = "/jobs/j.json";
   info.job_name = "j";
   info.output_stem = "mesh";
-  for (const char* n : {"street", "room", "pl|ane", "drive", "moved"})
+  for (const char* n : {"street", "room", "pl|ane", "drive", "moved", "killed"})
     info.sequences.push_back({n, std::string("src/") + n, dir_ / n, HashIdentity({{"sequence", n}})});
   WriteBatchInfo(dir_, info);
   const json report = {{"seconds", 1.25},
@@ -76,14 +76,16 @@ TEST_F(SummaryTest, OneRowPerSequenceWithStatusFiguresAndCauses) {
   Finish("room", report);
   Finish("moved", report);
   Write(dir_ / "moved" / "mesh.glb", "changed");
-  WriteStatusRecord(dir_, {"street", "ok", 1.3, "", -1, "", {}, "host", "t"});
-  WriteStatusRecord(dir_, {"room", "skipped", 0.0, "", -1, "", {}, "host", "t"});
-  WriteStatusRecord(dir_, {"moved", "ok", 0.0, "", -1, "", {}, "host", "t"});
+  WriteStatusRecord(dir_, {"street", "ok", 1.3, "", -1, "", {}, "host", "t", ""});
+  WriteStatusRecord(dir_, {"room", "skipped", 0.0, "", -1, "", {}, "host", "t", ""});
+  WriteStatusRecord(dir_, {"moved", "ok", 0.0, "", -1, "", {}, "host", "t", ""});
   WriteStatusRecord(dir_, {"pl|ane", "failed", 0.5, "crashed: signal SIGSEGV (Segmentation fault)",
-                           -1, "SIGSEGV", {"[pl|ane] keyframe 3", "about to crash"}, "node7", "t"});
+                           -1, "SIGSEGV", {"[pl|ane] keyframe 3", "about to crash"}, "node7", "t", ""});
+  WriteStatusRecord(dir_, {"killed", "running", 0.0, "", -1, "", {}, "node3", "", "2026-01-02T03:04:05Z"});
 
   const json s = WriteSummary(dir_, "imr report");
-  EXPECT_EQ(s["counts"], json({{"sequences", 5}, {"ok", 2}, {"reused", 1}, {"failed", 2}, {"not_run", 1}}));
+  EXPECT_EQ(s["counts"], json({{"sequences", 6}, {"ok", 2}, {"reused", 1}, {"failed", 2},
+                               {"interrupted", 1}, {"not_run", 1}}));
   const json& street = s["sequences"][0];
   EXPECT_EQ(street["status"], "ok");
   EXPECT_FALSE(street["reused"].get<bool>());
@@ -103,9 +105,14 @@ TEST_F(SummaryTest, OneRowPerSequenceWithStatusFiguresAndCauses) {
   EXPECT_EQ(s["sequences"][4]["status"], "failed");
   EXPECT_EQ(s["sequences"][4]["error"],
             "outputs changed after the run: mesh.glb changed since it was written (checksum)");
+  EXPECT_EQ(s["sequences"][5]["status"], "interrupted");
+  EXPECT_NE(s["sequences"][5]["error"].get<std::string>().find(
+                "started on node3 at 2026-01-02T03:04:05Z and never ended"),
+            std::string::npos);
 
   const std::string md = SummaryMarkdown(s);
-  EXPECT_NE(md.find("5 sequences: 2 ok (1 from an earlier run), 2 failed, 1 not run."), std::string::npos) << md;
+  EXPECT_NE(md.find("6 sequences: 2 ok (1 from an earlier run), 2 failed, 1 interrupted, 1 not run."),
+            std::string::npos) << md;
   EXPECT_NE(md.find("| street | ok | 40 | 8 | 1.25 | 900 | 4 KiB | 0.0421 | 0.930 |  |"), std::string::npos) << md;
   EXPECT_NE(md.find("| room | ok (earlier run) |"), std::string::npos) << md;
   EXPECT_NE(md.find("| pl\\|ane | failed |"), std::string::npos) << md;  // a pipe is escaped

@@ -392,8 +392,9 @@ int CmdReport(const std::vector<std::string>& args) {
       "output.directory before {sequence}) into RUN_DIR/summary.json and summary.md: every\n"
       "sequence's status (its manifest and files are checked), frames, time, mesh size,\n"
       "accuracy, and for failures the cause and last log lines. Needs no plugins.\n"
-      "Exit status: 0 every sequence ok; 1 a sequence failed or did not run (the last line says\n"
-      "how many); 2 not a batch folder or bad usage.";
+      "A sequence whose process was killed (a time limit, SIGKILL) shows as interrupted.\n"
+      "Exit status: 0 every sequence ok; 1 a sequence failed, was interrupted or did not run (the\n"
+      "last line says how many); 2 not a batch folder or bad usage.";
   if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
   fs::path dir = vm["dir"].as<std::string>();
   std::error_code ec;
@@ -420,10 +421,12 @@ int CmdReport(const std::vector<std::string>& args) {
                                        : r["output"].get<std::string>().c_str());
   }
   const auto& c = summary["counts"];
-  std::printf("%d sequences: %d ok, %d failed, %d not run\nsummary: %s\n",
+  std::printf("%d sequences: %d ok, %d failed, %d interrupted, %d not run\nsummary: %s\n",
               c["sequences"].get<int>(), c["ok"].get<int>(), c["failed"].get<int>(),
-              c["not_run"].get<int>(), (dir / "summary.md").string().c_str());
-  return imr::batch::ExitStatusForFailures(c["failed"].get<int>() + c["not_run"].get<int>());
+              c["interrupted"].get<int>(), c["not_run"].get<int>(),
+              (dir / "summary.md").string().c_str());
+  return imr::batch::ExitStatusForFailures(c["failed"].get<int>() + c["interrupted"].get<int>() +
+                                           c["not_run"].get<int>());
 }
 
 // The hidden per-sequence command of `imr run`'s child processes.
