@@ -218,11 +218,11 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     SequenceOutcome o;
     o.name = seq.name;
     o.output_directory = v.job.OutputDirectory(seq.name);
-    const std::string hash = HashIdentity(JobIdentity(v, registry, run_options, seq));
+    const json identity = JobIdentity(v, registry, run_options, seq);
     const std::string position = "[" + std::to_string(next) + "/" + std::to_string(selected.size()) + "] ";
     if (!options.force) {
-      const ManifestCheck check = CheckManifest(o.output_directory, hash,
-                                                JobIdentity(v, registry, run_options, seq));
+      const ManifestCheck check =
+          CheckManifest(o.output_directory, HashIdentity(identity), identity);
       if (check.up_to_date) {
         o.status = SequenceStatus::kSkipped;
         o.detail = "up to date (" + check.reason + ")";

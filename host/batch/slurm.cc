@@ -28,13 +28,12 @@ std::string ParseJobId(const std::string& out) {
   return id;
 }
 
-std::string SubmitScript(const SubmitOptions& o, const std::vector<std::string>& command) {
+std::string SubmitScript(const std::vector<std::string>& command) {
   std::string out, err;
   const int status = RunAndCapture(command, &out, &err);
   if (status != 0)
     throw std::runtime_error(Join(command) + " failed (status " + std::to_string(status) + "): " +
                              (err.empty() ? out : err));
-  (void)o;
   return ParseJobId(out);
 }
 
@@ -138,9 +137,9 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   r.reduce_command = {o.sbatch, "--parsable", "--dependency=afterany:<array job id>",
                       r.reduce_script.string()};
   if (o.dry_run) return r;
-  r.array_job_id = SubmitScript(o, r.array_command);
+  r.array_job_id = SubmitScript(r.array_command);
   r.reduce_command[2] = "--dependency=afterany:" + r.array_job_id;
-  r.reduce_job_id = SubmitScript(o, r.reduce_command);
+  r.reduce_job_id = SubmitScript(r.reduce_command);
   return r;
 }
 
