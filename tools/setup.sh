@@ -19,6 +19,8 @@ PACKAGES=(
   slurm-wlm munge
   # plots of reports (tools/plots/imr_plots.py) and the viewer page's browser test (headless)
   python3-matplotlib chromium
+  # fuzz/* tests: clang with libFuzzer's and the sanitizers' runtimes, llvm-symbolizer for reports
+  clang libclang-rt-14-dev llvm-14
 )
 
 SUDO=()

@@ -215,6 +215,11 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
     problems.push_back({"", file.string() + ": malformed JSON at " + LineColumn(text, e.byte == 0 ? 0 : e.byte - 1) +
                                 ": " + what});
     return result;
+  } catch (const json::exception& e) {
+    // Not a parse_error: e.g. out_of_range.406, a number too large for a double ("1e999"). Found
+    // by tests/fuzz/job_fuzz; ParseJobText must never throw.
+    problems.push_back({"", file.string() + ": malformed JSON: " + std::string(e.what())});
+    return result;
   }
   if (!root.is_object()) {
     problems.push_back({"", file.string() + ": expected a JSON object at the top level, got " +

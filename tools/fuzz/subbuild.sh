@@ -1,0 +1,97 @@
+#!/usr/bin/env bash
+# The fuzz/* and sanitize/* CTest tests (tests/fuzz/CMakeLists.txt) call this:
+#   subbuild.sh build         SRC BIN          one clang build (IMR_FUZZ=ON: everything with ASan +
+#                                              UBSan + coverage) of the libFuzzer targets and of the
+#                                              engine and io tests, and in BIN/gcc-sanitize a g++
+#                                              IMR_SANITIZE=address,undefined build of the tests clang
+#                                              cannot compile; without clang/libFuzzer, all the tests
+#                                              there, and BIN/SKIPPED says why
+#   subbuild.sh smoke         SRC BIN NAME SEC run BIN/fuzz/NAME_fuzz for SEC seconds on
+#                                              tests/fuzz/corpus/NAME + tests/fuzz/regressions/NAME
+#                                              (exit 77, skipped, when BIN/SKIPPED)
+#   subbuild.sh sanitize-test SRC BIN TEST     run one of those tests (its ctest name) there
+# The sub-build uses ccache (the top-level CMakeLists sets it as launcher) and -j2
+# (IMR_SUBBUILD_JOBS); it lives under the main build folder.
+set -euo pipefail
+mode=$1 src=$2 bin=$3
+jobs=${IMR_SUBBUILD_JOBS:-2}
+sanitize_targets=(engine_engine_test engine_engine_property_test io_job_test io_readers_test
+                  io_image_sequence_test)
+# Built with g++ even when clang is there: engine_property_test.cc captures a structured binding
+# in a lambda (C++20), which clang 14 rejects. Only the engine and the synthetic stream, cheap.
+gcc_only_targets=(engine_engine_property_test)
+# -O1 with assertions (no NDEBUG): fast enough to run, and CGAL's and our asserts stay armed.
+common=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1
+        -DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -DIMR_BUILD_BENCH=OFF -DIMR_BUILD_TESTS=ON -Wno-dev)
+export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
+# ubsan.supp: one known, harmless report inside CGAL (see there).
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1:suppressions=$src/tools/fuzz/ubsan.supp}
+
+case $mode in
+  build)
+    mkdir -p "$bin"
+    rm -f "$bin/SKIPPED"
+    probe=$(mktemp -d)
+    trap 'rm -rf "$probe"' EXIT
+    echo 'extern "C" int LLVMFuzzerTestOneInput(const unsigned char*, unsigned long) { return 0; }' \
+      >"$probe/p.cc"
+    if command -v clang++ >/dev/null &&
+       clang++ -fsanitize=fuzzer,address,undefined "$probe/p.cc" -o "$probe/p" 2>"$probe/err"; then
+      time cmake -S "$src" -B "$bin" "${common[@]}" -DCMAKE_C_COMPILER=clang \
+        -DCMAKE_CXX_COMPILER=clang++ -DIMR_FUZZ=ON >"$bin/configure.log" 2>&1 ||
+        { cat "$bin/configure.log"; exit 1; }
+      clang_targets=()
+      for t in "${sanitize_targets[@]}"; do
+        [[ " ${gcc_only_targets[*]} " == *" $t "* ]] || clang_targets+=("$t")
+      done
+      time cmake --build "$bin" --target imr_fuzzers "${clang_targets[@]}" -j "$jobs"
+      gcc_targets=("${gcc_only_targets[@]}")
+    else
+      echo "clang++ with libFuzzer is not available (Debian: clang libclang-rt-14-dev; tools/setup.sh" \
+           "installs them): $(head -c 300 "$probe/err" 2>/dev/null)" | tee "$bin/SKIPPED"
+      echo "fuzzers skipped; building the sanitized tests with g++ in $bin/gcc-sanitize"
+      gcc_targets=("${sanitize_targets[@]}")
+    fi
+    mkdir -p "$bin/gcc-sanitize"
+    time cmake -S "$src" -B "$bin/gcc-sanitize" "${common[@]}" -DCMAKE_C_COMPILER=gcc \
+      -DCMAKE_CXX_COMPILER=g++ -DIMR_SANITIZE=address,undefined >"$bin/gcc-configure.log" 2>&1 ||
+      { cat "$bin/gcc-configure.log"; exit 1; }
+    time cmake --build "$bin/gcc-sanitize" --target "${gcc_targets[@]}" -j "$jobs"
+    ;;
+  smoke)
+    name=$4 seconds=$5
+    fuzzer="$bin/fuzz/${name}_fuzz"
+    if [ ! -x "$fuzzer" ]; then
+      if [ -f "$bin/SKIPPED" ]; then echo "skipped: $(cat "$bin/SKIPPED")"; exit 77; fi
+      echo "$fuzzer: not built (see the test fuzz/build)"; exit 1
+    fi
+    work=$(mktemp -d)
+    trap 'rm -rf "$work"' EXIT
+    corpora=("$src/tests/fuzz/corpus/$name")
+    [ -d "$src/tests/fuzz/regressions/$name" ] && corpora+=("$src/tests/fuzz/regressions/$name")
+    mkdir -p "$bin/artifacts"
+    # New inputs go to the scratch folder (first), never into the committed corpus.
+    set -x
+    "$fuzzer" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
+      -print_final_stats=1 -artifact_prefix="$bin/artifacts/${name}-" "$work" "${corpora[@]}"
+    ;;
+  sanitize-test)
+    test=$4
+    target=${test//\//_}
+    if [ -f "$bin/SKIPPED" ] || [[ " ${gcc_only_targets[*]} " == *" $target "* ]]; then
+      bin="$bin/gcc-sanitize"
+    fi
+    # Under ASan the two accuracy comparisons of engine_property_test take 2.5 of its 3 minutes
+    # and add no code path the invariant tests miss; IMR_SANITIZE_FULL=1 runs them too.
+    exclude=()
+    if [ "$test" = engine/engine_property_test ] && [ -z "${IMR_SANITIZE_FULL:-}" ]; then
+      exclude=(-E 'GeometryTest\.(ClosedRoomSeenFromInside|EfficientPolicyComparableToBaseline)')
+    fi
+    ctest --test-dir "$bin" -R "^${test}\\." "${exclude[@]}" --output-on-failure --no-tests=error \
+      -j "$jobs"
+    ;;
+  *)
+    echo "usage: $0 build|smoke|sanitize-test SRC BIN [NAME SECONDS | TEST]" >&2
+    exit 2
+    ;;
+esac
