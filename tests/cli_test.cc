@@ -52,7 +52,8 @@ TEST_F(Cli, VersionAndHelp) {
   EXPECT_EQ(r.status, 0);
   EXPECT_NE(r.out.find("imr "), std::string::npos);
   EXPECT_NE(r.out.find("plugin ABI 1."), std::string::npos) << r.out;
-  for (const char* cmd : {"run --help", "validate --help", "plugins --help", "--help"}) {
+  for (const char* cmd : {"run --help", "validate --help", "plugins --help", "report --help",
+                          "evaluate --help", "render --help", "submit --help", "--help"}) {
     auto h = Imr(cmd);
     EXPECT_EQ(h.status, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;

@@ -37,6 +37,7 @@ json JobIdentity(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& 
           {"output", {{"stem", job.output.stem},
                       {"formats", job.output.formats},
                       {"snapshot_every", job.output.snapshot_every}}},
+          {"evaluation", v.evaluation},
           {"exports", exports}};
 }
 

@@ -10,6 +10,8 @@
 #include "host/pipeline/run.h"
 #include "host/plugin/host_services.h"
 #include "host/plugin/registry.h"
+#include "host/render/render_cli.h"
+#include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
 #include "host/util/log.h"
 
@@ -48,10 +50,13 @@ const char* kUsage =
     "  submit JOB.json    run a job on a Slurm cluster: an array of --tasks N tasks, then a job\n"
     "                     that writes the batch summary (see `imr submit --help`)\n"
     "  report RUN_DIR     merge the sequences' reports of a batch folder into summary.json/.md\n"
+    "                     and a viewer page (index.html: the table, plots, each mesh in 3D)\n"
     "  validate JOB.json  check a job and report every problem, without running it\n"
     "  plugins            list the plugins found (kind, id, version, ABI, file) and refusals\n"
     "  evaluate MESH      accuracy of a mesh against ground truth (points, a reference mesh or\n"
     "                     KITTI Velodyne scans): distances, completeness, precision, as JSON\n"
+    "  render MESH        draw a mesh into a camera of a sequence over its image (shaded and/or\n"
+    "                     wireframe), or top-down with the camera path, as PNG\n"
     "\n"
     "Options:\n"
     "  --version          print the version and the plugin ABI\n"
@@ -392,6 +397,9 @@ int CmdReport(const std::vector<std::string>& args) {
       "output.directory before {sequence}) into RUN_DIR/summary.json and summary.md: every\n"
       "sequence's status (its manifest and files are checked), frames, time, mesh size,\n"
       "accuracy, and for failures the cause and last log lines. Needs no plugins.\n"
+      "Also writes RUN_DIR/index.html: the table, the PNGs in RUN_DIR and RUN_DIR/plots (e.g.\n"
+      "from tools/plots/imr_plots.py RUN_DIR/summary.json --out RUN_DIR/plots), and each mesh\n"
+      "viewable in 3D in a browser, offline (<model-viewer> is copied beside the page).\n"
       "A sequence whose process was killed (a time limit, SIGKILL) shows as interrupted.\n"
       "Exit status: 0 every sequence ok; 1 a sequence failed, was interrupted or did not run (the\n"
       "last line says how many); 2 not a batch folder or bad usage.";
@@ -412,6 +420,15 @@ int CmdReport(const std::vector<std::string>& args) {
   } catch (const std::exception& e) {
     std::cerr << "imr report: " << e.what() << "\n";
     return kExitUsage;
+  }
+  // The page is a view of the summary: if it cannot be written, the summary still stands.
+  try {
+    const auto page = imr::report::WriteBatchPage(dir, summary);
+    for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
+    std::printf("viewer page: %s (%d mesh%s in 3D)\n", page.page.string().c_str(),
+                page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es");
+  } catch (const std::exception& e) {
+    imr::LogWarning(std::string("viewer page not written: ") + e.what());
   }
   for (const auto& r : summary["sequences"]) {
     const std::string st = r["status"].get<std::string>();
@@ -643,6 +660,7 @@ int main(int argc, char** argv) {
     if (cmd == "validate") return CmdValidate(args);
     if (cmd == "plugins") return CmdPlugins(args);
     if (cmd == "evaluate") return CmdEvaluate(args);
+    if (cmd == "render") return imr::render::RenderMain(argc - 1, argv + 1);
   } catch (const std::exception& e) {
     std::cerr << "imr " << cmd << ": " << e.what() << "\n";
     return kExitFailed;

@@ -276,6 +276,8 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
     orr.RejectUnknown();
   }
 
+  if (const json* e = r.Object("evaluation", false)) job.evaluation = *e;
+
   if (auto paths = r.Strings("plugin_paths", false, false))
     for (const auto& p : *paths) job.plugin_paths.push_back(job.Resolve(p));
 

@@ -48,6 +48,10 @@ struct JobSpec {
   std::vector<StageSpec> pipeline;
   OutputSpec output;
   std::vector<std::filesystem::path> plugin_paths;  // resolved against base_dir
+  // Accuracy against ground truth for every sequence's report (issue 6): {"truth": "velodyne" or
+  // a point cloud / reference mesh file, "tau", "max_ray_length", "scan_step", "crop"}; null when
+  // the job has none. Checked against pipeline::EvaluationSchema() by validation.
+  nlohmann::json evaluation;
 
   std::string Name() const { return file.stem().string(); }
   std::filesystem::path Resolve(const std::string& p) const;

@@ -212,12 +212,53 @@ ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry
       io::ValidateAgainstSchema(format->options_schema, v.job.input.options, "input.options",
                                 &v.problems);
       v.input_options = io::WithDefaults(format->options_schema, v.job.input.options);
+      // A poses file named in the job is relative to the job's folder, like every other path.
+      if (v.input_options.contains("poses") && v.input_options["poses"].is_string() &&
+          !v.input_options["poses"].get<std::string>().empty())
+        v.input_options["poses"] = v.job.Resolve(v.input_options["poses"].get<std::string>()).string();
       ExpandSequences(*format, &v);
     }
   }
   io::EngineOptionsFromJson(v.job.engine, &v.engine_options, &v.problems);
+  if (!v.job.evaluation.is_null()) {
+    io::ValidateAgainstSchema(EvaluationSchema(), v.job.evaluation, "evaluation", &v.problems);
+    v.evaluation = io::WithDefaults(EvaluationSchema(), v.job.evaluation);
+    const std::string truth = v.evaluation.value("truth", "");
+    const bool kitti = format != nullptr &&
+                       (format->name == "kitti_raw" || format->name == "kitti_odometry");
+    if (truth == "velodyne" && !kitti)
+      v.problems.push_back({"evaluation.truth", "\"velodyne\" needs a KITTI input format "
+                                                "(kitti_raw or kitti_odometry), the job's is " +
+                                                    io::Describe(v.job.input.format)});
+    else if (truth.empty())
+      v.problems.push_back({"evaluation.truth", "expected \"velodyne\" or a ground-truth file "
+                                                "(point cloud .ply/.xyz or reference mesh)"});
+    else if (truth != "velodyne") {
+      const fs::path p = v.job.Resolve(truth);
+      std::error_code ec;
+      if (!fs::is_regular_file(p, ec))
+        v.problems.push_back({"evaluation.truth", "no such file: " + p.string()});
+      v.evaluation["truth"] = p.string();
+    }
+  }
   ValidateStages(format, *registry, &v);
   return v;
+}
+
+nlohmann::json EvaluationSchema() {
+  return {{"truth", {{"type", "string"}, {"default", ""},
+                     {"description", "\"velodyne\" (the KITTI sequence's scans) or a point cloud "
+                                     "(.ply/.xyz) or reference mesh file, relative to the job"}}},
+          {"tau", {{"type", "number"}, {"default", 0.2}, {"minimum", 1e-9},
+                   {"description", "completeness/precision threshold the summary shows (scene "
+                                   "units); the report has 0.05, 0.1, 0.2, 0.5 and this"}}},
+          {"max_ray_length", {{"type", "number"}, {"default", 30.0}, {"minimum", 0.0},
+                              {"description", "crop: ground truth within this of a camera that "
+                                              "sees it (0: no range limit)"}}},
+          {"scan_step", {{"type", "integer"}, {"default", 5}, {"minimum", 1},
+                         {"description", "velodyne: every n-th frame's scan"}}},
+          {"crop", {{"type", "boolean"}, {"default", true},
+                    {"description", "crop ground truth to what the cameras saw"}}}};
 }
 
 }  // namespace imr::pipeline

@@ -25,9 +25,13 @@ struct ValidatedJob {
   nlohmann::json input_options;         // with defaults
   engine::EngineOptions engine_options;
   std::vector<nlohmann::json> stage_params;  // per stage, with defaults
+  nlohmann::json evaluation;                 // the job's "evaluation" with defaults; null: none
   std::vector<io::Problem> problems;
   bool ok() const { return problems.empty(); }
 };
+
+// The options of a job's "evaluation" section (accuracy against ground truth in every report).
+nlohmann::json EvaluationSchema();
 
 // Loads the plugins the job can see (its plugin_paths, then the default search path) into
 // `registry` and validates the job against them.
