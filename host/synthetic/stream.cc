@@ -193,6 +193,8 @@ Vec3 SyntheticStream::TruePosition(uint64_t point_id) const {
   return it == impl_->index.end() ? Vec3{} : impl_->points[it->second].truth;
 }
 Vec3 SyntheticStream::CameraCenter(int frame) const { return impl_->Center(frame); }
+Vec3 SyntheticStream::CameraForward(int frame) const { return impl_->Forward(frame); }
+bool SyntheticStream::Sees(int frame, const Vec3& x) const { return impl_->Sees(frame, x); }
 std::vector<Vec3> SyntheticStream::TruePoints() const {
   std::vector<Vec3> out;
   out.reserve(impl_->points.size());

@@ -81,6 +81,11 @@ class SyntheticStream {
   Vec3 TruePosition(uint64_t point_id) const;
   // Camera centre of a frame (any frame of the sequence).
   Vec3 CameraCenter(int frame) const;
+  // Viewing direction of a frame's camera (unit).
+  Vec3 CameraForward(int frame) const;
+  // True when the camera of `frame` sees x: within max_range, inside its field of view and not
+  // hidden by the scene. Benchmarks sample ground truth with it (what the cameras saw).
+  bool Sees(int frame, const Vec3& x) const;
   // True positions of every point emitted so far (for completeness measures).
   std::vector<Vec3> TruePoints() const;
 

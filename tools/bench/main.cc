@@ -6,6 +6,7 @@
 namespace imr::bench {
 int RunEngineBench(int argc, char** argv);
 int RunPipelineBench(int argc, char** argv);
+int RunPaperBench(int argc, char** argv);
 #ifdef IMR_BENCH_EVALUATE
 int RunEvaluateBench(int argc, char** argv);
 #endif
@@ -20,6 +21,8 @@ void Usage() {
                "         reconstruction engine on the synthetic street stream\n"
                "  pipeline [--frames N] [--width W --height H] [--cores C] [--kitti DIR]\n"
                "         the whole image pipeline (imr run) on one core: synthetic + KITTI\n"
+               "  paper [--quick] [--modes ...] [--no-images] [--out DIR] ...\n"
+               "         the paper's comparison: accuracy and per-move overhead per policy\n"
                "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
                "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n");
 }
@@ -33,6 +36,7 @@ int main(int argc, char** argv) {
   const std::string sub = argv[1];
   if (sub == "engine") return imr::bench::RunEngineBench(argc - 2, argv + 2);
   if (sub == "pipeline") return imr::bench::RunPipelineBench(argc - 2, argv + 2);
+  if (sub == "paper") return imr::bench::RunPaperBench(argc - 2, argv + 2);
 #ifdef IMR_BENCH_EVALUATE
   if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
 #endif
