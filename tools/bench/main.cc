@@ -7,6 +7,7 @@ namespace imr::bench {
 int RunEngineBench(int argc, char** argv);
 int RunPipelineBench(int argc, char** argv);
 int RunPaperBench(int argc, char** argv);
+int RunScalingBench(int argc, char** argv);
 #ifdef IMR_BENCH_EVALUATE
 int RunEvaluateBench(int argc, char** argv);
 #endif
@@ -23,6 +24,8 @@ void Usage() {
                "         the whole image pipeline (imr run) on one core: synthetic + KITTI\n"
                "  paper [--quick] [--modes ...] [--no-images] [--out DIR] ...\n"
                "         the paper's comparison: accuracy and per-move overhead per policy\n"
+               "  scaling [--frames 250,500,1000,2000] [--out DIR] ...\n"
+               "         keyframe time, total time and memory against sequence length\n"
                "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
                "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n");
 }
@@ -37,6 +40,7 @@ int main(int argc, char** argv) {
   if (sub == "engine") return imr::bench::RunEngineBench(argc - 2, argv + 2);
   if (sub == "pipeline") return imr::bench::RunPipelineBench(argc - 2, argv + 2);
   if (sub == "paper") return imr::bench::RunPaperBench(argc - 2, argv + 2);
+  if (sub == "scaling") return imr::bench::RunScalingBench(argc - 2, argv + 2);
 #ifdef IMR_BENCH_EVALUATE
   if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
 #endif
