@@ -1,5 +1,5 @@
 // KITTI raw (host/io/image_sequence.h ReadKittiRaw): calib_cam_to_cam.txt, calib_velo_to_cam.txt,
-// calib_imu_to_velo.txt, the drive's poses.txt (left out when empty: the oxts records are read
+// calib_imu_to_velo.txt, the drive's poses.txt (left out when blank: the oxts records are read
 // instead), image_02/timestamps.txt and three oxts records, as one input cut by "@@@@" lines;
 // beside image_02/data/0000000000..2.png.
 #include <cstddef>
@@ -26,7 +26,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
   imr::fuzz::WriteFile(date / "calib_velo_to_cam.txt", parts[1]);
   imr::fuzz::WriteFile(date / "calib_imu_to_velo.txt", parts[2]);
   std::error_code ec;
-  if (parts[3].empty())
+  if (parts[3].find_first_not_of(" \t\r\n") == std::string::npos)  // blank: use the oxts
     std::filesystem::remove(drive / "poses.txt", ec);
   else
     imr::fuzz::WriteFile(drive / "poses.txt", parts[3]);

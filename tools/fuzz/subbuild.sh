@@ -23,6 +23,8 @@ gcc_only_targets=(engine_engine_property_test)
 # -O1 with assertions (no NDEBUG): fast enough to run, and CGAL's and our asserts stay armed.
 common=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1
         -DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -DIMR_BUILD_BENCH=OFF -DIMR_BUILD_TESTS=ON -Wno-dev)
+# -gline-tables-only makes ccache hash the build folder; the sub-build's objects do not care.
+export CCACHE_NOHASHDIR=${CCACHE_NOHASHDIR:-1}
 export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 # ubsan.supp: one known, harmless report inside CGAL (see there).
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1:suppressions=$src/tools/fuzz/ubsan.supp}
@@ -70,10 +72,11 @@ case $mode in
     corpora=("$src/tests/fuzz/corpus/$name")
     [ -d "$src/tests/fuzz/regressions/$name" ] && corpora+=("$src/tests/fuzz/regressions/$name")
     mkdir -p "$bin/artifacts"
-    # New inputs go to the scratch folder (first), never into the committed corpus.
+    # New inputs go to the scratch folder (first), never into the committed corpus. A finding
+    # must fail the test: libFuzzer's own error exit code is 77, CTest's skip code here.
     set -x
     "$fuzzer" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
-      -print_final_stats=1 -artifact_prefix="$bin/artifacts/${name}-" "$work" "${corpora[@]}"
+      -print_final_stats=1 -error_exitcode=1 -timeout_exitcode=1 -artifact_prefix="$bin/artifacts/${name}-" "$work" "${corpora[@]}"
     ;;
   sanitize-test)
     test=$4
