@@ -14,7 +14,7 @@
 #include <thread>
 
 #include "host/batch/manifest.h"
-#include "host/batch/sha256.h"
+#include "host/util/sha256.h"
 #include "test_util.h"
 
 namespace imr::testing {
@@ -71,7 +71,7 @@ class Batch : public ::testing::Test {
     std::set<std::string> listed;
     for (const auto& e : m->files) {
       listed.insert(e.path);
-      EXPECT_EQ(batch::Sha256File(out / e.path), e.sha256) << seq << "/" << e.path;
+      EXPECT_EQ(imr::Sha256File(out / e.path), e.sha256) << seq << "/" << e.path;
     }
     for (const auto& e : fs::recursive_directory_iterator(out)) {
       if (!e.is_regular_file()) continue;

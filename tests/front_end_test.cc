@@ -149,6 +149,58 @@ TEST_F(FrontEnd, SyntheticSequenceBecomesAnAccurateManifoldMesh) {
   EXPECT_GE(report["snapshots"].size(), 2u);
 }
 
+// host/pipeline/REPORT.md, key by key, on a real report of the image pipeline with ground truth.
+TEST_F(FrontEnd, ReportFollowsTheDocumentedSchema) {
+  json job = ImageJob("kitti_odometry", {Sequence().string()});
+  job["output"]["directory"] = (*dir_ / "schema-runs/{sequence}").string();
+  job["output"]["snapshot_every"] = 6;
+  job["evaluation"] = {{"truth", (Sequence() / "ground_truth/scene.ply").string()}};
+  const CommandResult r = RunJob(job, "schema");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json report = ReadJson(*dir_ / "schema-runs/street/report.json");
+  using T = json::value_t;
+  auto is = [](const json& j, std::initializer_list<T> types) {
+    for (T t : types)
+      if (j.type() == t) return true;
+    return false;
+  };
+  const std::initializer_list<T> number = {T::number_float, T::number_integer, T::number_unsigned};
+  const std::initializer_list<T> integer = {T::number_integer, T::number_unsigned};
+  const std::vector<std::pair<std::string, std::initializer_list<T>>> expected = {
+      {"/imr_version", {T::string}}, {"/job", {T::string}}, {"/sequence/name", {T::string}},
+      {"/sequence/source", {T::string}}, {"/input/format", {T::string}},
+      {"/input/options", {T::object}}, {"/input/checksums/algorithm", {T::string}},
+      {"/input/checksums/files/poses.txt", {T::string}},
+      {"/input/checksums/images/count", integer},
+      {"/input/checksums/images/sha256_of_sha256s", {T::string}},
+      {"/input/summary/frames_processed", integer}, {"/input/summary/keyframes", integer},
+      {"/input/summary/track_survival/ratio", number},
+      {"/input/summary/points/moved", integer},
+      {"/input/summary/point_error/moved_median_latest_estimate", number},
+      {"/engine_options/visibility_mode", {T::string}}, {"/plugins", {T::array}},
+      {"/engine/keyframes", integer}, {"/engine/seconds/total", number},
+      {"/engine/keyframe_seconds", {T::array}}, {"/engine/move_seconds_per_moved_point", number},
+      {"/mesh/vertices", integer}, {"/mesh/faces", integer}, {"/mesh/manifold", {T::boolean}},
+      {"/mesh/boundary_closed_manifold", {T::boolean}},
+      {"/mesh/stats/euler_characteristic", integer}, {"/mesh/stats/components", integer},
+      {"/accuracy/mean_truth_to_mesh", number}, {"/accuracy/completeness", number},
+      {"/accuracy/precision", number}, {"/accuracy/tau", number},
+      {"/accuracy/evaluation", {T::object}}, {"/accuracy_known_scene/mean_mesh_to_scene", number},
+      {"/stage_seconds/features", number}, {"/stage_seconds/evaluation", number},
+      {"/snapshots", {T::array}}, {"/files", {T::array}}, {"/seconds", number}};
+  for (const auto& [path, types] : expected) {
+    const json::json_pointer p(path);
+    ASSERT_TRUE(report.contains(p)) << path << " missing";
+    EXPECT_TRUE(is(report[p], types)) << path << " has type " << report[p].type_name();
+  }
+  EXPECT_EQ(report["input"]["checksums"]["images"]["count"].get<int>(), 60);
+  EXPECT_EQ(report["engine"]["keyframe_seconds"].size(),
+            report["engine"]["keyframes"].get<std::size_t>());
+  for (const json& p : report["plugins"])
+    for (const char* k : {"id", "version", "kind", "abi", "file", "params"})
+      EXPECT_TRUE(p.contains(k)) << k << " missing in " << p.dump();
+}
+
 TEST_F(FrontEnd, CorruptOrMissingImageFailsOnlyItsSequence) {
   const fs::path corrupt = CopySequence("corrupt");
   const fs::path image = corrupt / "image_0/000017.png";

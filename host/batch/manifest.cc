@@ -1,6 +1,6 @@
 #include "host/batch/manifest.h"
 
-#include "host/batch/sha256.h"
+#include "host/util/sha256.h"
 #include "host/io/engine_options.h"
 #include "host/util/atomic_file.h"
 

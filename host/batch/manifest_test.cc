@@ -1,6 +1,6 @@
 #include "host/batch/manifest.h"
 
-#include "host/batch/sha256.h"
+#include "host/util/sha256.h"
 
 #include <gtest/gtest.h>
 

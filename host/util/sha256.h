@@ -1,5 +1,6 @@
-// SHA-256 (FIPS 180-4) for the manifests of finished sequences: a re-run trusts an output only
-// when its bytes still hash to what was recorded. Small and dependency-free on purpose.
+// SHA-256 (FIPS 180-4): manifests of finished sequences (a re-run trusts an output only
+// when its bytes still hash to what was recorded) and the input checksums of reports.
+// Small and dependency-free on purpose.
 #pragma once
 
 #include <array>
@@ -8,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-namespace imr::batch {
+namespace imr {
 
 class Sha256 {
  public:
@@ -30,4 +31,4 @@ std::string Sha256Hex(std::string_view data);
 // Hashes a file's contents; throws std::runtime_error naming the file when it cannot be read.
 std::string Sha256File(const std::filesystem::path& file);
 
-}  // namespace imr::batch
+}  // namespace imr

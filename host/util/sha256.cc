@@ -1,11 +1,11 @@
-#include "host/batch/sha256.h"
+#include "host/util/sha256.h"
 
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
 #include <vector>
 
-namespace imr::batch {
+namespace imr {
 namespace {
 
 constexpr uint32_t kK[64] = {
@@ -104,4 +104,4 @@ std::string Sha256File(const std::filesystem::path& file) {
   return s.HexDigest();
 }
 
-}  // namespace imr::batch
+}  // namespace imr
