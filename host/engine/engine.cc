@@ -15,6 +15,7 @@
 //   keyframe (became free, were created, or were shrunk), not with all of dO, so the cost of a
 //   keyframe does not grow with the size of the reconstruction.
 #include "host/engine/engine.h"
+#include "host/engine/engine_internal.h"
 
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Delaunay_triangulation_cell_base_3.h>
@@ -45,7 +46,9 @@ struct RayEntry {
 };
 
 struct VertexInfo {
-  int64_t id = -1;  // >= 0: internal point index; < 0: Steiner point number -(k + 1).
+  int64_t id = -1;     // >= 0: internal point index; < 0: Steiner point number -(k + 1).
+  int32_t o_cells = 0;  // Incident cells in O (kept by SetInO: cells of O are never destroyed,
+                        // shrink takes them out of O before the triangulation changes).
 };
 
 struct CellInfo {
@@ -198,9 +201,18 @@ struct Engine::Impl {
   int64_t cells_in_o = 0;
   EngineStats stats;
 
+  // Benchmark hooks (engine_internal.h).
+  bool cross_check_manifold_test = false;  // Run both forms of the manifold test, count differences.
+  int64_t manifold_test_mismatches = 0;
+  bool record_transfers = false;
+  size_t record_limit = 0;
+  std::vector<internal::RecordedTransfer> recorded;
+  std::vector<Cell_handle> probe_cells;
+
   // Scratch buffers.
-  std::vector<Cell_handle> ring[3];
+  std::vector<Cell_handle> ring[2];  // T and N1 of the ray being cast.
   std::vector<Cell_handle> incident_scratch;
+  std::vector<Cell_handle> star_scratch;
 
   Impl(const EngineOptions& o, WeightTransferPolicy* p) : opt(o), policy(p) {
     std::string error;
@@ -264,16 +276,83 @@ struct Engine::Impl {
     return LinkIsOneCycle(edges);
   }
 
-  bool ToggleKeepsManifold(Cell_handle c) {
+  // The reference form of the test: the link of each of c's four vertices, rebuilt.
+  bool ToggleKeepsManifoldByLinks(Cell_handle c) {
     for (int i = 0; i < 4; ++i)
       if (!VertexRegular(c->vertex(i), c)) return false;
     return true;
+  }
+
+  // The combinatorial form (Litvinov & Lhuillier 2013): toggling c keeps dO a 2-manifold iff
+  // K = c ∩ closure(S) is a disk, the empty set or all of c's boundary, where S is the side c
+  // joins (O when c enters O, the cells outside O when it leaves). With f facets of c on S:
+  // f >= 3 always; f = 2 iff the edge opposite the two facets' common edge is not on S; f = 1
+  // iff the vertex opposite the facet is not on S; f = 0 iff no vertex is on S. Equivalent to
+  // the link test on the four vertices while dO is manifold (the engine's invariant); it only
+  // looks at one edge's ring or one vertex, and a vertex on O is a counter, not a walk.
+  bool ToggleKeepsManifold(Cell_handle c) {
+    const bool adding = !c->info().in_o;
+    int on_s[4], f = 0;
+    for (int i = 0; i < 4; ++i)
+      if (c->neighbor(i)->info().in_o == adding) on_s[f++] = i;
+    bool keeps;
+    if (f >= 3) {
+      keeps = true;
+    } else if (f == 2) {
+      keeps = !EdgeTouchesSide(c, on_s[0], on_s[1], adding);
+    } else if (f == 1) {
+      keeps = !VertexTouchesSide(c, on_s[0], adding);
+    } else {
+      keeps = true;
+      for (int i = 0; i < 4 && keeps; ++i) keeps = !VertexTouchesSide(c, i, adding);
+    }
+    if (cross_check_manifold_test && keeps != ToggleKeepsManifoldByLinks(c))
+      ++manifold_test_mismatches;
+    return keeps;
+  }
+
+  // Is vertex i of c on S through a cell other than c?
+  bool VertexTouchesSide(Cell_handle c, int i, bool adding) {
+    const Vertex_handle v = c->vertex(i);
+    if (adding) return v->info().o_cells > 0;  // c itself is not in O.
+    // Leaving O: is any other cell around v outside O? A walk over v's star that stops at the
+    // first one (cells around a vertex inside O are all in O: the walk then sees them all).
+    ++stamp;
+    c->info().stamp = stamp;
+    std::vector<Cell_handle>& todo = star_scratch;
+    todo.clear();
+    todo.push_back(c);
+    while (!todo.empty()) {
+      const Cell_handle x = todo.back();
+      todo.pop_back();
+      const int iv = x->index(v);
+      for (int k = 0; k < 4; ++k) {
+        if (k == iv) continue;
+        const Cell_handle n = x->neighbor(k);
+        if (n->info().stamp == stamp) continue;
+        n->info().stamp = stamp;
+        if (!n->info().in_o) return true;
+        todo.push_back(n);
+      }
+    }
+    return false;
+  }
+
+  // Is the edge (vertex i, vertex j) of c on S through a cell other than c?
+  bool EdgeTouchesSide(Cell_handle c, int i, int j, bool adding) const {
+    Dt::Cell_circulator it = dt.incident_cells(c, i, j), done = it;
+    do {
+      const Cell_handle x = it;
+      if (x != c && x->info().in_o == adding) return true;
+    } while (++it != done);
+    return false;
   }
 
   void SetInO(Cell_handle c, bool in) {
     if (c->info().in_o == in) return;
     c->info().in_o = in;
     cells_in_o += in ? 1 : -1;
+    for (int i = 0; i < 4; ++i) c->vertex(i)->info().o_cells += in ? 1 : -1;
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -294,7 +373,28 @@ struct Engine::Impl {
     if (sign > 0) ++stats.rays_cast;
     else ++stats.rays_cast_backward;
     ++stamp;
-    for (auto& r : ring) r.clear();
+    ring[0].clear();
+    ring[1].clear();
+    const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
+    // Each cell is weighted when it is first reached (T, then N1, then N2), while it is in cache;
+    // only T and N1 are kept, to find the next ring.
+    auto weigh = [&](Cell_handle c, int level) {
+      CellInfo& info = c->info();
+      const bool was_free = info.weight > threshold;
+      if (rays_mode) {
+        // Lovi et al.: a cell remembers the rays that raised its weight (at most K, oldest
+        // forgotten); a ray already stored is not counted twice when it is re-cast.
+        for (const RayEntry& e : info.rays)
+          if (e.camera == cam && e.point == pt) return;
+        info.weight += unit[level];
+        info.rays.push_back({cam, pt, static_cast<uint8_t>(level)});
+        if (static_cast<int>(info.rays.size()) > opt.rays_per_cell)
+          info.rays.erase(info.rays.begin());
+      } else {
+        info.weight += sign * unit[level];
+      }
+      if (!was_free && info.weight > threshold) MarkDirty(c);
+    };
     // Traverse from the point's own vertex (DESIGN §9: located start, ~15x faster than a walk
     // from an arbitrary cell). The traversal stops at the cell holding the camera, at the hull,
     // or after max_cells_per_ray cells.
@@ -312,45 +412,24 @@ struct Engine::Impl {
         if (c->info().stamp == stamp) continue;
         c->info().stamp = stamp;
         ring[0].push_back(c);
+        weigh(c, 0);
       }
     } catch (...) {
       ++stats.rays_truncated;
     }
     stats.cells_traversed += static_cast<int64_t>(ring[0].size());
+    int64_t weighted = static_cast<int64_t>(ring[0].size());
     for (int level = 1; level < 3; ++level)
       for (Cell_handle c : ring[level - 1])
         for (int i = 0; i < 4; ++i) {
           Cell_handle n = c->neighbor(i);
           if (n->info().stamp == stamp || dt.is_infinite(n)) continue;
           n->info().stamp = stamp;
-          ring[level].push_back(n);
+          if (level == 1) ring[1].push_back(n);
+          weigh(n, level);
+          ++weighted;
         }
-    const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
-    for (int level = 0; level < 3; ++level) {
-      stats.cells_weighted += static_cast<int64_t>(ring[level].size());
-      for (Cell_handle c : ring[level]) {
-        CellInfo& info = c->info();
-        const bool was_free = info.weight > threshold;
-        if (rays_mode) {
-          // Lovi et al.: a cell remembers the rays that raised its weight (at most K, oldest
-          // forgotten); a ray already stored is not counted twice when it is re-cast.
-          bool stored = false;
-          for (const RayEntry& e : info.rays)
-            if (e.camera == cam && e.point == pt) {
-              stored = true;
-              break;
-            }
-          if (stored) continue;
-          info.weight += unit[level];
-          info.rays.push_back({cam, pt, static_cast<uint8_t>(level)});
-          if (static_cast<int>(info.rays.size()) > opt.rays_per_cell)
-            info.rays.erase(info.rays.begin());
-        } else {
-          info.weight += sign * unit[level];
-        }
-        if (!was_free && info.weight > threshold) MarkDirty(c);
-      }
-    }
+    stats.cells_weighted += weighted;
   }
 
   std::vector<uint32_t> Window(const PointRecord& rec) const {
@@ -476,6 +555,8 @@ struct Engine::Impl {
       in.new_count = finite.size();
       policy->Transfer(in, out.data());
       ++stats.policy_calls;
+      if (record_transfers && recorded.size() < record_limit)
+        recorded.push_back({r.centroids, r.weights, centroids});
       for (size_t i = 0; i < finite.size(); ++i) finite[i]->info().weight = ToUnits(out[i]);
     }
     for (Cell_handle c : finite)
@@ -991,6 +1072,18 @@ struct Engine::Impl {
     }
     r.cells_in_o = in_o;
     if (in_o != cells_in_o) fail("cells_in_o counter out of sync");
+    std::unordered_map<Vertex_handle, int32_t> o_cells;
+    for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c)
+      if (c->info().in_o)
+        for (int i = 0; i < 4; ++i) ++o_cells[c->vertex(i)];
+    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v) {
+      const auto it = o_cells.find(v);
+      if (v->info().o_cells != (it == o_cells.end() ? 0 : it->second)) {
+        fail("a vertex's count of cells in O is out of sync");
+        break;
+      }
+    }
+    if (manifold_test_mismatches > 0) fail("the two forms of the manifold test disagreed");
     const std::vector<Triangle> tris = Boundary();
     r.boundary_triangles = static_cast<int64_t>(tris.size());
     // Orientation: the O cell's opposite vertex is on the positive side of each triangle.
@@ -1111,6 +1204,142 @@ size_t Engine::NumPoints() const {
   for (const auto& p : impl_->points) n += p.in_triangulation ? 1 : 0;
   return n;
 }
+
+// -------------------------------------------------------------------------------------------------
+// Benchmark and diagnostic hooks (engine_internal.h).
+namespace internal {
+
+int64_t EngineInternals::TraverseOnly(Engine& e, uint64_t point_id, uint64_t camera_id) {
+  Engine::Impl& m = *e.impl_;
+  const auto pi = m.point_index.find(point_id);
+  const auto ci = m.camera_index.find(camera_id);
+  if (pi == m.point_index.end() || ci == m.camera_index.end()) return 0;
+  const auto& rec = m.points[pi->second];
+  if (!rec.in_triangulation || m.dt.dimension() != 3) return 0;
+  int64_t n = 0;
+  auto it = m.dt.segment_traverser_cells_begin(rec.vertex->point(), m.cameras[ci->second],
+                                               rec.vertex->cell());
+  const auto end = m.dt.segment_traverser_cells_end();
+  for (; it != end && n < m.opt.max_cells_per_ray; ++it) {
+    if (m.dt.is_infinite(Cell_handle(it))) break;
+    ++n;
+  }
+  return n;
+}
+
+int64_t EngineInternals::CastRay(Engine& e, uint64_t point_id, uint64_t camera_id, int sign) {
+  Engine::Impl& m = *e.impl_;
+  const auto pi = m.point_index.find(point_id);
+  const auto ci = m.camera_index.find(camera_id);
+  if (pi == m.point_index.end() || ci == m.camera_index.end()) return 0;
+  const int64_t before = m.stats.cells_weighted;
+  m.CastRay(ci->second, pi->second, sign);
+  return m.stats.cells_weighted - before;
+}
+
+std::vector<uint64_t> EngineInternals::WindowCameras(const Engine& e, uint64_t point_id) {
+  const Engine::Impl& m = *e.impl_;
+  std::vector<uint64_t> out;
+  const auto pi = m.point_index.find(point_id);
+  if (pi == m.point_index.end()) return out;
+  for (uint32_t c : m.Window(m.points[pi->second])) out.push_back(m.camera_ids[c]);
+  return out;
+}
+
+void EngineInternals::RecordTransfers(Engine& e, bool on, size_t limit) {
+  e.impl_->record_transfers = on;
+  e.impl_->record_limit = limit;
+  if (on) e.impl_->recorded.clear();
+}
+
+const std::vector<RecordedTransfer>& EngineInternals::RecordedTransfers(const Engine& e) {
+  return e.impl_->recorded;
+}
+
+size_t EngineInternals::CollectBoundaryCells(Engine& e, size_t limit) {
+  Engine::Impl& m = *e.impl_;
+  m.probe_cells.clear();
+  for (auto c = m.dt.finite_cells_begin(); c != m.dt.finite_cells_end(); ++c) {
+    if (m.probe_cells.size() >= limit) break;
+    bool on_boundary = false;
+    for (int i = 0; i < 4; ++i)
+      on_boundary = on_boundary || c->neighbor(i)->info().in_o != c->info().in_o;
+    if (on_boundary && !m.HullAdjacent(c)) m.probe_cells.push_back(c);
+  }
+  return m.probe_cells.size();
+}
+
+int64_t EngineInternals::TestCollectedCells(Engine& e, bool by_links) {
+  Engine::Impl& m = *e.impl_;
+  int64_t ok = 0;
+  if (by_links)
+    for (Cell_handle c : m.probe_cells) ok += m.ToggleKeepsManifoldByLinks(c) ? 1 : 0;
+  else
+    for (Cell_handle c : m.probe_cells) ok += m.ToggleKeepsManifold(c) ? 1 : 0;
+  return ok;
+}
+
+void EngineInternals::CrossCheckManifoldTest(Engine& e, bool on) {
+  e.impl_->cross_check_manifold_test = on;
+}
+
+int64_t EngineInternals::ManifoldTestMismatches(const Engine& e) {
+  return e.impl_->manifold_test_mismatches;
+}
+
+int64_t EngineInternals::ShrinkAround(Engine& e, const Vec3& centre, double radius) {
+  Engine::Impl& m = *e.impl_;
+  const Point p = ToPoint(centre);
+  std::vector<Cell_handle> d;
+  const double r2 = radius * radius;
+  for (auto c = m.dt.finite_cells_begin(); c != m.dt.finite_cells_end(); ++c) {
+    bool near = false;
+    for (int i = 0; i < 4 && !near; ++i)
+      near = CGAL::squared_distance(c->vertex(i)->point(), p) <= r2;
+    if (near) d.push_back(c);
+  }
+  const int64_t before = m.stats.cells_shrunk;
+  // E = D here (a radius of 0 around the centre adds nothing beyond D's own cells).
+  const double saved = m.opt.shrink_radius;
+  m.opt.shrink_radius = 0.0;
+  m.Shrink(d, {p});
+  m.opt.shrink_radius = saved;
+  return m.stats.cells_shrunk - before;
+}
+
+int64_t EngineInternals::Grow(Engine& e) {
+  Engine::Impl& m = *e.impl_;
+  const int64_t before = m.stats.cells_grown;
+  m.Grow();
+  return m.stats.cells_grown - before;
+}
+
+std::vector<BoundaryFacetProbe> EngineInternals::ProbeBoundary(const Engine& e) {
+  const Engine::Impl& m = *e.impl_;
+  std::vector<BoundaryFacetProbe> out;
+  for (auto c = m.dt.finite_cells_begin(); c != m.dt.finite_cells_end(); ++c) {
+    if (!c->info().in_o) continue;
+    for (int i = 0; i < 4; ++i) {
+      const Cell_handle n = c->neighbor(i);
+      if (n->info().in_o) continue;
+      BoundaryFacetProbe f;
+      for (int k = 0; k < 3; ++k) {
+        const Vertex_handle v = c->vertex(Dt::vertex_triple_index(i, k));
+        const int64_t id = v->info().id;
+        f.point_ids[k] = id >= 0 ? static_cast<int64_t>(m.points[id].id) : -1;
+        f.vertices[k] = {v->point().x(), v->point().y(), v->point().z()};
+      }
+      f.weight_in_o = m.FromUnits(c->info().weight);
+      f.weight_outside = m.FromUnits(n->info().weight);
+      f.outside_free = m.IsFree(n);
+      f.outside_hull_adjacent = m.dt.is_infinite(n) || m.HullAdjacent(n);
+      out.push_back(f);
+    }
+  }
+  return out;
+}
+
+}  // namespace internal
 
 ManifoldCheckResult CheckMesh(const Mesh& mesh, bool closed) {
   ManifoldCheckResult r;

@@ -161,6 +161,10 @@ struct ManifoldCheckResult {
   int64_t cells_in_o = 0;
 };
 
+namespace internal {
+class EngineInternals;  // Benchmark and diagnostic hooks (engine_internal.h); not public API.
+}
+
 class Engine {
  public:
   // The policy is not owned and must outlive the engine; it may be null in kRays mode.
@@ -198,6 +202,7 @@ class Engine {
   size_t NumPoints() const;  // Points currently in the triangulation.
 
  private:
+  friend class internal::EngineInternals;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

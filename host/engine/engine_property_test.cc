@@ -224,3 +224,33 @@ TEST(DeterminismTest, SameStreamSameMesh) {
 
 }  // namespace
 }  // namespace imr::engine
+
+// ---------------------------------------------------------------------------------------------
+// The engine decides growing and shrinking with the combinatorial manifold test; the reference
+// test rebuilds the link of each vertex. Run side by side on whole streams, they must agree on
+// every cell (and dO stays manifold, which CheckInvariants checks, with the per-vertex counts of
+// cells in O that the combinatorial test reads).
+#include "host/engine/engine_internal.h"
+
+namespace imr::engine {
+namespace {
+
+TEST(ManifoldTestTest, CombinatorialFormAgreesWithLinks) {
+  for (const std::string mode : {"nearest", "mean", "rays5"})
+    for (const SceneKind scene : {SceneKind::kStreet, SceneKind::kRoom}) {
+      synthetic::SyntheticStream stream(SmallStream(scene, 3));
+      EngineOptions eo;
+      std::unique_ptr<WeightTransferPolicy> policy;
+      ASSERT_TRUE(testing::ConfigureMode(mode, &eo, &policy));
+      Engine engine(eo, policy.get());
+      internal::EngineInternals::CrossCheckManifoldTest(engine, true);
+      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok());
+      EXPECT_EQ(internal::EngineInternals::ManifoldTestMismatches(engine), 0) << mode;
+      const ManifoldCheckResult r = engine.CheckInvariants();
+      EXPECT_TRUE(r.ok) << mode << ": " << r.message;
+      EXPECT_GT(engine.Stats().cells_grown + engine.Stats().cells_shrunk, 1000) << mode;
+    }
+}
+
+}  // namespace
+}  // namespace imr::engine
