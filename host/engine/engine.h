@@ -54,6 +54,8 @@ struct EngineOptions {
   double steiner_margin = 5.0;        // Grid covers each camera +- (max_ray_length + margin).
   Vec3 steiner_origin = {0.37, 0.61, 0.23};  // Grid offset in units of spacing (off the axes
                                       // and the z = 0 plane where synthetic surfaces lie).
+  double steiner_jitter = 1e-3;       // Each Steiner point moves off its grid node by up to this
+                                      // fraction of steiner_spacing (deterministic per node).
   double w1 = 1.0;                    // Weight added to cells traversed by a ray (T).
   double w2 = 0.8;                    // Weight added to their neighbours (N1).
   double w3 = 0.2;                    // Weight added to the neighbours of N1 (N2).
@@ -68,6 +70,16 @@ struct EngineOptions {
                                       // when true; else they start at 0 and the point's own rays,
                                       // cast right after, weight them. Moves always use the
                                       // policy. See the note in engine.cc on why false is default.
+  bool transfer_camera_side = true;   // When the policy weights the cells around a point just
+                                      // inserted or moved, a new cell behind the point (its
+                                      // centroid on the far side from the point's cameras)
+                                      // starts at 0 instead: a surface point has matter behind
+                                      // it, and the policy would carry the free space in front
+                                      // of its old position through the surface.
+  bool nonnegative_weights = true;    // A backward cast never takes a weight below 0. Cells it
+                                      // crosses may have got their weight from the policy (or 0
+                                      // at an insertion), not from the ray cast forward; without
+                                      // the floor they sink below 0 and stay matter.
   double shrink_radius = 6.0;         // Enclosing set E: D plus cells around D's vertices that
                                       // lie within this distance (metres) of the point.
   int shrink_passes = 3;              // Shrink work bound: tries per cell of E (a refused cell

@@ -39,6 +39,8 @@ bool EngineOptions::Check(std::string* error) const {
   auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!finite_positive(steiner_spacing)) e << "steiner_spacing must be > 0; ";
   if (!std::isfinite(steiner_margin) || steiner_margin < 0.0) e << "steiner_margin must be >= 0; ";
+  if (!std::isfinite(steiner_jitter) || steiner_jitter < 0.0 || steiner_jitter > 0.25)
+    e << "steiner_jitter must be in [0, 0.25]; ";
   for (double o : steiner_origin)
     if (!std::isfinite(o)) e << "steiner_origin must be finite; ";
   if (!std::isfinite(w1) || !std::isfinite(w2) || !std::isfinite(w3) || w1 < 0 || w2 < 0 || w3 < 0)

@@ -1,6 +1,11 @@
 // imr-bench engine: the reconstruction engine on the synthetic street stream, in every visibility
 // mode, with and without moving points (DESIGN §4: per-move overhead = (T_mov - T_nonmov) / N_mov).
-// Prints a table, then one JSON object as the last line.
+// Accuracy both ways on the mesh of real-point triangles: the mean distance of its triangles to
+// the true scene (acc_real), and the paper's figure, the mean distance from ground truth (points
+// sampled on the surfaces the cameras saw, independently of the stream) to it (gt2m_real). Then
+// the real-time check: the dense street stream (about 1,250 observations per frame, every
+// point moving at each keyframe while it is tracked), nearest, in engine frames per second
+// (target >= 10). Prints tables, then one JSON object as the last line.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -15,6 +20,7 @@
 
 #include "host/engine/engine.h"
 #include "host/engine/testing/run_stream.h"
+#include "tools/bench/common/bench_util.h"
 
 namespace imr::bench {
 namespace {
@@ -22,26 +28,6 @@ namespace {
 using engine::Engine;
 using engine::EngineOptions;
 using engine::EngineStats;
-
-double Quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double pos = q * (v.size() - 1);
-  const size_t i = static_cast<size_t>(pos);
-  const double f = pos - i;
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
-
-double Median(std::vector<double> v) { return Quantile(std::move(v), 0.5); }
-
-// Bytes allocated and in use on the heap (glibc), independent of memory kept by the allocator.
-long HeapInUseBytes() { return static_cast<long>(mallinfo2().uordblks); }
-
-long PeakRssKb() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_maxrss;
-}
 
 struct RunResult {
   std::string mode;
@@ -54,6 +40,8 @@ struct RunResult {
   long heap_bytes = 0;  // Heap in use by the engine (and the stream) at the end of the run.
   synthetic::MeshAccuracy accuracy;
   synthetic::MeshAccuracy accuracy_real;  // Only triangles of real points.
+  SceneAccuracy truth_real;               // Ground truth -> the real-point mesh (paper's figure).
+  double observations_per_frame = 0.0;
 };
 
 EngineOptions g_base_options;
@@ -73,9 +61,12 @@ RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptio
   Engine eng(eo, policy.get());
   const int total_kf = stream.keyframe_count();
   int done = 0;
+  int64_t observations = 0;
   const engine::Status s = engine::testing::RunStream(
       &stream, &eng, [&](const synthetic::StreamKeyframe& kf) {
         ++done;
+        for (const auto& p : kf.new_points) observations += static_cast<int64_t>(p.camera_ids.size());
+        for (const auto& p : kf.moved_points) observations += static_cast<int64_t>(p.camera_ids.size());
         if (kf.index % 50 == 0)
           std::fprintf(stderr, "[%s%s %d/%d] %.3f s\n", mode.c_str(), frozen ? " frozen" : "",
                        done, total_kf, eng.Stats().keyframe_seconds.back());
@@ -83,6 +74,7 @@ RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptio
       });
   r.ok = s.ok();
   r.error = s.message();
+  r.observations_per_frame = static_cast<double>(observations) / std::max(1, so.frames);
   r.heap_bytes = HeapInUseBytes() - heap0;
   r.stats = eng.Stats();
   for (double t : r.stats.keyframe_seconds) r.total += t;
@@ -105,14 +97,11 @@ RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptio
     }
     real.faces = faces;
     r.accuracy_real = engine::testing::Accuracy(stream, real, 0.25);
+    r.truth_real = EvaluateAgainstScene(
+        stream.scene(), real.vertices, real.faces,
+        SampleSeenSurfaces(stream, so.frames, 1, 200, so.seed + 1000), 0.25, 0);
   }
   return r;
-}
-
-std::string Num(double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.6g", v);
-  return b;
 }
 
 }  // namespace
@@ -124,6 +113,8 @@ int RunEngineBench(int argc, char** argv) {
   so.points_per_keyframe = 150;
   so.noise_at_10m = 0.1;
   std::vector<std::string> modes = {"nearest", "mean", "weighted_mean", "rays5", "rays1"};
+  int dense_frames = -1;  // -1: as many as --frames; 0: no real-time check.
+  bool dense_only = false;
   for (int i = 0; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -139,7 +130,12 @@ int RunEngineBench(int argc, char** argv) {
     else if (a == "--quick") so.frames = 200;
     else if (a == "--shrink-radius") g_base_options.shrink_radius = std::atof(next());
     else if (a == "--window") g_base_options.window = std::atoi(next());
+    else if (a == "--steiner-jitter") g_base_options.steiner_jitter = std::atof(next());
     else if (a == "--transfer-on-insert") g_base_options.transfer_on_insert = true;
+    else if (a == "--no-camera-side") g_base_options.transfer_camera_side = false;
+    else if (a == "--negative-weights") g_base_options.nonnegative_weights = false;
+    else if (a == "--dense-frames") dense_frames = std::atoi(next());
+    else if (a == "--dense-only") dense_only = true;
     else if (a == "--modes") {
       modes.clear();
       std::stringstream ss(next());
@@ -147,9 +143,11 @@ int RunEngineBench(int argc, char** argv) {
       while (std::getline(ss, m, ',')) modes.push_back(m);
     } else {
       std::fprintf(stderr,
-                   "usage: imr-bench engine [--frames N] [--seed S] [--quick] [--points P] "
-                   "[--modes nearest,mean,weighted_mean,rays5,rays1] [--shrink-radius R] [--window W] "
-                   "[--transfer-on-insert]\n");
+                   "usage: imr-bench engine [--frames N] [--seed S] [--quick] [--points P]\n"
+                   "         [--modes nearest,mean,weighted_mean,rays5,rays1] [--shrink-radius R]\n"
+                   "         [--window W] [--steiner-jitter J] [--transfer-on-insert]\n"
+                   "         [--no-camera-side] [--negative-weights]   (the engine before issue 8)\n"
+                   "         [--dense-frames N (0: none)] [--dense-only]\n");
       return 2;
     }
   }
@@ -170,18 +168,22 @@ int RunEngineBench(int argc, char** argv) {
       return 2;
     }
   }
+  if (dense_frames < 0) dense_frames = so.frames;
+  if (dense_only) modes.clear();
+  const std::string load_start = LoadAverage();
   std::printf("imr-bench engine: street stream, %d frames (%d keyframes), %d new points per "
-              "keyframe, seed %llu\n",
+              "keyframe, seed %llu; %s; load average at start %s\n",
               so.frames, so.frames / so.keyframe_every, so.points_per_keyframe,
-              static_cast<unsigned long long>(so.seed));
+              static_cast<unsigned long long>(so.seed), MachineLine().c_str(), load_start.c_str());
   std::vector<RunResult> moving, frozen;
   for (const auto& m : modes) {
     frozen.push_back(Run(m, true, so, false));
     moving.push_back(Run(m, false, so, true));
   }
-  std::printf("\n%-14s %9s %9s %9s %9s %9s %8s %9s %10s %8s %8s %8s %8s %8s\n", "mode", "kf_med_ms",
-              "kf_p90_ms", "kf_max_ms", "T_mov_s", "T_nonmov", "N_mov", "move_us", "late/early",
-              "dropped", "cells/ray", "acc_m", "acc_real", "compl");
+  if (!modes.empty())
+  std::printf("\n%-14s %9s %9s %9s %9s %9s %8s %9s %10s %8s %8s %8s %8s %9s %8s\n", "mode",
+              "kf_med_ms", "kf_p90_ms", "kf_max_ms", "T_mov_s", "T_nonmov", "N_mov", "move_us",
+              "late/early", "dropped", "cells/ray", "acc_m", "acc_real", "gt2m_real", "compl");
   for (size_t i = 0; i < moving.size(); ++i) {
     const RunResult& r = moving[i];
     const RunResult& f = frozen[i];
@@ -189,18 +191,20 @@ int RunEngineBench(int argc, char** argv) {
     const double nmov = static_cast<double>(std::max<int64_t>(1, r.stats.points_moved));
     const double rays = static_cast<double>(
         std::max<int64_t>(1, r.stats.rays_cast + r.stats.rays_cast_backward));
-    std::printf("%-14s %9.2f %9.2f %9.2f %9.2f %9.2f %8lld %9.1f %10.2f %8lld %8.1f %8.3f %8.3f %8.2f%s\n",
+    std::printf("%-14s %9.2f %9.2f %9.2f %9.2f %9.2f %8lld %9.1f %10.2f %8lld %8.1f %8.3f %8.3f "
+                "%9.3f %8.2f%s\n",
                 r.mode.c_str(), 1e3 * Median(k), 1e3 * Quantile(k, 0.9),
                 1e3 * (k.empty() ? 0.0 : *std::max_element(k.begin(), k.end())), r.total, f.total,
                 static_cast<long long>(r.stats.points_moved), 1e6 * (r.total - f.total) / nmov,
                 r.late_vs_early, static_cast<long long>(r.stats.points_dropped),
                 r.stats.cells_traversed / rays, r.accuracy.mean_mesh_to_scene,
-                r.accuracy_real.mean_mesh_to_scene, r.accuracy_real.completeness,
-                r.ok && f.ok ? "" : "  ERROR");
+                r.accuracy_real.mean_mesh_to_scene, r.truth_real.truth_to_mesh_mean,
+                r.accuracy_real.completeness, r.ok && f.ok ? "" : "  ERROR");
     if (!r.ok) std::printf("  error: %s\n", r.error.c_str());
     if (!f.ok) std::printf("  error (frozen): %s\n", f.error.c_str());
   }
   // Phase breakdown and cost per traversed cell.
+  if (!moving.empty())
   std::printf("\n%-14s %8s %8s %8s %8s %8s %8s %8s %8s %10s %11s\n", "mode", "steiner",
               "shrink", "move", "insert", "cast", "scan", "grow", "total", "rays", "ns/cell");
   for (const RunResult& r : moving) {
@@ -238,10 +242,44 @@ int RunEngineBench(int argc, char** argv) {
   if (nearest)
     std::printf("late_vs_early_keyframe_time (nearest) %.2f (target <= 1.5)\n",
                 nearest->late_vs_early);
-  std::printf("peak RSS %.1f MB; %.0f heap bytes per triangulation vertex (nearest: %lld "
-              "vertices)\n",
-              peak / 1024.0, bytes_per_vertex,
-              static_cast<long long>(nearest ? nearest->stats.vertices : 0));
+  const RunResult* rays5 = find("rays5");
+  double acc_ratio = 0.0, gt2m_ratio = 0.0;
+  if (nearest && rays5 && rays5->accuracy_real.mean_mesh_to_scene > 0 &&
+      rays5->truth_real.truth_to_mesh_mean > 0) {
+    acc_ratio = nearest->accuracy_real.mean_mesh_to_scene / rays5->accuracy_real.mean_mesh_to_scene;
+    gt2m_ratio = nearest->truth_real.truth_to_mesh_mean / rays5->truth_real.truth_to_mesh_mean;
+    std::printf("accuracy nearest / rays5 (target <= 1.10): ground truth -> mesh (the paper's "
+                "figure) %.2f; mesh -> scene %.2f\n",
+                gt2m_ratio, acc_ratio);
+  }
+  if (!moving.empty())
+    std::printf("peak RSS %.1f MB; %.0f heap bytes per triangulation vertex (nearest: %lld "
+                "vertices)\n",
+                peak / 1024.0, bytes_per_vertex,
+                static_cast<long long>(nearest ? nearest->stats.vertices : 0));
+
+  // Real-time check: the dense stream (720 new points per keyframe: about 1,250 observations per
+  // frame; every point moves at each keyframe while it is tracked), nearest, engine alone.
+  RunResult dense;
+  synthetic::StreamOptions dso = so;
+  dso.frames = dense_frames;
+  dso.points_per_keyframe = 720;
+  double dense_fps = 0.0;
+  if (dense_frames >= 10) {
+    dense = Run("nearest", false, dso, false);
+    dense_fps = dense.total > 0 ? dso.frames / dense.total : 0.0;
+    const auto& k = dense.stats.keyframe_seconds;
+    std::printf("\nreal-time check: dense street stream, %d frames, %d new points per keyframe, "
+                "%.0f observations per frame, %lld moves; nearest\n"
+                "  keyframe median / p90 / max %.1f / %.1f / %.1f ms; total %.2f s; engine "
+                "%.1f frames/s (target >= 10, i.e. a keyframe in <= 0.5 s); late/early %.2f%s\n",
+                dso.frames, dso.points_per_keyframe, dense.observations_per_frame,
+                static_cast<long long>(dense.stats.points_moved), 1e3 * Median(k),
+                1e3 * Quantile(k, 0.9), 1e3 * (k.empty() ? 0.0 : *std::max_element(k.begin(), k.end())),
+                dense.total, dense_fps, dense.late_vs_early, dense.ok ? "" : "  ERROR");
+    if (!dense.ok) std::printf("  error: %s\n", dense.error.c_str());
+  }
+  std::printf("load average at end %s\n", LoadAverage().c_str());
   // The JSON object, last line.
   std::ostringstream j;
   j << "{\"bench\":\"engine\",\"scene\":\"street\",\"frames\":" << so.frames
@@ -270,15 +308,36 @@ int RunEngineBench(int argc, char** argv) {
       << ",\"accuracy_mean_m\":" << Num(r.accuracy.mean_mesh_to_scene)
       << ",\"accuracy_real_mean_m\":" << Num(r.accuracy_real.mean_mesh_to_scene)
       << ",\"completeness_real\":" << Num(r.accuracy_real.completeness)
+      << ",\"ground_truth_to_real_mesh_mean_m\":" << Num(r.truth_real.truth_to_mesh_mean)
+      << ",\"ground_truth_to_real_mesh_median_m\":" << Num(r.truth_real.truth_to_mesh_median)
       << ",\"truth_to_mesh_mean_m\":" << Num(r.accuracy.mean_truth_to_mesh) << "}";
   }
   j << "},\"overhead_ratio_rays5_vs_nearest\":" << Num(ratio)
     << ",\"late_vs_early_keyframe_time\":" << Num(nearest ? nearest->late_vs_early : 0.0)
     << ",\"peak_rss_mb\":" << Num(peak / 1024.0)
-    << ",\"bytes_per_vertex\":" << Num(bytes_per_vertex) << "}";
+    << ",\"bytes_per_vertex\":" << Num(bytes_per_vertex)
+    << ",\"accuracy_ratio_nearest_vs_rays5\":{\"ground_truth_to_mesh\":" << Num(gt2m_ratio)
+    << ",\"mesh_to_scene\":" << Num(acc_ratio) << "}";
+  if (dense_frames >= 10)
+    j << ",\"dense\":{\"ok\":" << (dense.ok ? "true" : "false") << ",\"frames\":" << dso.frames
+      << ",\"points_per_keyframe\":" << dso.points_per_keyframe
+      << ",\"observations_per_frame\":" << Num(dense.observations_per_frame)
+      << ",\"points_moved\":" << dense.stats.points_moved
+      << ",\"keyframe_s_median\":" << Num(Median(dense.stats.keyframe_seconds))
+      << ",\"keyframe_s_p90\":" << Num(Quantile(dense.stats.keyframe_seconds, 0.9))
+      << ",\"total_s\":" << Num(dense.total) << ",\"frames_per_second\":" << Num(dense_fps)
+      << ",\"late_vs_early_keyframe_time\":" << Num(dense.late_vs_early) << "}";
+  j << ",\"engine_options\":{\"transfer_camera_side\":"
+    << (g_base_options.transfer_camera_side ? "true" : "false") << ",\"nonnegative_weights\":"
+    << (g_base_options.nonnegative_weights ? "true" : "false")
+    << ",\"steiner_jitter\":" << Num(g_base_options.steiner_jitter) << "}"
+    << ",\"machine\":" << JsonString(MachineLine())
+    << ",\"load_average_start\":" << JsonString(load_start)
+    << ",\"load_average_end\":" << JsonString(LoadAverage()) << "}";
   std::printf("%s\n", j.str().c_str());
   bool all_ok = true;
   for (size_t i = 0; i < moving.size(); ++i) all_ok = all_ok && moving[i].ok && frozen[i].ok;
+  if (dense_frames >= 10) all_ok = all_ok && dense.ok;
   return all_ok ? 0 : 1;
 }
 
