@@ -531,23 +531,6 @@ bool ParseList(const std::string& s, std::vector<double>* out) {
   return !out->empty();
 }
 
-// "FIRST[:COUNT[:STEP]]" -> the image sequence's frame selection; false when malformed.
-bool ParseFrames(const std::string& s, imr::io::ImageSequenceOptions* o) {
-  int v[3] = {0, -1, 1};
-  std::stringstream ss(s);
-  int n = 0;
-  for (std::string item; std::getline(ss, item, ':'); ++n) {
-    if (n == 3) return false;
-    const auto r = std::from_chars(item.data(), item.data() + item.size(), v[n]);
-    if (r.ec != std::errc() || r.ptr != item.data() + item.size()) return false;
-  }
-  if (n == 0) return false;
-  o->first_frame = v[0];
-  o->frame_count = v[1];
-  o->frame_step = v[2];
-  return true;
-}
-
 int CmdEvaluate(const std::vector<std::string>& args) {
   imr::eval::EvaluationOptions d;  // the defaults, for the help text
   po::options_description opts("imr evaluate options");
@@ -596,7 +579,8 @@ int CmdEvaluate(const std::vector<std::string>& args) {
   if (vm.count("velodyne-seq")) in.sequence = vm["velodyne-seq"].as<std::string>();
   if (in.truth.empty() && in.sequence.empty())
     return usage("no ground truth: give --truth FILE or --velodyne-seq DIR");
-  if (vm.count("frames") && !ParseFrames(vm["frames"].as<std::string>(), &in.sequence_options))
+  if (vm.count("frames") &&
+      !imr::io::ParseFrameSelection(vm["frames"].as<std::string>(), &in.sequence_options))
     return usage("--frames: expected FIRST[:COUNT[:STEP]], got '" + vm["frames"].as<std::string>() + "'");
   if ((vm.count("frames") || !vm["camera"].defaulted()) && in.sequence.empty())
     return usage("--frames and --camera need --velodyne-seq");

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 namespace imr::io {
@@ -148,6 +149,22 @@ std::string FileLine(const std::string& file, int line) {
 
 bool IsBlankLine(const std::string& line) {
   return line.find_first_not_of(" \t\r") == std::string::npos;
+}
+
+bool ParseFrameSelection(const std::string& text, ImageSequenceOptions* options) {
+  int v[3] = {0, -1, 1};
+  std::stringstream ss(text);
+  int n = 0;
+  for (std::string item; std::getline(ss, item, ':'); ++n) {
+    if (n == 3) return false;
+    const auto r = std::from_chars(item.data(), item.data() + item.size(), v[n]);
+    if (r.ec != std::errc() || r.ptr != item.data() + item.size()) return false;
+  }
+  if (n == 0) return false;
+  options->first_frame = v[0];
+  options->frame_count = v[1];
+  options->frame_step = v[2];
+  return true;
 }
 
 }  // namespace imr::io

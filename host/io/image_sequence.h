@@ -114,6 +114,9 @@ std::vector<std::string> ReadTextLines(const std::string& path, const std::strin
 // The blank-separated numbers of line `line` (1-based) of `file`. Throws
 // "<file>:<line>: column <c> (number <k>): 'x' is not a finite number" for text, NaN or inf.
 std::vector<double> ParseNumbers(const std::string& text, const std::string& file, int line);
+// "FIRST[:COUNT[:STEP]]" (command lines) -> first_frame, frame_count, frame_step of `options`;
+// false (and `options` untouched) when malformed.
+bool ParseFrameSelection(const std::string& text, ImageSequenceOptions* options);
 // The source frames chosen by first_frame, frame_step and frame_count (at most that many) among
 // `source_count`. Throws, naming `sequence`, when none is left.
 std::vector<int> SelectSourceFrames(int source_count, const ImageSequenceOptions& options,

@@ -59,23 +59,6 @@ bool ParseVec3(const std::string& s, Vec3* out) {
   return n == 3;
 }
 
-// "FIRST[:COUNT[:STEP]]" -> the sequence's frame selection; false when malformed.
-bool ParseFrames(const std::string& s, io::ImageSequenceOptions* o) {
-  int v[3] = {0, -1, 1};
-  std::stringstream ss(s);
-  int n = 0;
-  for (std::string item; std::getline(ss, item, ':'); ++n) {
-    if (n == 3) return false;
-    const auto r = std::from_chars(item.data(), item.data() + item.size(), v[n]);
-    if (r.ec != std::errc() || r.ptr != item.data() + item.size()) return false;
-  }
-  if (n == 0) return false;
-  o->first_frame = v[0];
-  o->frame_count = v[1];
-  o->frame_step = v[2];
-  return true;
-}
-
 Camera CameraOf(const io::CameraGeometry& g) {
   Camera c;
   const io::Intrinsics& k = g.intrinsics;
@@ -181,7 +164,7 @@ int Run(const std::vector<std::string>& args) {
   if (!top_down && !vm.count("frame")) return usage("give --frame N (the frame to draw into)");
   if (top_down && vm.count("frame")) return usage("--frame does not apply to --top-down");
   io::ImageSequenceOptions so;
-  if (vm.count("frames") && !ParseFrames(vm["frames"].as<std::string>(), &so))
+  if (vm.count("frames") && !io::ParseFrameSelection(vm["frames"].as<std::string>(), &so))
     return usage("--frames: expected FIRST[:COUNT[:STEP]], got '" + vm["frames"].as<std::string>() + "'");
   so.camera = vm["camera"].as<int>();
   std::string format;
