@@ -47,6 +47,7 @@ struct PaperArgs {
   uint64_t seed = 1;
   int image_frames = 300;
   bool images = true;
+  bool synth_images = true;
   bool kitti_enabled = true;
   std::string kitti;
   std::string out = "paper-figures";
@@ -386,6 +387,7 @@ int RunPaperBench(int argc, char** argv) {
     else if (k == "--image-frames") a.image_frames = std::atoi(value().c_str());
     else if (k == "--no-images") a.images = false;
     else if (k == "--no-kitti") a.kitti_enabled = false;
+    else if (k == "--no-synth-images") a.synth_images = false;
     else if (k == "--kitti") a.kitti = value();
     else if (k == "--out") a.out = value();
     else if (k == "--work") a.work = value();
@@ -400,7 +402,8 @@ int RunPaperBench(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: imr-bench paper [--street-frames N] [--room-frames N] [--points P]\n"
                    "         [--noise S] [--seed S] [--modes nearest,mean,weighted_mean,rays5,rays1]\n"
-                   "         [--scenes street,room] [--image-frames N] [--no-images] [--no-kitti]\n"
+                   "         [--scenes street,room] [--image-frames N] [--no-images]\n"
+                   "         [--no-synth-images] [--no-kitti]\n"
                    "         [--kitti DRIVE_DIR] [--out DIR] [--work DIR] [--tau T] [--quick]\n");
       return 2;
     }
@@ -449,7 +452,9 @@ int RunPaperBench(int argc, char** argv) {
   if (a.images && have_imr) {
     fs::create_directories(work);
     const fs::path synth = work / "imr-synth-street";
-    if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(synth.string()) +
+    if (!a.synth_images) {
+      // Skipped on request.
+    } else if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(synth.string()) +
            " --frames " + std::to_string(a.image_frames) + " --no-lidar --force -q") == 0) {
       auto rs = RunImageSequence(
           "images street", "kitti_odometry", json::object(), synth.string(),
@@ -462,8 +467,10 @@ int RunPaperBench(int argc, char** argv) {
     }
     std::string kitti = a.kitti;
     if (kitti.empty()) {
+      // The team's data beside the checkout (IMR_SHARED_DIR, else ../shared of this source tree).
       const char* shared = std::getenv("IMR_SHARED_DIR");
-      const fs::path base = shared ? fs::path(shared) : ExeDir() / "../../../shared";
+      const fs::path base =
+          shared ? fs::path(shared) : fs::path(__FILE__).parent_path() / "../../../shared";
       kitti = (base / "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync")
                   .lexically_normal()
                   .string();

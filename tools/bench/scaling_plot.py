@@ -62,6 +62,10 @@ def main():
         if xs:
             ref = [ys[0] * x / xs[0] for x in xs]
             bx.loglog(xs, ref, ":", color="gray", lw=0.8)
+    all_frames = sorted({r["frames"] for runs in by_mode.values() for r in runs})
+    bx.set_xticks(all_frames)
+    bx.set_xticklabels([str(f) for f in all_frames])
+    bx.minorticks_off()
     bx.set_xlabel("frames")
     bx.set_ylabel("total engine time (s)")
     bx.set_title("Total time (dotted: linear)", fontsize=9)
