@@ -10,6 +10,7 @@ int RunPaperBench(int argc, char** argv);
 int RunScalingBench(int argc, char** argv);
 #ifdef IMR_BENCH_EVALUATE
 int RunEvaluateBench(int argc, char** argv);
+int RunPeersBench(int argc, char** argv);
 #endif
 }
 
@@ -26,6 +27,9 @@ void Usage() {
                "         the paper's comparison: accuracy and per-move overhead per policy\n"
                "  scaling [--frames 250,500,1000,2000] [--out DIR] ...\n"
                "         keyframe time, total time and memory against sequence length\n"
+               "  peers [--frames N] [--colmap PATH]\n"
+               "         imr vs COLMAP's delaunay_mesher on identical input (needs\n"
+               "         tools/bench/peers/build_colmap.sh)\n"
                "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
                "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n");
 }
@@ -43,6 +47,7 @@ int main(int argc, char** argv) {
   if (sub == "scaling") return imr::bench::RunScalingBench(argc - 2, argv + 2);
 #ifdef IMR_BENCH_EVALUATE
   if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
+  if (sub == "peers") return imr::bench::RunPeersBench(argc - 2, argv + 2);
 #endif
   std::fprintf(stderr, "imr-bench: unknown subcommand '%s'\n", sub.c_str());
   Usage();

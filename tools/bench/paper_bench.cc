@@ -284,7 +284,8 @@ std::vector<ModeResult> RunImageSequence(const std::string& name, const std::str
     const fs::path ev = dir / ("evaluate-" + mode + ".json");
     const int rc = Sh(Quote((ExeDir() / "imr").string()) + " evaluate " +
                       Quote((om / "mesh.ply").string()) + " " + evaluate_args + " --tau " +
-                      Num(a.tau) + " -q -o " + Quote(ev.string()));
+                      Num(a.tau) + " -q -o " + Quote(ev.string()) + " >" +
+                      Quote(fs::path(ev).replace_extension(".log").string()) + " 2>&1");
     const json r = ReadJson(ev);
     if (rc != 0 || r.is_null()) {
       m.error = "imr evaluate failed";
