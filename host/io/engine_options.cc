@@ -42,6 +42,17 @@ const json& EngineOptionsSchema() {
         {"description", "cells made by inserting a new point get weights from the policy (DESIGN "
                         "section 3 step 3); default false: they start at 0 and the point's own "
                         "rays weight them (measured: far better completeness with nearest)"}};
+    s["transfer_camera_side"] = {
+        {"type", "boolean"}, {"default", d.transfer_camera_side},
+        {"description", "cells behind an inserted or moved point, seen from its cameras, start "
+                        "at 0 instead of taking the policy's weight"}};
+    s["nonnegative_weights"] = {
+        {"type", "boolean"}, {"default", d.nonnegative_weights},
+        {"description", "a backward cast never takes a cell's weight below 0"}};
+    s["steiner_jitter"] = {
+        {"type", "number"}, {"default", d.steiner_jitter}, {"minimum", 0.0}, {"maximum", 0.25},
+        {"description", "Steiner points move off their grid nodes by up to this fraction of "
+                        "steiner_spacing (avoids cospherical cells)"}};
     s["shrink_radius"] = {{"type", "number"}, {"default", d.shrink_radius}, {"minimum", 0.0},
                           {"description", "enclosing set E: cells within this distance, metres"}};
     s["shrink_passes"] = {{"type", "integer"}, {"default", d.shrink_passes}, {"minimum", 1},
@@ -70,6 +81,9 @@ bool EngineOptionsFromJson(const json& j, engine::EngineOptions* o, std::vector<
   o->rays_per_cell = v["rays_per_cell"];
   engine::FromString(v["steiner_export"].get<std::string>(), &o->steiner_export);
   o->transfer_on_insert = v["transfer_on_insert"];
+  o->transfer_camera_side = v["transfer_camera_side"];
+  o->nonnegative_weights = v["nonnegative_weights"];
+  o->steiner_jitter = v["steiner_jitter"];
   o->shrink_radius = v["shrink_radius"];
   o->shrink_passes = v["shrink_passes"];
   o->check_after_update = v["check_invariants"];
@@ -94,6 +108,9 @@ json EngineOptionsToJson(const engine::EngineOptions& o) {
           {"rays_per_cell", o.rays_per_cell},
           {"steiner_export", engine::ToString(o.steiner_export)},
           {"transfer_on_insert", o.transfer_on_insert},
+          {"transfer_camera_side", o.transfer_camera_side},
+          {"nonnegative_weights", o.nonnegative_weights},
+          {"steiner_jitter", o.steiner_jitter},
           {"shrink_radius", o.shrink_radius},
           {"shrink_passes", o.shrink_passes},
           {"check_invariants", o.check_after_update}};
