@@ -1,5 +1,7 @@
 #include "host/eval/mesh_io.h"
 
+#include "host/util/text_codec.h"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -424,48 +426,6 @@ Vec3 Transform(const Mat4& m, const Vec3& p) {
           m[2] * p[0] + m[6] * p[1] + m[10] * p[2] + m[14]};
 }
 
-std::vector<unsigned char> Base64Decode(std::string_view s, const fs::path& path) {
-  auto value = [](char c) -> int {
-    if (c >= 'A' && c <= 'Z') return c - 'A';
-    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-    if (c >= '0' && c <= '9') return c - '0' + 52;
-    if (c == '+' || c == '-') return 62;
-    if (c == '/' || c == '_') return 63;
-    return -1;
-  };
-  std::vector<unsigned char> out;
-  out.reserve(s.size() * 3 / 4);
-  uint32_t acc = 0;
-  int bits = 0;
-  for (char c : s) {
-    if (c == '=') break;
-    if (c == '\n' || c == '\r' || c == ' ') continue;
-    const int v = value(c);
-    if (v < 0) Fail(path, "bad character in a base64 data URI");
-    acc = (acc << 6) | static_cast<uint32_t>(v);
-    bits += 6;
-    if (bits >= 8) {
-      bits -= 8;
-      out.push_back(static_cast<unsigned char>((acc >> bits) & 0xFF));
-    }
-  }
-  return out;
-}
-
-std::string PercentDecode(const std::string& s) {
-  std::string out;
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit(static_cast<unsigned char>(s[i + 1])) &&
-        std::isxdigit(static_cast<unsigned char>(s[i + 2]))) {
-      out += static_cast<char>(std::stoi(s.substr(i + 1, 2), nullptr, 16));
-      i += 2;
-    } else {
-      out += s[i];
-    }
-  }
-  return out;
-}
-
 class GltfReader {
  public:
   GltfReader(const json& doc, const fs::path& path, std::string_view glb_bin, bool is_glb)
@@ -522,8 +482,8 @@ class GltfReader {
           const std::size_t comma = uri.find(',');
           if (comma == std::string::npos || uri.substr(0, comma).find(";base64") == std::string::npos)
             Fail(path_, name + ": only base64 data URIs are supported");
-          const auto bytes = Base64Decode(std::string_view(uri).substr(comma + 1), path_);
-          data.assign(bytes.begin(), bytes.end());
+          if (!Base64Decode(std::string_view(uri).substr(comma + 1), &data))
+            Fail(path_, "bad character in a base64 data URI");
         } else {
           const fs::path file = path_.parent_path() / PercentDecode(uri);
           try {

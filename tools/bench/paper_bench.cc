@@ -32,6 +32,7 @@
 #include "host/engine/engine.h"
 #include "host/engine/testing/run_stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/subprocess.h"
 
 namespace imr::bench {
 namespace {
@@ -142,30 +143,6 @@ ModeResult RunSyntheticMode(const std::string& scene_name, const synthetic::Stre
 
 // ---------------------------------------------------------------------------------------------
 // The image pipeline (imr run as a subprocess).
-
-fs::path ExeDir() { return fs::canonical("/proc/self/exe").parent_path(); }
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-int Sh(const std::string& command) {
-  std::fprintf(stderr, "+ %s\n", command.c_str());
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
-
-json ReadJson(const fs::path& p) {
-  std::ifstream in(p);
-  if (!in) return json();
-  try {
-    return json::parse(in);
-  } catch (...) {
-    return json();
-  }
-}
 
 json EngineSection(const std::string& mode) {
   json e = {{"window", 15}, {"steiner_spacing", 5.0}, {"steiner_export", "any_steiner"}};

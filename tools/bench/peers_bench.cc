@@ -23,36 +23,13 @@
 #include "host/eval/mesh_io.h"
 #include "host/eval/mesh_stats.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/subprocess.h"
 
 namespace imr::bench {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-fs::path ExeDir() { return fs::canonical("/proc/self/exe").parent_path(); }
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-int Sh(const std::string& command) {
-  std::fprintf(stderr, "+ %s\n", command.c_str());
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
-
-json ReadJson(const fs::path& p) {
-  std::ifstream in(p);
-  if (!in) return json();
-  try {
-    return json::parse(in);
-  } catch (...) {
-    return json();
-  }
-}
 
 std::string FindColmap(const std::string& given) {
   if (!given.empty()) return given;

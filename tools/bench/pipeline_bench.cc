@@ -20,6 +20,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "tools/bench/common/subprocess.h"
+
 namespace imr::bench {
 namespace {
 namespace fs = std::filesystem;
@@ -33,20 +35,6 @@ struct PipelineArgs {
   std::string kitti;            // KITTI raw drive folder; default from IMR_SHARED_DIR
   bool keep = false;
 };
-
-fs::path ExeDir() { return fs::canonical("/proc/self/exe").parent_path(); }
-
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-int Run(const std::string& command) {
-  std::fprintf(stderr, "+ %s\n", command.c_str());
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
 
 double Seconds(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -86,7 +74,7 @@ Measured RunImr(const std::string& name, const std::string& format, const std::s
   const fs::path out = work / ("out-" + name);
   std::ofstream(job_file) << Job(format, sequence, out).dump(2);
   const auto start = std::chrono::steady_clock::now();
-  const int rc = Run(Quote((ExeDir() / "imr").string()) + " run " + Quote(job_file.string()) +
+  const int rc = Sh(Quote((ExeDir() / "imr").string()) + " run " + Quote(job_file.string()) +
                      " 2>" + Quote((work / (name + ".log")).string()));
   m.wall = Seconds(start);
   std::ifstream in(out / "report.json");
@@ -197,7 +185,7 @@ int RunPipelineBench(int argc, char** argv) {
   // Synthetic: generated, then run.
   const fs::path synth = work / "synthetic-street";
   const auto gen_start = std::chrono::steady_clock::now();
-  const int gen_rc = Run(Quote((ExeDir() / "imr-synth").string()) + " --out " +
+  const int gen_rc = Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " +
                          Quote(synth.string()) + " --frames " + std::to_string(a.frames) +
                          " --width " + std::to_string(a.width) + " --height " +
                          std::to_string(a.height) + " --no-lidar --force >/dev/null");
