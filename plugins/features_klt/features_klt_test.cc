@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "plugins/testing/plugin_fixture.h"
+
 #include <algorithm>
 #include <boost/dll/shared_library.hpp>
 #include <chrono>
@@ -85,14 +87,11 @@ imr_image_view View(const cv::Mat& m) {
 
 using TrackMap = std::map<uint64_t, cv::Point2d>;
 
-class FeaturesPlugin : public ::testing::Test {
+class FeaturesPlugin : public imr::testing::PluginFixture {
  protected:
   void SetUp() override {
-    lib_.load(IMR_FEATURES_SO, boost::dll::load_mode::rtld_now);
-    auto entry = lib_.get<const imr_plugin_descriptor*(uint32_t)>("imr_plugin_entry");
-    d_ = entry(0);
-    ASSERT_NE(d_, nullptr);
-    ASSERT_EQ(entry(1), nullptr);
+    LoadPlugin(IMR_FEATURES_SO);
+    ASSERT_EQ(entry_(1), nullptr);
   }
 
   // Feeds one frame; returns its tracks by id (and checks ids are unique within the frame).
@@ -108,18 +107,6 @@ class FeaturesPlugin : public ::testing::Test {
     return m;
   }
 
-  imr_status CreateStatus(const std::string& params, std::string* message) {
-    try {
-      imr::sdk::Instance inst(d_, params, nullptr);
-      return IMR_OK;
-    } catch (const imr::sdk::PluginCallError& e) {
-      *message = e.what();
-      return e.status();
-    }
-  }
-
-  boost::dll::shared_library lib_;
-  const imr_plugin_descriptor* d_ = nullptr;
   const cv::Mat texture_ = RenderTexture(kWidth + 200, kHeight + 200, 7);
 };
 

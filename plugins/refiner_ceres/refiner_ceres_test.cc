@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "plugins/testing/plugin_fixture.h"
+
 #include <Eigen/Core>
 #include <algorithm>
 #include <boost/dll/shared_library.hpp>
@@ -71,13 +73,10 @@ struct Reported {
   int first_keyframe = 0;
 };
 
-class RefinerPlugin : public ::testing::Test {
+class RefinerPlugin : public imr::testing::PluginFixture {
  protected:
   void SetUp() override {
-    lib_.load(IMR_REFINER_SO, boost::dll::load_mode::rtld_now);
-    auto entry = lib_.get<const imr_plugin_descriptor*(uint32_t)>("imr_plugin_entry");
-    d_ = entry(0);
-    ASSERT_NE(d_, nullptr);
+    LoadPlugin(IMR_REFINER_SO);
   }
 
   // Drives a drive of `frames` frames. Track id = 1000 + point index; `extra` adds observations of
@@ -147,18 +146,6 @@ class RefinerPlugin : public ::testing::Test {
     return run;
   }
 
-  imr_status CreateStatus(const std::string& params, std::string* message) {
-    try {
-      imr::sdk::Instance inst(d_, params, nullptr);
-      return IMR_OK;
-    } catch (const imr::sdk::PluginCallError& e) {
-      *message = e.what();
-      return e.status();
-    }
-  }
-
-  boost::dll::shared_library lib_;
-  const imr_plugin_descriptor* d_ = nullptr;
 };
 
 double Median(std::vector<double> v) {
