@@ -44,6 +44,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <queue>
 #include <sstream>
@@ -225,6 +226,10 @@ struct Engine::Impl {
   // Cells whose state changed this keyframe (became free, created, shrunk): growing seeds.
   std::unordered_set<Cell_handle> dirty;
   int64_t cells_in_o = 0;
+  // Sum of every cell's weight (finite and infinite), kept by each change of a weight and of the
+  // cells: CheckInvariants compares it with the cells' own sum, so a weight changed or a cell made
+  // or destroyed outside casting and transfer shows. Modulo 2^64 (unsigned wrap is exact).
+  uint64_t weight_ledger = 0;
   EngineStats stats;
 
   // Benchmark hooks (engine_internal.h).
@@ -253,7 +258,14 @@ struct Engine::Impl {
 
   int64_t ToUnits(double w) const {
     if (!std::isfinite(w)) return 0;
-    return static_cast<int64_t>(std::llround(w / opt.weight_unit));
+    // A policy may return any finite double: saturate far below int64's range (llround of an
+    // unrepresentable value is unspecified) while leaving room for rays added on top.
+    constexpr double kMaxUnits = 4611686018427387904.0;  // 2^62
+    const double u = std::clamp(w / opt.weight_unit, -kMaxUnits, kMaxUnits);
+    return static_cast<int64_t>(std::llround(u));
+  }
+  void Ledger(int64_t before, int64_t after) {
+    weight_ledger += static_cast<uint64_t>(after) - static_cast<uint64_t>(before);
   }
   double FromUnits(int64_t w) const { return static_cast<double>(w) * opt.weight_unit; }
 
@@ -406,7 +418,8 @@ struct Engine::Impl {
     // only T and N1 are kept, to find the next ring.
     auto weigh = [&](Cell_handle c, int level) {
       CellInfo& info = c->info();
-      const bool was_free = info.weight > threshold;
+      const int64_t before = info.weight;
+      const bool was_free = before > threshold;
       if (rays_mode) {
         // Lovi et al.: a cell remembers the rays that raised its weight (at most K, oldest
         // forgotten); a ray already stored is not counted twice when it is re-cast.
@@ -420,6 +433,7 @@ struct Engine::Impl {
         info.weight += sign * unit[level];
         if (opt.nonnegative_weights && info.weight < 0) info.weight = 0;
       }
+      Ledger(before, info.weight);
       if (!was_free && info.weight > threshold) MarkDirty(c);
     };
     // Traverse from the point's own vertex (DESIGN §9: located start, ~15x faster than a walk
@@ -551,6 +565,7 @@ struct Engine::Impl {
   void CollectRemoved(const std::vector<Cell_handle>& cells, Removed* r) {
     for (Cell_handle c : cells) {
       dirty.erase(c);
+      Ledger(c->info().weight, 0);  // the cell is about to be destroyed
       if (dt.is_infinite(c)) continue;
       if (opt.visibility_mode == VisibilityMode::kRays) {
         r->rays.insert(r->rays.end(), c->info().rays.begin(), c->info().rays.end());
@@ -608,6 +623,7 @@ struct Engine::Impl {
         }
       }
     }
+    for (Cell_handle c : added) Ledger(0, c->info().weight);
     for (Cell_handle c : finite)
       if (IsFree(c)) MarkDirty(c);
   }
@@ -678,6 +694,7 @@ struct Engine::Impl {
       auto& rs = c->info().rays;
       for (size_t i = 0; i < rs.size();) {
         if (rs[i].point == pt) {
+          Ledger(unit[rs[i].level], 0);
           c->info().weight -= unit[rs[i].level];
           rs.erase(rs.begin() + static_cast<std::ptrdiff_t>(i));
         } else {
@@ -1122,9 +1139,59 @@ struct Engine::Impl {
     return m;
   }
 
+  // A vertex as a user would find it: the point's id (or the Steiner point's number) and where
+  // it is, for the messages of CheckInvariants.
+  std::string DescribeVertex(Vertex_handle v) const {
+    std::ostringstream s;
+    s.precision(6);
+    if (dt.is_infinite(v)) return "the infinite vertex";
+    const int64_t id = v->info().id;
+    if (id >= 0) s << "point " << points[static_cast<size_t>(id)].id;
+    else s << "Steiner point " << (-id - 1);
+    const Point& p = v->point();
+    s << " (" << p.x() << ", " << p.y() << ", " << p.z() << ")";
+    return s.str();
+  }
+  std::string DescribeCell(Cell_handle c) const {
+    std::string s = "cell {";
+    for (int i = 0; i < 4; ++i) s += (i ? "; " : "") + DescribeVertex(c->vertex(i));
+    return s + "}";
+  }
+
+  // Weight consistency: every weight within what casting and transfer can make (>= 0 when
+  // nonnegative_weights; in kRays mode at least what its stored rays added, with at most K of
+  // them), and the cells' sum equal to the ledger kept by every change.
+  void CheckWeights(const std::function<void(const std::string&)>& fail) const {
+    const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
+    uint64_t sum = 0;
+    for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
+      const CellInfo& info = c->info();
+      sum += static_cast<uint64_t>(info.weight);
+      if (!rays_mode && opt.nonnegative_weights && info.weight < 0) {
+        fail(DescribeCell(c) + " has weight " + std::to_string(FromUnits(info.weight)) +
+             " < 0 although nonnegative_weights is on (a weight-transfer policy returned a "
+             "negative weight?)");
+      }
+      if (rays_mode) {
+        int64_t stored = 0;
+        for (const RayEntry& e : info.rays) stored += unit[e.level];
+        if (static_cast<int>(info.rays.size()) > opt.rays_per_cell)
+          fail(DescribeCell(c) + " stores " + std::to_string(info.rays.size()) +
+               " rays, more than rays_per_cell (" + std::to_string(opt.rays_per_cell) + ")");
+        else if (info.weight < stored)
+          fail(DescribeCell(c) + " has weight " + std::to_string(FromUnits(info.weight)) +
+               ", less than its stored rays added (" + std::to_string(FromUnits(stored)) + ")");
+      }
+    }
+    if (sum != weight_ledger)
+      fail("the cells' weights sum to " + std::to_string(FromUnits(static_cast<int64_t>(sum))) +
+           " but casting and transfer account for " +
+           std::to_string(FromUnits(static_cast<int64_t>(weight_ledger))) +
+           ": a weight or a cell changed outside them");
+  }
+
   ManifoldCheckResult CheckInvariants() const {
     ManifoldCheckResult r;
-    std::ostringstream msg;
     auto fail = [&](const std::string& s) {
       if (r.ok) r.message = s;
       r.ok = false;
@@ -1132,23 +1199,28 @@ struct Engine::Impl {
     int64_t in_o = 0;
     for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
       if (!c->info().in_o) continue;
-      if (dt.is_infinite(c)) fail("an infinite cell is in O");
+      if (dt.is_infinite(c)) fail("an infinite " + DescribeCell(c) + " is in O");
       ++in_o;
     }
     r.cells_in_o = in_o;
-    if (in_o != cells_in_o) fail("cells_in_o counter out of sync");
+    if (in_o != cells_in_o)
+      fail("O holds " + std::to_string(in_o) + " cells but its counter says " +
+           std::to_string(cells_in_o));
     std::unordered_map<Vertex_handle, int32_t> o_cells;
     for (auto c = dt.finite_cells_begin(); c != dt.finite_cells_end(); ++c)
       if (c->info().in_o)
         for (int i = 0; i < 4; ++i) ++o_cells[c->vertex(i)];
     for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v) {
       const auto it = o_cells.find(v);
-      if (v->info().o_cells != (it == o_cells.end() ? 0 : it->second)) {
-        fail("a vertex's count of cells in O is out of sync");
+      const int32_t actual = it == o_cells.end() ? 0 : it->second;
+      if (v->info().o_cells != actual) {
+        fail(DescribeVertex(v) + " counts " + std::to_string(v->info().o_cells) +
+             " incident cells in O, but " + std::to_string(actual) + " are");
         break;
       }
     }
     if (manifold_test_mismatches > 0) fail("the two forms of the manifold test disagreed");
+    CheckWeights(fail);
     const std::vector<Triangle> tris = Boundary();
     r.boundary_triangles = static_cast<int64_t>(tris.size());
     // Orientation: the O cell's opposite vertex is on the positive side of each triangle.
@@ -1160,18 +1232,28 @@ struct Engine::Impl {
         const Point& b = c->vertex(Dt::vertex_triple_index(i, 1))->point();
         const Point& d = c->vertex(Dt::vertex_triple_index(i, 2))->point();
         if (CGAL::orientation(a, b, d, c->vertex(i)->point()) != CGAL::POSITIVE)
-          fail("a boundary triangle is not oriented toward free space");
+          fail("the boundary triangle of " + DescribeCell(c) + " opposite " +
+               DescribeVertex(c->vertex(i)) + " is not oriented toward free space");
       }
     }
     // Every directed edge once, and its reverse once: each edge in exactly two triangles with
     // opposite orientations.
     std::map<std::pair<int64_t, int64_t>, int> directed;
     std::unordered_map<int64_t, std::vector<std::pair<int64_t, int64_t>>> links;
+    std::unordered_map<int64_t, Vertex_handle> handle;  // for the messages
+    auto edge_name = [&](int64_t a, int64_t b) {
+      return "the edge from " + DescribeVertex(handle.at(a)) + " to " + DescribeVertex(handle.at(b));
+    };
     for (const Triangle& t : tris) {
       int64_t id[3];
-      for (int k = 0; k < 3; ++k) id[k] = t.v[k]->info().id;
       for (int k = 0; k < 3; ++k) {
-        if (++directed[{id[k], id[(k + 1) % 3]}] > 1) fail("a directed boundary edge repeats");
+        id[k] = t.v[k]->info().id;
+        handle.emplace(id[k], t.v[k]);
+      }
+      for (int k = 0; k < 3; ++k) {
+        if (++directed[{id[k], id[(k + 1) % 3]}] > 1)
+          fail(edge_name(id[k], id[(k + 1) % 3]) + " is in two boundary triangles with the "
+                                                     "same orientation");
         links[id[k]].push_back({id[(k + 1) % 3], id[(k + 2) % 3]});
       }
     }
@@ -1179,16 +1261,16 @@ struct Engine::Impl {
       (void)n;
       auto it = directed.find({e.second, e.first});
       if (it == directed.end() || it->second != 1) {
-        fail("a boundary edge is not shared by exactly two oppositely oriented triangles");
+        fail(edge_name(e.first, e.second) +
+             " is not shared by exactly two oppositely oriented boundary triangles");
         break;
       }
     }
     r.boundary_vertices = static_cast<int64_t>(links.size());
     for (const auto& [v, edges] : links)
       if (!LinkIsOneCycle(edges)) {
-        msg.str("");
-        msg << "vertex " << v << " on dO is not regular (its triangles are not one fan)";
-        fail(msg.str());
+        fail(DescribeVertex(handle.at(v)) +
+             " on dO is not regular (its boundary triangles are not one fan)");
         break;
       }
     if (!dt.is_valid(false)) fail("the Delaunay triangulation is not valid");
@@ -1372,6 +1454,19 @@ int64_t EngineInternals::ShrinkAround(Engine& e, const Vec3& centre, double radi
   return m.stats.cells_shrunk - before;
 }
 
+bool EngineInternals::ForceNonManifoldToggle(Engine& e) {
+  Engine::Impl& m = *e.impl_;
+  for (Cell_handle c : m.probe_cells) {
+    if (m.ToggleKeepsManifoldByLinks(c)) continue;
+    m.SetInO(c, !c->info().in_o);
+    return true;
+  }
+  return false;
+}
+void EngineInternals::OverwriteCollectedWeight(Engine& e, size_t index, double weight) {
+  Engine::Impl& m = *e.impl_;
+  m.probe_cells.at(index)->info().weight = m.ToUnits(weight);
+}
 int64_t EngineInternals::Grow(Engine& e) {
   Engine::Impl& m = *e.impl_;
   const int64_t before = m.stats.cells_grown;

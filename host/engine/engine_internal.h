@@ -67,6 +67,13 @@ class EngineInternals {
 
   // --- Diagnostics. ---
   static std::vector<BoundaryFacetProbe> ProbeBoundary(const Engine& e);
+
+  // --- Breaking invariants on purpose (tests of CheckInvariants). ---
+  // Toggles the first collected cell whose toggle would break dO's manifoldness, skipping the
+  // test (counters kept in sync). Returns false when no collected cell would break it.
+  static bool ForceNonManifoldToggle(Engine& e);
+  // Sets a collected cell's weight without the engine's bookkeeping.
+  static void OverwriteCollectedWeight(Engine& e, size_t index, double weight);
 };
 
 }  // namespace imr::engine::internal

@@ -1,5 +1,6 @@
 // Unit tests of the engine: options, errors as values, degenerate input.
 #include "host/engine/engine.h"
+#include "host/engine/engine_internal.h"
 
 #include <gtest/gtest.h>
 
@@ -239,6 +240,43 @@ TEST_P(SmallSceneTest, PointAtCameraCentreAndRaysThroughVertices) {
     EXPECT_EQ(engine_->CellWeights(), before);
   }
   EXPECT_EQ(engine_->Stats().rays_truncated, 0);
+}
+
+// --check-invariants relies on these messages to point at what broke: the vertex or cell, by the
+// user's point ids and coordinates.
+TEST_P(SmallSceneTest, BrokenInvariantsAreNamedByVertexAndCell) {
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
+  ExpectManifold();
+  ASSERT_GT(internal::EngineInternals::CollectBoundaryCells(*engine_, 100000), 0u);
+  // A weight changed behind the engine's back: the ledger no longer balances.
+  internal::EngineInternals::OverwriteCollectedWeight(*engine_, 0, 1234.5);
+  ManifoldCheckResult r = engine_->CheckInvariants();
+  ASSERT_FALSE(r.ok);
+  EXPECT_NE(r.message.find("casting and transfer account for"), std::string::npos) << r.message;
+  if (GetParam().rfind("rays", 0) != 0) {
+    // A negative weight (what a faulty policy would return) is named by its cell.
+    internal::EngineInternals::OverwriteCollectedWeight(*engine_, 0, -2.0);
+    r = engine_->CheckInvariants();
+    ASSERT_FALSE(r.ok);
+    EXPECT_NE(r.message.find("cell {"), std::string::npos) << r.message;
+    EXPECT_NE(r.message.find("has weight -2.0"), std::string::npos) << r.message;
+    EXPECT_NE(r.message.find("point "), std::string::npos) << r.message;
+  }
+}
+
+TEST_P(SmallSceneTest, ANonManifoldBoundaryIsNamedByItsVertex) {
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
+  ExpectManifold();
+  ASSERT_GT(internal::EngineInternals::CollectBoundaryCells(*engine_, 100000), 0u);
+  ASSERT_TRUE(internal::EngineInternals::ForceNonManifoldToggle(*engine_));
+  const ManifoldCheckResult r = engine_->CheckInvariants();
+  ASSERT_FALSE(r.ok);
+  // Which check fires first depends on the cell; each names a vertex, an edge or a cell with
+  // coordinates.
+  const bool named = r.message.find("point ") != std::string::npos ||
+                     r.message.find("Steiner point ") != std::string::npos;
+  EXPECT_TRUE(named) << r.message;
+  EXPECT_NE(r.message.find(" ("), std::string::npos) << r.message;
 }
 
 INSTANTIATE_TEST_SUITE_P(Modes, SmallSceneTest,
