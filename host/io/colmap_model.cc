@@ -261,7 +261,7 @@ ColmapModel ReadColmapText(const fs::path& dir) {
   ReadCamerasText(dir / "cameras.txt", &m);
   ReadImagesText(dir / "images.txt", &m);
   ReadPointsText(dir / "points3D.txt", &m);
-  CheckColmapModel(m, dir.string());
+  CheckColmapModel(m, dir.string(), ".txt");
   return m;
 }
 
@@ -270,7 +270,7 @@ ColmapModel ReadColmapBinary(const fs::path& dir) {
   ReadCamerasBinary(dir / "cameras.bin", &m);
   ReadImagesBinary(dir / "images.bin", &m);
   ReadPointsBinary(dir / "points3D.bin", &m);
-  CheckColmapModel(m, dir.string());
+  CheckColmapModel(m, dir.string(), ".bin");
   return m;
 }
 
@@ -294,38 +294,38 @@ ColmapModel ReadColmapModel(const fs::path& dir) {
                                           : "missing " + missing));
 }
 
-void CheckColmapModel(const ColmapModel& m, const std::string& where) {
+void CheckColmapModel(const ColmapModel& m, const std::string& where, const std::string& ext) {
   std::unordered_map<uint32_t, const ColmapModel::Camera*> cams;
   for (const auto& c : m.cameras)
-    if (!cams.emplace(c.id, &c).second) Fail(where + "/cameras", "camera " + std::to_string(c.id) + " is listed twice");
+    if (!cams.emplace(c.id, &c).second) Fail(where + "/cameras" + ext, "camera " + std::to_string(c.id) + " is listed twice");
   std::unordered_map<uint32_t, const ColmapModel::Image*> images;
   for (const auto& im : m.images) {
-    if (!images.emplace(im.id, &im).second) Fail(where + "/images", "image " + std::to_string(im.id) + " is listed twice");
+    if (!images.emplace(im.id, &im).second) Fail(where + "/images" + ext, "image " + std::to_string(im.id) + " is listed twice");
     if (!cams.count(im.camera_id))
-      Fail(where + "/images", "image " + std::to_string(im.id) + " uses camera " +
+      Fail(where + "/images" + ext, "image " + std::to_string(im.id) + " uses camera " +
                                   std::to_string(im.camera_id) + ", which cameras does not list");
     const double n = std::sqrt(im.qvec[0] * im.qvec[0] + im.qvec[1] * im.qvec[1] +
                                im.qvec[2] * im.qvec[2] + im.qvec[3] * im.qvec[3]);
     if (std::abs(n - 1.0) > 1e-3)
-      Fail(where + "/images", "image " + std::to_string(im.id) + ": the quaternion (qw qx qy qz) has length " +
+      Fail(where + "/images" + ext, "image " + std::to_string(im.id) + ": the quaternion (qw qx qy qz) has length " +
                                   std::to_string(n) + ", not 1: not a rotation");
   }
   std::unordered_map<uint64_t, const ColmapModel::Point3D*> points;
   for (const auto& p : m.points)
-    if (!points.emplace(p.id, &p).second) Fail(where + "/points3D", "3D point " + std::to_string(p.id) + " is listed twice");
+    if (!points.emplace(p.id, &p).second) Fail(where + "/points3D" + ext, "3D point " + std::to_string(p.id) + " is listed twice");
   for (const auto& p : m.points) {
     for (const auto& e : p.track) {
       auto it = images.find(e.image_id);
       const std::string who = "3D point " + std::to_string(p.id) + "'s track";
       if (it == images.end())
-        Fail(where + "/points3D", who + " refers to image " + std::to_string(e.image_id) + ", which images does not list");
+        Fail(where + "/points3D" + ext, who + " refers to image " + std::to_string(e.image_id) + ", which images does not list");
       if (e.point2d_idx >= it->second->points2d.size())
-        Fail(where + "/points3D", who + " refers to 2D point " + std::to_string(e.point2d_idx) + " of image " +
+        Fail(where + "/points3D" + ext, who + " refers to 2D point " + std::to_string(e.point2d_idx) + " of image " +
                                       std::to_string(e.image_id) + ", which has " +
                                       std::to_string(it->second->points2d.size()) + " 2D points");
       const int64_t back = it->second->points2d[e.point2d_idx].point3d_id;
       if (back != static_cast<int64_t>(p.id))
-        Fail(where + "/points3D", who + " refers to 2D point " + std::to_string(e.point2d_idx) + " of image " +
+        Fail(where + "/points3D" + ext, who + " refers to 2D point " + std::to_string(e.point2d_idx) + " of image " +
                                       std::to_string(e.image_id) + ", which belongs to 3D point " + std::to_string(back));
     }
   }
@@ -333,7 +333,7 @@ void CheckColmapModel(const ColmapModel& m, const std::string& where) {
     for (std::size_t i = 0; i < im.points2d.size(); ++i) {
       const int64_t id = im.points2d[i].point3d_id;
       if (id >= 0 && !points.count(static_cast<uint64_t>(id)))
-        Fail(where + "/images", "image " + std::to_string(im.id) + " 2D point " + std::to_string(i) +
+        Fail(where + "/images" + ext, "image " + std::to_string(im.id) + " 2D point " + std::to_string(i) +
                                     " refers to 3D point " + std::to_string(id) + ", which points3D does not list");
     }
 }

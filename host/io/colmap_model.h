@@ -62,8 +62,10 @@ ColmapModel ReadColmapModel(const std::filesystem::path& dir);
 ColmapModel ReadColmapText(const std::filesystem::path& dir);
 ColmapModel ReadColmapBinary(const std::filesystem::path& dir);
 
-// Checks the cross references (every id above); throws naming `where` and the id.
-void CheckColmapModel(const ColmapModel& m, const std::string& where);
+// Checks the cross references (every id above); throws naming `where` and the id, and the file as
+// where/<name><ext> (ext: ".txt" or ".bin", the files the model was read from).
+void CheckColmapModel(const ColmapModel& m, const std::string& where,
+                      const std::string& ext = "");
 
 // The model in the convention of camera_model.h (observation pixels from the tracks).
 SfmModel ColmapToSfm(const ColmapModel& m, const std::string& where);

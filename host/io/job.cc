@@ -1,5 +1,8 @@
 #include "host/io/job.h"
 
+#include "host/io/json_stream.h"
+
+#include <cstdint>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -79,10 +82,14 @@ class ObjectReader {
       Wrong(key, "integer", *v);
       return std::nullopt;
     }
-    const int64_t i = v->get<int64_t>();
-    if (i < minimum) {
-      problems_->push_back({Path(key), "expected an integer >= " + std::to_string(minimum) +
-                                           ", got " + std::to_string(i)});
+    // The values are ints: a larger one would wrap silently (2^32 + 1 -> 1).
+    const int64_t i = v->is_number_unsigned() && v->get<uint64_t>() > INT64_MAX
+                          ? INT64_MAX
+                          : v->get<int64_t>();
+    if (i < minimum || i > INT32_MAX) {
+      problems_->push_back({Path(key), "expected an integer in [" + std::to_string(minimum) +
+                                           ", " + std::to_string(INT32_MAX) + "], got " +
+                                           Describe(*v)});
       return std::nullopt;
     }
     return i;
@@ -132,6 +139,28 @@ std::string LineColumn(const std::string& text, std::size_t byte) {
   return "line " + std::to_string(line) + ", column " + std::to_string(col);
 }
 
+// The byte where arrays and objects first nest deeper than `max_depth`, or npos. A scan of the
+// text, before parsing: nlohmann parses any depth, but copying or printing the value recurses.
+std::size_t TooDeepAt(const std::string& text, std::size_t max_depth) {
+  std::size_t depth = 0;
+  bool in_string = false, escaped = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > max_depth) return i;
+    } else if ((c == ']' || c == '}') && depth > 0) {
+      --depth;
+    }
+  }
+  return std::string::npos;
+}
+
 void ParseStage(const json& v, std::size_t index, JobSpec* job, std::vector<Problem>* problems) {
   const std::string path = "pipeline[" + std::to_string(index) + "]";
   if (!v.is_object()) {
@@ -153,6 +182,16 @@ void ParseStage(const json& v, std::size_t index, JobSpec* job, std::vector<Prob
   if (auto plugin = r.String("plugin", true)) stage.plugin = *plugin;
   if (const json* params = r.Object("params", false)) stage.params = *params;
   r.String("description", false);
+  if (const json* t = r.Get("timeout_seconds", false)) {
+    // Finite, or the deadline would overflow; a year at most catches minutes/ms mix-ups.
+    if (t->is_number() && t->get<double>() > 0.0 && t->get<double>() <= kMaxStageTimeoutSeconds)
+      stage.timeout_seconds = t->get<double>();
+    else
+      problems->push_back({r.Path("timeout_seconds"),
+                           "expected a number of seconds > 0 and at most " +
+                               std::to_string(static_cast<long>(kMaxStageTimeoutSeconds)) +
+                               " (a year), got " + Describe(*t)});
+  }
   r.RejectUnknown();
   job->pipeline.push_back(std::move(stage));
 }
@@ -200,9 +239,20 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
   JobParseResult result;
   JobSpec& job = result.job;
   job.file = file;
-  job.base_dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
+  // Absolute, so that sources and output folders do not depend on the reader's current folder:
+  // the batch's children get the job's absolute path, and with a relative one their manifests
+  // never matched the batch's (re-runs redid everything, the summary called them failed).
+  std::error_code ec;
+  job.base_dir = fs::absolute(file.has_parent_path() ? file.parent_path() : fs::path("."), ec)
+                     .lexically_normal();
   auto& problems = result.problems;
 
+  if (const std::size_t at = TooDeepAt(text, kMaxJsonDepth); at != std::string::npos) {
+    problems.push_back({"", file.string() + ": " + LineColumn(text, at) +
+                                ": arrays and objects nested deeper than " +
+                                std::to_string(kMaxJsonDepth) + " levels"});
+    return result;
+  }
   json root;
   try {
     root = json::parse(text);
@@ -217,8 +267,15 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
     return result;
   } catch (const json::exception& e) {
     // Not a parse_error: e.g. out_of_range.406, a number too large for a double ("1e999"). Found
-    // by tests/fuzz/job_fuzz; ParseJobText must never throw.
-    problems.push_back({"", file.string() + ": malformed JSON: " + std::string(e.what())});
+    // by tests/fuzz/job_fuzz; ParseJobText must never throw. nlohmann names the number, not
+    // where it is: find it.
+    const std::string what = e.what();
+    std::string where;
+    const auto open = what.find('\''), close = what.rfind('\'');
+    if (open != std::string::npos && close > open + 1)
+      if (const auto at = text.find(what.substr(open + 1, close - open - 1)); at != std::string::npos)
+        where = " at " + LineColumn(text, at);
+    problems.push_back({"", file.string() + ": malformed JSON" + where + ": " + what});
     return result;
   }
   if (!root.is_object()) {

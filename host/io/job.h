@@ -14,12 +14,18 @@
 
 namespace imr::io {
 
+// Longest accepted stage timeout: a year. Longer is surely a typo, and keeps deadlines finite.
+inline constexpr double kMaxStageTimeoutSeconds = 365.0 * 24 * 3600;
+
 // One stage of the pipeline: a plugin of a given kind with its params.
 struct StageSpec {
   std::string kind;       // "features", "refiner", "weight_policy" or "exporter"
   std::string plugin;     // plugin id, e.g. "org.imr.policy.nearest"
   nlohmann::json params = nlohmann::json::object();  // as written in the job
   std::string json_path;  // "pipeline[2]", for messages
+  // A call into the plugin that takes longer fails the sequence (a hung plugin cannot be
+  // stopped otherwise); 0: imr run's --stage-timeout, whose default is none.
+  double timeout_seconds = 0.0;
 };
 
 struct InputSpec {

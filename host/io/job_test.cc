@@ -75,6 +75,48 @@ TEST(Job, ReportsEveryStructuralProblem) {
   EXPECT_TRUE(HasProblem(p, "extra: unknown key")) << Dump(p);
 }
 
+TEST(Job, DeepNestingIsRefusedWithItsPositionNotRecursedInto) {
+  // 100000 nested arrays: copying or printing them would overflow the stack.
+  const std::string deep = std::string(100000, '[') + std::string(100000, ']');
+  const std::string text = "{\"sequences\": [\"a\"],\n \"engine\": " + deep + "}";
+  auto r = ParseJobText(text, "/jobs/deep.json");
+  ASSERT_EQ(r.problems.size(), 1u) << Dump(r.problems);
+  EXPECT_TRUE(HasProblem(r.problems, "/jobs/deep.json: line 2, column 111: arrays and objects "
+                                     "nested deeper than 100 levels"))
+      << Dump(r.problems);
+  // Brackets inside strings do not count; 100 levels are fine.
+  r = ParseJobText("{\"description\": \"" + std::string(200, '[') + "\", \"engine\": " +
+                       std::string(99, '[') + std::string(99, ']') + "}",
+                   "/jobs/ok.json");
+  EXPECT_FALSE(HasProblem(r.problems, "nested")) << Dump(r.problems);
+  EXPECT_TRUE(HasProblem(r.problems, "engine: expected object")) << Dump(r.problems);
+  // A message describing a deep value shows its start only.
+  nlohmann::json v = nlohmann::json::array();
+  for (int i = 0; i < 100000; ++i) v = nlohmann::json::array({std::move(v)});
+  EXPECT_EQ(Describe(v), "[[[[[[[[[...]]]]]]]]]");
+  EXPECT_EQ(Describe(nlohmann::json::parse(R"({"a":[1,2],"b":"x"})")), R"({"a":[1,2],"b":"x"})");
+}
+
+TEST(Job, IntegersAndTimeoutsOutsideTheirRangeAreNamed) {
+  auto edit = [](std::string text, const std::string& from, const std::string& to) {
+    return text.replace(text.find(from), from.size(), to);
+  };
+  const std::string exporter = "\"plugin\": \"org.imr.exporter.assimp\"";
+  std::string text = edit(kGood, "\"formats\": [\"obj\"]",
+                          "\"formats\": [\"obj\"], \"snapshot_every\": 4294967297");
+  text = edit(text, exporter, exporter + ", \"timeout_seconds\": 0");
+  auto r = ParseJobText(text, "/jobs/j.json");
+  EXPECT_TRUE(HasProblem(r.problems, "output.snapshot_every: expected an integer in [0, 2147483647], "
+                                     "got 4294967297"))
+      << Dump(r.problems);
+  EXPECT_TRUE(HasProblem(r.problems, "pipeline[1].timeout_seconds: expected a number of seconds > 0"))
+      << Dump(r.problems);
+  r = ParseJobText(edit(kGood, exporter, exporter + ", \"timeout_seconds\": 2.5"), "/jobs/j.json");
+  ASSERT_TRUE(r.ok()) << Dump(r.problems);
+  EXPECT_EQ(r.job.pipeline[1].timeout_seconds, 2.5);
+  EXPECT_EQ(r.job.pipeline[0].timeout_seconds, 0.0);
+}
+
 TEST(Job, SeveralSequencesNeedTheSequencePlaceholder) {
   auto r = ParseJobText(R"({"sequences": ["a", "b"], "input": {"format": "synthetic"},
     "pipeline": [{"kind": "exporter", "plugin": "x"}], "output": {"directory": "runs"}})", "j.json");

@@ -3,6 +3,7 @@
 #include "host/io/schema.h"
 
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 namespace imr::io {
@@ -38,6 +39,9 @@ uint64_t JsonFields::Id(const json& j, const std::string& path) const {
 }
 
 int64_t JsonFields::Integer(const json& j, const std::string& path) const {
+  // An unsigned beyond int64 would wrap to a negative number.
+  if (j.is_number_unsigned() && j.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX))
+    Fail(path, "expected an integer that fits in 64 bits, got " + Describe(j));
   if (j.is_number_integer()) return j.get<int64_t>();
   Fail(path, "expected an integer, got " + Describe(j));
 }
@@ -49,7 +53,14 @@ std::string JsonFields::String(const json& j, const std::string& path) const {
 
 Vec3 JsonFields::Vector3(const json& j, const std::string& path) const {
   if (!j.is_array() || j.size() != 3) Fail(path, "expected 3 numbers, got " + Describe(j));
-  return {Number(j[0], path + "[0]"), Number(j[1], path + "[1]"), Number(j[2], path + "[2]")};
+  const Vec3 v = {Number(j[0], path + "[0]"), Number(j[1], path + "[1]"), Number(j[2], path + "[2]")};
+  // A position this far out is a broken export, not a scene: squared distances overflow to inf
+  // and the engine's geometry stops meaning anything.
+  for (int i = 0; i < 3; ++i)
+    if (std::abs(v[i]) > kMaxCoordinate)
+      Fail(path + "[" + std::to_string(i) + "]",
+           "expected a coordinate within +-1e12 (scene units), got " + Describe(j[i]));
+  return v;
 }
 
 std::vector<double> JsonFields::Numbers(const json& j, const std::string& path) const {

@@ -12,6 +12,10 @@
 
 namespace imr::io {
 
+// Largest coordinate accepted in a position (camera centre, point): far beyond any scene (1e12
+// metres), far below where squared distances overflow.
+inline constexpr double kMaxCoordinate = 1e12;
+
 class JsonFields {
  public:
   explicit JsonFields(std::string file) : file_(std::move(file)) {}
@@ -29,7 +33,7 @@ class JsonFields {
   uint64_t Id(const nlohmann::json& j, const std::string& path) const;    // integer >= 0
   int64_t Integer(const nlohmann::json& j, const std::string& path) const;
   std::string String(const nlohmann::json& j, const std::string& path) const;
-  Vec3 Vector3(const nlohmann::json& j, const std::string& path) const;
+  Vec3 Vector3(const nlohmann::json& j, const std::string& path) const;  // |x| <= kMaxCoordinate
   std::vector<double> Numbers(const nlohmann::json& j, const std::string& path) const;
   // 3x3 rows; also checks that it is a rotation.
   Mat3 Rotation(const nlohmann::json& j, const std::string& path) const;

@@ -8,6 +8,12 @@ namespace imr::io {
 namespace {
 using nlohmann::json;
 
+// Nesting beyond kMaxJsonDepth (with the member it is in) or a number out of range: well-formed
+// JSON that cannot be read; the message is complete but for the file name.
+struct UnreadableJson : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // Builds values from SAX events. Depth 0 is the top-level object; depth 1 its members; for a
 // streamed array member, depth 2 are its elements, each built and delivered on its own.
 class Streamer : public nlohmann::json_sax<json> {
@@ -66,8 +72,12 @@ class Streamer : public nlohmann::json_sax<json> {
     }
     return true;
   }
-  bool parse_error(std::size_t, const std::string&,
+  bool parse_error(std::size_t position, const std::string& token,
                    const nlohmann::detail::exception& ex) override {
+    // out_of_range.406: a number beyond a double (1e400) is not a syntax error; say where.
+    if (ex.id == 406)
+      throw UnreadableJson("number " + token + " at byte " + std::to_string(position) +
+                    " is out of range (beyond a double)");
     throw std::runtime_error(ex.what());
   }
 
@@ -88,6 +98,10 @@ class Streamer : public nlohmann::json_sax<json> {
   }
   bool Open(json&& container) {
     if (!in_top_) throw std::runtime_error("the top level is not a JSON object");
+    if (stack_.size() + 1 >= kMaxJsonDepth)
+      throw UnreadableJson((streaming_ ? key_ + "[" + std::to_string(index_) + "]" : key_) +
+                    ": arrays and objects nested deeper than " + std::to_string(kMaxJsonDepth) +
+                    " levels");
     if (stack_.empty()) {
       root_ = std::move(container);
       stack_.push_back(&root_);
@@ -146,6 +160,8 @@ std::set<std::string> StreamJsonFile(const std::filesystem::path& file, const st
   Streamer s(streamed, member, element);
   try {
     nlohmann::json::sax_parse(in, &s);
+  } catch (const UnreadableJson& e) {
+    throw std::runtime_error(file.string() + ": " + e.what());
   } catch (const nlohmann::json::exception& e) {
     throw std::runtime_error(file.string() + ": malformed JSON: " + e.what());
   } catch (const std::runtime_error& e) {

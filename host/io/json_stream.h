@@ -14,11 +14,17 @@
 
 namespace imr::io {
 
+// Deepest nesting of arrays and objects accepted in a JSON input (job files, SfM/SLAM exports,
+// which need under 10): copying or printing a value recurses once per level, and 100000 levels
+// overflow the stack.
+inline constexpr std::size_t kMaxJsonDepth = 100;
+
 // `member` is called for every top-level member not in `streamed` (key, whole value), and
 // `element` for every element of a streamed member that is an array (key, index, element). A
 // streamed member that is not an array goes to `member`. Throws std::runtime_error naming the
 // file, with line and column, when it cannot be read or is not JSON (e.g. truncated), or when
-// the top level is not an object; exceptions from the callbacks pass through. Returns the
+// the top level is not an object, or when it nests deeper than kMaxJsonDepth (naming the member);
+// exceptions from the callbacks pass through. Returns the
 // top-level keys seen (so a caller can tell an empty streamed array from a missing one).
 std::set<std::string> StreamJsonFile(const std::filesystem::path& file, const std::set<std::string>& streamed,
                     const std::function<void(const std::string& key, nlohmann::json&& value)>& member,

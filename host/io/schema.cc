@@ -1,6 +1,7 @@
 #include "host/io/schema.h"
 
 #include <cmath>
+#include <cstdint>
 
 namespace imr::io {
 namespace {
@@ -41,8 +42,37 @@ std::string Expected(const nlohmann::json& spec) {
 
 }  // namespace
 
+namespace {
+
+// dump()'s text of `value`, stopped soon after `budget` characters and 8 levels: dump() would
+// recurse through the whole value, and a value nested 100000 deep overflows the stack.
+void Preview(const nlohmann::json& value, std::size_t budget, int depth, std::string* out) {
+  if (out->size() > budget) return;
+  if (!value.is_structured()) {
+    *out += value.dump();
+    return;
+  }
+  const bool array = value.is_array();
+  *out += array ? '[' : '{';
+  if (depth >= 8 && !value.empty()) {
+    *out += "...";
+  } else {
+    bool first = true;
+    for (auto it = value.begin(); it != value.end() && out->size() <= budget; ++it) {
+      if (!first) *out += ',';
+      first = false;
+      if (!array) *out += nlohmann::json(it.key()).dump() + ':';
+      Preview(*it, budget, depth + 1, out);
+    }
+  }
+  *out += array ? ']' : '}';
+}
+
+}  // namespace
+
 std::string Describe(const nlohmann::json& value) {
-  std::string s = value.dump();
+  std::string s;
+  Preview(value, 60, 0, &s);
   if (s.size() > 60) s = s.substr(0, 57) + "...";
   return s;
 }
@@ -107,6 +137,14 @@ void ValidateAgainstSchema(const nlohmann::json& schema, const nlohmann::json& v
     const std::string type = spec.value("type", "");
     if (!Matches(type, v)) {
       problems->push_back({p, "expected " + Expected(spec) + ", got " + Describe(v)});
+      continue;
+    }
+    // Hosts and plugins read integers as int: a larger value would wrap silently.
+    if (type == "integer" && (v.is_number_unsigned() ? v.get<uint64_t>() > INT32_MAX
+                                                     : (v.get<int64_t>() > INT32_MAX ||
+                                                        v.get<int64_t>() < INT32_MIN))) {
+      problems->push_back({p, "expected " + Expected(spec) + " (a 32-bit integer, at most " +
+                                  std::to_string(INT32_MAX) + "), got " + Describe(v)});
       continue;
     }
     if (v.is_number()) {
