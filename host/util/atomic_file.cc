@@ -82,13 +82,23 @@ StagingDirectory::~StagingDirectory() {
   fs::remove_all(staging_, ec);  // best effort; nothing under a final name is touched
 }
 
-std::vector<fs::path> StagingDirectory::Commit(const std::string& last) {
+std::vector<fs::path> StagingDirectory::Staged(const std::vector<std::string>& last) const {
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(staging_))
     if (e.is_regular_file()) files.push_back(e.path());
   std::sort(files.begin(), files.end());
-  std::stable_partition(files.begin(), files.end(),
-                        [&](const fs::path& p) { return p.filename() != last; });
+  // 0 for a name not in `last`, else 1 + its place there.
+  auto rank = [&](const fs::path& p) {
+    const auto it = std::find(last.begin(), last.end(), p.filename().string());
+    return it == last.end() ? 0 : 1 + (it - last.begin());
+  };
+  std::stable_sort(files.begin(), files.end(),
+                   [&](const fs::path& a, const fs::path& b) { return rank(a) < rank(b); });
+  return files;
+}
+
+std::vector<fs::path> StagingDirectory::Commit(const std::vector<std::string>& last) {
+  const std::vector<fs::path> files = Staged(last);
   std::vector<fs::path> out;
   for (const auto& f : files) {
     const fs::path target = destination_ / f.filename();

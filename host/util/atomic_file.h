@@ -26,9 +26,16 @@ class StagingDirectory {
   StagingDirectory& operator=(const StagingDirectory&) = delete;
 
   const std::filesystem::path& path() const { return staging_; }
-  // Moves the staged files into the destination; `last` (a file name, optional) is moved last,
-  // so a reader that sees it can rely on its companions being there. Returns the final paths.
-  std::vector<std::filesystem::path> Commit(const std::string& last = {});
+  // The staged files, in the order Commit moves them: by name, then the names in `last` in
+  // their order.
+  std::vector<std::filesystem::path> Staged(const std::vector<std::string>& last = {}) const;
+  // Moves the staged files into the destination; the names in `last` (optional) are moved last,
+  // in that order, so a reader that sees one can rely on those before it. Returns the final
+  // paths.
+  std::vector<std::filesystem::path> Commit(const std::vector<std::string>& last = {});
+  std::vector<std::filesystem::path> Commit(const std::string& last) {
+    return Commit(std::vector<std::string>{last});
+  }
 
  private:
   std::filesystem::path destination_;

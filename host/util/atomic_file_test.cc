@@ -4,6 +4,8 @@
 
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 namespace imr {
 namespace {
@@ -73,6 +75,22 @@ TEST_F(AtomicFile, StagingCommitMovesFilesAndCleansUp) {
   EXPECT_EQ(Read(out / "mesh.gltf"), "gltf");
   EXPECT_EQ(Read(out / "mesh.bin"), "bin");
   EXPECT_EQ(CountEntries(out), 2);  // staging folder gone
+}
+
+TEST_F(AtomicFile, StagingCommitsTheNamedFilesLastInTheirOrder) {
+  // The pipeline stages report.json with the meshes: it lands after the glTF that needs the .bin.
+  const fs::path out = dir_ / "out";
+  StagingDirectory staging(out);
+  for (const char* name : {"report.json", "mesh.gltf", "mesh.bin", "mesh.ply"})
+    WriteFileAtomically(staging.path() / name, name);
+  const std::vector<std::string> last = {"mesh.gltf", "report.json"};
+  std::vector<std::string> staged;
+  for (const auto& f : staging.Staged(last)) staged.push_back(f.filename().string());
+  EXPECT_EQ(staged, (std::vector<std::string>{"mesh.bin", "mesh.ply", "mesh.gltf", "report.json"}));
+  std::vector<std::string> committed;
+  for (const auto& f : staging.Commit(last)) committed.push_back(f.filename().string());
+  EXPECT_EQ(committed, staged);
+  EXPECT_EQ(Read(out / "report.json"), "report.json");
 }
 
 TEST_F(AtomicFile, StagingWithoutCommitLeavesNothing) {

@@ -3,12 +3,20 @@
 // per-vertex point ids that trace the mesh back to its 3D points (DESIGN.md section 3, "Output").
 #include <imr/sdk/plugin.hpp>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <array>
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/Exporter.hpp>
+#include <assimp/IOStream.hpp>
 #include <assimp/material.h>
 #include <assimp/mesh.h>
 #include <assimp/scene.h>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -29,6 +37,73 @@ using imr::exporter_assimp::kMaxGltfPointId;
 using imr::exporter_assimp::kMaxPointId;
 using imr::exporter_assimp::kMinPointId;
 using imr::sdk::InvalidArgument;
+
+// assimp's own file streams ignore write errors: on a full disk it wrote a truncated file and
+// reported success. Files are written through this stream instead; the first error is kept
+// ("<file>: write failed: No space left on device") and fails the export.
+class CheckedFile : public Assimp::IOStream {
+ public:
+  CheckedFile(int fd, std::string path, std::string* error)
+      : fd_(fd), path_(std::move(path)), error_(error) {}
+  ~CheckedFile() override {
+    if (::close(fd_) != 0) Fail("close");
+  }
+  size_t Read(void*, size_t, size_t) override { return 0; }  // opened for writing only
+  size_t Write(const void* buffer, size_t size, size_t count) override {
+    const char* p = static_cast<const char*>(buffer);
+    for (size_t left = size * count; left > 0;) {
+      const ssize_t n = ::write(fd_, p, left);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        Fail("write");
+        return 0;
+      }
+      p += n;
+      left -= static_cast<size_t>(n);
+    }
+    return count;
+  }
+  aiReturn Seek(size_t offset, aiOrigin origin) override {
+    const int whence = origin == aiOrigin_SET ? SEEK_SET : origin == aiOrigin_CUR ? SEEK_CUR : SEEK_END;
+    return ::lseek(fd_, static_cast<off_t>(offset), whence) < 0 ? aiReturn_FAILURE : aiReturn_SUCCESS;
+  }
+  size_t Tell() const override {
+    const off_t at = ::lseek(fd_, 0, SEEK_CUR);
+    return at < 0 ? 0 : static_cast<size_t>(at);
+  }
+  size_t FileSize() const override {
+    struct stat st {};
+    return ::fstat(fd_, &st) == 0 ? static_cast<size_t>(st.st_size) : 0;
+  }
+  void Flush() override {}
+
+ private:
+  void Fail(const char* what) {
+    if (error_->empty()) *error_ = path_ + ": " + what + " failed: " + std::strerror(errno);
+  }
+  int fd_;
+  std::string path_;
+  std::string* error_;
+};
+
+// Reads as assimp does; writes through CheckedFile.
+class CheckedIOSystem : public Assimp::DefaultIOSystem {
+ public:
+  explicit CheckedIOSystem(std::string* error) : error_(error) {}
+  Assimp::IOStream* Open(const char* file, const char* mode) override {
+    if (mode == nullptr || mode[0] != 'w') return DefaultIOSystem::Open(file, mode);
+    const int fd = ::open(file, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0) {
+      if (error_->empty()) *error_ = std::string(file) + ": cannot write: " + std::strerror(errno);
+      return nullptr;
+    }
+    return new CheckedFile(fd, file, error_);
+  }
+  void Close(Assimp::IOStream* stream) override { delete stream; }
+
+ private:
+  std::string* error_;
+};
 
 struct Format {
   const char* name;       // as in kFormats and the request
@@ -204,8 +279,12 @@ class AssimpExporter : public imr::sdk::Exporter {
     const fs::path path = fs::path(directory) / (stem + f.extension);
     std::unique_ptr<aiScene> scene = BuildScene(mesh, stem, write_ids);
     {
+      std::string write_error;
       Assimp::Exporter exporter;
-      if (exporter.Export(scene.get(), f.assimp_id, path.string()) != aiReturn_SUCCESS)
+      exporter.SetIOHandler(new CheckedIOSystem(&write_error));  // the exporter owns it
+      const aiReturn r = exporter.Export(scene.get(), f.assimp_id, path.string());
+      if (!write_error.empty()) throw std::runtime_error(write_error);
+      if (r != aiReturn_SUCCESS)
         throw std::runtime_error("assimp could not write " + path.string() + " (" + f.assimp_id +
                                  "): " + exporter.GetErrorString());
     }
