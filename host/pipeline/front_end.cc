@@ -129,11 +129,20 @@ ImageFrontEndSource::ImageFrontEndSource(io::ImageSequence sequence,
     throw std::invalid_argument("front end options: " + e);
   if (sequence_.frames.empty())
     throw std::runtime_error(sequence_.root + ": the sequence has no frames");
+  // Points need two views: one frame would run every plugin and then fail with "no surface".
+  if (sequence_.frames.size() < 2)
+    throw std::runtime_error(sequence_.root + ": one frame (" + sequence_.frames[0].image_path +
+                             "); a sequence needs at least 2 frames to triangulate points");
   if (!sequence_.synthetic_scene.empty())
     truth_ = std::make_unique<SyntheticTruth>(ReadSyntheticTruth(sequence_.synthetic_scene));
 }
 
 ImageFrontEndSource::~ImageFrontEndSource() = default;
+
+std::optional<StageWatch::Call> ImageFrontEndSource::Watched(const WatchedStage* stage) {
+  if (watch_ == nullptr || stage == nullptr) return std::nullopt;
+  return watch_->Enter(*stage);
+}
 
 bool ImageFrontEndSource::IsKeyframe(int frame) const {
   return frame % options_.keyframe_every == 0 ||
@@ -190,7 +199,9 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
 
     t0 = std::chrono::steady_clock::now();
     imr_track_view tracks{};
+    if (watch_ != nullptr) watch_->SetPosition("frame " + std::to_string(index));
     try {
+      const auto call = Watched(watch_features_);
       tracks = features_.ProcessFrame(camera, view, keyframe);
     } catch (const std::exception& e) {
       throw std::runtime_error("frame " + std::to_string(index) + " (" + frame.image_path +
@@ -220,6 +231,7 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     t0 = std::chrono::steady_clock::now();
     imr_refiner_update out{};
     try {
+      const auto call = Watched(watch_refiner_);
       out = refiner_.AddFrame(camera, tracks.observations, tracks.count, keyframe);
     } catch (const std::exception& e) {
       throw std::runtime_error("frame " + std::to_string(index) + ": " + e.what());

@@ -10,12 +10,14 @@
 
 #include "host/io/image_sequence.h"
 #include "host/io/keyframe_source.h"
+#include "host/pipeline/stage_watch.h"
 #include "host/synthetic/scene.h"
 
 #include <imr/sdk/host.hpp>
 #include <nlohmann/json.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -75,17 +77,29 @@ class ImageFrontEndSource : public io::KeyframeSource {
   const io::CameraGeometry* Camera(uint64_t camera_id) const override;
   nlohmann::json Summary() const override;
 
+  // Every call into the two plugins becomes a watched call of its stage (the stages must
+  // outlive the source); without this, calls are not watched.
+  void Watch(StageWatch* watch, const WatchedStage* features, const WatchedStage* refiner) {
+    watch_ = watch;
+    watch_features_ = features;
+    watch_refiner_ = refiner;
+  }
+
   const FrontEndStats& stats() const { return stats_; }
   const io::ImageSequence& sequence() const { return sequence_; }
 
  private:
   bool IsKeyframe(int frame) const;
+  std::optional<StageWatch::Call> Watched(const WatchedStage* stage);
   void TrackPointError(uint64_t id, const io::Vec3& position, bool is_new);
 
   io::ImageSequence sequence_;
   const imr::sdk::Instance& features_;
   const imr::sdk::Instance& refiner_;
   FrontEndOptions options_;
+  StageWatch* watch_ = nullptr;
+  const WatchedStage* watch_features_ = nullptr;
+  const WatchedStage* watch_refiner_ = nullptr;
   FrontEndStats stats_;
   std::size_t next_frame_ = 0;
   int next_keyframe_ = 0;
