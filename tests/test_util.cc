@@ -57,4 +57,13 @@ std::string Quote(const std::string& s) {
   return q + "'";
 }
 
+void ReplaceLine(const fs::path& path, std::size_t index, const std::string& text) {
+  std::istringstream in(ReadText(path));
+  std::string out;
+  std::size_t i = 0;
+  for (std::string line; std::getline(in, line); ++i) out += (i == index ? text : line) + "\n";
+  if (index >= i) throw std::runtime_error(path.string() + " has no line " + std::to_string(index + 1));
+  WriteText(path, out);
+}
+
 }  // namespace imr::testing

@@ -31,5 +31,7 @@ class ScratchDir {
 void WriteText(const std::filesystem::path& path, const std::string& text);
 std::string ReadText(const std::filesystem::path& path);
 std::string Quote(const std::string& s);  // for the shell
+// Replaces line `index` (0-based) of a text file; the file keeps a final newline.
+void ReplaceLine(const std::filesystem::path& path, std::size_t index, const std::string& text);
 
 }  // namespace imr::testing
