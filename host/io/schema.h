@@ -6,7 +6,8 @@
 //    "mode":   {"type": "string", "enum": ["weights", "rays"], "default": "weights"},
 //    "names":  {"type": "string_array", "default": []}}
 //
-// Types: integer, number, boolean, string, string_array. Keys not in the schema are errors.
+// Types: integer (32-bit: hosts and plugins read them as int), number (finite), boolean, string,
+// string_array. Keys not in the schema are errors.
 #pragma once
 
 #include <nlohmann/json.hpp>
