@@ -188,7 +188,7 @@ TEST_F(Batch, ACrashingPluginFailsOnlyItsSequence) {
   j["output"]["formats"] = {"ply", "crash"};
   const fs::path job = WriteJob(j);
   auto r = Imr("run --jobs 2 --max-rss 400M " + Quote(job.string()));
-  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_EQ(r.status, 2) << r.out << r.err;  // the exit status counts the failed sequences
   EXPECT_EQ(Listed(r.out, "ok"), std::set<std::string>{"street"}) << r.out;
   EXPECT_EQ(Listed(r.out, "FAILED"), (std::set<std::string>{"room", "plane"})) << r.out;
   EXPECT_NE(r.out.find("crashed: signal SIGSEGV (Segmentation fault)"), std::string::npos) << r.out;
@@ -267,7 +267,7 @@ TEST_F(Batch, AKilledBatchResumesWithoutPartialFiles) {
 
   // The report tells what the kill left: street done, room interrupted, plane not started.
   auto rep = Imr("report " + Quote((dir_ / "runs").string()));
-  EXPECT_EQ(rep.status, 1);
+  EXPECT_EQ(rep.status, 2);  // interrupted + not run
   EXPECT_NE(rep.out.find("3 sequences: 1 ok, 0 failed, 1 interrupted, 1 not run"), std::string::npos)
       << rep.out;
   EXPECT_EQ(ReadJson(dir_ / "runs" / "summary.json")["sequences"][1]["status"], "interrupted");
@@ -314,7 +314,7 @@ TEST_F(Batch, SubmitDryRunWritesReadableScripts) {
   EXPECT_EQ(RunShell("bash -n " + Quote((slurm / "array.sbatch").string())).status, 0);
   // Before any task ran, the report says nothing ran.
   auto rep = Imr("report " + Quote(job.string()));
-  EXPECT_EQ(rep.status, 1) << rep.out << rep.err;
+  EXPECT_EQ(rep.status, 3) << rep.out << rep.err;
   EXPECT_NE(rep.out.find("3 sequences: 0 ok, 0 failed, 0 interrupted, 3 not run"), std::string::npos) << rep.out;
 }
 
@@ -330,15 +330,15 @@ TEST_F(Batch, BadOptionsAreUsageErrors) {
   };
   for (const auto& [args, message] : cases) {
     auto r = Imr(args);
-    EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
+    EXPECT_EQ(r.status, 64) << args << "\n" << r.err;
     EXPECT_NE(r.err.find(message), std::string::npos) << args << "\n" << r.err;
   }
   WriteText(dir_ / "list.txt", "street\nmud\n");
   auto r = Imr("run --sequences-from " + Quote((dir_ / "list.txt").string()) + " " + job);
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("'mud' is not a sequence of the job"), std::string::npos) << r.err;
   r = Imr("run " + job, "SLURM_ARRAY_TASK_ID=3");
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("SLURM_ARRAY_TASK_COUNT is not set"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir_ / "runs"));
 }
@@ -362,7 +362,7 @@ TEST_F(Batch, EveryFolderUnderADirectoryIsASequence) {
   // Without {sequence}, several matches would share a folder.
   j["output"]["directory"] = "runs/all";
   auto r = Imr("validate " + Quote(WriteJob(j).string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("sequences[0] matches 2 sequences, which would share one folder"),
             std::string::npos) << r.err;
 }

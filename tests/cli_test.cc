@@ -59,10 +59,10 @@ TEST_F(Cli, VersionAndHelp) {
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
   }
   auto bad = Imr("frobnicate");
-  EXPECT_EQ(bad.status, 2);
+  EXPECT_EQ(bad.status, 64);
   EXPECT_NE(bad.err.find("unknown command 'frobnicate'"), std::string::npos);
   auto noarg = Imr("run");
-  EXPECT_EQ(noarg.status, 2);
+  EXPECT_EQ(noarg.status, 64);
   EXPECT_NE(noarg.err.find("job"), std::string::npos) << noarg.err;
 }
 
@@ -128,7 +128,7 @@ TEST_F(Cli, ValidateReportsMalformedJsonWithLineAndColumn) {
   const fs::path p = dir_ / "broken.json";
   WriteText(p, "{\n  \"sequences\": [\"street\"],\n  \"input\": {\"format\": }\n}\n");
   auto r = Imr("validate " + Quote(p.string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("broken.json: malformed JSON at line 3, column"), std::string::npos)
       << r.err;
 }
@@ -143,7 +143,7 @@ TEST_F(Cli, ValidateReportsEveryProblemWithItsPath) {
   j["engine"] = {{"window", 0}, {"visibility_mode", "magic"}};
   j["output"]["formats"] = {"obj", "stl"};
   auto r = Imr("validate " + Quote(WriteJob(j).string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   const std::vector<std::string> expected = {
       "input.options.frames: expected integer >= 1, got \"15\"",
       "input.options.seeed: unknown key",
@@ -164,7 +164,7 @@ TEST_F(Cli, ValidateChecksParamsAgainstThePluginSchema) {
                       {"params", {{"radius", "15"}}}};
   j["plugin_paths"] = {IMR_EXAMPLE_PLUGIN_DIR};
   auto r = Imr("validate " + Quote(WriteJob(j).string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("pipeline[0].params.radius: expected number >= 0.0, got \"15\""),
             std::string::npos)
       << r.err;
@@ -174,7 +174,7 @@ TEST_F(Cli, ValidateRefusesAPluginOfTheWrongKind) {
   json j = SmallJob();
   j["pipeline"][1]["plugin"] = "org.imr.policy.mean";  // a policy where an exporter belongs
   auto r = Imr("validate " + Quote(WriteJob(j).string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("pipeline[1].plugin: plugin org.imr.policy.mean ("), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("is a weight_policy plugin, the stage's kind is exporter"), std::string::npos)
       << r.err;
@@ -182,13 +182,13 @@ TEST_F(Cli, ValidateRefusesAPluginOfTheWrongKind) {
 
 TEST_F(Cli, ValidateNamesMissingFilesAndFolders) {
   auto r = Imr("validate " + Quote((dir_ / "nope.json").string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("nope.json: no such file"), std::string::npos) << r.err;
   json j = SmallJob();
   j["plugin_paths"] = {"does/not/exist"};
   j["sequences"] = {"street", "moon"};
   auto r2 = Imr("validate " + Quote(WriteJob(j).string()));
-  EXPECT_EQ(r2.status, 2);
+  EXPECT_EQ(r2.status, 64);
   EXPECT_NE(r2.err.find("plugin_paths[0]: no such file or folder"), std::string::npos) << r2.err;
   EXPECT_NE(r2.err.find("sequences[1]: input format 'synthetic' takes the names"), std::string::npos)
       << r2.err;
@@ -262,6 +262,51 @@ TEST_F(Cli, APolicyThatFailsLeavesNoPartialOutput) {
   }
 }
 
+// --check-invariants: a policy returning negative weights (finite, so nothing else objects)
+// breaks the engine's weight invariant; the run stops there, naming the keyframe and the cell.
+TEST_F(Cli, CheckInvariantsStopsAtTheKeyframeAndCell) {
+  json j = SmallJob();
+  j["pipeline"][0] = {{"kind", "weight_policy"},
+                      {"plugin", "org.imr.test.policy.failing"},
+                      {"params", {{"negative", true}}}};
+  j["plugin_paths"] = {IMR_TEST_PLUGIN_DIR};
+  const std::string job = Quote(WriteJob(j).string());
+  auto r = Imr("run -q --check-invariants " + job);
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("invariant check failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("keyframe "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("cell {"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("< 0 although nonnegative_weights is on"), std::string::npos) << r.out;
+  EXPECT_TRUE(Files(dir_ / "runs" / "street").empty());
+  // Without the flag only the final check runs (it looks at the weights too): the same job
+  // fails after its last keyframe instead of at the first bad one.
+  r = Imr("run -q " + job);
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("invariant check failed after the last keyframe"), std::string::npos)
+      << r.out;
+  EXPECT_TRUE(Files(dir_ / "runs" / "street").empty());
+  // With a sound policy the checks pass and the report counts them; --trace writes one line
+  // per keyframe.
+  j["pipeline"][0] = {{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}};
+  r = Imr("run -q --check-invariants-every 2 --trace '{output}/trace.jsonl' " +
+          Quote(WriteJob(j, "good.json").string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const json report = json::parse(ReadText(dir_ / "runs" / "street" / "report.json"));
+  const int keyframes = report["engine"]["keyframes"].get<int>();
+  EXPECT_EQ(report["invariant_checks"]["count"].get<int>(), keyframes / 2);
+  std::istringstream trace(ReadText(dir_ / "runs" / "street" / "trace.jsonl"));
+  int lines = 0, checked = 0;
+  for (std::string line; std::getline(trace, line); ++lines) {
+    const json t = json::parse(line);
+    EXPECT_EQ(t["keyframe"].get<int>(), lines + 1);
+    EXPECT_GT(t["rss_bytes"].get<double>(), 1e6);
+    checked += t.contains("check_seconds") ? 1 : 0;
+  }
+  EXPECT_EQ(lines, keyframes);
+  EXPECT_EQ(checked, keyframes / 2);
+  EXPECT_FALSE(fs::exists(dir_ / "runs" / "street" / "trace.jsonl.partial"));
+}
+
 TEST_F(Cli, APluginThatFailsToCreateIsNamed) {
   json j = SmallJob();
   j["pipeline"][0] = {{"kind", "weight_policy"},
@@ -279,7 +324,7 @@ TEST_F(Cli, AnInvalidJobRunsNothing) {
   json j = SmallJob();
   j["pipeline"][0]["plugin"] = "org.imr.policy.none";
   auto r = Imr("run " + Quote(WriteJob(j).string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_FALSE(fs::exists(dir_ / "runs"));
 }
 

@@ -221,15 +221,15 @@ TEST_F(Evaluate, CliBadInputNamesTheFile) {
   EXPECT_NE(r.err.find("bad.xyz: line 2"), std::string::npos) << r.err;
   // Usage: no ground truth, a bad tau list, no mesh.
   r = Imr("evaluate " + Quote(Mesh("ply").string()));
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("no ground truth"), std::string::npos) << r.err;
   r = Imr("evaluate " + Quote(Mesh("ply").string()) + truth + " --tau 0.1,x");
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("--tau"), std::string::npos) << r.err;
   r = Imr("evaluate " + Quote(Mesh("ply").string()) + truth + " --tau -1");
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   r = Imr("evaluate" + truth);
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   r = Imr("evaluate --help");
   EXPECT_EQ(r.status, 0);
   EXPECT_NE(r.out.find("Usage: imr evaluate MESH"), std::string::npos) << r.out;

@@ -216,7 +216,7 @@ TEST_F(FrontEnd, CorruptOrMissingImageFailsOnlyItsSequence) {
                       {corrupt.string(), missing.string(), Sequence().string()});
   job["output"]["directory"] = (*dir_ / "bad-runs/{sequence}").string();
   const CommandResult r = RunJob(job, "bad-images");
-  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_EQ(r.status, 2) << r.err;  // the number of failed sequences
   EXPECT_NE(r.err.find("000017.png"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("000031.png"), std::string::npos) << r.err;
   // The failed sequences leave no mesh or report that looks whole; the good one finishes.

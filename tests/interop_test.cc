@@ -210,7 +210,7 @@ TEST_F(Interop, ExportPathsMustSeparateSequences) {
   j["input"]["options"] = {{"frames", 10}};
   const std::string job = Quote(WriteJob(j, "two.json").string());
   auto r = Imr("run " + job + " --export-stream stream.json");
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);
   EXPECT_NE(r.err.find("--export-stream stream.json: the job has 2 sequences; put {sequence}"),
             std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir_ / "runs"));

@@ -3,6 +3,7 @@
 #include "host/batch/child.h"
 #include "host/batch/manifest.h"
 #include "host/batch/summary.h"
+#include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
 #include "host/util/log.h"
 
@@ -15,10 +16,12 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <set>
 
 namespace imr::batch {
@@ -69,6 +72,8 @@ class MessageChannel {
  public:
   MessageChannel() : ok_(::fcntl(kChildMessageFd, F_GETFD) != -1) {}
   void Send(const json& j) {
+    // A stage timeout sends its result from the watchdog thread.
+    std::lock_guard<std::mutex> lock(mutex_);
     if (!ok_) return;
     const std::string line = j.dump() + "\n";
     for (std::size_t done = 0; done < line.size();) {
@@ -83,6 +88,7 @@ class MessageChannel {
   }
 
  private:
+  std::mutex mutex_;
   bool ok_;
 };
 
@@ -102,8 +108,6 @@ int BatchRunResult::Count(SequenceStatus s) const {
   return static_cast<int>(std::count_if(outcomes.begin(), outcomes.end(),
                                         [s](const SequenceOutcome& o) { return o.status == s; }));
 }
-
-int ExitStatusForFailures(int failed) { return failed > 0 ? 1 : 0; }
 
 std::string BatchOptions::Check() const {
   if (jobs < 1 || jobs > 1024) return "--jobs must be in 1..1024, got " + std::to_string(jobs);
@@ -254,14 +258,7 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
                                      "--job", fs::absolute(v.job.file).string(),
                                      "--sequence", seq.name,
                                      "--parent-pid", std::to_string(::getpid())};
-    if (!run_options.export_stream.empty()) {
-      argv.push_back("--export-stream");
-      argv.push_back(run_options.export_stream);
-    }
-    if (!run_options.export_colmap.empty()) {
-      argv.push_back("--export-colmap");
-      argv.push_back(run_options.export_colmap);
-    }
+    for (std::string& a : pipeline::RunOptionsToArgs(run_options)) argv.push_back(std::move(a));
     if (options.verbose) argv.push_back("-v");
     auto r = std::make_unique<Running>();
     r->index = index;
@@ -477,6 +474,14 @@ int RunSequenceChild(const ChildArguments& args) {
     if (p.keyframes != p.total_keyframes && Since(last) < 0.1) return;
     last = Clock::now();
     channel.Send({{"progress", {p.keyframes, p.total_keyframes, p.frame}}});
+  };
+  // A hung plugin cannot be unwound: report like any failure, clear what the stalled write
+  // leaves (staging folders, temporaries) and end the process.
+  run_options.on_stage_timeout = [&](const std::string& message) {
+    LogError("sequence " + seq->name + " failed: " + message);
+    channel.Send({{"result", {{"ok", false}, {"error", message}}}});
+    RemoveLeftovers(output);
+    std::_Exit(pipeline::kStageTimeoutExitCode);
   };
   const pipeline::SequenceResult r = pipeline::RunOneSequence(v, registry, run_options, *seq);
   if (!r.ok) {

@@ -90,9 +90,4 @@ struct ChildArguments {
 int RunSequenceChild(const ChildArguments& args);
 inline constexpr const char* kChildCommand = "__run-sequence";
 
-// Exit status of `imr run` and `imr report` for `failed` sequences: 0 none, else 1. Not the
-// count: 2 already means bad usage, and scripts rely on 1 for "a sequence failed"; the last
-// stdout line and the summary give the count.
-int ExitStatusForFailures(int failed);
-
 }  // namespace imr::batch

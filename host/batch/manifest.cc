@@ -28,6 +28,9 @@ json JobIdentity(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& 
     exports["stream"] = fs::absolute(pipeline::ExpandExportPath(options.export_stream, v, seq.name)).string();
   if (!options.export_colmap.empty())
     exports["colmap"] = fs::absolute(pipeline::ExpandExportPath(options.export_colmap, v, seq.name)).string();
+  // A trace is an output too: asking for one redoes a sequence that was run without it.
+  if (!options.trace.empty())
+    exports["trace"] = fs::absolute(pipeline::ExpandExportPath(options.trace, v, seq.name)).string();
   // nlohmann's objects keep keys sorted, so dump() is canonical.
   return {{"imr", pipeline::Version()},
           {"sequence", {{"name", seq.name}, {"source", seq.source}}},

@@ -76,14 +76,7 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
     run.push_back(std::to_string(o.max_rss));
   }
   if (o.force) run.push_back("--force");
-  if (!run_options.export_stream.empty()) {
-    run.push_back("--export-stream");
-    run.push_back(run_options.export_stream);
-  }
-  if (!run_options.export_colmap.empty()) {
-    run.push_back("--export-colmap");
-    run.push_back(run_options.export_colmap);
-  }
+  for (std::string& a : pipeline::RunOptionsToArgs(run_options)) run.push_back(std::move(a));
 
   auto common = [&](std::ostringstream& s) {
     if (!o.partition.empty()) s << "#SBATCH --partition=" << o.partition << "\n";

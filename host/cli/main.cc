@@ -1,6 +1,7 @@
 // imr: the command-line host. Subcommands: run, submit, report, validate, plugins, evaluate;
-// --version, --help. Exit status: 0 success; 1 a sequence failed (the others still ran; the last
-// line and the summary say how many) or an evaluation failed; 2 bad usage or invalid job.
+// --version, --help. Exit status (host/util/exit_status.h): run and report: 0 every sequence
+// fine, else how many failed (1..63, 63 = 63 or more); other commands: 0 or 1; 64 bad usage or
+// invalid job.
 #include "host/batch/batch.h"
 #include "host/batch/child.h"
 #include "host/batch/slurm.h"
@@ -8,11 +9,13 @@
 #include "host/eval/evaluate.h"
 #include "host/pipeline/job_validation.h"
 #include "host/pipeline/run.h"
+#include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
 #include "host/plugin/registry.h"
 #include "host/render/render_cli.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
+#include "host/util/exit_status.h"
 #include "host/util/log.h"
 
 #include <boost/program_options.hpp>
@@ -33,9 +36,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int kExitOk = 0;
-constexpr int kExitFailed = 1;
-constexpr int kExitUsage = 2;
+using imr::kExitFailed;
+using imr::kExitOk;
+using imr::kExitUsage;
 
 const char* kUsage =
     "imr — incremental manifold reconstruction with moving points\n"
@@ -64,8 +67,9 @@ const char* kUsage =
     "\n"
     "Plugins are searched in a job's plugin_paths, then IMR_PLUGIN_PATH (':'-separated),\n"
     "then the installed folder next to the executable (../lib/imr/plugins).\n"
-    "Exit status: 0 success, 1 a sequence failed (the others still ran; the last line and the\n"
-    "summary say how many) or an evaluation failed, 2 bad usage or job.\n";
+    "Exit status: run, report: 0 every sequence ok, else the number that failed (1..63; 63 means\n"
+    "63 or more; the others still ran); evaluate, render, submit: 1 failed; 64 bad usage or an\n"
+    "invalid job (nothing ran).\n";
 
 void OnSignal(int) { imr::plugin::RequestCancel(); }
 
@@ -151,8 +155,8 @@ const char* kRunNotes =
     "the share comes from SLURM_ARRAY_TASK_ID/COUNT/MIN); a shard writes no summary: run\n"
     "`imr report RUN_DIR` when all are done. Progress: a bar on a terminal, else a line every\n"
     "few seconds; -q: none.\n"
-    "Exit status: 0 every sequence ok or up to date; 1 a sequence failed (the last line and the\n"
-    "summary say how many); 2 bad usage or job (nothing ran).\n";
+    "Exit status: 0 every sequence ok or up to date; else the number of sequences that failed\n"
+    "or did not run (1..63; 63 means 63 or more); 64 bad usage or job (nothing ran).\n";
 
 // This executable, for the child processes and the Slurm scripts.
 std::string SelfPath(const char* argv0) {
@@ -162,13 +166,53 @@ std::string SelfPath(const char* argv0) {
 }
 std::string g_argv0;
 
-bool ReadExports(const po::variables_map& vm, const char* cmd, imr::pipeline::RunOptions* o) {
-  if (vm.count("export-stream")) o->export_stream = vm["export-stream"].as<std::string>();
-  if (vm.count("export-colmap")) o->export_colmap = vm["export-colmap"].as<std::string>();
-  if ((vm.count("export-stream") && o->export_stream.empty()) ||
-      (vm.count("export-colmap") && o->export_colmap.empty())) {
-    std::cerr << "imr " << cmd << ": an export path must not be empty\n";
-    return false;
+// The flags of pipeline::RunOptions, shared by run and submit (which hands them to its tasks).
+void AddRunOptionFlags(po::options_description& opts) {
+  opts.add_options()(
+      "export-stream", po::value<std::string>()->value_name("FILE"),
+      "also write the engine's input stream as SLAM JSON 0.3 (replayable)")(
+      "export-colmap", po::value<std::string>()->value_name("DIR"),
+      "also write the final points and their cameras as a COLMAP text model")(
+      "trace", po::value<std::string>()->value_name("FILE"),
+      "per keyframe, one JSON line: points, cells, resident memory, times")(
+      "check-invariants",
+      "after every keyframe, check that the surface is a 2-manifold and the weights are "
+      "consistent; stop the sequence naming the keyframe and the cell if not (slow)")(
+      "check-invariants-every", po::value<int>()->value_name("N"),
+      "the same check after every N-th keyframe")(
+      "stage-timeout", po::value<double>()->value_name("SECONDS"),
+      "fail a sequence when a call into a plugin takes longer (a stage's timeout_seconds "
+      "wins; 0: no limit, the default)");
+}
+
+bool ReadRunOptions(const po::variables_map& vm, const char* cmd, imr::pipeline::RunOptions* o) {
+  const std::pair<const char*, std::string*> paths[] = {
+      {"export-stream", &o->export_stream}, {"export-colmap", &o->export_colmap},
+      {"trace", &o->trace}};
+  for (const auto& [flag, value] : paths) {
+    if (!vm.count(flag)) continue;
+    *value = vm[flag].as<std::string>();
+    if (value->empty()) {
+      std::cerr << "imr " << cmd << ": --" << flag << ": the path must not be empty\n";
+      return false;
+    }
+  }
+  if (vm.count("stage-timeout")) {
+    o->stage_timeout = vm["stage-timeout"].as<double>();
+    if (const std::string e = imr::pipeline::CheckStageTimeout(o->stage_timeout); !e.empty()) {
+      std::cerr << "imr " << cmd << ": --stage-timeout: " << e << ", got "
+                << vm["stage-timeout"].as<double>() << "\n";
+      return false;
+    }
+  }
+  if (vm.count("check-invariants")) o->check_invariants_every = 1;
+  if (vm.count("check-invariants-every")) {
+    o->check_invariants_every = vm["check-invariants-every"].as<int>();
+    if (o->check_invariants_every < 1) {
+      std::cerr << "imr " << cmd << ": --check-invariants-every: expected a number of keyframes "
+                << ">= 1, got " << o->check_invariants_every << "\n";
+      return false;
+    }
   }
   return true;
 }
@@ -187,11 +231,9 @@ bool ParseSize(const po::variables_map& vm, const char* cmd, uint64_t* bytes) {
 
 int CmdRun(const std::vector<std::string>& args) {
   po::options_description opts("imr run options");
-  opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)")(
-      "export-stream", po::value<std::string>()->value_name("FILE"),
-      "also write the engine's input stream as SLAM JSON 0.3 (replayable)")(
-      "export-colmap", po::value<std::string>()->value_name("DIR"),
-      "also write the final points and their cameras as a COLMAP text model")(
+  opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)");
+  AddRunOptionFlags(opts);
+  opts.add_options()(
       "shard", po::value<std::string>()->value_name("I/N"),
       "run only the I-th of N shares of the sequences (default: from a Slurm array task)")(
       "jobs,j", po::value<int>()->default_value(1)->value_name("J"), "sequences run at once")(
@@ -206,12 +248,13 @@ int CmdRun(const std::vector<std::string>& args) {
   int status = kExitOk;
   const std::string synopsis =
       std::string("imr run JOB.json [--shard I/N] [--jobs J] [--force] [--max-rss SIZE]\n"
-                  "       [--export-stream FILE] [--export-colmap DIR] [-q|-v]\n\n") +
+                  "       [--export-stream FILE] [--export-colmap DIR] [--trace FILE]\n"
+                  "       [--check-invariants | --check-invariants-every N] [-q|-v]\n\n") +
       kRunNotes;
   if (!ParseCommand("run", synopsis, opts, pos, args, &vm, &status)) return status;
   const fs::path job = vm["job"].as<std::string>();
   imr::pipeline::RunOptions run_options;
-  if (!ReadExports(vm, "run", &run_options)) return kExitUsage;
+  if (!ReadRunOptions(vm, "run", &run_options)) return kExitUsage;
 
   imr::batch::BatchOptions batch;
   batch.jobs = vm["jobs"].as<int>();
@@ -283,7 +326,7 @@ int CmdRun(const std::vector<std::string>& args) {
     std::printf("\nsummary: %s\n", (result.batch_directory / "summary.md").string().c_str());
   else
     std::printf("\n");
-  return imr::batch::ExitStatusForFailures(failed);
+  return imr::ExitStatusForFailures(failed);
 }
 
 const char* kSubmitNotes =
@@ -295,7 +338,7 @@ const char* kSubmitNotes =
     "frozen in RUN_DIR/imr-batch/sequences.txt. Task logs: RUN_DIR/imr-batch/slurm/logs/.\n"
     "Submitting again (or `sbatch` on the array script) redoes only unfinished sequences.\n"
     "--dry-run writes the scripts and prints the sbatch commands without submitting.\n"
-    "Exit status: 0 submitted; 1 sbatch failed (its message is shown); 2 bad usage or job.\n";
+    "Exit status: 0 submitted; 1 sbatch failed (its message is shown); 64 bad usage or job.\n";
 
 int CmdSubmit(const std::vector<std::string>& args) {
   imr::batch::SubmitOptions d;
@@ -315,9 +358,8 @@ int CmdSubmit(const std::vector<std::string>& args) {
       "max-rss", po::value<std::string>()->value_name("SIZE"),
       "imr run --max-rss for the tasks: kill a sequence over this resident memory")(
       "force", "redo every sequence, even finished ones")(
-      "dry-run", "write the scripts and print the sbatch commands; submit nothing")(
-      "export-stream", po::value<std::string>()->value_name("FILE"), "as for imr run")(
-      "export-colmap", po::value<std::string>()->value_name("DIR"), "as for imr run");
+      "dry-run", "write the scripts and print the sbatch commands; submit nothing");
+  AddRunOptionFlags(opts);
   po::positional_options_description pos;
   pos.add("job", 1);
   po::variables_map vm;
@@ -346,7 +388,7 @@ int CmdSubmit(const std::vector<std::string>& args) {
     return kExitUsage;
   }
   imr::pipeline::RunOptions run_options;
-  if (!ReadExports(vm, "submit", &run_options)) return kExitUsage;
+  if (!ReadRunOptions(vm, "submit", &run_options)) return kExitUsage;
   const fs::path job = vm["job"].as<std::string>();
   imr::plugin::PluginRegistry registry;
   imr::pipeline::ValidatedJob v;
@@ -401,8 +443,8 @@ int CmdReport(const std::vector<std::string>& args) {
       "from tools/plots/imr_plots.py RUN_DIR/summary.json --out RUN_DIR/plots), and each mesh\n"
       "viewable in 3D in a browser, offline (<model-viewer> is copied beside the page).\n"
       "A sequence whose process was killed (a time limit, SIGKILL) shows as interrupted.\n"
-      "Exit status: 0 every sequence ok; 1 a sequence failed, was interrupted or did not run (the\n"
-      "last line says how many); 2 not a batch folder or bad usage.";
+      "Exit status: 0 every sequence ok; else the number that failed, were interrupted or did not\n"
+      "run (1..63; 63 means 63 or more); 64 not a batch folder or bad usage.";
   if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
   fs::path dir = vm["dir"].as<std::string>();
   std::error_code ec;
@@ -442,7 +484,7 @@ int CmdReport(const std::vector<std::string>& args) {
               c["sequences"].get<int>(), c["ok"].get<int>(), c["failed"].get<int>(),
               c["interrupted"].get<int>(), c["not_run"].get<int>(),
               (dir / "summary.md").string().c_str());
-  return imr::batch::ExitStatusForFailures(c["failed"].get<int>() + c["interrupted"].get<int>() +
+  return imr::ExitStatusForFailures(c["failed"].get<int>() + c["interrupted"].get<int>() +
                                            c["not_run"].get<int>());
 }
 
@@ -458,6 +500,11 @@ int CmdRunSequence(const std::vector<std::string>& args) {
     else if (k == "--parent-pid" && has_value) a.parent_pid = std::atoi(args[++i].c_str());
     else if (k == "--export-stream" && has_value) a.run_options.export_stream = args[++i];
     else if (k == "--export-colmap" && has_value) a.run_options.export_colmap = args[++i];
+    else if (k == "--trace" && has_value) a.run_options.trace = args[++i];
+    else if (k == "--check-invariants-every" && has_value)
+      a.run_options.check_invariants_every = std::atoi(args[++i].c_str());
+    else if (k == "--stage-timeout" && has_value)
+      a.run_options.stage_timeout = std::strtod(args[++i].c_str(), nullptr);
     else {
       std::cerr << "imr " << imr::batch::kChildCommand << ": unexpected argument '" << k
                 << "' (an internal command of imr run)\n";
@@ -516,7 +563,7 @@ const char* kEvaluateNotes =
     "mesh; precision(tau): share of mesh area (--precision-samples samples) within tau of the\n"
     "ground truth. The JSON keys are documented in host/eval/README.md.\n"
     "Exit status: 0 evaluated; 1 a file is missing or bad, or nothing is left to evaluate;\n"
-    "2 bad usage.\n";
+    "64 bad usage.\n";
 
 // "0.05,0.1" -> {0.05, 0.1}; false on anything else.
 bool ParseList(const std::string& s, std::vector<double>* out) {

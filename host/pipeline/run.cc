@@ -5,6 +5,7 @@
 #include "host/eval/mesh_stats.h"
 #include "host/io/engine_options.h"
 #include "host/pipeline/front_end.h"
+#include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
 #include "host/plugin/policy_adapter.h"
 #include "host/io/input_formats.h"
@@ -13,9 +14,12 @@
 #include "host/util/sha256.h"
 #include "host/util/log.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <optional>
 #include <set>
 
@@ -74,10 +78,51 @@ std::string Replace(std::string s, const std::string& from, const std::string& t
 
 using Exporters = std::vector<std::pair<const io::StageSpec*, plugin::LoadedInstance>>;
 
+// This process's resident memory (bytes), from /proc/self/statm; 0 when unreadable.
+uint64_t ResidentBytes() {
+  std::ifstream statm("/proc/self/statm");
+  uint64_t pages_total = 0, pages_resident = 0;
+  if (!(statm >> pages_total >> pages_resident)) return 0;
+  return pages_resident * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
+// The --trace file: one JSON line per keyframe, flushed as it goes (a long run can be watched),
+// under <path>.partial until the sequence ends, then renamed: a killed run never leaves a trace
+// that looks complete.
+class TraceFile {
+ public:
+  explicit TraceFile(fs::path path) : path_(std::move(path)), partial_(path_) {
+    partial_ += ".partial";
+    if (path_.has_parent_path()) fs::create_directories(path_.parent_path());
+    out_.open(partial_, std::ios::trunc);
+    if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
+  }
+  ~TraceFile() { Finish(); }
+  void Write(const json& line) {
+    out_ << line.dump() << '\n';
+    out_.flush();
+    if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
+  }
+  const fs::path& Finish() {
+    if (out_.is_open()) {
+      out_.close();
+      std::error_code ec;
+      fs::rename(partial_, path_, ec);
+      if (ec) LogWarning(path_.string() + ": cannot finish the trace: " + ec.message());
+    }
+    return path_;
+  }
+
+ private:
+  fs::path path_, partial_;
+  std::ofstream out_;
+};
+
 // Writes `mesh` into `directory` as stem.<format> for every format, each through the first
 // exporter stage that writes it.
 void ExportMesh(const engine::Mesh& mesh, const std::vector<std::string>& formats,
-                const Exporters& exporters, const fs::path& directory, const std::string& stem) {
+                const Exporters& exporters, const fs::path& directory, const std::string& stem,
+                StageWatch& watch, double stage_timeout) {
   imr_mesh_view view{};
   view.struct_size = sizeof(view);
   view.vertices = mesh.vertices.data();
@@ -97,6 +142,8 @@ void ExportMesh(const engine::Mesh& mesh, const std::vector<std::string>& format
       req.directory = dir.c_str();
       req.stem = stem.c_str();
       req.format = mesh_format.c_str();
+      const WatchedStage watched = WatchedStageOf(*stage, stage_timeout);
+      const StageWatch::Call call = watch.Enter(watched);
       inst.instance.ExportMesh(&req);
       written.insert(mesh_format);
     }
@@ -209,20 +256,40 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   std::optional<plugin::PluginWeightPolicy> policy;
   Exporters exporters;
   std::optional<plugin::LoadedInstance> features, refiner;
+  // Every call into a plugin is watched against its stage's timeout: a hung plugin fails the
+  // sequence (host/pipeline/stage_watch.h). Declared before the source, the policy adapter and
+  // the engine, which call plugins through it.
+  StageWatch watch(options.on_stage_timeout);
+  std::vector<WatchedStage> watched;
+  for (const io::StageSpec& stage : job.pipeline)
+    watched.push_back(WatchedStageOf(stage, options.stage_timeout));
+  std::size_t policy_stage = 0, features_stage = 0, refiner_stage = 0;
   json plugins_json = json::array();
+  watch.SetPosition("creating the plugin instances");
   for (std::size_t i = 0; i < job.pipeline.size(); ++i) {
     const io::StageSpec& stage = job.pipeline[i];
     const plugin::PluginInfo* info = registry.Find(stage.plugin);
     plugins_json.push_back(PluginJson(*info, v.stage_params[i]));
-    auto instance = plugin::CreateInstance(*info, v.stage_params[i]);
-    if (stage.kind == "weight_policy")
+    auto instance = [&] {
+      const StageWatch::Call call = watch.Enter(watched[i]);
+      try {
+        return plugin::CreateInstance(*info, v.stage_params[i]);
+      } catch (const std::exception& e) {  // name the stage: its params are in the job there
+        throw std::runtime_error(stage.json_path + " (" + stage.kind + "): " + e.what());
+      }
+    }();
+    if (stage.kind == "weight_policy") {
       policy.emplace(std::move(instance), info->id());
-    else if (stage.kind == "exporter")
+      policy_stage = i;
+    } else if (stage.kind == "exporter") {
       exporters.emplace_back(&stage, std::move(instance));
-    else if (stage.kind == "features")
+    } else if (stage.kind == "features") {
       features.emplace(std::move(instance));
-    else if (stage.kind == "refiner")
+      features_stage = i;
+    } else if (stage.kind == "refiner") {
       refiner.emplace(std::move(instance));
+      refiner_stage = i;
+    }
   }
 
   // Input -> engine, keyframe by keyframe.
@@ -235,12 +302,15 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     fo.keyframe_every = io::ImageSequenceOptionsFromJson(v.input_options).keyframe_every;
     auto fe = std::make_unique<ImageFrontEndSource>(format->open_images(seq.source, v.input_options),
                                                     features->instance, refiner->instance, fo);
+    fe->Watch(&watch, &watched[features_stage], &watched[refiner_stage]);
     front_end = fe.get();
     source = std::move(fe);
   } else {
     source = format->open(seq.source, v.input_options);
   }
-  engine::Engine engine(v.engine_options, policy ? &*policy : nullptr);
+  std::optional<WatchedPolicy> watched_policy;
+  if (policy) watched_policy.emplace(&*policy, &watch, watched[policy_stage]);
+  engine::Engine engine(v.engine_options, watched_policy ? &*watched_policy : nullptr);
   if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
   engine::KeyframeUpdate update;
   io::KeyframeInfo kf;
@@ -249,17 +319,21 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   if (!options.export_stream.empty() || !options.export_colmap.empty())
     recorder.emplace(source.get(), std::string("imr ") + Version() + ", job " + job.Name() +
                                        ", sequence " + seq.name);
-  int keyframes = 0;
-  double engine_seconds = 0.0, snapshot_seconds = 0.0;
+  std::optional<TraceFile> trace;
+  if (!options.trace.empty()) trace.emplace(ExpandExportPath(options.trace, v, seq.name));
+  int keyframes = 0, checks = 0;
+  double engine_seconds = 0.0, snapshot_seconds = 0.0, check_seconds = 0.0;
   json snapshots = json::array();
   const int total_keyframes = source->KeyframeCount();
   const std::string of_total = total_keyframes > 0 ? "/" + std::to_string(total_keyframes) : "";
   while (source->Next(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
     canonical.Apply(&update);
+    watch.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
     const auto engine_start = std::chrono::steady_clock::now();
     engine::Status st = engine.ApplyUpdate(update);
-    engine_seconds += Seconds(engine_start);
+    const double keyframe_seconds = Seconds(engine_start);
+    engine_seconds += keyframe_seconds;
     if (!st.ok())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
                                std::to_string(kf.frame) + "): " + st.message());
@@ -268,6 +342,27 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                                policy->error());
     if (recorder) recorder->Record(update, kf);
     ++keyframes;
+    double this_check = -1.0;
+    if (options.check_invariants_every > 0 && keyframes % options.check_invariants_every == 0) {
+      const auto check_start = std::chrono::steady_clock::now();
+      const engine::ManifoldCheckResult r = engine.CheckInvariants();
+      this_check = Seconds(check_start);
+      check_seconds += this_check;
+      ++checks;
+      if (!r.ok)
+        throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
+                                 std::to_string(kf.frame) + "): invariant check failed: " +
+                                 r.message);
+    }
+    if (trace) {
+      const engine::EngineStats& es = engine.Stats();
+      json line = {{"keyframe", keyframes},       {"frame", kf.frame},
+                   {"points", engine.NumPoints()}, {"vertices", es.vertices},
+                   {"cells", es.cells},            {"cells_in_o", es.cells_in_o},
+                   {"rss_bytes", ResidentBytes()}, {"engine_seconds", keyframe_seconds}};
+      if (this_check >= 0.0) line["check_seconds"] = this_check;
+      trace->Write(line);
+    }
     if (job.output.snapshot_every > 0 && keyframes % job.output.snapshot_every == 0) {
       // Each snapshot is committed at once (whole files), so a running job can be watched.
       const auto snap_start = std::chrono::steady_clock::now();
@@ -276,7 +371,9 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
         char stem[64];
         std::snprintf(stem, sizeof(stem), "_kf%06d", keyframes);
         StagingDirectory dir(result->output_directory / "snapshots");
-        ExportMesh(snap, job.output.formats, exporters, dir.path(), job.output.stem + stem);
+        watch.SetPosition("snapshot after keyframe " + std::to_string(kf.index));
+        ExportMesh(snap, job.output.formats, exporters, dir.path(), job.output.stem + stem, watch,
+                   options.stage_timeout);
         for (auto& f : dir.Commit()) result->extra_files.push_back(std::move(f));
         snapshots.push_back({{"keyframe", keyframes}, {"frame", kf.frame},
                              {"stem", "snapshots/" + job.output.stem + stem},
@@ -291,7 +388,9 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   const engine::Mesh mesh = engine.ExtractMesh();
   const engine::ManifoldCheckResult boundary_check = engine.CheckInvariants();
   const engine::ManifoldCheckResult mesh_check = engine::CheckMesh(mesh, /*closed=*/false);
-  if (!boundary_check.ok) throw std::runtime_error("manifold check failed: " + boundary_check.message);
+  if (!boundary_check.ok)
+    throw std::runtime_error("invariant check failed after the last keyframe (" +
+                             std::to_string(keyframes) + "): " + boundary_check.message);
   if (!mesh_check.ok) throw std::runtime_error("exported mesh check failed: " + mesh_check.message);
 
   // Rays longer than max_ray_length are not cast: most of them skipped usually means the
@@ -346,8 +445,10 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
 
   const auto export_start = std::chrono::steady_clock::now();
   StagingDirectory staging(result->output_directory);
-  ExportMesh(mesh, job.output.formats, exporters, staging.path(), job.output.stem);
-  result->files = staging.Commit(job.output.stem + ".gltf");
+  watch.SetPosition("writing the mesh after the last keyframe");
+  ExportMesh(mesh, job.output.formats, exporters, staging.path(), job.output.stem, watch,
+             options.stage_timeout);
+  const std::vector<std::string> commit_last = {job.output.stem + ".gltf", "report.json"};
   const double export_seconds = Seconds(export_start);
 
   json report;
@@ -391,24 +492,57 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   report["stage_seconds"] = stages;
   if (!snapshots.empty()) report["snapshots"] = snapshots;
   if (!exports.empty()) report["exports"] = exports;
+  if (options.check_invariants_every > 0)
+    report["invariant_checks"] = {{"every", options.check_invariants_every},
+                                  {"count", checks},
+                                  {"seconds", check_seconds}};
+  if (trace) {
+    const fs::path p = trace->Finish();
+    report["trace"] = fs::absolute(p).string();
+    result->extra_files.push_back(p);
+  }
   json files = json::array();
-  for (const auto& f : result->files) files.push_back(f.filename().string());
+  for (const auto& f : staging.Staged(commit_last)) files.push_back(f.filename().string());
   report["files"] = files;
   result->seconds = Seconds(start);
   report["seconds"] = result->seconds;
-  const fs::path report_path = result->output_directory / "report.json";
-  WriteFileAtomically(report_path, report.dump(2) + "\n");
-  result->files.push_back(report_path);
+  // report.json is staged with the meshes and moved in last: when it cannot be written (a full
+  // disk) no mesh of the failed run is left under a final name either.
+  WriteFileAtomically(staging.path() / "report.json", report.dump(2) + "\n");
+  result->files = staging.Commit(commit_last);
   result->report = std::move(report);
   result->ok = true;
 }
 
 }  // namespace
 
+std::vector<std::string> RunOptionsToArgs(const RunOptions& o) {
+  std::vector<std::string> args;
+  const std::pair<const char*, const std::string*> paths[] = {
+      {"--export-stream", &o.export_stream}, {"--export-colmap", &o.export_colmap},
+      {"--trace", &o.trace}};
+  for (const auto& [flag, value] : paths)
+    if (!value->empty()) args.insert(args.end(), {flag, *value});
+  if (o.check_invariants_every > 0)
+    args.insert(args.end(), {"--check-invariants-every", std::to_string(o.check_invariants_every)});
+  if (o.stage_timeout > 0.0) {
+    char seconds[32];
+    std::snprintf(seconds, sizeof(seconds), "%.17g", o.stage_timeout);
+    args.insert(args.end(), {"--stage-timeout", seconds});
+  }
+  return args;
+}
+
 std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob& v) {
   std::vector<std::string> problems;
+  if (const std::string e = CheckStageTimeout(o.stage_timeout); !e.empty())
+    problems.push_back("--stage-timeout: " + e);
+  if (o.check_invariants_every < 0)
+    problems.push_back("--check-invariants-every " + std::to_string(o.check_invariants_every) +
+                       ": expected a number of keyframes >= 1");
   const std::pair<const char*, const std::string*> flags[] = {
-      {"--export-stream", &o.export_stream}, {"--export-colmap", &o.export_colmap}};
+      {"--export-stream", &o.export_stream}, {"--export-colmap", &o.export_colmap},
+      {"--trace", &o.trace}};
   for (const auto& [flag, value] : flags) {
     if (value->empty() || v.sequences.size() < 2) continue;
     if (value->find("{sequence}") == std::string::npos && value->find("{output}") == std::string::npos)
@@ -417,9 +551,12 @@ std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob
                          " sequences; put {sequence} or {output} in the path so that each gets "
                          "its own (e.g. '{output}/stream.json')");
   }
-  if (!o.export_stream.empty() && !o.export_colmap.empty() &&
-      o.export_stream == o.export_colmap)
-    problems.push_back("--export-stream and --export-colmap name the same path");
+  for (const auto& [a, b] : {std::pair{&o.export_stream, &o.export_colmap},
+                             std::pair{&o.export_stream, &o.trace},
+                             std::pair{&o.export_colmap, &o.trace}})
+    if (!a->empty() && *a == *b)
+      problems.push_back("two of --export-stream, --export-colmap and --trace name the same "
+                         "path (" + *a + ")");
   return problems;
 }
 

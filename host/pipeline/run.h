@@ -50,9 +50,28 @@ struct RunOptions {
   // --export-colmap: a folder (same template) for the final points and their visibility as a
   // COLMAP text model (cameras.txt, images.txt, points3D.txt). Empty: not written.
   std::string export_colmap;
+  // --check-invariants (1) / --check-invariants-every N: after every N-th keyframe, the engine's
+  // full check (dO a closed 2-manifold, weights consistent); a failure stops the sequence with
+  // an error naming the keyframe and the cell. 0: only the check after the last keyframe.
+  int check_invariants_every = 0;
+  // --trace: a JSON-lines file (same template as export_stream), one object per keyframe:
+  // keyframe, frame, points, vertices, cells, cells_in_o, rss_bytes, engine_seconds and, where
+  // the check ran, check_seconds. Written as <path>.partial and renamed when the sequence ends
+  // (also when it fails: every line is whole), so a killed run leaves only the .partial.
+  std::string trace;
+  // --stage-timeout: seconds a call into a plugin may take when its stage sets no
+  // timeout_seconds; past it the sequence fails (host/pipeline/stage_watch.h). 0: no limit.
+  double stage_timeout = 0.0;
   // Called after every keyframe (from the running thread); empty: not called.
   std::function<void(const SequenceProgress&)> progress;
+  // Called on the watchdog thread when a stage times out, with the message; must end the
+  // process (the plugin call cannot be unwound). Empty: log it and exit with status 124.
+  std::function<void(const std::string&)> on_stage_timeout;
 };
+
+// The options above (all but the callbacks) as `imr run` flags, for child processes and Slurm
+// scripts.
+std::vector<std::string> RunOptionsToArgs(const RunOptions& options);
 
 // Problems with `options` for this job, e.g. a fixed export path for a job with several
 // sequences (they would overwrite each other). Empty when usable.

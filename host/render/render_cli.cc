@@ -4,6 +4,7 @@
 #include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
 #include "host/render/rasterizer.h"
+#include "host/util/exit_status.h"
 
 #include <boost/program_options.hpp>
 
@@ -23,9 +24,9 @@ namespace {
 namespace fs = std::filesystem;
 namespace po = boost::program_options;
 
-constexpr int kExitOk = 0;
-constexpr int kExitFailed = 1;
-constexpr int kExitUsage = 2;
+using imr::kExitFailed;
+using imr::kExitOk;
+using imr::kExitUsage;
 
 const char* kSynopsis =
     "imr render MESH --sequence DIR --format kitti_odometry|kitti_raw|middlebury [--camera K]\n"
@@ -44,7 +45,7 @@ const char* kNotes =
     "the camera centres, blue discs at keyframes (every --keyframe-every frames, as the image\n"
     "front end picks them), a green ring at the first camera. Up is the cameras' mean up\n"
     "direction unless --up gives it. The PNG is written whole or not at all.\n"
-    "Exit status: 0 written; 1 a file is missing or bad; 2 bad usage.\n";
+    "Exit status: 0 written; 1 a file is missing or bad; 64 bad usage.\n";
 
 // "0.5,1,-2" -> three numbers; false otherwise.
 bool ParseVec3(const std::string& s, Vec3* out) {
