@@ -1,10 +1,12 @@
 // imr-soak (issue 9): a long run of the real `imr run` with the full invariant check every K
 // keyframes and the per-keyframe trace (--trace), then whether the resident memory grows only with
-// the points kept. Heavy by design (minutes); not part of ctest. Figures and commands:
-// tools/soak/README.md.
+// the points kept. Heavy by design (minutes): ctest runs only its plumbing, on 40 frames
+// (tools/soak_smoke). Figures and commands: tools/soak/README.md.
 #include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -28,7 +30,7 @@ using nlohmann::json;
 using imr::bench::ExeDir;
 using imr::bench::LoadAverage;
 using imr::bench::Quote;
-using imr::bench::Sh;
+using imr::bench::Sh;  // imr-synth; the imr runs go through ShPeak
 namespace soak = imr::soak;
 
 const char kUsage[] =
@@ -85,7 +87,7 @@ struct Run {
   std::string command;
   int rc = -1;
   double wall = 0.0;
-  long child_peak_kb = 0;  // the imr processes' peak RSS (getrusage), when known
+  long child_peak_kb = 0;  // the imr process tree's peak RSS (wait4)
   std::vector<soak::TraceRecord> records;
   std::string trace_note;
   json report;  // the sequence's report.json (null when the run failed)
@@ -170,6 +172,26 @@ json Job(const Args& a, int points_per_keyframe, double steiner_spacing, const f
           {"output", {{"directory", out.string()}, {"stem", "mesh"}, {"formats", {"ply"}}}}};
 }
 
+// Sh (tools/bench/common/subprocess.h) with this command's own peak RSS: wait4 gives the largest
+// of its process tree (imr and its sequence child), where getrusage(RUSAGE_CHILDREN) would only
+// give the largest child so far.
+int ShPeak(const std::string& command, long* peak_kb) {
+  std::fprintf(stderr, "+ %s\n", command.c_str());
+  std::fflush(nullptr);
+  const pid_t pid = fork();
+  if (pid < 0) return 128;
+  if (pid == 0) {
+    execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  int status = 0;
+  rusage u{};
+  while (wait4(pid, &status, 0, &u) < 0)
+    if (errno != EINTR) return 128;
+  *peak_kb = u.ru_maxrss;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
 // check_every 0: no periodic check (imr still checks after the last keyframe).
 Run RunImr(const Args& a, Role role, const std::string& name, const std::string& what,
            int check_every, const json& job, const fs::path& work) {
@@ -186,14 +208,9 @@ Run RunImr(const Args& a, Role role, const std::string& name, const std::string&
   r.command = Quote(a.imr) + " run " + Quote(job_file.string()) + " --force" +
               (check_every > 0 ? " --check-invariants-every " + std::to_string(check_every) : "") +
               " --trace " + Quote(trace.string());
-  rusage before{}, after{};
-  getrusage(RUSAGE_CHILDREN, &before);
   const auto start = std::chrono::steady_clock::now();
-  r.rc = Sh(r.command + " 2>" + Quote(r.log.string()));
+  r.rc = ShPeak(r.command + " 2>" + Quote(r.log.string()), &r.child_peak_kb);
   r.wall = SecondsSince(start);
-  getrusage(RUSAGE_CHILDREN, &after);
-  // The children's figure is the largest process so far: this run's only when it rose.
-  r.child_peak_kb = after.ru_maxrss > before.ru_maxrss ? after.ru_maxrss : 0;
   // imr renames <trace>.partial into place when the sequence ends; a killed run leaves only that.
   fs::path read = trace;
   if (!fs::exists(read) && fs::exists(fs::path(trace.string() + ".partial")))
@@ -253,7 +270,7 @@ void Describe(std::ostringstream& o, const Run& run, const soak::SoakFigures& f)
     << "), end " << soak::Mib(f.rss_end) << ", peak " << soak::Mib(f.rss_peak) << " (keyframe "
     << f.rss_peak_keyframe << ")";
   if (run.child_peak_kb > 0)
-    o << "; the process's peak (getrusage: between keyframes, final check and export too) "
+    o << "; the process's peak (wait4: between keyframes, final check and export too) "
       << soak::Mib(run.child_peak_kb * 1024.0);
   o << "\n";
   o << "  fit rss = a + b*points kept (whole run): a " << soak::Mib(f.fit_points.a)
