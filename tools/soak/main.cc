@@ -47,8 +47,8 @@ const char kUsage[] =
     "  --seed S            the synthetic scene's seed (default 1)\n"
     "  --points-per-keyframe P   new points per keyframe of the stream (default 150)\n"
     "  --check-every K     full manifold + weight check every K keyframes (default 50)\n"
-    "  --no-baseline       skip the same run without the periodic check (the engine's own memory;\n"
-    "                      the check's working memory stays with malloc and steps the RSS up)\n"
+    "  --no-baseline       skip the same run without the periodic check (the engine's own memory,\n"
+    "                      without what the check leaves with malloc)\n"
     "  --no-contrast       skip the two contrast runs without checks (half the points per\n"
     "                      keyframe; twice the Steiner spacing) that, with the baseline, separate\n"
     "                      growth with the points kept, with the Steiner grid and with keyframes\n"
@@ -282,8 +282,7 @@ void Describe(std::ostringstream& o, const Run& run, const soak::SoakFigures& f)
   if (f.checks > 0)
     o << "  RSS growth on the " << f.checks << " check keyframes: "
       << Fixed(100.0 * f.growth_at_checks, 1)
-      << " % of the run's (the check's working memory stays with malloc; the engine grows into "
-         "it)\n";
+      << " % of the run's (what the check's working memory leaves with malloc)\n";
   const int predicted = f.holdout_at_checks ? f.checks - f.fit_first_half.n
                                             : f.keyframes - f.fit_first_half.n;
   const std::string samples = f.holdout_at_checks ? " check keyframes" : " keyframes";
