@@ -114,6 +114,44 @@ TEST_F(RenderCli, VertexLandsOnItsPixelOverTheFramesImage) {
   EXPECT_EQ(Bgr(f1, 70, 60), (std::array<uint8_t, 3>{100, 100, 100}));
 }
 
+TEST_F(RenderCli, SlamJsonCamerasOnBlack) {
+  // The same two cameras as a SLAM JSON stream (rotation world -> camera, centre), the image
+  // size on the views only (as some writers put it): frame 0 sees the centre vertex at (60, 50)
+  // over black, no image read.
+  WriteText(dir_ / "stream.json",
+            R"({"slam_data_version": "0.3", "root_path": "/", "intrinsics": [{"intrinsicId": 0,
+ "value": {"ptr_wrapper": {"data": {"focal_length": 100.0, "principal_point": [50.0, 40.0]}}}}],
+ "views": [
+ {"viewId": 0, "filename": "a.png", "width": 101, "height": 81, "id_intrinsic": 0,
+  "extrinsic": {"center": [1, 2, 1.5], "rotation": [[0, -1, 0], [0, 0, -1], [1, 0, 0]]},
+  "observations": []},
+ {"viewId": 1, "filename": "b.png", "width": 101, "height": 81, "id_intrinsic": 0,
+  "extrinsic": {"center": [2, 2, 1.5], "rotation": [[0, -1, 0], [0, 0, -1], [1, 0, 0]]},
+  "observations": []}]})");
+  const fs::path out = dir_ / "slam.png";
+  const Result r = Render({(dir_ / "square.obj").string(), "--sequence",
+                           (dir_ / "stream.json").string(), "--format", "slam_json", "--frame",
+                           "0", "--out", out.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("4 of 4 triangles visible"), std::string::npos) << r.out;
+  const io::Image im = io::ReadImage(out.string());
+  ASSERT_EQ(im.width, 101);
+  ASSERT_EQ(im.height, 81);
+  EXPECT_GT(Bgr(im, 60, 50)[2], 100);  // orange, at the default opacity over black
+  EXPECT_GT(Bgr(im, 60, 50)[2], Bgr(im, 60, 50)[0]);
+  EXPECT_EQ(Bgr(im, 10, 10), (std::array<uint8_t, 3>{0, 0, 0}));
+  // Frame 2 does not exist; --frames does not apply.
+  EXPECT_EQ(Render({(dir_ / "square.obj").string(), "--sequence", (dir_ / "stream.json").string(),
+                    "--format", "slam_json", "--frame", "2", "--out", out.string()})
+                .status,
+            64);
+  EXPECT_EQ(Render({(dir_ / "square.obj").string(), "--sequence", (dir_ / "stream.json").string(),
+                    "--format", "slam_json", "--frames", "0:1", "--frame", "0", "--out",
+                    out.string()})
+                .status,
+            64);
+}
+
 TEST_F(RenderCli, WireframeAndBothModes) {
   std::vector<std::string> args = Base();
   args.insert(args.end(), {"--frame", "0", "--mode", "wireframe", "--out", (dir_ / "w.png").string()});

@@ -69,6 +69,7 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
     int64_t keyframe = kNone;
     uint64_t intrinsic = 0;
     bool has_intrinsic = false;
+    int width = 0, height = 0;  // the view's own image size (imr's writer and others put it here)
     std::string path;
   };
   struct Obs {
@@ -120,6 +121,10 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
       r.intrinsic = f_.Id(*k, path + ".id_intrinsic");
       r.has_intrinsic = true;
     }
+    if (const json* w = f_.Optional(v, "width", path))
+      r.width = static_cast<int>(std::clamp<int64_t>(f_.Integer(*w, path + ".width"), 0, 1 << 20));
+    if (const json* h = f_.Optional(v, "height", path))
+      r.height = static_cast<int>(std::clamp<int64_t>(f_.Integer(*h, path + ".height"), 0, 1 << 20));
     if (const json* k = f_.Optional(v, "keyframe", path)) {
       r.keyframe = f_.Integer(*k, path + ".keyframe");
       if (r.keyframe < 0) f_.Fail(path + ".keyframe", "expected an integer >= 0");
@@ -157,6 +162,9 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
                                               std::to_string(v.intrinsic) + ", which intrinsics does not list");
       v.geometry.intrinsics = it->second;
       v.geometry.has_intrinsics = true;
+      // An intrinsic without an image size takes the view's (SLAM JSON puts it in either place).
+      if (v.geometry.intrinsics.width <= 0 && v.width > 0) v.geometry.intrinsics.width = v.width;
+      if (v.geometry.intrinsics.height <= 0 && v.height > 0) v.geometry.intrinsics.height = v.height;
     }
     // Keyframe of each view: its own number, or views_per_keyframe consecutive views.
     const bool numbered = !views_.empty() && views_[0].keyframe != kNone;

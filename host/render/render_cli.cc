@@ -3,6 +3,7 @@
 #include "host/eval/mesh_io.h"
 #include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
+#include "host/io/slam_json.h"
 #include "host/render/rasterizer.h"
 #include "host/util/exit_status.h"
 
@@ -29,7 +30,7 @@ using imr::kExitOk;
 using imr::kExitUsage;
 
 const char* kSynopsis =
-    "imr render MESH --sequence DIR --format kitti_odometry|kitti_raw|middlebury [--camera K]\n"
+    "imr render MESH --sequence DIR --format kitti_odometry|kitti_raw|middlebury|slam_json [--camera K]\n"
     "           [--frames FIRST[:COUNT[:STEP]]] --frame N [--mode shaded|wireframe|both]\n"
     "           [--opacity A] [--no-image] --out out.png\n"
     "imr render MESH --top-down [--sequence DIR --format F ...] [--keyframe-every N] [--size PX]\n"
@@ -44,7 +45,9 @@ const char* kNotes =
     "(grey lowest, then blue, green, yellow, red highest), with the camera path: red line through\n"
     "the camera centres, blue discs at keyframes (every --keyframe-every frames, as the image\n"
     "front end picks them), a green ring at the first camera. Up is the cameras' mean up\n"
-    "direction unless --up gives it. The PNG is written whole or not at all.\n"
+    "direction unless --up gives it. --format slam_json takes the cameras of a SLAM JSON stream\n"
+    "(one frame per view, in order) and draws on black (--no-image is implied).\n"
+    "The PNG is written whole or not at all.\n"
     "Exit status: 0 written; 1 a file is missing or bad; 64 bad usage.\n";
 
 // "0.5,1,-2" -> three numbers; false otherwise.
@@ -95,6 +98,30 @@ std::string Percent(double share) {
   return buf;
 }
 
+// The cameras of a SLAM JSON stream as an image sequence without images: one frame per view, in
+// the stream's order (every view its own keyframe, so each view's camera reaches the engine).
+io::ImageSequence SlamJsonCameras(const std::string& file) {
+  io::SlamJsonOptions o;
+  o.min_views = 1;
+  o.views_per_keyframe = 1;
+  const std::unique_ptr<io::KeyframeSource> source = io::OpenSlamJson(file, o);
+  io::ImageSequence seq;
+  engine::KeyframeUpdate u;
+  io::KeyframeInfo info;
+  while (source->Next(&u, &info))
+    for (const engine::Camera& c : u.cameras) {
+      const io::CameraGeometry* g = source->Camera(c.id);
+      if (g == nullptr || !g->has_intrinsics)
+        throw std::runtime_error(file + ": view " + std::to_string(c.id) +
+                                 " has no intrinsics: it cannot be drawn into");
+      io::ImageFrame f;
+      f.index = f.source_index = static_cast<int>(seq.frames.size());
+      f.camera = *g;
+      seq.frames.push_back(std::move(f));
+    }
+  return seq;
+}
+
 int Run(const std::vector<std::string>& args) {
   RenderOptions d;
   TopDownOptions td;
@@ -105,7 +132,7 @@ int Run(const std::vector<std::string>& args) {
       "image sequence: a KITTI folder (odometry: with calib.txt; raw: a drive folder) or a "
       "Middlebury *_par.txt (or its folder)")(
       "format", po::value<std::string>()->value_name("FMT"),
-      "the sequence's layout: kitti_odometry, kitti_raw or middlebury")(
+      "the sequence's layout: kitti_odometry, kitti_raw, middlebury or slam_json (a stream file)")(
       "camera", po::value<int>()->default_value(-1), "KITTI camera 0..3 (-1: the lowest present)")(
       "frames", po::value<std::string>()->value_name("FIRST[:COUNT[:STEP]]"),
       "frames of the sequence to use, as the job's input options")(
@@ -171,10 +198,14 @@ int Run(const std::vector<std::string>& args) {
   std::string format;
   if (has_sequence) {
     format = vm["format"].as<std::string>();
-    if (format != "kitti_odometry" && format != "kitti_raw" && format != "middlebury")
-      return usage("--format: expected kitti_odometry, kitti_raw or middlebury, got '" + format + "'");
-    if (format == "middlebury" && !vm["camera"].defaulted())
-      return usage("--camera does not apply to middlebury (each view has its own camera)");
+    if (format != "kitti_odometry" && format != "kitti_raw" && format != "middlebury" &&
+        format != "slam_json")
+      return usage("--format: expected kitti_odometry, kitti_raw, middlebury or slam_json, got '" +
+                   format + "'");
+    if ((format == "middlebury" || format == "slam_json") && !vm["camera"].defaulted())
+      return usage("--camera does not apply to " + format + " (each view has its own camera)");
+    if (format == "slam_json" && vm.count("frames"))
+      return usage("--frames does not apply to slam_json (every view is a frame)");
   } else if (vm.count("frames") || !vm["camera"].defaulted()) {
     return usage("--frames and --camera need --sequence");
   }
@@ -203,6 +234,8 @@ int Run(const std::vector<std::string>& args) {
       const std::string root = vm["sequence"].as<std::string>();
       if (format == "middlebury") {
         seq = io::ReadMiddlebury(root, so);
+      } else if (format == "slam_json") {
+        seq = SlamJsonCameras(root);
       } else {
         seq = format == "kitti_odometry" ? io::ReadKittiOdometry(root, so) : io::ReadKittiRaw(root, so);
       }
@@ -238,13 +271,14 @@ int Run(const std::vector<std::string>& args) {
     }
     const io::ImageFrame& frame = seq.frames[static_cast<std::size_t>(n)];
     io::Image image;
-    if (!vm.count("no-image")) image = io::ReadImage(frame.image_path);
+    const bool no_image = vm.count("no-image") > 0 || format == "slam_json";
+    if (!no_image) image = io::ReadImage(frame.image_path);
     const Camera camera = CameraOf(frame.camera);
-    if (!vm.count("no-image") && (image.width != camera.width || image.height != camera.height))
+    if (!no_image && (image.width != camera.width || image.height != camera.height))
       throw std::runtime_error(frame.image_path + ": image is " + std::to_string(image.width) + "x" +
                                std::to_string(image.height) + ", its camera " +
                                std::to_string(camera.width) + "x" + std::to_string(camera.height));
-    const Rendering r = RenderIntoCamera(mesh, camera, vm.count("no-image") ? nullptr : &image, ro);
+    const Rendering r = RenderIntoCamera(mesh, camera, no_image ? nullptr : &image, ro);
     WritePngAtomically(out, r.image);
     std::cout << out.string() << ": frame " << n << " (" << frame.image_path << "), "
               << r.image.width << "x" << r.image.height << ", " << r.faces_drawn << " of "
