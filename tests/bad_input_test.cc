@@ -1199,7 +1199,7 @@ TEST_F(BadSfm, AllPointsAtOnePosition) {
   const CommandResult r = Run(job);
   const json summary = ReadJson(Case() / "runs/summary.json");
   const json row = SummaryRow(summary, "bad.json");
-  const std::string warning = "new points were refused";
+  const std::string warning = "most points never entered the mesh: ";
   EXPECT_NE(r.err.find("warning: [bad.json] "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(warning), std::string::npos) << r.err;
   EXPECT_NE(ReadText(Case() / "runs/summary.md").find(warning), std::string::npos);

@@ -16,6 +16,7 @@
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
 #include "host/util/exit_status.h"
+#include "host/util/json_text.h"
 #include "host/util/log.h"
 
 #include <boost/program_options.hpp>
@@ -512,9 +513,11 @@ int CmdReport(const std::vector<std::string>& args) {
   for (const auto& r : summary["sequences"]) {
     const std::string st = r["status"].get<std::string>();
     const std::string label = st == "ok" ? "ok" : st == "failed" ? "FAILED" : st;
-    std::printf("%-7s %-20s %s\n", label.c_str(), r["name"].get<std::string>().c_str(),
-                r["error"].is_string() ? r["error"].get<std::string>().c_str()
-                                       : r["output"].get<std::string>().c_str());
+    // The output folder as the summary stores it: relative to the batch folder, as bytes.
+    const std::string where = r["error"].is_string()
+                                  ? r["error"].get<std::string>()
+                                  : (dir / imr::GetBytes(r, "output")).lexically_normal().string();
+    std::printf("%-7s %-20s %s\n", label.c_str(), r["name"].get<std::string>().c_str(), where.c_str());
   }
   const auto& c = summary["counts"];
   std::printf("%d sequences: %d ok, %d failed, %d interrupted, %d not run\nsummary: %s\n",

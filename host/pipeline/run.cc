@@ -78,25 +78,25 @@ json StatsJson(const engine::EngineStats& s) {
           {"cells_in_o", s.cells_in_o}};
 }
 
-// When most new points never entered the triangulation (all at one position, at a camera, or
-// cut off by the reconstructed volume), the mesh rests on a few points and is mostly the Steiner
-// grid's: "ok" alone would hide it. Empty when the share refused is a half or less.
+// When most points never entered the triangulation (all at one position, at a camera, or cut
+// off by the reconstructed volume), the mesh rests on a few points and is mostly the Steiner
+// grid's: "ok" alone would hide it. Empty when a half or less was refused. points_duplicate
+// counts new points and moves that landed on an existing vertex.
 std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mesh& mesh) {
   const int64_t refused = s.points_dropped + s.points_duplicate;
-  const int64_t offered = s.points_inserted + refused;
-  if (offered == 0 || 2 * refused <= offered) return {};
+  if (refused == 0 || 2 * refused <= s.points_inserted + refused) return {};
   std::size_t steiner_only = 0;
-  for (std::size_t f = 0; f + 2 < mesh.faces.size() && mesh.point_ids.size() * 3 == mesh.vertices.size(); f += 3)
-    if (mesh.point_ids[mesh.faces[f]] < 0 && mesh.point_ids[mesh.faces[f + 1]] < 0 &&
-        mesh.point_ids[mesh.faces[f + 2]] < 0)
-      ++steiner_only;
-  return std::to_string(refused) + " of " + std::to_string(offered) +
-         " new points were refused (" + std::to_string(s.points_duplicate) +
-         " at the position of a point already in the mesh, " + std::to_string(s.points_dropped) +
-         " whose conflict zone met the reconstructed volume): the mesh rests on " +
-         std::to_string(s.points_inserted) + (s.points_inserted == 1 ? " point" : " points") +
-         ", and " + std::to_string(steiner_only) +
-         " of its " + std::to_string(mesh.faces.size() / 3) +
+  if (mesh.point_ids.size() * 3 == mesh.vertices.size())
+    for (std::size_t f = 0; f + 2 < mesh.faces.size(); f += 3)
+      if (mesh.point_ids[mesh.faces[f]] < 0 && mesh.point_ids[mesh.faces[f + 1]] < 0 &&
+          mesh.point_ids[mesh.faces[f + 2]] < 0)
+        ++steiner_only;
+  return "most points never entered the mesh: " + std::to_string(s.points_duplicate) +
+         " new points or moves were at the position of a point already in it and " +
+         std::to_string(s.points_dropped) +
+         " new points were dropped (their conflict zone met the reconstructed volume), against " +
+         std::to_string(s.points_inserted) + " inserted; " + std::to_string(steiner_only) +
+         " of the mesh's " + std::to_string(mesh.faces.size() / 3) +
          " triangles touch no data point (Steiner grid only). Are the points' positions right?";
 }
 
