@@ -29,18 +29,19 @@ std::string ParseJobId(const std::string& out) {
   return id;
 }
 
-// An #SBATCH option's value as sbatch reads it: in double quotes (blanks end a value otherwise,
-// and a backslash cannot escape them), with '"', '\' and '#' (a comment, even inside quotes in
-// older Slurm) escaped by a backslash, which sbatch drops. `pattern`: a file name in which Slurm
-// expands %-patterns (%A, %a, %j): a literal '%' is written "%%".
+// An #SBATCH option's value as sbatch reads it. When it holds a blank, a quote, '\' or '#' (a
+// comment, even inside quotes in older Slurm): in double quotes (a backslash cannot escape a
+// blank), with '"', '\' and '#' escaped by a backslash, which sbatch drops; otherwise as it is.
+// `pattern`: a file name in which Slurm expands %-patterns (%A, %a, %j): a literal '%' is "%%".
 std::string SbatchValue(const std::string& value, bool pattern = false) {
-  std::string out = "\"";
+  const bool quote = value.find_first_of(" \t\"'\\#") != std::string::npos;
+  std::string out = quote ? "\"" : "";
   for (const char c : value) {
     if (c == '"' || c == '\\' || c == '#') out += '\\';
     out += c;
     if (pattern && c == '%') out += '%';
   }
-  return out + "\"";
+  return quote ? out + "\"" : out;
 }
 
 std::string SubmitScript(const std::vector<std::string>& command) {
