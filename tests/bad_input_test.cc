@@ -14,16 +14,21 @@
 
 #include <nlohmann/json.hpp>
 
+#include <signal.h>
 #include <sys/mount.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <sstream>
 
 #include "host/io/image_io.h"
+#include "host/util/exit_status.h"
 #include "test_util.h"
 
 namespace imr::testing {
@@ -34,6 +39,7 @@ using nlohmann::json;
 const std::string kImr = IMR_EXE;
 const std::string kSynth = IMR_SYNTH_EXE;
 const std::string kTestPlugins = IMR_TEST_PLUGIN_DIR;
+const std::string kTestLibraries = IMR_TEST_LIBRARY_DIR;
 
 json ReadJson(const fs::path& p) { return json::parse(ReadText(p)); }
 
@@ -168,8 +174,15 @@ class Catalogue : public ::testing::Test {
   CommandResult Run(const json& job, const std::string& flags = "", bool keep_runs = false) const {
     if (!keep_runs) fs::remove_all(Case() / "runs");
     WriteText(Case() / "job.json", job.dump(2));
-    return RunShell("cd " + Quote(Case().string()) + " && " + Quote(kImr) +
-                    " run --jobs 2 job.json " + flags);
+    return InCase("run --jobs 2 job.json " + flags);
+  }
+
+  // imr with `args` in this test's folder, under a time limit: a hang on bad input fails the
+  // test (status 124) instead of stalling the suite.
+  // `env`: assignments put before the command ("NAME=value ").
+  CommandResult InCase(const std::string& args, const std::string& env = "") const {
+    return RunShell("cd " + Quote(Case().string()) + " && " + env + "timeout -k 5 300 " +
+                    Quote(kImr) + " " + args);
   }
 
   // The four guarantees for a job whose sequence `bad` is bad and `good` is fine; `error_has`:
@@ -178,17 +191,22 @@ class Catalogue : public ::testing::Test {
                                      const std::string& good,
                                      const std::vector<std::string>& error_has,
                                      const std::string& flags = "", bool keep_runs = false) const {
-    const CommandResult r = Run(job, flags, keep_runs);
-    const fs::path batch = Case() / "runs";
+    CheckOnlyTheBadSequenceFailed(Run(job, flags, keep_runs), Case() / "runs", job, bad, good,
+                                  error_has);
+  }
+
+  // The same checks on a run already made, whose batch folder is `batch`. `bad_folder_empty`:
+  // false when the bad sequence's folder held files before the run (the test checks them).
+  void CheckOnlyTheBadSequenceFailed(const CommandResult& r, const fs::path& batch,
+                                     const json& job, const std::string& bad,
+                                     const std::string& good,
+                                     const std::vector<std::string>& error_has,
+                                     bool bad_folder_empty = true) const {
     // (b) a non-zero status (not a particular one: `imr run` counts failures).
     EXPECT_NE(r.status, 0) << r.out << r.err;
     ASSERT_TRUE(fs::exists(batch / "summary.json")) << r.out << r.err;
     const json summary = ReadJson(batch / "summary.json");
-    json bad_entry, good_entry;
-    for (const json& s : summary["sequences"]) {
-      if (s["name"] == bad) bad_entry = s;
-      if (s["name"] == good) good_entry = s;
-    }
+    const json bad_entry = SummaryRow(summary, bad), good_entry = SummaryRow(summary, good);
     ASSERT_TRUE(bad_entry.is_object()) << bad << " not in " << summary.dump(2);
     ASSERT_TRUE(good_entry.is_object()) << good << " not in " << summary.dump(2);
     // (a) the error names the file and the field, in the summary and on stderr.
@@ -203,16 +221,45 @@ class Catalogue : public ::testing::Test {
     std::cout << "[ message  ] " << error << "\n";  // what BAD_INPUTS.md quotes
     // (c) the good sequence finished.
     EXPECT_EQ(good_entry["status"], "ok") << good_entry.dump(2) << "\n" << r.err;
-    const fs::path good_out = batch / good;
+    ExpectOutputs(OutputOf(batch, good_entry), job);
+    // (d) nothing of the bad sequence that could pass for output, no leftovers anywhere.
+    if (bad_folder_empty) {
+      EXPECT_EQ(FilesUnder(OutputOf(batch, bad_entry)), std::vector<std::string>{}) << "in " << bad;
+    }
+    EXPECT_EQ(Leftovers(batch), std::vector<std::string>{});
+  }
+
+  // Bad input imr now handles: every sequence of `names` finishes ok, with its outputs.
+  void CheckEverySequenceOk(const CommandResult& r, const fs::path& batch, const json& job,
+                            const std::vector<std::string>& names) const {
+    EXPECT_EQ(r.status, 0) << r.out << r.err;
+    ASSERT_TRUE(fs::exists(batch / "summary.json")) << r.out << r.err;
+    const json summary = ReadJson(batch / "summary.json");
+    for (const std::string& name : names) {
+      const json row = SummaryRow(summary, name);
+      ASSERT_TRUE(row.is_object()) << name << " not in " << summary.dump(2);
+      EXPECT_EQ(row["status"], "ok") << row.dump(2) << "\n" << r.err;
+      ExpectOutputs(OutputOf(batch, row), job);
+    }
+    EXPECT_EQ(Leftovers(batch), std::vector<std::string>{});
+  }
+
+  static json SummaryRow(const json& summary, const std::string& name) {
+    for (const json& s : summary["sequences"])
+      if (s["name"] == name) return s;
+    return json();
+  }
+  // A summary row's output folder (relative to the batch folder, or absolute).
+  static fs::path OutputOf(const fs::path& batch, const json& row) {
+    return batch / row.value("output", std::string());
+  }
+  static void ExpectOutputs(const fs::path& out, const json& job) {
     for (const json& f : job["output"]["formats"]) {
-      const fs::path mesh = good_out / ("mesh." + f.get<std::string>());
+      const fs::path mesh = out / ("mesh." + f.get<std::string>());
       EXPECT_GT(fs::exists(mesh) ? fs::file_size(mesh) : 0u, 0u) << mesh << " missing or empty";
     }
-    EXPECT_TRUE(fs::exists(good_out / "report.json")) << good_out;
-    EXPECT_TRUE(fs::exists(good_out / "manifest.json")) << good_out;
-    // (d) nothing of the bad sequence that could pass for output, no leftovers anywhere.
-    EXPECT_EQ(FilesUnder(batch / bad), std::vector<std::string>{}) << "in " << batch / bad;
-    EXPECT_EQ(Leftovers(batch), std::vector<std::string>{});
+    EXPECT_TRUE(fs::exists(out / "report.json")) << out;
+    EXPECT_TRUE(fs::exists(out / "manifest.json")) << out;
   }
 
   // A job refused as a whole: non-zero status, stderr names the job file and each of
@@ -221,8 +268,7 @@ class Catalogue : public ::testing::Test {
                         const std::string& flags = "") const {
     fs::remove_all(Case() / "runs");
     WriteText(Case() / "job.json", job_text);
-    const CommandResult r = RunShell("cd " + Quote(Case().string()) + " && " + Quote(kImr) +
-                                     " run job.json " + flags);
+    const CommandResult r = InCase("run job.json " + flags);
     EXPECT_NE(r.status, 0) << r.out << r.err;
     if (flags.empty()) {  // named as typed: imr ran in Case() on "job.json"
       EXPECT_EQ(r.err.rfind("job.json: ", 0), 0u) << r.err;
@@ -284,9 +330,35 @@ class BadSfm : public Catalogue {
   }
   void SetUp() override { ASSERT_TRUE(fs::exists(Fixture("openmvg/good.json"))) << "no fixtures"; }
   static fs::path Fixture(const std::string& name) { return *dir_ / "fixtures" / name; }
+  // A copy of the COLMAP model at `to`: a sequence folder of the "colmap" format.
+  static fs::path CopyModel(const fs::path& to) {
+    fs::create_directories(to.parent_path());
+    fs::copy(Fixture("colmap"), to, fs::copy_options::recursive);
+    return to;
+  }
   static ScratchDir* dir_;
 };
 ScratchDir* BadSfm::dir_ = nullptr;
+
+// Applies `edit` to the words of the first data line (not a '#' comment) of a COLMAP text file.
+void EditFirstDataLine(const fs::path& file, const std::function<void(std::vector<std::string>&)>& edit) {
+  std::istringstream in(ReadText(file));
+  std::string text;
+  bool done = false;
+  for (std::string line; std::getline(in, line);) {
+    if (!done && !line.empty() && line[0] != '#') {
+      std::istringstream words(line);
+      std::vector<std::string> w;
+      for (std::string x; words >> x;) w.push_back(x);
+      edit(w);
+      line.clear();
+      for (const auto& x : w) line += (line.empty() ? "" : " ") + x;
+      done = true;
+    }
+    text += line + "\n";
+  }
+  WriteText(file, text);
+}
 
 class BadJob : public Catalogue {};
 class BadPlugin : public Catalogue {};
@@ -461,25 +533,9 @@ TEST_F(BadSfm, OpenMvgDanglingViewId) {
 }
 
 TEST_F(BadSfm, ColmapDanglingImageId) {
-  const fs::path model = Case() / "bad";
-  fs::copy(Fixture("colmap"), model, fs::copy_options::recursive);
+  const fs::path model = CopyModel(Case() / "bad");
   // The first point's first track entry: POINT3D_ID X Y Z R G B ERROR IMAGE_ID POINT2D_IDX ...
-  std::istringstream in(ReadText(model / "points3D.txt"));
-  std::string text;
-  bool done = false;
-  for (std::string line; std::getline(in, line);) {
-    if (!done && !line.empty() && line[0] != '#') {
-      std::istringstream words(line);
-      std::vector<std::string> w;
-      for (std::string x; words >> x;) w.push_back(x);
-      w.at(8) = "99999";
-      line.clear();
-      for (const auto& x : w) line += (line.empty() ? "" : " ") + x;
-      done = true;
-    }
-    text += line + "\n";
-  }
-  WriteText(model / "points3D.txt", text);
+  EditFirstDataLine(model / "points3D.txt", [](std::vector<std::string>& w) { w.at(8) = "99999"; });
   ExpectOnlyTheBadSequenceFails(EngineJob("colmap", {"bad", Fixture("colmap")}), "bad", "colmap",
                                 {(model / "points3D.txt").string(), "image 99999"});
 }
@@ -783,6 +839,562 @@ TEST_F(BadOutput, DiskFullWhileWritingTheReport) {
                                 {out.string() + "/.imr-staging-", "/report.json: write failed: No "
                                                                   "space left on device"},
                                 "", /*keep_runs=*/true);
+}
+
+// ==== Round 2 (issue 15): what outside probes found ====
+
+// PNG chunks end with a CRC-32 (ISO 3309) of their type and data.
+uint32_t Crc32(const unsigned char* data, std::size_t size) {
+  uint32_t crc = 0xffffffffu;
+  for (std::size_t i = 0; i < size; ++i) {
+    crc ^= data[i];
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+  }
+  return ~crc;
+}
+
+// Makes a PNG's header declare `width` x `height` (CRC fixed, pixel data unchanged): what a
+// decoder trusts before it reads a pixel.
+void DeclarePngSize(const fs::path& png, uint32_t width, uint32_t height) {
+  std::string bytes = ReadText(png);
+  ASSERT_GT(bytes.size(), 33u);
+  ASSERT_EQ(bytes.substr(12, 4), "IHDR") << png;
+  auto put = [&bytes](std::size_t at, uint32_t v) {
+    for (int i = 0; i < 4; ++i) bytes[at + i] = static_cast<char>((v >> (24 - 8 * i)) & 0xff);
+  };
+  put(16, width);
+  put(20, height);
+  put(29, Crc32(reinterpret_cast<const unsigned char*>(bytes.data()) + 12, 17));
+  WriteText(png, bytes);
+}
+
+// Multiplies the rotation entries of every line of a KITTI poses file (or of line `only`,
+// 0-based) by `factor`: a rotation that far from orthonormal.
+void ScalePoseRotations(const fs::path& poses, double factor, int only = -1) {
+  std::istringstream in(ReadText(poses));
+  std::string text;
+  int index = 0;
+  for (std::string line; std::getline(in, line); ++index) {
+    std::istringstream words(line);
+    std::vector<double> v;
+    for (double x; words >> x;) v.push_back(x);
+    std::string out;
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      const bool rotation = k % 4 != 3 && (only < 0 || only == index);
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%.17g", rotation ? v[k] * factor : v[k]);
+      out += (k ? " " : "") + std::string(buf);
+    }
+    text += out + "\n";
+  }
+  WriteText(poses, text);
+}
+
+// A background `imr run` of this test's job.json: its pid (imr's own), and its exit status
+// once it has ended.
+class BackgroundRun {
+ public:
+  BackgroundRun(const fs::path& dir, const std::string& tag) : dir_(dir), tag_(tag) {
+    const std::string t = Quote(tag);
+    RunShell("cd " + Quote(dir.string()) + " && ( sh -c 'echo $$ >" + t + ".pid; exec " +
+             Quote(kImr) + " run --jobs 2 job.json' >" + t + ".out 2>" + t + ".err; echo $? >" +
+             t + ".status ) &");
+    for (int i = 0; i < 100 && pid_ <= 0; ++i) {
+      pid_ = std::atoi(ReadText(dir / (tag + ".pid")).c_str());
+      if (pid_ <= 0) ::usleep(50000);
+    }
+  }
+  pid_t pid() const { return pid_; }
+  // Waits up to `seconds` for the run to end; its exit status, or -1.
+  int Wait(int seconds) const {
+    for (int i = 0; i < seconds * 10; ++i) {
+      const std::string s = ReadText(dir_ / (tag_ + ".status"));
+      if (!s.empty() && s.back() == '\n') return std::atoi(s.c_str());
+      ::usleep(100000);
+    }
+    return -1;
+  }
+  std::string Output() const {
+    return ReadText(dir_ / (tag_ + ".out")) + ReadText(dir_ / (tag_ + ".err"));
+  }
+
+ private:
+  fs::path dir_;
+  std::string tag_;
+  pid_t pid_ = -1;
+};
+
+// Waits up to `seconds` for `file` to exist and hold `text`.
+bool WaitForText(const fs::path& file, const std::string& text, int seconds) {
+  for (int i = 0; i < seconds * 10; ++i) {
+    if (ReadText(file).find(text) != std::string::npos) return true;
+    ::usleep(100000);
+  }
+  return false;
+}
+
+TEST_F(BadSfm, FolderNamedLikeAPlaceholder) {
+  // Placeholders are replaced in one pass over the template: a name holding "{sequence}" or
+  // "{job}" is text (the replacement used to find what it had just inserted, and spin for ever).
+  for (const char* name : {"{sequence}", "x{job}", "good"}) CopyModel(Case() / "seqs" / name);
+  const json job = EngineJob("colmap", {"seqs/*/"});
+  WriteText(Case() / "job.json", job.dump(2));
+  const CommandResult v = InCase("validate job.json");
+  EXPECT_EQ(v.status, 0) << v.out << v.err;
+  EXPECT_NE(v.out.find("{sequence} -> " + (Case() / "runs/{sequence}").string() + "\n"),
+            std::string::npos) << v.out;
+  EXPECT_NE(v.out.find("x{job} -> " + (Case() / "runs/x{job}").string() + "\n"), std::string::npos)
+      << v.out;
+  CheckEverySequenceOk(Run(job), Case() / "runs", job, {"{sequence}", "x{job}", "good"});
+  // A job file named {job}.json with {job} in its template.
+  json named = job;
+  named["output"]["directory"] = "runs/{job}/{sequence}";
+  WriteText(Case() / "{job}.json", named.dump(2));
+  const CommandResult n = InCase("run --jobs 2 '{job}.json'");
+  CheckEverySequenceOk(n, Case() / "runs/{job}", named, {"{sequence}", "x{job}", "good"});
+  EXPECT_TRUE(fs::exists(Case() / "runs/{job}/{sequence}/mesh.ply"));
+}
+
+TEST_F(BadSfm, SequenceNameNotUtf8) {
+  // Names are bytes on Linux: a Latin-1 "café" folder is a sequence like any other. Its output
+  // folder keeps the bytes; JSON files, which need text, show the byte escaped (caf\xE9).
+  const std::string latin1 = std::string("caf") + '\xE9';
+  CopyModel(Case() / "seqs" / latin1);
+  CopyModel(Case() / "seqs/good");
+  const json job = EngineJob("colmap", {"seqs/*/"});
+  const CommandResult r = Run(job);
+  CheckEverySequenceOk(r, Case() / "runs", job, {"good"});
+  const json summary = ReadJson(Case() / "runs/summary.json");
+  EXPECT_EQ(SummaryRow(summary, "caf\\xE9").value("status", ""), "ok") << summary.dump(2);
+  ExpectOutputs(Case() / "runs" / latin1, job);
+  EXPECT_EQ(ReadJson(Case() / "runs" / latin1 / "report.json")["sequence"]["name"], "caf\\xE9");
+  // imr report reads the batch folder back: the name's bytes round-trip.
+  const CommandResult rep = InCase("report runs");
+  EXPECT_EQ(rep.status, 0) << rep.out << rep.err;
+  EXPECT_EQ(SummaryRow(ReadJson(Case() / "runs/summary.json"), "caf\\xE9").value("status", ""), "ok");
+}
+
+TEST_F(BadPlugin, HalfCopiedPlugin) {
+  // The first half of a real plugin, as an interrupted copy leaves it: loading it used to kill
+  // every command with SIGBUS. It is refused by name; the job runs without it.
+  const fs::path dir = Case() / "more-plugins";
+  const std::string bytes = ReadText(fs::path(kTestPlugins) / "test_failing_policy.so");
+  WriteText(dir / "half.so", bytes.substr(0, bytes.size() / 2));
+  json job = SyntheticJob();
+  job["plugin_paths"].push_back("more-plugins");
+  const CommandResult r = Run(job);
+  CheckEverySequenceOk(r, Case() / "runs", job, {"street", "room"});
+  const std::string refusal = (dir / "half.so").string() + ": cannot load: truncated: ";
+  EXPECT_NE(r.err.find("plugin refused: " + refusal), std::string::npos) << r.err;
+  for (const char* command : {"plugins -p more-plugins", "validate job.json"}) {
+    const CommandResult c = InCase(command);
+    EXPECT_EQ(c.status, 0) << command << "\n" << c.out << c.err;
+    EXPECT_NE((c.out + c.err).find("half.so: cannot load: truncated: "), std::string::npos)
+        << c.out << c.err;
+  }
+  std::cout << "[ message  ] " << r.err.substr(r.err.find(refusal), 200) << "\n";
+}
+
+TEST_F(BadOutput, TwoJobsShareAnOutputFolder) {
+  // Job A writes street as PLY and GLB; job B writes street into the same folder (PLY only) and
+  // plane into its own. B's clean-up of "files it no longer writes" used to delete A's mesh.glb.
+  json a = SyntheticJob();
+  a["sequences"] = {"street"};
+  a["output"]["formats"] = {"ply", "glb"};
+  WriteText(Case() / "job-a.json", a.dump(2));
+  const CommandResult ra = InCase("run -q job-a.json");
+  ASSERT_EQ(ra.status, 0) << ra.out << ra.err;
+  const std::string glb = ReadText(Case() / "runs/street/mesh.glb");
+  json b = SyntheticJob();
+  b["sequences"] = {"street", "plane"};
+  WriteText(Case() / "job-b.json", b.dump(2));
+  const CommandResult rb = InCase("run --jobs 2 job-b.json");
+  CheckOnlyTheBadSequenceFailed(rb, Case() / "runs", b, "street", "plane",
+                                {(Case() / "runs/street/manifest.json").string(),
+                                 "written by another job (" + (Case() / "job-a.json").string() + ")",
+                                 "give each job its own output folder"},
+                                /*bad_folder_empty=*/false);
+  EXPECT_EQ(ReadText(Case() / "runs/street/mesh.glb"), glb) << "job B changed job A's mesh";
+  // Job A still finds its sequence finished.
+  const CommandResult again = InCase("run job-a.json");
+  EXPECT_EQ(again.status, 0) << again.out << again.err;
+  EXPECT_NE(again.out.find("skipped street"), std::string::npos) << again.out;
+}
+
+TEST_F(BadImages, PngDeclaringAHugeSize) {
+  // 30000 x 30000 in the header of frame 0 (a 0.9 MB file of that size decodes for seconds
+  // into gigabytes): refused from the header, against input.options.max_image_megapixels.
+  fs::path png = CopySequence() / "image_0/000000.png";
+  DeclarePngSize(png, 30000, 30000);
+  const auto start = std::chrono::steady_clock::now();
+  ExpectOnlyTheBadSequenceFails(ImageJob({"bad", Sequence().string()}), "bad", "street",
+                                {png.string(), "image is 30000x30000 (900 megapixels)",
+                                 "more than input.options.max_image_megapixels (50)"});
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60));
+  // A later frame declaring another size than the sequence's is refused before decoding too.
+  fs::remove_all(Case() / "bad");
+  png = CopySequence() / "image_0/000005.png";
+  DeclarePngSize(png, 2000, 2000);
+  ExpectOnlyTheBadSequenceFails(ImageJob({"bad", Sequence().string()}), "bad", "street",
+                                {png.string(), "image is 2000x2000, the sequence's first is 414x125"});
+}
+
+TEST_F(BadImages, PoseRotationsSlightlyOffOrthonormal) {
+  // Rotations 1.4e-6 from orthonormal (6-7 significant digits, as ../shared's dinoSparseRing):
+  // the reader re-orthonormalises them; the refiner, which checks to 1e-6, used to refuse frame
+  // 0 naming neither file nor line.
+  const fs::path poses = CopySequence() / "poses.txt";
+  ScalePoseRotations(poses, 1.0 + 1.4e-6);
+  const json job = ImageJob({"bad", Sequence().string()});
+  CheckEverySequenceOk(Run(job), Case() / "runs", job, {"bad", "street"});
+  // Beyond the one tolerance: refused, naming file and line.
+  ScalePoseRotations(poses, 1.0 + 2e-4, 4);
+  ExpectOnlyTheBadSequenceFails(job, "bad", "street",
+                                {poses.string() + ":5", "not orthonormal",
+                                 "more than the 0.0001 imr re-orthonormalises"});
+}
+
+TEST_F(BadSfm, ColmapBytesThatAreNotText) {
+  // A 0xFF byte in cameras.txt: the message names the file, the line and the field (it used to
+  // be lost: the child could not send a message holding the byte as JSON, and the summary said
+  // "interrupted").
+  const fs::path model = CopyModel(Case() / "bad");
+  EditFirstDataLine(model / "cameras.txt", [](std::vector<std::string>& w) { w.at(4) = "\xff" + w.at(4); });
+  ExpectOnlyTheBadSequenceFails(EngineJob("colmap", {"bad", Fixture("colmap")}), "bad", "colmap",
+                                {(model / "cameras.txt").string() + " line ",
+                                 "expected a parameter (number), got \"\\xFF"});
+  // A 0xFF byte in an image name, with --export-stream: the stream (JSON) escapes it.
+  fs::remove_all(model);
+  CopyModel(model);
+  EditFirstDataLine(model / "images.txt", [](std::vector<std::string>& w) { w.at(9) += "\xff"; });
+  const json job = EngineJob("colmap", {"bad", Fixture("colmap")});
+  CheckEverySequenceOk(Run(job, "--export-stream '{output}/stream.json'"), Case() / "runs", job,
+                       {"bad", "colmap"});
+  EXPECT_NE(ReadText(Case() / "runs/bad/stream.json").find("\\\\xFF"), std::string::npos);
+}
+
+TEST_F(BadPlugin, TwoRunsOfOneJobAtOnce) {
+  // The first run's street hangs in its weight policy (until its 6 s stage timeout); a second
+  // run of the same job meanwhile is refused, naming the first's pid, and writes nothing.
+  json j = WithFailingPolicy({{"hang", true}});
+  j["pipeline"][0]["timeout_seconds"] = 6;
+  WriteText(Case() / "job.json", j.dump(2));
+  const BackgroundRun first(Case(), "first");
+  ASSERT_GT(first.pid(), 0);
+  ASSERT_TRUE(WaitForText(Case() / "runs/imr-batch/status/street.json", "running", 60))
+      << first.Output();
+  const CommandResult second = InCase("run job.json");
+  EXPECT_EQ(second.status, kExitTempFail) << second.out << second.err;
+  for (const std::string& e : std::vector<std::string>{(Case() / "runs/imr-batch/lock").string(),
+                                                      "pid " + std::to_string(first.pid()),
+                                                      "another imr run"})
+    EXPECT_NE(second.err.find(e), std::string::npos) << "stderr lacks '" << e << "':\n" << second.err;
+  std::cout << "[ message  ] " << second.err.substr(second.err.find("imr run: ")) << "\n";
+  // Another job whose output folder is street's (its batch folder is that folder): one process
+  // writes an output folder at a time.
+  json other = SyntheticJob();
+  other["sequences"] = {"street"};
+  other["output"]["directory"] = "runs/street";
+  WriteText(Case() / "other.json", other.dump(2));
+  const CommandResult o = InCase("run other.json");
+  EXPECT_NE(o.status, 0) << o.out << o.err;
+  EXPECT_NE(o.err.find((Case() / "runs/street").string() + ": another imr process (pid "),
+            std::string::npos) << o.err;
+  EXPECT_NE(o.err.find("is writing into this output folder"), std::string::npos) << o.err;
+  std::cout << "[ message  ] " << o.err.substr(o.err.find("street failed: ")) << "\n";
+  EXPECT_NE(first.Wait(120), 0) << first.Output();  // street timed out
+  const json summary = ReadJson(Case() / "runs/summary.json");
+  EXPECT_EQ(SummaryRow(summary, "room")["status"], "ok") << summary.dump(2);
+  EXPECT_EQ(SummaryRow(summary, "street")["status"], "failed") << summary.dump(2);
+  EXPECT_NE(first.Output().find("summary: "), std::string::npos) << first.Output();
+}
+
+TEST_F(BadSfm, SubmitWithNamesThatNeedQuoting) {
+  // Names with leading or trailing blanks, a leading '#' or a newline: the frozen sequence list
+  // of `imr submit` round-trips them (its tasks used to exit 64, and '#' names were dropped).
+  const std::vector<std::string> names = {" lead", "trail ", "#hash", "new\nline", "good"};
+  for (const std::string& n : names) CopyModel(Case() / "seqs" / n);
+  const json job = EngineJob("colmap", {"seqs/*/"});
+  WriteText(Case() / "job.json", job.dump(2));
+  const CommandResult s = InCase("submit job.json --tasks 2 --dry-run");
+  ASSERT_EQ(s.status, 0) << s.out << s.err;
+  // What each array task runs: the script, with the shard Slurm would give it.
+  for (const char* task : {"0", "1"}) {
+    const CommandResult t = RunShell(
+        "cd " + Quote(Case().string()) + " && SLURM_ARRAY_TASK_ID=" + task +
+        " SLURM_ARRAY_TASK_COUNT=2 SLURM_ARRAY_TASK_MIN=0 timeout -k 5 300 bash runs/imr-batch/slurm/array.sbatch");
+    EXPECT_EQ(t.status, 0) << "task " << task << ":\n" << t.out << t.err;
+  }
+  CheckEverySequenceOk(InCase("report runs"), Case() / "runs", job, names);
+}
+
+TEST_F(BadJob, OutputFoldersThatCollideOrEscape) {
+  for (const char* d : {"seqs/a", "seqs/b"}) fs::create_directories(Case() / d);
+  // ".*/" matches "." and "..": their output folders would be the batch folder and its parent.
+  ExpectJobRefused(EngineJob("colmap", {"seqs/.*/"}).dump(2),
+                   {"sequences[0]: sequence '.': its output folder " + (Case() / "runs").string() +
+                        " is the batch folder itself",
+                    "sequences[0]: sequence '..': its output folder " + Case().string() +
+                        " is outside the batch folder " + (Case() / "runs").string()});
+  json j = EngineJob("colmap", {"seqs/*/"});
+  j["output"]["directory"] = "out/{sequence}/../shared";
+  ExpectJobRefused(j.dump(2), {"output.directory: sequences 'a' and 'b' would both write to " +
+                               (Case() / "out/shared").string()});
+  // An export path that is an output folder: the stream would be a file where the folder goes.
+  ExpectJobRefused(GoodJob().dump(2),
+                   {"--export-stream {output}: " + (Case() / "runs/street").string() +
+                    " is the output folder of sequence 'street'"},
+                   "--export-stream '{output}'");
+}
+
+TEST_F(BadOutput, BatchFolderMovedThenReported) {
+  // The batch folder records paths relative to itself: moved elsewhere, `imr report` finds
+  // every file (it used to follow the old absolute paths and call every sequence failed).
+  const json job = SyntheticJob();
+  ASSERT_EQ(Run(job).status, 0);
+  fs::rename(Case() / "runs", Case() / "moved");
+  CheckEverySequenceOk(InCase("report moved"), Case() / "moved", job, {"street", "room"});
+  const json summary = ReadJson(Case() / "moved/summary.json");
+  EXPECT_EQ(SummaryRow(summary, "street")["output"], "street") << summary.dump(2);
+  EXPECT_TRUE(fs::exists(Case() / "moved/index.html"));
+}
+
+TEST_F(BadJob, JobWithDuplicateKeys) {
+  // JSON keeps the last of two equal keys: a typo is never silently ignored, so both are named.
+  const std::string text =
+      "{\n  \"sequences\": [\"street\"],\n  \"engine\": {\"window\": 10,\n             \"window\": 20},\n"
+      "  \"input\": {\"format\": \"synthetic\"},\n"
+      "  \"pipeline\": [{\"kind\": \"weight_policy\", \"plugin\": \"org.imr.policy.nearest\"},\n"
+      "               {\"kind\": \"exporter\", \"plugin\": \"org.imr.exporter.assimp\", \"plugin\": \"x\"}],\n"
+      "  \"output\": {\"directory\": \"runs/{sequence}\"}\n}\n";
+  ExpectJobRefused(text, {"engine.window: the key appears twice (line 3, column 14 and line 4, column 14)",
+                          "pipeline[1].plugin: the key appears twice (line 7, column 37 and line 7, column 74)"});
+}
+
+TEST_F(BadSfm, ColmapHugeCoordinate) {
+  // One bound for every reader: the JSON readers refuse beyond +-1e12, COLMAP too now.
+  const fs::path model = CopyModel(Case() / "bad");
+  EditFirstDataLine(model / "points3D.txt", [](std::vector<std::string>& w) { w.at(1) = "1e308"; });
+  ExpectOnlyTheBadSequenceFails(EngineJob("colmap", {"bad", Fixture("colmap")}), "bad", "colmap",
+                                {(model / "points3D.txt").string() + " line ", "X",
+                                 "expected a coordinate within +-1e12 (scene units), got 1e+308"});
+}
+
+TEST_F(BadImages, PoseWithHugeTranslation) {
+  const fs::path poses = CopySequence() / "poses.txt";
+  ReplaceLine(poses, 4, "1 0 0 1e300 0 1 0 0 0 0 1 5");
+  ExpectOnlyTheBadSequenceFails(ImageJob({"bad", Sequence().string()}), "bad", "street",
+                                {poses.string() + ":5", "number 4",
+                                 "expected a coordinate within +-1e12 (scene units), got 1e+300"});
+}
+
+TEST_F(BadSfm, AllPointsAtOnePosition) {
+  // Every point at one position: all but the first are refused as duplicates. Not an error, but
+  // a warning (on stderr, in report.json and the summary), and report.json counts them.
+  json j = ReadJson(Fixture("slam/good.json"));
+  for (json& v : j["views"])
+    for (json& o : v["observations"]) o["X"] = {1.0, 2.0, 0.5};
+  WriteText(Case() / "bad.json", j.dump());
+  const json job = EngineJob("slam_json", {"bad.json", Fixture("slam/good.json")});
+  const CommandResult r = Run(job);
+  const json summary = ReadJson(Case() / "runs/summary.json");
+  const json row = SummaryRow(summary, "bad.json");
+  const std::string warning = "most points never entered the mesh: ";
+  EXPECT_NE(r.err.find("warning: [bad.json] "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(warning), std::string::npos) << r.err;
+  EXPECT_NE(ReadText(Case() / "runs/summary.md").find(warning), std::string::npos);
+  EXPECT_NE(row.value("warnings", json::array()).dump().find(warning), std::string::npos) << row.dump(2);
+  if (row["status"] == "ok") {
+    const json report = ReadJson(Case() / "runs/bad.json/report.json");
+    EXPECT_GT(report["engine"].value("points_duplicate", 0), 0) << report["engine"].dump(2);
+    EXPECT_NE(report.value("warnings", json::array()).dump().find(warning), std::string::npos);
+  }
+  std::cout << "[ message  ] " << r.err.substr(r.err.find("warning: [bad.json]"), 300) << "\n";
+}
+
+TEST_F(BadSfm, OutputFolderIsTheInputFolder) {
+  // Output folder = input folder, which holds another tool's manifest.json: refused, the file
+  // kept (it used to be overwritten silently). The same for a report.json imr did not write.
+  const fs::path bad = CopyModel(Case() / "seqs/bad");
+  CopyModel(Case() / "seqs/good");
+  const std::string foreign = "{\"made_by\": \"another tool\"}\n";
+  WriteText(bad / "manifest.json", foreign);
+  // Named one by one: a glob "seqs/*/" would match the batch folder's own imr-batch/ on the
+  // second run (the batch folder is seqs/ itself), which imr refuses.
+  json job = EngineJob("colmap", {"seqs/bad", "seqs/good"});
+  job["output"]["directory"] = "seqs/{sequence}";
+  WriteText(Case() / "job.json", job.dump(2));
+  CheckOnlyTheBadSequenceFailed(InCase("run --jobs 2 job.json"), Case() / "seqs", job, "bad", "good",
+                                {(bad / "manifest.json").string(), "not a manifest of imr",
+                                 "imr would overwrite it"},
+                                /*bad_folder_empty=*/false);
+  EXPECT_EQ(ReadText(bad / "manifest.json"), foreign);
+  fs::remove(bad / "manifest.json");
+  WriteText(bad / "report.json", foreign);
+  CheckOnlyTheBadSequenceFailed(InCase("run --jobs 2 job.json"), Case() / "seqs", job, "bad", "good",
+                                {(bad / "report.json").string(), "not a report of this job's sequence",
+                                 "imr would overwrite it"},
+                                /*bad_folder_empty=*/false);
+  EXPECT_EQ(ReadText(bad / "report.json"), foreign);
+}
+
+TEST_F(BadPlugin, SymlinkLoopNamedLikeAPlugin) {
+  // It used to stop every command with an uncaught filesystem error (status 1).
+  const fs::path dir = Case() / "more-plugins";
+  fs::create_directories(dir);
+  fs::create_symlink("loop.so", dir / "loop.so");
+  json job = SyntheticJob();
+  job["plugin_paths"].push_back("more-plugins");
+  const CommandResult r = Run(job);
+  CheckEverySequenceOk(r, Case() / "runs", job, {"street", "room"});
+  const std::string refusal = (dir / "loop.so").string() + ": cannot read: Too many levels of symbolic links";
+  EXPECT_NE(r.err.find(refusal), std::string::npos) << r.err;
+  const CommandResult p = InCase("plugins -p more-plugins");
+  EXPECT_EQ(p.status, 0) << p.out << p.err;
+  EXPECT_NE(p.out.find("loop.so: cannot read: Too many levels of symbolic links"), std::string::npos) << p.out;
+}
+
+TEST_F(BadOutput, BatchFolderNotWritable) {
+  // The batch folder cannot be created: an environment error with its own status (73,
+  // EX_CANTCREAT), not 1 as if one sequence had failed. Nothing runs.
+  const fs::path ro = Case() / "ro";
+  TmpfsMount mount(ro, MS_RDONLY, "size=64k");
+  if (!mount.SkipReason().empty()) GTEST_SKIP() << mount.SkipReason();
+  json job = SyntheticJob();
+  job["output"]["directory"] = "ro/runs/{sequence}";
+  const CommandResult r = Run(job);
+  EXPECT_EQ(r.status, kExitCantCreate) << r.out << r.err;
+  EXPECT_NE(r.err.find("imr run: " + (ro / "runs").string() + ": cannot create the batch folder"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("Read-only file system"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("street"), std::string::npos) << r.out;
+  std::cout << "[ message  ] " << r.err.substr(r.err.find("imr run: ")) << "\n";
+}
+
+TEST_F(BadSfm, SequenceNameOf250Characters) {
+  // Its status record's file name is derived to fit (NAME_MAX is 255 bytes, and an atomic
+  // write's temporary adds to it): it used to be missing, so a crash showed as nothing at all.
+  const std::string name(250, 'n');
+  CopyModel(Case() / "seqs" / name);
+  CopyModel(Case() / "seqs/good");
+  const json job = EngineJob("colmap", {"seqs/*/"});
+  const CommandResult r = Run(job);
+  CheckEverySequenceOk(r, Case() / "runs", job, {name, "good"});
+  EXPECT_EQ(r.err.find("cannot record"), std::string::npos) << r.err;
+  int records = 0;
+  for (const auto& e : fs::directory_iterator(Case() / "runs/imr-batch/status"))
+    records += ReadJson(e.path()).value("sequence", "") == name ? 1 : 0;
+  EXPECT_EQ(records, 1);
+}
+
+TEST_F(BadImages, CalibrationWithAByteOrderMark) {
+  // A UTF-8 byte order mark (as Windows editors save) is skipped: it used to hide "P0:".
+  const fs::path calib = CopySequence() / "calib.txt";
+  WriteText(calib, "\xEF\xBB\xBF" + ReadText(calib));
+  const json job = ImageJob({"bad", Sequence().string()});
+  CheckEverySequenceOk(Run(job), Case() / "runs", job, {"bad", "street"});
+}
+
+TEST_F(BadImages, FolderNamedLikeAnImage) {
+  const fs::path png = CopySequence() / "image_0/000003.png";
+  fs::remove(png);
+  fs::create_directory(png);
+  ExpectOnlyTheBadSequenceFails(ImageJob({"bad", Sequence().string()}), "bad", "street",
+                                {png.string() + ": is a folder, expected a .png image",
+                                 "pose line 4"});
+}
+
+TEST_F(BadImages, PngDeclaring60000Squared) {
+  // Beyond what the decoder itself accepts: still named by size, without OpenCV's own text.
+  const fs::path png = CopySequence() / "image_0/000000.png";
+  DeclarePngSize(png, 60000, 60000);
+  ExpectOnlyTheBadSequenceFails(ImageJob({"bad", Sequence().string()}), "bad", "street",
+                                {png.string() + ": image is 60000x60000 (3600 megapixels)"});
+  const json summary = ReadJson(Case() / "runs/summary.json");
+  const std::string error = SummaryRow(summary, "bad").value("error", "");
+  EXPECT_EQ(error.find("OpenCV"), std::string::npos) << error;
+  EXPECT_EQ(error.find("not a PNG/JPEG"), std::string::npos) << error;
+  // With the limit raised past it, the decoder's own limit is named.
+  json job = ImageJob({"bad", Sequence().string()});
+  job["input"]["options"] = {{"max_image_megapixels", 5000}};
+  ExpectOnlyTheBadSequenceFails(job, "bad", "street",
+                                {png.string() + ": image is 60000x60000 (3600 megapixels), more "
+                                                "than the image decoder reads (1074)"});
+}
+
+TEST_F(BadPlugin, PluginBuiltForAnotherMachine) {
+  // A real plugin whose ELF header says AArch64: the loader's own message was "No such file or
+  // directory", then ": Bad file descriptor".
+  const fs::path dir = Case() / "more-plugins";
+  std::string bytes = ReadText(fs::path(kTestPlugins) / "test_failing_policy.so");
+  bytes[18] = static_cast<char>(183);  // e_machine = EM_AARCH64
+  bytes[19] = 0;
+  WriteText(dir / "arm.so", bytes);
+  json job = SyntheticJob();
+  job["plugin_paths"].push_back("more-plugins");
+  const CommandResult r = Run(job);
+  CheckEverySequenceOk(r, Case() / "runs", job, {"street", "room"});
+  const std::string refusal =
+      (dir / "arm.so").string() + ": cannot load: built for AArch64 (ELF machine 183)";
+  EXPECT_NE(r.err.find(refusal), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("No such file or directory"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("Bad file descriptor"), std::string::npos) << r.err;
+  std::cout << "[ message  ] " << r.err.substr(r.err.find(refusal), 200) << "\n";
+}
+
+TEST_F(BadPlugin, PluginWithAnUndefinedSymbol) {
+  // The loader's refusal (RTLD_NOW) names the symbol, and nothing after it.
+  const CommandResult r = InCase("plugins -p " + Quote(kTestLibraries + "/test_unresolved_plugin.so"));
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("test_unresolved_plugin.so: cannot load: "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("undefined symbol: imr_test_missing_symbol\n"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("Bad file descriptor"), std::string::npos) << r.out;
+}
+
+TEST_F(BadPlugin, ForeignLibraryIsNotLoaded) {
+  // Files without imr's entry symbol in their dynamic symbol table are refused unopened: their
+  // constructors never run (IMR_PLUGIN_PATH=/usr/lib/x86_64-linux-gnu made libmemusage print
+  // its heap report).
+  const fs::path marker = Case() / "constructor-ran";
+  const CommandResult r = InCase("plugins -p " + Quote(kTestLibraries + "/test_constructor_library.so"),
+                                 "IMR_TEST_CONSTRUCTOR_MARKER=" + Quote(marker.string()) + " ");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("test_constructor_library.so: not an imr plugin: no entry symbol "
+                       "'imr_plugin_entry' in its dynamic symbol table"),
+            std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(marker)) << "the library's constructor ran";
+}
+
+TEST_F(BadPlugin, HangupWhileASequenceRuns) {
+  // SIGHUP (a closed terminal, a logout) stops the batch like Ctrl-C: the summary is written and
+  // the sequence it stopped is "interrupted", not "failed". Street hangs in its policy and
+  // ignores the batch's SIGTERM: it is killed after the grace period.
+  WriteText(Case() / "job.json", WithFailingPolicy({{"hang", true}}).dump(2));
+  const BackgroundRun run(Case(), "run");
+  ASSERT_GT(run.pid(), 0);
+  ASSERT_TRUE(WaitForText(Case() / "runs/imr-batch/status/street.json", "running", 60)) << run.Output();
+  ::sleep(2);  // into the hang (keyframe 1's transfer)
+  ::kill(run.pid(), SIGHUP);
+  const int status = run.Wait(120);
+  EXPECT_NE(status, 0) << run.Output();
+  EXPECT_NE(status, 128 + SIGHUP) << "killed by SIGHUP\n" << run.Output();
+  ASSERT_TRUE(fs::exists(Case() / "runs/summary.json")) << run.Output();
+  const json summary = ReadJson(Case() / "runs/summary.json");
+  const json street = SummaryRow(summary, "street");
+  EXPECT_EQ(street["status"], "interrupted") << summary.dump(2);
+  EXPECT_NE(street.value("error", "").find("stopped by SIGHUP"), std::string::npos) << street.dump(2);
+  EXPECT_NE(street.value("error", "").find("did not stop within 10 s of SIGTERM and was killed"),
+            std::string::npos) << street.dump(2);
+  EXPECT_EQ(summary["counts"]["failed"], 0) << summary.dump(2);
+  std::cout << "[ message  ] " << street.value("error", "") << "\n";
+}
+
+TEST_F(BadJob, JobFileWithoutEnd) {
+  // /dev/zero used to be read without bound: job files are capped at 64 MiB.
+  const CommandResult r = RunShell("ulimit -v 4194304; timeout -k 2 60 " + Quote(kImr) +
+                                   " validate /dev/zero");
+  EXPECT_EQ(r.status, kExitUsage) << r.out << r.err.substr(0, 400);
+  EXPECT_NE(r.err.find("/dev/zero: more than 64 MiB: not a job file"), std::string::npos) << r.err;
 }
 
 }  // namespace

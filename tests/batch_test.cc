@@ -210,9 +210,10 @@ TEST_F(Batch, ACrashingPluginFailsOnlyItsSequence) {
   EXPECT_NE(md.find("| room | failed |"), std::string::npos) << md;
   EXPECT_NE(md.find("Ended by SIGSEGV."), std::string::npos) << md;
 
-  // abort() is named too.
+  // abort() is named too (another job: its own output folder, as jobs must not share one).
   j["sequences"] = {"street"};
-  j["pipeline"][2]["params"] = {{"abort_in", "runs/street"}};
+  j["output"]["directory"] = "runs-abort/{sequence}";
+  j["pipeline"][2]["params"] = {{"abort_in", "runs-abort/street"}};
   r = Imr("run -q " + Quote(WriteJob(j, "abort.json").string()));
   EXPECT_EQ(r.status, 1) << r.out << r.err;
   EXPECT_NE(r.out.find("crashed: signal SIGABRT (Aborted)"), std::string::npos) << r.out;

@@ -179,6 +179,9 @@ TEST_F(FrontEnd, ReportFollowsTheDocumentedSchema) {
       {"/input/summary/point_error/moved_median_latest_estimate", number},
       {"/engine_options/visibility_mode", {T::string}}, {"/plugins", {T::array}},
       {"/engine/keyframes", integer}, {"/engine/seconds/total", number},
+      {"/engine/points_duplicate", integer}, {"/engine/steiner_dropped", integer},
+      {"/engine/cells_weighted", integer}, {"/engine/policy_calls", integer},
+      {"/engine/rays_scan_cells", integer}, {"/engine/seconds/scan", number},
       {"/engine/keyframe_seconds", {T::array}}, {"/engine/move_seconds_per_moved_point", number},
       {"/mesh/vertices", integer}, {"/mesh/faces", integer}, {"/mesh/manifold", {T::boolean}},
       {"/mesh/boundary_closed_manifold", {T::boolean}},
@@ -199,6 +202,13 @@ TEST_F(FrontEnd, ReportFollowsTheDocumentedSchema) {
   for (const json& p : report["plugins"])
     for (const char* k : {"id", "version", "kind", "abi", "file", "params"})
       EXPECT_TRUE(p.contains(k)) << k << " missing in " << p.dump();
+  // Every engine counter and phase time the report has is documented (and so every counter the
+  // engine keeps, which StatsJson writes, is in both).
+  const std::string doc = ReadText(fs::path(IMR_SOURCE_DIR) / "host/pipeline/REPORT.md");
+  for (const auto& [key, value] : report["engine"].items())
+    EXPECT_NE(doc.find("`" + key + "`"), std::string::npos) << "REPORT.md lacks engine." << key;
+  for (const auto& [key, value] : report["engine"]["seconds"].items())
+    EXPECT_NE(doc.find("`" + key + "`"), std::string::npos) << "REPORT.md lacks engine.seconds." << key;
 }
 
 TEST_F(FrontEnd, CorruptOrMissingImageFailsOnlyItsSequence) {

@@ -1,8 +1,9 @@
 // `imr submit` on a real Slurm cluster (issue 7): the test starts a one-node cluster on localhost
 // (Debian's slurm-wlm and munge, installed by tools/setup.sh) with its state, sockets and logs
-// in a temporary folder, submits a 4-sequence job as a 2-task array plus the reduce job, waits,
-// checks every mesh and the summary, and stops the daemons by their PIDs. Cgroups are not
-// available on these machines (and fail silently), hence proctrack/linuxproc and task/none.
+// in a temporary folder, submits a 4-sequence job as a 2-task array plus the reduce job (its batch
+// folder's path holds a blank, '#' and '%'), waits, checks every mesh, the task logs and the
+// summary, and stops the daemons by their PIDs. Cgroups are not available on these machines
+// (and fail silently), hence proctrack/linuxproc and task/none.
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -197,7 +198,10 @@ TEST(Slurm, ArrayJobAndReduceJobMakeEveryMeshAndTheSummary) {
                     {"input", {{"format", "slam_json"}}},
                     {"pipeline", {{{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
                                   {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
-                    {"output", {{"directory", "runs/{sequence}"}, {"formats", {"ply", "glb"}}}}};
+                    // A batch folder with a blank, a '#' and a '%' in its path: sbatch reads
+                    // #SBATCH lines with its own quoting ('#' starts a comment, '%' a file name
+                    // pattern), and an unquoted --output= lost the task logs.
+                    {"output", {{"directory", "my runs #2 (100%)/{sequence}"}, {"formats", {"ply", "glb"}}}}};
   WriteText(dir / "job.json", job.dump(2));
 
   const auto submitted = Clock::now();
@@ -208,7 +212,7 @@ TEST(Slurm, ArrayJobAndReduceJobMakeEveryMeshAndTheSummary) {
   ASSERT_TRUE(std::regex_search(r.out, m, std::regex("submitted array job (\\d+) and reduce job (\\d+)")))
       << r.out;
   const std::string array_id = m[1], reduce_id = m[2];
-  const fs::path runs = dir / "runs";
+  const fs::path runs = dir / "my runs #2 (100%)";
   EXPECT_NE(r.out.find("summary (when job " + reduce_id + " has run): " + (runs / "summary.md").string()),
             std::string::npos) << r.out;
 

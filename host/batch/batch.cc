@@ -5,6 +5,9 @@
 #include "host/batch/summary.h"
 #include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
+#include "host/util/atomic_file.h"
+#include "host/util/file_lock.h"
+#include "host/util/json_text.h"
 #include "host/util/log.h"
 
 #include <fcntl.h>
@@ -19,6 +22,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -33,23 +37,55 @@ namespace {
 
 double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+// Seconds a running sequence has, after the batch's SIGTERM, to stop before it is killed.
+constexpr int kCancelGraceSeconds = 10;
+
 std::string Hostname() {
   char buf[256] = {};
   return ::gethostname(buf, sizeof(buf) - 1) == 0 ? std::string(buf) : std::string("?");
 }
 
-// Names, one per line; blank lines and '#' comments ignored.
-std::vector<std::string> ReadNames(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot read");
-  std::vector<std::string> names;
-  for (std::string line; std::getline(in, line);) {
-    const auto b = line.find_first_not_of(" \t\r");
-    const auto e = line.find_last_not_of(" \t\r");
-    if (b == std::string::npos || line[b] == '#') continue;
-    names.push_back(line.substr(b, e - b + 1));
+// A quoted line of a sequence list ("..." with C escapes) -> the name; false when malformed.
+bool Unquote(const std::string& line, std::string* name) {
+  name->clear();
+  if (line.size() < 2 || line.front() != '"' || line.back() != '"') return false;
+  for (std::size_t i = 1; i + 1 < line.size(); ++i) {
+    const char c = line[i];
+    if (c == '"') return false;
+    if (c != '\\') {
+      *name += c;
+      continue;
+    }
+    if (++i + 1 >= line.size()) return false;
+    switch (line[i]) {
+      case '"': *name += '"'; break;
+      case '\\': *name += '\\'; break;
+      case 'n': *name += '\n'; break;
+      case 'r': *name += '\r'; break;
+      case 't': *name += '\t'; break;
+      case 'x': {
+        if (i + 3 >= line.size()) return false;
+        const std::string hex = line.substr(i + 1, 2);
+        if (hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos) return false;
+        *name += static_cast<char>(std::stoi(hex, nullptr, 16));
+        i += 2;
+        break;
+      }
+      default: return false;
+    }
   }
-  return names;
+  return true;
+}
+
+std::string HolderOf(const fs::path& lock_file) {
+  std::string who;
+  for (pid_t pid : LockHolders(lock_file)) who += (who.empty() ? "pid " : ", pid ") + std::to_string(pid);
+  std::ifstream in(lock_file);
+  std::string described;
+  std::getline(in, described);
+  if (!described.empty()) return described;  // "pid 4242 on host h, imr run since ..."
+  return who.empty() ? std::string("a process on another machine, or one that just ended")
+                     : who + " on " + Hostname();
 }
 
 // One child running one sequence.
@@ -62,6 +98,7 @@ struct Running {
   json result;
   RunningSequence shown;
   bool killed_for_memory = false;
+  bool killed_after_cancel = false;
   uint64_t peak_rss = 0;
   bool exited = false;
   int wait_status = 0;
@@ -75,7 +112,7 @@ class MessageChannel {
     // A stage timeout sends its result from the watchdog thread.
     std::lock_guard<std::mutex> lock(mutex_);
     if (!ok_) return;
-    const std::string line = j.dump() + "\n";
+    const std::string line = DumpJson(j) + "\n";
     for (std::size_t done = 0; done < line.size();) {
       const ssize_t n = ::write(kChildMessageFd, line.data() + done, line.size() - done);
       if (n < 0 && errno == EINTR) continue;
@@ -99,9 +136,94 @@ const char* ToString(SequenceStatus s) {
     case SequenceStatus::kOk: return "ok";
     case SequenceStatus::kSkipped: return "skipped";
     case SequenceStatus::kFailed: return "failed";
+    case SequenceStatus::kInterrupted: return "interrupted";
     case SequenceStatus::kNotRun: return "not run";
   }
   return "?";
+}
+
+std::string SequenceListLine(const std::string& name) {
+  const bool plain = !name.empty() && name.front() != ' ' && name.front() != '\t' &&
+                     name.front() != '#' && name.front() != '"' && name.back() != ' ' &&
+                     name.back() != '\t' && IsUtf8(name) &&
+                     std::none_of(name.begin(), name.end(),
+                                  [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; });
+  if (plain) return name;
+  std::string q = "\"";
+  for (const char c : name) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"') q += "\\\"";
+    else if (c == '\\') q += "\\\\";
+    else if (c == '\n') q += "\\n";
+    else if (c == '\r') q += "\\r";
+    else if (c == '\t') q += "\\t";
+    else if (u < 0x20 || u == 0x7f || u >= 0x80) {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02x", u);
+      q += hex;
+    } else {
+      q += c;
+    }
+  }
+  return q + "\"";
+}
+
+std::vector<std::string> ReadSequenceList(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error(file.string() + ": cannot read");
+  std::vector<std::string> names;
+  int number = 0;
+  for (std::string line; std::getline(in, line);) {
+    ++number;
+    const auto b = line.find_first_not_of(" \t\r");
+    const auto e = line.find_last_not_of(" \t\r");
+    if (b == std::string::npos || line[b] == '#') continue;
+    line = line.substr(b, e - b + 1);
+    if (line[0] != '"') {
+      names.push_back(line);
+      continue;
+    }
+    std::string name;
+    if (!Unquote(line, &name))
+      throw std::runtime_error(file.string() + ":" + std::to_string(number) +
+                               ": a quoted name must be one \"...\" with the escapes \\\", "
+                               "\\\\, \\n, \\r, \\t, \\xNN, got " + JsonText(line));
+    names.push_back(std::move(name));
+  }
+  return names;
+}
+
+class BatchLock {
+ public:
+  std::vector<FileLock> locks;
+};
+
+std::shared_ptr<BatchLock> LockBatchFolder(const fs::path& batch_dir, const Shard& shard) {
+  const fs::path dir = batch_dir / kBatchSubdir;
+  EnsureWritableDirectory(dir);
+  auto lock = std::make_shared<BatchLock>();
+  // A shard shares the folder with the other shards of its array, not with a whole run; two
+  // runs of one shard exclude each other.
+  std::vector<std::pair<fs::path, bool>> wanted = {{dir / "lock", !shard.active()}};
+  if (shard.active())
+    wanted.push_back({dir / ("lock-shard-" + std::to_string(shard.index) + "-of-" +
+                             std::to_string(shard.count)), true});
+  for (const auto& [file, exclusive] : wanted) {
+    FileLock l = FileLock::TryLock(file, exclusive);
+    if (l.busy())
+      throw BatchFolderBusy(file.string() + ": another imr run (" + HolderOf(file) +
+                            ") is using this batch folder " + batch_dir.string() +
+                            "; wait for it to end, or stop it");
+    if (!l.held()) {
+      LogDebug(l.error() + " (running without the lock)");  // e.g. a file system without flock
+      continue;
+    }
+    if (exclusive)
+      l.Describe("pid " + std::to_string(::getpid()) + " on " + Hostname() + ", imr run since " +
+                 UtcNow() + "\n");
+    lock->locks.push_back(std::move(l));
+  }
+  return lock;
 }
 
 int BatchRunResult::Count(SequenceStatus s) const {
@@ -124,10 +246,10 @@ std::vector<std::string> CheckBatch(const pipeline::ValidatedJob& v, const Batch
     try {
       std::set<std::string> known;
       for (const auto& s : v.sequences) known.insert(s.name);
-      for (const auto& n : ReadNames(o.sequences_from))
+      for (const auto& n : ReadSequenceList(o.sequences_from))
         if (!known.count(n))
-          problems.push_back("--sequences-from " + o.sequences_from.string() + ": '" + n +
-                             "' is not a sequence of the job");
+          problems.push_back("--sequences-from " + o.sequences_from.string() + ": '" +
+                             JsonText(n) + "' is not a sequence of the job");
     } catch (const std::exception& e) {
       problems.push_back(std::string("--sequences-from: ") + e.what());
     }
@@ -169,7 +291,7 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     for (std::size_t i = 0; i < v.sequences.size(); ++i) candidates.push_back(i);
   } else {
     std::set<std::string> listed;
-    for (const auto& n : ReadNames(options.sequences_from)) listed.insert(n);
+    for (const auto& n : ReadSequenceList(options.sequences_from)) listed.insert(n);
     for (std::size_t i = 0; i < v.sequences.size(); ++i)
       if (listed.count(v.sequences[i].name)) candidates.push_back(i);
   }
@@ -327,9 +449,24 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     o.peak_rss = r.peak_rss;
     const int st = r.wait_status;
     const bool result_ok = r.result.is_object() && r.result.value("ok", false);
+    // Stopped by the batch's cancel (the child ended on the signal, or reports it stopped for
+    // it): interrupted, not failed. A failure of its own, reported as such, stays a failure.
+    const bool stopped = cancelled && !result_ok &&
+                         (WIFSIGNALED(st) || !r.result.is_object() || r.result.value("cancelled", false));
     if (WIFEXITED(st) && WEXITSTATUS(st) == 0 && result_ok) {
       o.status = SequenceStatus::kOk;
       o.detail.clear();
+    } else if (stopped) {
+      o.status = SequenceStatus::kInterrupted;
+      const int sig = plugin::CancelSignal();
+      o.detail = std::string("interrupted: imr run was stopped") +
+                 (sig != 0 ? " by " + SignalName(sig) : std::string()) + " while the sequence ran" +
+                 (r.killed_after_cancel ? " (it did not stop within " +
+                                              std::to_string(kCancelGraceSeconds) +
+                                              " s of SIGTERM and was killed)"
+                                        : "");
+      if (WIFSIGNALED(st)) o.signal = WTERMSIG(st);
+      if (WIFEXITED(st)) o.exit_code = WEXITSTATUS(st);
     } else {
       o.status = SequenceStatus::kFailed;
       o.log_tail = r.tail.Lines();
@@ -357,6 +494,8 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     if (o.status == SequenceStatus::kFailed) {
       ++shown.failed;
       say(LogLevel::kError, o.name + " failed: " + o.detail);
+    } else if (o.status == SequenceStatus::kInterrupted) {
+      say(LogLevel::kWarning, o.name + ": " + o.detail);
     } else {
       char took[32];
       std::snprintf(took, sizeof(took), "%.2f s", o.seconds);
@@ -365,12 +504,23 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
   };
 
   if (display.mode() == ProgressMode::kBar) display.Update(shown, true);
+  Clock::time_point cancelled_at;
   for (;;) {
     if (!cancelled && plugin::CancelRequested()) {
       cancelled = true;
-      say(LogLevel::kWarning, "cancelled: no more sequences start; stopping the running ones");
+      cancelled_at = Clock::now();
+      const int sig = plugin::CancelSignal();
+      say(LogLevel::kWarning, std::string("cancelled") + (sig != 0 ? " (" + SignalName(sig) + ")" : "") +
+                                  ": no more sequences start; stopping the running ones");
       for (auto& r : running) ::kill(r->proc.pid, SIGTERM);
     }
+    // A sequence stuck in a plugin call cannot act on SIGTERM: it must not hold the batch.
+    if (cancelled && Since(cancelled_at) > kCancelGraceSeconds)
+      for (auto& r : running)
+        if (!r->killed_after_cancel) {
+          r->killed_after_cancel = true;
+          ::kill(r->proc.pid, SIGKILL);
+        }
     while (!cancelled && running.size() < static_cast<std::size_t>(options.jobs) &&
            next < selected.size())
       start_next();
@@ -434,18 +584,11 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
   return result;
 }
 
-int RunSequenceChild(const ChildArguments& args) {
-  if (args.parent_pid > 0) {
-    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-    if (::getppid() != args.parent_pid) return 1;  // the batch died before prctl
-  }
-  SetLogLevel(args.verbose ? LogLevel::kDebug : LogLevel::kInfo);
-  MessageChannel channel;
-  auto fail = [&](const std::string& error) {
-    LogError("sequence " + args.sequence + " failed: " + error);
-    channel.Send({{"result", {{"ok", false}, {"error", error}}}});
-    return 1;
-  };
+namespace {
+
+// The body of RunSequenceChild: `fail` reports a failure (and returns the exit status).
+int RunOneChild(const ChildArguments& args, MessageChannel& channel,
+                const std::function<int(const std::string&)>& fail) {
   // The batch already logged the plugin scan's warnings; once is enough.
   SetLogLevel(LogLevel::kError);
   plugin::PluginRegistry registry;
@@ -457,11 +600,25 @@ int RunSequenceChild(const ChildArguments& args) {
   if (seq == v.sequences.end()) return fail("the job has no sequence '" + args.sequence + "' any more");
 
   const fs::path output = v.job.OutputDirectory(seq->name);
+  // Files another job or tool wrote are never replaced or deleted.
+  if (const std::string foreign = ForeignOutputs(output, v.job.file, seq->name); !foreign.empty())
+    return fail(foreign);
+  // One process writes an output folder at a time (two jobs, or two runs, sharing it).
+  EnsureWritableDirectory(output);
+  const FileLock lock = FileLock::TryLock(output, true);
+  if (lock.busy()) {
+    std::string who;
+    for (pid_t pid : LockHolders(output)) who += (who.empty() ? " (pid " : ", pid ") + std::to_string(pid);
+    return fail(output.string() + ": another imr process" + (who.empty() ? "" : who + ")") +
+                " is writing into this output folder; wait for it to end");
+  }
   const json identity = JobIdentity(v, registry, args.run_options, *seq);
   // Redoing: the old manifest goes first (its files are being replaced), with what a killed run
-  // left behind. Its file list is kept to remove files this run no longer writes.
+  // left behind. Its file list is kept to remove files this run no longer writes, if this job
+  // wrote it (an older imr's manifest names no job: its files are left alone).
   std::string error;
   const std::optional<Manifest> old = ReadManifest(output, &error);
+  const std::string this_job = ManifestJob(v.job.file, output);
   std::error_code ec;
   fs::remove(output / kManifestFile, ec);
   if (const int n = RemoveLeftovers(output); n > 0)
@@ -485,15 +642,16 @@ int RunSequenceChild(const ChildArguments& args) {
   };
   const pipeline::SequenceResult r = pipeline::RunOneSequence(v, registry, run_options, *seq);
   if (!r.ok) {
-    channel.Send({{"result", {{"ok", false}, {"error", r.error}}}});
+    channel.Send({{"result", {{"ok", false}, {"error", r.error}, {"cancelled", plugin::CancelRequested()}}}});
     return 1;
   }
   try {
     std::vector<fs::path> files = r.extra_files;
     files.insert(files.end(), r.files.begin(), r.files.end());
-    const Manifest m = MakeManifest(seq->name, identity, files, output);
+    Manifest m = MakeManifest(seq->name, identity, files, output, BatchDirectory(v.job));
+    m.job = this_job;
     WriteManifest(m, output);
-    if (old) {
+    if (old && old->job == this_job) {
       std::set<std::string> kept;
       for (const auto& e : m.files) kept.insert(e.path);
       for (const auto& e : old->files)
@@ -504,6 +662,29 @@ int RunSequenceChild(const ChildArguments& args) {
   }
   channel.Send({{"result", {{"ok", true}, {"seconds", r.seconds}}}});
   return 0;
+}
+
+}  // namespace
+
+int RunSequenceChild(const ChildArguments& args) {
+  if (args.parent_pid > 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (::getppid() != args.parent_pid) return 1;  // the batch died before prctl
+  }
+  SetLogLevel(args.verbose ? LogLevel::kDebug : LogLevel::kInfo);
+  MessageChannel channel;
+  auto fail = [&](const std::string& error) {
+    LogError("sequence " + JsonText(args.sequence) + " failed: " + JsonText(error));
+    channel.Send({{"result", {{"ok", false}, {"error", error}, {"cancelled", plugin::CancelRequested()}}}});
+    return 1;
+  };
+  // Whatever goes wrong reaches the batch with its message (it used to be lost: "exited with
+  // status 1 without a result").
+  try {
+    return RunOneChild(args, channel, fail);
+  } catch (const std::exception& e) {
+    return fail(e.what());
+  }
 }
 
 }  // namespace imr::batch

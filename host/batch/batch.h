@@ -10,6 +10,8 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -42,7 +44,8 @@ struct BatchOptions {
   std::string Check() const;
 };
 
-enum class SequenceStatus { kOk, kSkipped, kFailed, kNotRun };
+// kInterrupted: stopped by a signal to the batch (Ctrl-C, SIGTERM, SIGHUP) while it ran.
+enum class SequenceStatus { kOk, kSkipped, kFailed, kInterrupted, kNotRun };
 const char* ToString(SequenceStatus s);
 
 struct SequenceOutcome {
@@ -63,6 +66,26 @@ struct BatchRunResult {
   bool summary_written = false;           // not for a shard: `imr report` merges them
   int Count(SequenceStatus s) const;
 };
+
+// A sequence list (--sequences-from, imr submit's frozen list): one name a line; blank lines
+// and '#' comments are skipped and other lines trimmed, except lines in double quotes, which are
+// unescaped (\", \\, \n, \r, \t, \xNN): so every name, of any bytes, reads back as it was.
+// SequenceListLine writes a name so (quoted when it needs to be).
+std::string SequenceListLine(const std::string& name);
+// Throws std::runtime_error naming the file and line when it cannot be read or a quoted line is
+// malformed.
+std::vector<std::string> ReadSequenceList(const std::filesystem::path& file);
+
+// Thrown by LockBatchFolder when another run holds the lock; the message names it.
+struct BatchFolderBusy : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+// The lock of a batch folder for one `imr run` (imr-batch/lock): exclusive, or, for a shard,
+// shared with the other shards plus the shard's own (imr-batch/lock-shard-I-of-N). Creates
+// imr-batch/ (throws std::runtime_error naming the folder when it cannot); throws BatchFolderBusy
+// naming the holder (pid, host, since when) when another run has it. Released on destruction.
+class BatchLock;
+std::shared_ptr<BatchLock> LockBatchFolder(const std::filesystem::path& batch_dir, const Shard& shard);
 
 // Problems with the options for this job (an unknown name in sequences_from, a sequence whose
 // output folder is the batch folder's own imr-batch/); empty when usable.

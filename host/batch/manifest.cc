@@ -3,6 +3,7 @@
 #include "host/util/sha256.h"
 #include "host/io/engine_options.h"
 #include "host/util/atomic_file.h"
+#include "host/util/json_text.h"
 
 #include <fstream>
 #include <sstream>
@@ -44,26 +45,51 @@ json JobIdentity(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& 
           {"exports", exports}};
 }
 
-std::string HashIdentity(const json& identity) { return Sha256Hex(identity.dump()); }
+std::string HashIdentity(const json& identity) { return Sha256Hex(DumpJson(identity)); }
 
 fs::path EntryPath(const ManifestEntry& e, const fs::path& output_directory) {
   const fs::path p(e.path);
   return p.is_absolute() ? p : output_directory / p;
 }
 
+namespace {
+
+// Whether `path` (absolute, normal) is `dir` or inside it.
+bool Inside(const fs::path& path, const fs::path& dir) {
+  const fs::path rel = path.lexically_relative(dir);
+  return !rel.empty() && *rel.begin() != "..";
+}
+
+json ReadJsonFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return json::parse(ss.str());
+}
+
+}  // namespace
+
+std::string ManifestJob(const fs::path& job_file, const fs::path& output_directory) {
+  return fs::absolute(job_file)
+      .lexically_normal()
+      .lexically_relative(fs::absolute(output_directory).lexically_normal())
+      .string();
+}
+
 Manifest MakeManifest(const std::string& sequence, const json& identity,
-                      const std::vector<fs::path>& files, const fs::path& output_directory) {
+                      const std::vector<fs::path>& files, const fs::path& output_directory,
+                      const fs::path& relative_within) {
   Manifest m;
   m.sequence = sequence;
   m.job_identity = identity;
   m.job_hash = HashIdentity(identity);
   const fs::path base = fs::absolute(output_directory).lexically_normal();
+  const fs::path within =
+      relative_within.empty() ? base : fs::absolute(relative_within).lexically_normal();
   for (const fs::path& f : files) {
     const fs::path abs = fs::absolute(f).lexically_normal();
-    const fs::path rel = abs.lexically_relative(base);
     ManifestEntry e;
-    const bool inside = !rel.empty() && *rel.begin() != "..";
-    e.path = inside ? rel.string() : abs.string();
+    e.path = Inside(abs, within) ? abs.lexically_relative(base).string() : abs.string();
     std::error_code ec;
     e.bytes = fs::file_size(abs, ec);
     if (ec) throw std::runtime_error(abs.string() + ": " + ec.message());
@@ -75,31 +101,33 @@ Manifest MakeManifest(const std::string& sequence, const json& identity,
 
 void WriteManifest(const Manifest& m, const fs::path& output_directory) {
   json files = json::array();
-  for (const auto& e : m.files)
-    files.push_back({{"path", e.path}, {"bytes", e.bytes}, {"sha256", e.sha256}});
-  const json j = {{"imr_manifest", 1},
-                  {"sequence", m.sequence},
-                  {"job_hash", m.job_hash},
-                  {"job_identity", m.job_identity},
-                  {"files", files}};
-  WriteFileAtomically(output_directory / kManifestFile, j.dump(2) + "\n");
+  for (const auto& e : m.files) {
+    json f = {{"bytes", e.bytes}, {"sha256", e.sha256}};
+    PutBytes(f, "path", e.path);
+    files.push_back(std::move(f));
+  }
+  json j = {{"imr_manifest", 1},
+            {"job_hash", m.job_hash},
+            {"job_identity", m.job_identity},
+            {"files", files}};
+  PutBytes(j, "sequence", m.sequence);
+  if (!m.job.empty()) PutBytes(j, "job", m.job);
+  WriteFileAtomically(output_directory / kManifestFile, DumpJson(j, 2) + "\n");
 }
 
 std::optional<Manifest> ReadManifest(const fs::path& output_directory, std::string* error) {
   const fs::path p = output_directory / kManifestFile;
   std::error_code ec;
   if (!fs::exists(p, ec)) return std::nullopt;
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
   try {
-    const json j = json::parse(ss.str());
+    const json j = ReadJsonFile(p);
     Manifest m;
-    m.sequence = j.at("sequence").get<std::string>();
+    m.sequence = GetBytes(j, "sequence");
+    if (j.contains("job")) m.job = GetBytes(j, "job");
     m.job_hash = j.at("job_hash").get<std::string>();
     m.job_identity = j.value("job_identity", json());
     for (const json& f : j.at("files"))
-      m.files.push_back({f.at("path").get<std::string>(), f.at("bytes").get<uint64_t>(),
+      m.files.push_back({GetBytes(f, "path"), f.at("bytes").get<uint64_t>(),
                          f.at("sha256").get<std::string>()});
     return m;
   } catch (const std::exception& e) {
@@ -131,6 +159,52 @@ ManifestCheck CheckManifest(const fs::path& output_directory, const std::string&
       return {false, e.path + " changed since it was written (checksum)"};
   }
   return {true, "manifest matches"};
+}
+
+std::string ForeignOutputs(const fs::path& output_directory, const fs::path& job_file,
+                           const std::string& sequence) {
+  const fs::path job = fs::absolute(job_file).lexically_normal();
+  const std::string advice = "; give each job its own output folder (e.g. {job} in "
+                             "output.directory), or remove the file if it is not needed";
+  std::error_code ec;
+  const fs::path manifest = output_directory / kManifestFile;
+  if (fs::exists(manifest, ec)) {
+    json j;
+    try {
+      j = ReadJsonFile(manifest);
+    } catch (const std::exception&) {
+    }
+    if (!j.is_object() || !j.contains("imr_manifest"))
+      return manifest.string() + ": not a manifest of imr (no \"imr_manifest\" key): imr would "
+             "overwrite it" + advice;
+    std::string recorded;
+    try {
+      if (j.contains("job")) recorded = GetBytes(j, "job");
+    } catch (const std::exception&) {
+    }
+    if (!recorded.empty() && recorded != ManifestJob(job, output_directory)) {
+      const fs::path other = (fs::absolute(output_directory) / recorded).lexically_normal();
+      return manifest.string() + ": written by another job (" + other.string() + "), not by " +
+             job.string() + ": two jobs share this output folder, and each would delete or "
+             "overwrite the other's files" + advice;
+    }
+    return {};  // this job's (or an imr manifest that names no job: an older imr's)
+  }
+  const fs::path report = output_directory / "report.json";
+  if (fs::exists(report, ec)) {
+    json j;
+    try {
+      j = ReadJsonFile(report);
+    } catch (const std::exception&) {
+    }
+    const bool ours = j.is_object() && j.contains("imr_version") && j.contains("sequence") &&
+                      j["sequence"].is_object() && j["sequence"].value("name", "") == JsonText(sequence) &&
+                      j.value("job", "") == JsonText(job.string());
+    if (!ours)
+      return report.string() + ": not a report of this job's sequence '" + sequence + "' (" +
+             job.string() + "): imr would overwrite it" + advice;
+  }
+  return {};
 }
 
 int RemoveLeftovers(const fs::path& output_directory) {

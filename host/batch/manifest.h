@@ -28,6 +28,9 @@ struct ManifestEntry {
 
 struct Manifest {
   std::string sequence;
+  // The job file that wrote it, relative to the output folder (a folder moved with its job
+  // keeps it); empty in manifests of imr before 0.x that did not record it.
+  std::string job;
   std::string job_hash;      // SHA-256 of job_identity.dump()
   nlohmann::json job_identity;  // what the hash covers, kept to say what changed
   std::vector<ManifestEntry> files;
@@ -38,11 +41,16 @@ nlohmann::json JobIdentity(const pipeline::ValidatedJob& job, const plugin::Plug
                            const pipeline::RunOptions& options, const pipeline::SequenceRef& seq);
 std::string HashIdentity(const nlohmann::json& identity);
 
-// Hashes `files` (absolute paths) into a manifest for `output_directory`. Throws naming a file
-// that cannot be read.
+// Hashes `files` (absolute paths) into a manifest for `output_directory`. Files inside
+// `relative_within` (the batch folder; default: the output folder) are listed relative to the
+// output folder, others by absolute path. Throws naming a file that cannot be read.
 Manifest MakeManifest(const std::string& sequence, const nlohmann::json& identity,
                       const std::vector<std::filesystem::path>& files,
-                      const std::filesystem::path& output_directory);
+                      const std::filesystem::path& output_directory,
+                      const std::filesystem::path& relative_within = {});
+// The job file as a manifest in `output_directory` records it.
+std::string ManifestJob(const std::filesystem::path& job_file,
+                        const std::filesystem::path& output_directory);
 void WriteManifest(const Manifest& m, const std::filesystem::path& output_directory);
 // nullopt when there is none; `error` set when it exists but cannot be read or parsed.
 std::optional<Manifest> ReadManifest(const std::filesystem::path& output_directory,
@@ -59,6 +67,13 @@ struct ManifestCheck {
 ManifestCheck CheckManifest(const std::filesystem::path& output_directory,
                             const std::string& job_hash,
                             const nlohmann::json& identity = nullptr);
+
+// Why this job must not write `sequence` into `output_directory`, or "" when it may: a
+// manifest.json that is no imr manifest, or one another job wrote (its clean-up would delete
+// that job's files), or a report.json that is not a report of this sequence of this job (imr
+// would overwrite another tool's file, e.g. with the output folder = the input folder).
+std::string ForeignOutputs(const std::filesystem::path& output_directory,
+                           const std::filesystem::path& job_file, const std::string& sequence);
 
 // The absolute path of a manifest entry.
 std::filesystem::path EntryPath(const ManifestEntry& e, const std::filesystem::path& output_directory);

@@ -4,6 +4,7 @@
 #include "host/batch/child.h"
 #include "host/batch/summary.h"
 #include "host/util/atomic_file.h"
+#include "host/util/json_text.h"
 
 #include <sys/stat.h>
 
@@ -26,6 +27,21 @@ std::string ParseJobId(const std::string& out) {
   if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos)
     throw std::runtime_error("sbatch printed no job id: '" + out + "'");
   return id;
+}
+
+// An #SBATCH option's value as sbatch reads it. When it holds a blank, a quote, '\' or '#' (a
+// comment, even inside quotes in older Slurm): in double quotes (a backslash cannot escape a
+// blank), with '"', '\' and '#' escaped by a backslash, which sbatch drops; otherwise as it is.
+// `pattern`: a file name in which Slurm expands %-patterns (%A, %a, %j): a literal '%' is "%%".
+std::string SbatchValue(const std::string& value, bool pattern = false) {
+  const bool quote = value.find_first_of(" \t\"'\\#") != std::string::npos;
+  std::string out = quote ? "\"" : "";
+  for (const char c : value) {
+    if (c == '"' || c == '\\' || c == '#') out += '\\';
+    out += c;
+    if (pattern && c == '%') out += '%';
+  }
+  return quote ? out + "\"" : out;
 }
 
 std::string SubmitScript(const std::vector<std::string>& command) {
@@ -58,9 +74,10 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   RecordBatch(v, registry, run_options);
 
   // The frozen list: tasks that start hours apart shard the same set.
-  std::string list = "# the sequences of " + fs::absolute(v.job.file).string() +
-                     " when `imr submit` ran; the array tasks shard this list\n";
-  for (const auto& s : v.sequences) list += s.name + "\n";
+  std::string list = "# the sequences of " + JsonText(fs::absolute(v.job.file).string()) +
+                     " when `imr submit` ran; the array tasks shard this list (names that need it\n"
+                     "# are in double quotes, with C escapes)\n";
+  for (const auto& s : v.sequences) list += SequenceListLine(s.name) + "\n";
   const fs::path list_file = batch / "sequences.txt";
   WriteFileAtomically(list_file, list);
 
@@ -79,9 +96,9 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   for (std::string& a : pipeline::RunOptionsToArgs(run_options)) run.push_back(std::move(a));
 
   auto common = [&](std::ostringstream& s) {
-    if (!o.partition.empty()) s << "#SBATCH --partition=" << o.partition << "\n";
-    if (!o.account.empty()) s << "#SBATCH --account=" << o.account << "\n";
-    if (!o.qos.empty()) s << "#SBATCH --qos=" << o.qos << "\n";
+    if (!o.partition.empty()) s << "#SBATCH --partition=" << SbatchValue(o.partition) << "\n";
+    if (!o.account.empty()) s << "#SBATCH --account=" << SbatchValue(o.account) << "\n";
+    if (!o.qos.empty()) s << "#SBATCH --qos=" << SbatchValue(o.qos) << "\n";
   };
   const std::string cwd = fs::current_path().string();
   std::ostringstream a;
@@ -95,9 +112,9 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
     << "# Submitting this script again redoes only what is not finished: sequences whose\n"
     << "# manifest matches are skipped. Then run `imr report " << r.batch_directory.string()
     << "`.\n"
-    << "#SBATCH --job-name=" << name << "\n"
+    << "#SBATCH --job-name=" << SbatchValue(name) << "\n"
     << "#SBATCH --array=0-" << (r.tasks - 1) << "\n"
-    << "#SBATCH --output=" << (r.log_directory / "array-%A_%a.out").string() << "\n"
+    << "#SBATCH --output=" << SbatchValue(r.log_directory.string(), true) << "/array-%A_%a.out\n"
     << "#SBATCH --cpus-per-task=" << o.cpus_per_task << "\n";
   common(a);
   if (!o.time.empty()) a << "#SBATCH --time=" << o.time << "\n";
@@ -115,8 +132,8 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
     << "# imr reduce job, written by `imr submit`: after every task of the array has ended (however\n"
     << "# it ended), merge the sequences' reports into " << (r.batch_directory / "summary.md").string()
     << "\n# and summary.json. It exits with 1 when a sequence failed or did not run.\n"
-    << "#SBATCH --job-name=" << name << "-report\n"
-    << "#SBATCH --output=" << (r.log_directory / "report-%j.out").string() << "\n"
+    << "#SBATCH --job-name=" << SbatchValue(name) << "-report\n"
+    << "#SBATCH --output=" << SbatchValue(r.log_directory.string(), true) << "/report-%j.out\n"
     << "#SBATCH --cpus-per-task=1\n";
   common(b);
   if (!o.time.empty()) b << "#SBATCH --time=" << o.time << "\n";

@@ -2,9 +2,12 @@
 
 #include "host/batch/manifest.h"
 #include "host/util/atomic_file.h"
+#include "host/util/json_text.h"
+#include "host/util/sha256.h"
 
 #include <unistd.h>
 
+#include <cctype>
 #include <cmath>
 #include <ctime>
 #include <fstream>
@@ -29,7 +32,15 @@ json ReadJson(const fs::path& p) {
 }
 
 fs::path StatusPath(const fs::path& batch_dir, const std::string& sequence) {
-  return batch_dir / kBatchSubdir / "status" / (sequence + ".json");
+  return batch_dir / kBatchSubdir / "status" / StatusFileName(sequence);
+}
+
+// A path stored relative to the batch folder when it is inside it (the folder may be moved).
+std::string RelativeToBatch(const fs::path& path, const fs::path& batch_dir) {
+  const fs::path abs = fs::absolute(path).lexically_normal();
+  const fs::path rel = abs.lexically_relative(fs::absolute(batch_dir).lexically_normal());
+  const bool inside = !rel.empty() && *rel.begin() != "..";
+  return inside ? rel.string() : abs.string();
 }
 
 json OrNull(const json& j, const json::json_pointer& p) {
@@ -63,6 +74,19 @@ std::string Bytes(uint64_t b) {
 
 }  // namespace
 
+std::string StatusFileName(const std::string& sequence) {
+  // Names of letters, digits, '.', '_', '-' and ' ' (not starting with '.') are kept; others
+  // (a '/', a newline, bytes that are not UTF-8, 200 characters) become a readable prefix and a
+  // hash of the name, which always fits in NAME_MAX with the temporaries of atomic writes.
+  const bool plain = !sequence.empty() && sequence[0] != '.' && sequence.size() <= 100 &&
+                     sequence.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                                "0123456789._- ") == std::string::npos;
+  if (plain) return sequence + ".json";
+  std::string prefix;
+  for (char c : sequence.substr(0, 48)) prefix += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  return prefix + "-" + Sha256Hex(sequence).substr(0, 16) + ".json";
+}
+
 std::string UtcNow() {
   const std::time_t t = std::time(nullptr);
   std::tm tm{};
@@ -72,41 +96,26 @@ std::string UtcNow() {
   return buf;
 }
 
-fs::path BatchDirectory(const io::JobSpec& job) {
-  const fs::path tmpl(job.output.directory);
-  fs::path prefix;
-  bool has_sequence = false;
-  for (const fs::path& c : tmpl) {
-    if (c.string().find("{sequence}") != std::string::npos) {
-      has_sequence = true;
-      break;
-    }
-    prefix /= c;
-  }
-  fs::path dir = job.OutputDirectory("");  // no {sequence}: the one output folder
-  if (has_sequence) {
-    std::string s = prefix.string();
-    for (std::size_t pos; (pos = s.find("{job}")) != std::string::npos;) s.replace(pos, 5, job.Name());
-    dir = job.Resolve(s.empty() ? "." : s);
-  }
-  dir = dir.lexically_normal();
-  if (dir.has_relative_path() && dir.filename().empty()) dir = dir.parent_path();
-  return fs::absolute(dir);
-}
+fs::path BatchDirectory(const io::JobSpec& job) { return job.BatchDirectory(); }
 
 void WriteBatchInfo(const fs::path& batch_dir, const BatchInfo& info) {
+  // Names and paths are bytes (PutBytes); outputs inside the batch folder are stored relative to
+  // it, so that a batch folder moved elsewhere still finds them.
   json seqs = json::array();
-  for (const auto& s : info.sequences)
-    seqs.push_back({{"name", s.name}, {"source", s.source}, {"output", s.output.string()},
-                    {"job_hash", s.job_hash}});
-  const json j = {{"imr_batch", 1},
-                  {"job", info.job_file.string()},
-                  {"job_name", info.job_name},
-                  {"output_stem", info.output_stem},
-                  {"sequences", seqs}};
+  for (const auto& s : info.sequences) {
+    json e = json::object();
+    PutBytes(e, "name", s.name);
+    PutBytes(e, "source", s.source);
+    PutBytes(e, "output", RelativeToBatch(s.output, batch_dir));
+    e["job_hash"] = s.job_hash;
+    seqs.push_back(std::move(e));
+  }
+  json j = {{"imr_batch", 1}, {"output_stem", info.output_stem}, {"sequences", seqs}};
+  PutBytes(j, "job", info.job_file.string());
+  PutBytes(j, "job_name", info.job_name);
   EnsureWritableDirectory(batch_dir / kBatchSubdir);
   // No timestamps: concurrent array tasks write the same bytes.
-  WriteFileAtomically(batch_dir / kBatchSubdir / "batch.json", j.dump(2) + "\n");
+  WriteFileAtomically(batch_dir / kBatchSubdir / "batch.json", DumpJson(j, 2) + "\n");
 }
 
 BatchInfo ReadBatchInfo(const fs::path& batch_dir) {
@@ -118,13 +127,15 @@ BatchInfo ReadBatchInfo(const fs::path& batch_dir) {
   const json j = ReadJson(p);
   BatchInfo info;
   try {
-    info.job_file = j.at("job").get<std::string>();
-    info.job_name = j.at("job_name").get<std::string>();
+    info.job_file = GetBytes(j, "job");
+    info.job_name = GetBytes(j, "job_name");
     info.output_stem = j.value("output_stem", "mesh");
-    for (const json& s : j.at("sequences"))
-      info.sequences.push_back({s.at("name").get<std::string>(), s.at("source").get<std::string>(),
-                                s.at("output").get<std::string>(),
+    for (const json& s : j.at("sequences")) {
+      const fs::path output = GetBytes(s, "output");
+      info.sequences.push_back({GetBytes(s, "name"), GetBytes(s, "source"),
+                                output.is_absolute() ? output : (batch_dir / output).lexically_normal(),
                                 s.at("job_hash").get<std::string>()});
+    }
   } catch (const json::exception& e) {
     throw std::runtime_error(p.string() + ": " + e.what());
   }
@@ -132,21 +143,22 @@ BatchInfo ReadBatchInfo(const fs::path& batch_dir) {
 }
 
 void WriteStatusRecord(const fs::path& batch_dir, const StatusRecord& r) {
-  json j = {{"sequence", r.sequence}, {"status", r.status}, {"host", r.host}};
+  json j = {{"status", r.status}, {"host", r.host}};
+  PutBytes(j, "sequence", r.sequence);
   if (r.status == "running") {
     j["started_at"] = r.started_at;
   } else {
     j["seconds"] = r.seconds;
     j["finished_at"] = r.finished_at;
   }
-  if (r.status == "failed") {
+  if (r.status == "failed" || r.status == "interrupted") {
     j["error"] = r.error;
     j["exit_code"] = r.exit_code >= 0 ? json(r.exit_code) : json();
     j["signal"] = r.signal.empty() ? json() : json(r.signal);
     j["log_tail"] = r.log_tail;
   }
   EnsureWritableDirectory(StatusPath(batch_dir, r.sequence).parent_path());
-  WriteFileAtomically(StatusPath(batch_dir, r.sequence), j.dump(2) + "\n");
+  WriteFileAtomically(StatusPath(batch_dir, r.sequence), DumpJson(j, 2) + "\n");
 }
 
 json BuildSummary(const fs::path& batch_dir) {
@@ -154,10 +166,12 @@ json BuildSummary(const fs::path& batch_dir) {
   json rows = json::array();
   int ok = 0, reused = 0, failed = 0, interrupted = 0, not_run = 0;
   for (const BatchSequence& s : info.sequences) {
-    json row = {{"name", s.name},   {"source", s.source},   {"output", s.output.string()},
-                {"reused", false},  {"seconds", nullptr},   {"frames", nullptr},
-                {"keyframes", nullptr}, {"mesh", nullptr},  {"accuracy", nullptr},
+    json row = {{"reused", false},     {"seconds", nullptr}, {"frames", nullptr},
+                {"keyframes", nullptr}, {"mesh", nullptr},    {"accuracy", nullptr},
                 {"error", nullptr}};
+    PutBytes(row, "name", s.name);
+    PutBytes(row, "source", s.source);
+    PutBytes(row, "output", RelativeToBatch(s.output, batch_dir));
     json record = json::object();
     const fs::path record_path = StatusPath(batch_dir, s.name);
     std::error_code ec;
@@ -193,6 +207,8 @@ json BuildSummary(const fs::path& batch_dir) {
                        {"faces", OrNull(report, "/mesh/faces"_json_pointer)},
                        {"bytes", bytes}};
         row["accuracy"] = OrNull(report, "/accuracy"_json_pointer);
+        if (const json w = OrNull(report, "/warnings"_json_pointer); w.is_array() && !w.empty())
+          row["warnings"] = w;
       } catch (const std::exception& e) {
         row["error"] = e.what();
       }
@@ -203,6 +219,13 @@ json BuildSummary(const fs::path& batch_dir) {
       row["error"] = record.value("error", "failed");
       for (const char* k : {"exit_code", "signal", "log_tail", "host", "finished_at"})
         if (record.contains(k)) row[k] = record[k];
+    } else if (recorded == "interrupted") {
+      // Stopped by a signal to the batch (Ctrl-C, SIGTERM, SIGHUP): not a failure of its own.
+      row["status"] = "interrupted";
+      ++interrupted;
+      row["seconds"] = record.value("seconds", json());
+      row["error"] = record.value("error", "interrupted");
+      row["host"] = record.value("host", json());
     } else if (recorded == "running") {
       row["status"] = "interrupted";
       ++interrupted;
@@ -222,13 +245,14 @@ json BuildSummary(const fs::path& batch_dir) {
     }
     rows.push_back(std::move(row));
   }
-  return {{"imr_summary", 1},
-          {"job", info.job_file.string()},
-          {"job_name", info.job_name},
-          {"batch_directory", fs::absolute(batch_dir).string()},
-          {"counts", {{"sequences", info.sequences.size()}, {"ok", ok}, {"reused", reused},
-                      {"failed", failed}, {"interrupted", interrupted}, {"not_run", not_run}}},
-          {"sequences", rows}};
+  json summary = {{"imr_summary", 1},
+                  {"counts", {{"sequences", info.sequences.size()}, {"ok", ok}, {"reused", reused},
+                              {"failed", failed}, {"interrupted", interrupted}, {"not_run", not_run}}},
+                  {"sequences", rows}};
+  PutBytes(summary, "job", info.job_file.string());
+  PutBytes(summary, "job_name", info.job_name);
+  PutBytes(summary, "batch_directory", fs::absolute(batch_dir).lexically_normal().string());
+  return summary;
 }
 
 std::string SummaryMarkdown(const json& s) {
@@ -276,7 +300,7 @@ std::string SummaryMarkdown(const json& s) {
     if (r.value("status", "") != "failed") continue;
     if (!heading) md << "\n## Failures\n";
     heading = true;
-    md << "\n### " << r.value("name", "") << "\n\n" << r.value("error", "") << "\n";
+    md << "\n### " << Cell(r.value("name", "")) << "\n\n" << r.value("error", "") << "\n";
     if (r.contains("signal") && r["signal"].is_string())
       md << "\nEnded by " << r["signal"].get<std::string>() << ".\n";
     else if (r.contains("exit_code") && r["exit_code"].is_number())
@@ -287,14 +311,24 @@ std::string SummaryMarkdown(const json& s) {
       md << "```\n";
     }
   }
-  return md.str();
+  heading = false;
+  for (const json& r : s.at("sequences")) {
+    if (!r.contains("warnings") || !r["warnings"].is_array()) continue;
+    if (!heading) md << "\n## Warnings\n";
+    heading = true;
+    md << "\n### " << Cell(r.value("name", "")) << "\n\n";
+    for (const json& w : r["warnings"])
+      if (w.is_string()) md << "- " << w.get<std::string>() << "\n";
+  }
+  // A cut error message may end inside a UTF-8 sequence: the page stays valid text.
+  return JsonText(md.str());
 }
 
 json WriteSummary(const fs::path& batch_dir, const std::string& written_by) {
   json s = BuildSummary(batch_dir);
   s["written_by"] = written_by;
   s["written_at"] = UtcNow();
-  WriteFileAtomically(batch_dir / "summary.json", s.dump(2) + "\n");
+  WriteFileAtomically(batch_dir / "summary.json", DumpJson(s, 2) + "\n");
   WriteFileAtomically(batch_dir / "summary.md", SummaryMarkdown(s));
   return s;
 }

@@ -5,7 +5,8 @@
 //   summary.json, summary.md     the batch summary (one row per sequence)
 //   imr-batch/batch.json         the job and its sequences (name, source, output folder, hash)
 //   imr-batch/status/<name>.json the latest outcome of each sequence (running, ok, skipped,
-//                                failed + cause)
+//                                failed + cause, interrupted); StatusFileName makes the name
+//                                fit
 //   imr-batch/sequences.txt      the frozen sequence list of `imr submit`
 //   imr-batch/slurm/             the sbatch scripts of `imr submit` and the tasks' logs
 // The summary is built from these files and the sequences' manifests and reports only, so
@@ -26,11 +27,12 @@ inline constexpr const char* kBatchSubdir = "imr-batch";
 
 std::filesystem::path BatchDirectory(const io::JobSpec& job);
 
-// One sequence of the job as the batch folder records it.
+// One sequence of the job as the batch folder records it. batch.json stores names and paths as
+// bytes (host/util/json_text.h), the output relative to the batch folder when inside it.
 struct BatchSequence {
   std::string name;
   std::string source;
-  std::filesystem::path output;  // absolute
+  std::filesystem::path output;  // absolute (resolved against the batch folder when read)
   std::string job_hash;          // manifest hash its outputs must carry
 };
 
@@ -49,7 +51,7 @@ BatchInfo ReadBatchInfo(const std::filesystem::path& batch_dir);
 struct StatusRecord {
   std::string sequence;
   std::string status;  // "running" (started, not ended), "ok", "skipped" (manifest matched),
-                       // or "failed"
+                       // "failed", or "interrupted" (stopped by a signal to the batch)
   double seconds = 0.0;
   std::string error;   // failed: the cause, one line
   int exit_code = -1;  // failed: the child's exit status, -1 when it did not exit
@@ -60,11 +62,17 @@ struct StatusRecord {
   std::string started_at;   // UTC, ISO 8601; running only
 };
 
+// The file name of a sequence's status record: "<name>.json" for plain short names, else a
+// readable prefix and a hash of the name (any name, of any bytes and length, fits).
+std::string StatusFileName(const std::string& sequence);
 void WriteStatusRecord(const std::filesystem::path& batch_dir, const StatusRecord& r);
 // Builds the summary from the batch folder: per sequence the status ("ok", "failed",
-// "interrupted" (started, never ended: killed, a time limit, a lost node) or "not run"), whether an earlier run made it ("reused"), time, frames, keyframes, mesh size,
-// accuracy (the report's "accuracy" object), and for failures the error, exit code or signal
-// and last log lines. Outputs whose manifest no longer matches count as failed, saying why.
+// "interrupted" (stopped by a signal to the batch, or started and never ended: killed, a time
+// limit, a lost node) or "not run"), whether an earlier run made it ("reused"), time, frames,
+// keyframes, mesh size, accuracy (the report's "accuracy" object), the report's warnings, and
+// for failures the error, exit code or signal and last log lines. Outputs whose manifest no
+// longer matches count as failed, saying why. Rows give the output folder relative to the batch
+// folder when inside it.
 nlohmann::json BuildSummary(const std::filesystem::path& batch_dir);
 std::string SummaryMarkdown(const nlohmann::json& summary);
 // Builds and writes summary.json and summary.md (atomically); returns the summary.

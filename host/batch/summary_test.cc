@@ -1,5 +1,6 @@
 #include "host/batch/summary.h"
 
+#include "host/batch/batch.h"
 #include "host/batch/manifest.h"
 #include "host/batch/progress.h"
 
@@ -132,6 +133,44 @@ TEST_F(SummaryTest, AFolderWithoutBatchInfoIsNamed) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("is not a batch folder"), std::string::npos) << e.what();
   }
+}
+
+TEST(StatusFileName, FitsAnyName) {
+  EXPECT_EQ(StatusFileName("street"), "street.json");
+  EXPECT_EQ(StatusFileName("2011_09_26 drive-0001"), "2011_09_26 drive-0001.json");
+  for (const std::string& name : {std::string(250, 'n'), std::string("caf\xE9"), std::string("a/b"),
+                                  std::string("new\nline"), std::string(".hidden"), std::string("#x")}) {
+    const std::string f = StatusFileName(name);
+    EXPECT_LE(f.size(), 100u) << f;
+    EXPECT_EQ(f.find('/'), std::string::npos) << f;
+    EXPECT_NE(f[0], '.') << f;
+    EXPECT_NE(f, StatusFileName(name + "x"));  // the hash tells them apart
+  }
+}
+
+TEST(SequenceList, EveryNameRoundTrips) {
+  const std::vector<std::string> names = {"street", " lead", "trail ", "#hash", "\"quoted\"",
+                                          "new\nline", "tab\there", "caf\xE9", "back\\slash"};
+  const fs::path file = fs::temp_directory_path() / ("imr-list-test-" + std::to_string(std::random_device{}()));
+  {
+    std::ofstream out(file, std::ios::binary);
+    out << "# a comment\n\n";
+    for (const auto& n : names) out << SequenceListLine(n) << "\n";
+    out << "  plain with blanks around  \n";
+  }
+  std::vector<std::string> expected = names;
+  expected.push_back("plain with blanks around");  // unquoted lines are trimmed, as before
+  EXPECT_EQ(ReadSequenceList(file), expected);
+  EXPECT_EQ(SequenceListLine("street"), "street");
+  EXPECT_EQ(SequenceListLine(" lead"), "\" lead\"");
+  std::ofstream(file) << "\"unterminated\n";
+  try {
+    ReadSequenceList(file);
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string() + ":1: a quoted name"), std::string::npos) << e.what();
+  }
+  fs::remove(file);
 }
 
 TEST(Progress, DescribesSequencesAndEtas) {

@@ -1,7 +1,7 @@
 // imr: the command-line host. Subcommands: run, submit, report, validate, plugins, evaluate;
 // --version, --help. Exit status (host/util/exit_status.h): run and report: 0 every sequence
 // fine, else how many failed (1..63, 63 = 63 or more); other commands: 0 or 1; 64 bad usage or
-// invalid job.
+// invalid job; 73 the batch folder cannot be created; 75 another run holds the batch folder.
 #include "host/batch/batch.h"
 #include "host/batch/child.h"
 #include "host/batch/slurm.h"
@@ -16,6 +16,7 @@
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
 #include "host/util/exit_status.h"
+#include "host/util/json_text.h"
 #include "host/util/log.h"
 
 #include <boost/program_options.hpp>
@@ -69,9 +70,16 @@ const char* kUsage =
     "then the installed folder next to the executable (../lib/imr/plugins).\n"
     "Exit status: run, report: 0 every sequence ok, else the number that failed (1..63; 63 means\n"
     "63 or more; the others still ran); evaluate, render, submit: 1 failed; 64 bad usage or an\n"
-    "invalid job (nothing ran).\n";
+    "invalid job (nothing ran); 73 the batch folder cannot be created (read-only, full);\n"
+    "75 another imr run is using the batch folder (try again when it has ended).\n";
 
-void OnSignal(int) { imr::plugin::RequestCancel(); }
+void OnSignal(int signal) { imr::plugin::RequestCancel(signal); }
+
+// Ctrl-C, kill and a closed terminal all stop a run the same way: no new sequence starts, the
+// running ones are stopped, the summary is written.
+void HandleStopSignals() {
+  for (int signal : {SIGINT, SIGTERM, SIGHUP}) std::signal(signal, OnSignal);
+}
 
 // Parses a subcommand's options; returns false (after printing) on --help or an error.
 bool ParseCommand(const std::string& name, const std::string& synopsis,
@@ -155,8 +163,11 @@ const char* kRunNotes =
     "the share comes from SLURM_ARRAY_TASK_ID/COUNT/MIN); a shard writes no summary: run\n"
     "`imr report RUN_DIR` when all are done. Progress: a bar on a terminal, else a line every\n"
     "few seconds; -q: none.\n"
-    "Exit status: 0 every sequence ok or up to date; else the number of sequences that failed\n"
-    "or did not run (1..63; 63 means 63 or more); 64 bad usage or job (nothing ran).\n";
+    "Ctrl-C, SIGTERM and SIGHUP stop the run: no sequence starts, the running ones get SIGTERM\n"
+    "(SIGKILL 10 s later) and count as interrupted, and the summary is written.\n"
+    "Exit status: 0 every sequence ok or up to date; else the number of sequences that failed,\n"
+    "were interrupted or did not run (1..63; 63 means 63 or more); 64 bad usage or job; 73 the\n"
+    "batch folder cannot be created; 75 another imr run holds it (each case: nothing ran).\n";
 
 // This executable, for the child processes and the Slurm scripts.
 std::string SelfPath(const char* argv0) {
@@ -292,8 +303,20 @@ int CmdRun(const std::vector<std::string>& args) {
     for (const auto& p : problems) std::cerr << "imr run: " << p << "\n";
     return kExitUsage;
   }
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
+  // The batch folder, and this run's hold on it: an environment problem, not a failure.
+  const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  std::shared_ptr<imr::batch::BatchLock> lock;
+  try {
+    lock = imr::batch::LockBatchFolder(batch_dir, batch.shard);
+  } catch (const imr::batch::BatchFolderBusy& e) {
+    std::cerr << "imr run: " << e.what() << "\n";
+    return imr::kExitTempFail;
+  } catch (const std::exception& e) {
+    std::cerr << "imr run: " << batch_dir.string() << ": cannot create the batch folder ("
+              << e.what() << ")\n";
+    return imr::kExitCantCreate;
+  }
+  HandleStopSignals();
   const auto result = imr::batch::RunBatch(v, registry, run_options, batch);
   // One line per sequence on stdout: where the results are, or why there are none.
   using imr::batch::SequenceStatus;
@@ -309,14 +332,20 @@ int CmdRun(const std::vector<std::string>& args) {
       case SequenceStatus::kFailed:
         std::printf("FAILED  %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
         break;
+      case SequenceStatus::kInterrupted:
+        std::printf("stopped %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
+        break;
       case SequenceStatus::kNotRun:
         std::printf("not run %-20s %s\n", name, s.detail.c_str());
         break;
     }
   }
-  const int failed = result.Count(SequenceStatus::kFailed) + result.Count(SequenceStatus::kNotRun);
+  const int failed = result.Count(SequenceStatus::kFailed) +
+                     result.Count(SequenceStatus::kInterrupted) +
+                     result.Count(SequenceStatus::kNotRun);
   std::printf("%zu sequence%s, %d failed", result.outcomes.size(),
               result.outcomes.size() == 1 ? "" : "s", result.Count(SequenceStatus::kFailed));
+  if (const int n = result.Count(SequenceStatus::kInterrupted)) std::printf(", %d interrupted", n);
   if (const int n = result.Count(SequenceStatus::kSkipped)) std::printf(", %d skipped (up to date)", n);
   if (const int n = result.Count(SequenceStatus::kNotRun)) std::printf(", %d not run", n);
   if (batch.shard.active())
@@ -338,7 +367,8 @@ const char* kSubmitNotes =
     "frozen in RUN_DIR/imr-batch/sequences.txt. Task logs: RUN_DIR/imr-batch/slurm/logs/.\n"
     "Submitting again (or `sbatch` on the array script) redoes only unfinished sequences.\n"
     "--dry-run writes the scripts and prints the sbatch commands without submitting.\n"
-    "Exit status: 0 submitted; 1 sbatch failed (its message is shown); 64 bad usage or job.\n";
+    "Exit status: 0 submitted; 1 sbatch failed (its message is shown); 64 bad usage or job; 73\n"
+    "the batch folder cannot be created.\n";
 
 int CmdSubmit(const std::vector<std::string>& args) {
   imr::batch::SubmitOptions d;
@@ -400,6 +430,14 @@ int CmdSubmit(const std::vector<std::string>& args) {
   if (!problems.empty()) {
     for (const auto& p : problems) std::cerr << "imr submit: " << p << "\n";
     return kExitUsage;
+  }
+  const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  try {
+    imr::EnsureWritableDirectory(batch_dir / imr::batch::kBatchSubdir);
+  } catch (const std::exception& e) {
+    std::cerr << "imr submit: " << batch_dir.string() << ": cannot create the batch folder ("
+              << e.what() << ")\n";
+    return imr::kExitCantCreate;
   }
   const auto r = imr::batch::Submit(v, registry, run_options, o);
   auto join = [](const std::vector<std::string>& words) {
@@ -475,9 +513,11 @@ int CmdReport(const std::vector<std::string>& args) {
   for (const auto& r : summary["sequences"]) {
     const std::string st = r["status"].get<std::string>();
     const std::string label = st == "ok" ? "ok" : st == "failed" ? "FAILED" : st;
-    std::printf("%-7s %-20s %s\n", label.c_str(), r["name"].get<std::string>().c_str(),
-                r["error"].is_string() ? r["error"].get<std::string>().c_str()
-                                       : r["output"].get<std::string>().c_str());
+    // The output folder as the summary stores it: relative to the batch folder, as bytes.
+    const std::string where = r["error"].is_string()
+                                  ? r["error"].get<std::string>()
+                                  : (dir / imr::GetBytes(r, "output")).lexically_normal().string();
+    std::printf("%-7s %-20s %s\n", label.c_str(), r["name"].get<std::string>().c_str(), where.c_str());
   }
   const auto& c = summary["counts"];
   std::printf("%d sequences: %d ok, %d failed, %d interrupted, %d not run\nsummary: %s\n",
@@ -515,8 +555,7 @@ int CmdRunSequence(const std::vector<std::string>& args) {
     std::cerr << "imr " << imr::batch::kChildCommand << ": needs --job and --sequence\n";
     return kExitUsage;
   }
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
+  HandleStopSignals();
   return imr::batch::RunSequenceChild(a);
 }
 

@@ -40,7 +40,8 @@ std::string RotationProblem(const Mat3& r, double tolerance) {
     }
   std::ostringstream m;
   if (worst > tolerance) {
-    m << "is not a rotation: not orthonormal (largest |R R^T - I| entry " << worst << ")";
+    m << "is not a rotation: not orthonormal (largest |R R^T - I| entry " << worst
+      << ", more than the " << tolerance << " imr re-orthonormalises)";
     return m.str();
   }
   const double det = Determinant(r);
@@ -49,6 +50,40 @@ std::string RotationProblem(const Mat3& r, double tolerance) {
     return m.str();
   }
   return {};
+}
+
+Mat3 Orthonormalized(const Mat3& r) {
+  // Newton's iteration for the polar factor, R <- (R + R^-T) / 2: quadratic, so a few steps take
+  // 1e-4 to rounding. R^-T is the cofactor matrix over the determinant; its rows are cross
+  // products of R's rows.
+  Mat3 q = r;
+  for (int step = 0; step < 6; ++step) {
+    const auto cross = [&q](int a, int b) -> std::array<double, 3> {
+      return {q[a][1] * q[b][2] - q[a][2] * q[b][1], q[a][2] * q[b][0] - q[a][0] * q[b][2],
+              q[a][0] * q[b][1] - q[a][1] * q[b][0]};
+    };
+    const double det = Determinant(q);
+    if (!(std::abs(det) > 1e-12)) return q;
+    const Mat3 cofactor = {cross(1, 2), cross(2, 0), cross(0, 1)};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) q[i][j] = 0.5 * (q[i][j] + cofactor[i][j] / det);
+  }
+  return q;
+}
+
+std::string CheckRotation(Mat3* r) {
+  std::string problem = RotationProblem(*r);
+  // Orthonormal to rounding already (a file imr wrote, replayed): kept bit for bit, so that a
+  // replay gives the engine exactly the rotations of the run it records.
+  if (problem.empty() && !RotationProblem(*r, 1e-13).empty()) *r = Orthonormalized(*r);
+  return problem;
+}
+
+std::string CoordinateProblem(double x) {
+  if (std::abs(x) <= kMaxCoordinate) return {};
+  std::ostringstream m;
+  m << "expected a coordinate within +-1e12 (scene units), got " << x;
+  return m.str();
 }
 
 Mat3 QuaternionToRotation(const std::array<double, 4>& q0) {

@@ -30,9 +30,25 @@ Mat3 Transpose(const Mat3& m);
 Vec3 Mul(const Mat3& m, const Vec3& v);
 double Determinant(const Mat3& m);
 
+// The one tolerance of every reader on rotations, on the largest entry of |R R^T - I|. Files
+// keep 6 to 9 significant digits (1e-9 .. 1e-6 off): within it a rotation is re-orthonormalised
+// (the refiner and the engine expect orthonormal to rounding), beyond it refused.
+inline constexpr double kRotationTolerance = 1e-4;
+// The largest coordinate every reader accepts in a position (camera centre or translation,
+// point): far beyond any scene (1e12 metres), far below where squared distances overflow.
+inline constexpr double kMaxCoordinate = 1e12;
+
 // Empty when `r` is a rotation (orthonormal rows within `tolerance`, determinant +1); otherwise
-// what is wrong, e.g. "not orthonormal (|R R^T - I| = 0.3)" or "determinant -1 (a reflection)".
-std::string RotationProblem(const Mat3& r, double tolerance = 1e-4);
+// what is wrong, e.g. "is not a rotation: not orthonormal (largest |R R^T - I| entry 0.3, more
+// than the 0.0001 imr re-orthonormalises)" or "... determinant -1 (a reflection)".
+std::string RotationProblem(const Mat3& r, double tolerance = kRotationTolerance);
+// The rotation nearest to `r` (its polar factor), for `r` close to one.
+Mat3 Orthonormalized(const Mat3& r);
+// RotationProblem(*r); when there is none, *r is re-orthonormalised.
+std::string CheckRotation(Mat3* r);
+// Empty when |x| <= kMaxCoordinate, else "expected a coordinate within +-1e12 (scene units),
+// got <x>".
+std::string CoordinateProblem(double x);
 
 // Unit quaternion (w, x, y, z; scalar first, as COLMAP) <-> rotation matrix.
 Mat3 QuaternionToRotation(const std::array<double, 4>& q);

@@ -1,6 +1,8 @@
 #include "host/io/colmap_model.h"
 
+#include "host/io/image_sequence.h"
 #include "host/util/atomic_file.h"
+#include "host/util/json_text.h"
 
 #include <charconv>
 #include <cmath>
@@ -36,6 +38,9 @@ std::vector<std::string_view> Tokens(std::string_view line) {
   return out;
 }
 
+constexpr const char* kTranslationNames[3] = {"TX", "TY", "TZ"};
+constexpr const char* kCoordinateNames[3] = {"X", "Y", "Z"};
+
 struct TextFile {
   explicit TextFile(const fs::path& p) : path(p), in(p) {
     if (!in) Fail(p.string(), "cannot open for reading");
@@ -43,7 +48,7 @@ struct TextFile {
   // Next line; false at the end. `skip_blank`: comments and blank lines are skipped.
   bool Next(bool skip_blank, std::string* line) {
     while (std::getline(in, *line)) {
-      ++number;
+      if (++number == 1) SkipByteOrderMark(line);
       if (!skip_blank) return true;
       const auto t = Tokens(*line);
       if (t.empty() || t[0][0] == '#') continue;
@@ -53,13 +58,20 @@ struct TextFile {
   }
   std::string Where() const { return path.string() + " line " + std::to_string(number); }
 
+  // A number that is a position (a point, a translation), within the readers' one bound.
+  double Coordinate(std::string_view tok, const char* what) const {
+    const double v = Parse<double>(tok, what);
+    if (const std::string p = CoordinateProblem(v); !p.empty()) Fail(Where(), std::string(what) + ": " + p);
+    return v;
+  }
+
   template <typename T>
   T Parse(std::string_view tok, const char* what) const {
     T v{};
     const char* end = tok.data() + tok.size();
     auto r = std::from_chars(tok.data(), end, v);
     if (r.ec != std::errc() || r.ptr != end)
-      Fail(Where(), std::string("expected ") + what + ", got \"" + std::string(tok) + "\"");
+      Fail(Where(), std::string("expected ") + what + ", got \"" + JsonText(tok) + "\"");
     if constexpr (std::is_floating_point_v<T>)
       if (!std::isfinite(v)) Fail(Where(), std::string(what) + " is not finite");
     return v;
@@ -101,7 +113,7 @@ void ReadImagesText(const fs::path& p, ColmapModel* m) {
     ColmapModel::Image im;
     im.id = f.Parse<uint32_t>(t[0], "IMAGE_ID (integer)");
     for (int i = 0; i < 4; ++i) im.qvec[i] = f.Parse<double>(t[1 + i], "a quaternion entry (number)");
-    for (int i = 0; i < 3; ++i) im.tvec[i] = f.Parse<double>(t[5 + i], "a translation entry (number)");
+    for (int i = 0; i < 3; ++i) im.tvec[i] = f.Coordinate(t[5 + i], kTranslationNames[i]);
     im.camera_id = f.Parse<uint32_t>(t[8], "CAMERA_ID (integer)");
     im.name = std::string(t[9]);
     // The next line lists the 2D points, and may be empty.
@@ -128,7 +140,7 @@ void ReadPointsText(const fs::path& p, ColmapModel* m) {
       Fail(f.Where(), "expected POINT3D_ID X Y Z R G B ERROR then (IMAGE_ID POINT2D_IDX) pairs");
     ColmapModel::Point3D pt;
     pt.id = f.Parse<uint64_t>(t[0], "POINT3D_ID (integer)");
-    for (int i = 0; i < 3; ++i) pt.xyz[i] = f.Parse<double>(t[1 + i], "a coordinate (number)");
+    for (int i = 0; i < 3; ++i) pt.xyz[i] = f.Coordinate(t[1 + i], kCoordinateNames[i]);
     for (int i = 0; i < 3; ++i) {
       const unsigned c = f.Parse<unsigned>(t[4 + i], "a colour (integer 0-255)");
       if (c > 255) Fail(f.Where(), "a colour above 255");
@@ -174,6 +186,11 @@ struct BinaryFile {
     if (!std::isfinite(v)) Fail(Where(), what + " is not finite");
     return v;
   }
+  double Coordinate(const std::string& what) {
+    const double v = Finite(what);
+    if (const std::string p = CoordinateProblem(v); !p.empty()) Fail(Where(), what + ": " + p);
+    return v;
+  }
   // A count that must fit in what is left of the file (each item at least `min_bytes`).
   uint64_t Count(const std::string& what, uint64_t min_bytes) {
     const uint64_t n = Read<uint64_t>(what);
@@ -216,7 +233,7 @@ void ReadImagesBinary(const fs::path& p, ColmapModel* m) {
     im.id = static_cast<uint32_t>(f.Read<int32_t>("image #" + std::to_string(i) + " id"));
     const std::string what = "image " + std::to_string(im.id);
     for (int k = 0; k < 4; ++k) im.qvec[k] = f.Finite(what + " qvec");
-    for (int k = 0; k < 3; ++k) im.tvec[k] = f.Finite(what + " tvec");
+    for (int k = 0; k < 3; ++k) im.tvec[k] = f.Coordinate(what + " tvec");
     im.camera_id = static_cast<uint32_t>(f.Read<int32_t>(what + " camera id"));
     for (;;) {
       const char c = static_cast<char>(f.Read<uint8_t>(what + " name"));
@@ -241,7 +258,7 @@ void ReadPointsBinary(const fs::path& p, ColmapModel* m) {
     ColmapModel::Point3D pt;
     pt.id = f.Read<uint64_t>("3D point #" + std::to_string(i) + " id");
     const std::string what = "3D point " + std::to_string(pt.id);
-    for (int k = 0; k < 3; ++k) pt.xyz[k] = f.Finite(what + " xyz");
+    for (int k = 0; k < 3; ++k) pt.xyz[k] = f.Coordinate(what + " xyz");
     for (int k = 0; k < 3; ++k) pt.rgb[k] = f.Read<uint8_t>(what + " colour");
     pt.error = f.Read<double>(what + " error");
     const uint64_t tl = f.Count(what + " track length", 8);

@@ -41,7 +41,8 @@ bool PngSize(std::istream& in, const std::string& path, ImageSize* size) {
   if (in.gcount() < 16 || std::memcmp(h.data() + 12, "IHDR", 4) != 0)
     FailDecode(path, "no IHDR chunk after the PNG signature");
   const uint32_t w = BigEndian32(h.data() + 16), ht = BigEndian32(h.data() + 20);
-  if (w == 0 || ht == 0 || w > (1u << 30) || ht > (1u << 30))
+  // PNG sizes are at most 2^31 - 1 per side.
+  if (w == 0 || ht == 0 || w > 0x7fffffffu || ht > 0x7fffffffu)
     FailDecode(path, "IHDR gives a size of " + std::to_string(w) + "x" + std::to_string(ht));
   size->width = static_cast<int>(w);
   size->height = static_cast<int>(ht);
@@ -86,10 +87,37 @@ bool JpegSize(std::istream& in, const std::string& path, ImageSize* size) {
   }
 }
 
+// The header's size, for PNG and JPEG; false for other formats.
+bool HeaderSize(const std::string& path, ImageSize* size) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open for reading");
+  return PngSize(in, path, size) || JpegSize(in, path, size);
+}
+
 }  // namespace
 
-Image ReadImage(const std::string& path) {
+void CheckImageSize(const std::string& path, const ImageSize& size, const ImageLimits& limits) {
+  const int64_t pixels = int64_t{size.width} * size.height;
+  const std::string is = path + ": image is " + std::to_string(size.width) + "x" +
+                         std::to_string(size.height);
+  const auto megapixels = [](int64_t p) { return std::to_string((p + 500000) / 1000000); };
+  if (limits.max_pixels > 0 && pixels > limits.max_pixels)
+    throw std::runtime_error(is + " (" + megapixels(pixels) + " megapixels), more than " +
+                             limits.max_pixels_name);
+  if (pixels > kDecoderMaxPixels)
+    throw std::runtime_error(is + " (" + megapixels(pixels) + " megapixels), more than the " +
+                             "image decoder reads (" + megapixels(kDecoderMaxPixels) + ")");
+  if (limits.expected.width > 0 &&
+      (size.width != limits.expected.width || size.height != limits.expected.height))
+    throw std::runtime_error(is + ", " + limits.expected_name + " is " +
+                             std::to_string(limits.expected.width) + "x" +
+                             std::to_string(limits.expected.height));
+}
+
+Image ReadImage(const std::string& path, const ImageLimits& limits) {
   CheckIsFile(path);
+  // From the header first: nothing is decoded that would be refused.
+  if (ImageSize declared; HeaderSize(path, &declared)) CheckImageSize(path, declared, limits);
   cv::Mat m;
   try {
     m = cv::imread(path, cv::IMREAD_UNCHANGED);
@@ -97,6 +125,7 @@ Image ReadImage(const std::string& path) {
     FailDecode(path, e.what());
   }
   if (m.empty()) FailDecode(path);
+  CheckImageSize(path, {m.cols, m.rows}, limits);  // formats without a header read above
 
   if (m.depth() == CV_16U) {
     cv::Mat m8;
@@ -132,13 +161,14 @@ Image ReadImage(const std::string& path) {
   return image;
 }
 
-ImageSize ReadImageSize(const std::string& path) {
+ImageSize ReadImageSize(const std::string& path, const ImageLimits& limits) {
   CheckIsFile(path);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot open for reading");
   ImageSize size;
-  if (PngSize(in, path, &size) || JpegSize(in, path, &size)) return size;
-  const Image image = ReadImage(path);
+  if (HeaderSize(path, &size)) {
+    CheckImageSize(path, size, limits);
+    return size;
+  }
+  const Image image = ReadImage(path, limits);
   return {image.width, image.height};
 }
 

@@ -23,7 +23,20 @@ std::string ImageSequenceOptions::Check() const {
   if (frame_step < 1) return "frame_step: " + std::to_string(frame_step) + " is below 1";
   if (keyframe_every < 1)
     return "keyframe_every: " + std::to_string(keyframe_every) + " is below 1";
+  if (!(max_image_megapixels > 0) || max_image_megapixels > 1e6)
+    return "max_image_megapixels: " + std::to_string(max_image_megapixels) + " is not in (0, 1e6]";
   return "";
+}
+
+ImageLimits ImageLimitsFor(const ImageSequenceOptions& o, const ImageSize& first) {
+  ImageLimits l;
+  l.max_pixels = static_cast<int64_t>(o.max_image_megapixels * 1e6);
+  std::ostringstream name;
+  name << "input.options.max_image_megapixels (" << o.max_image_megapixels << ")";
+  l.max_pixels_name = name.str();
+  l.expected = first;
+  l.expected_name = "the sequence's first";
+  return l;
 }
 
 json ImageSequenceOptionsSchema() {
@@ -72,7 +85,15 @@ json ImageSequenceOptionsSchema() {
             {"minimum", 1},
             {"description",
              "a keyframe every this many frames (paper: 5): tracks are replenished and points "
-             "triangulated, refined and handed to the engine there"}}}};
+             "triangulated, refined and handed to the engine there"}}},
+          {"max_image_megapixels",
+           {{"type", "number"},
+            {"default", d.max_image_megapixels},
+            {"minimum", 1e-6},
+            {"maximum", 1e6},
+            {"description",
+             "larger images are refused from their header, before decoding (a small file can "
+             "declare a huge size)"}}}};
 }
 
 ImageSequenceOptions ImageSequenceOptionsFromJson(const json& o) {
@@ -84,9 +105,26 @@ ImageSequenceOptions ImageSequenceOptionsFromJson(const json& o) {
   r.frame_count = o.at("frame_count");
   r.frame_step = o.at("frame_step");
   r.keyframe_every = o.at("keyframe_every");
+  r.max_image_megapixels = o.at("max_image_megapixels").get<double>();
   if (const std::string problem = r.Check(); !problem.empty())
     throw std::runtime_error("input.options." + problem);
   return r;
+}
+
+std::string FileProblem(const std::string& path, const std::string& expected) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status s = fs::status(path, ec);
+  if (fs::is_regular_file(s)) return {};
+  if (fs::is_directory(s)) return "is a folder, expected " + expected;
+  if (fs::exists(s)) return "is not a regular file (a device, pipe or socket), expected " + expected;
+  if (fs::is_symlink(fs::symlink_status(path, ec)))
+    return "is a symbolic link to nothing" + (ec ? std::string() : " (" + fs::read_symlink(path, ec).string() + ")");
+  return "no such file";
+}
+
+void SkipByteOrderMark(std::string* first_line) {
+  if (first_line->rfind("\xEF\xBB\xBF", 0) == 0) first_line->erase(0, 3);
 }
 
 std::vector<std::string> ReadTextLines(const std::string& path, const std::string& what) {
@@ -99,6 +137,7 @@ std::vector<std::string> ReadTextLines(const std::string& path, const std::strin
   std::string line;
   while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();  // files written on Windows
+    if (lines.empty()) SkipByteOrderMark(&line);
     lines.push_back(std::move(line));
   }
   return lines;

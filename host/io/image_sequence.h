@@ -18,6 +18,7 @@
 #pragma once
 
 #include "host/io/camera_model.h"
+#include "host/io/image_io.h"
 
 #include <nlohmann/json.hpp>
 
@@ -55,9 +56,13 @@ struct ImageSequence {
   std::string synthetic_scene;
   // Figures for the report: files read, frames selected, what was inferred (e.g. which poses file).
   nlohmann::json summary = nlohmann::json::object();
+  // What every frame's image must be (checked from its header before decoding): the size of
+  // frame 0, within the options' max_image_megapixels.
+  ImageLimits image_limits;
 };
 
 // Options every layout takes (job "input.options"); checked against ImageSequenceOptionsSchema.
+// The readers set the sequence's image_limits from them (ImageLimitsFor).
 struct ImageSequenceOptions {
   int camera = -1;        // KITTI camera 0..3; -1: the lowest-numbered image_0X folder present
   std::string poses;      // poses file; "" = the layout's default (see the readers)
@@ -67,6 +72,9 @@ struct ImageSequenceOptions {
   int frame_count = -1;   // at most this many frames; -1 = all to the end
   int frame_step = 1;     // use every n-th source frame
   int keyframe_every = 5; // the front end makes every n-th selected frame a keyframe (paper: 5)
+  // Larger images are refused from their header, before decoding (memory: about 3 bytes a
+  // pixel, several times over in the features plugin's pyramids).
+  double max_image_megapixels = 50.0;
 
   // Empty when usable, else which field and why.
   std::string Check() const;
@@ -76,6 +84,9 @@ struct ImageSequenceOptions {
 nlohmann::json ImageSequenceOptionsSchema();
 // From options with defaults filled in (WithDefaults); throws std::runtime_error when Check fails.
 ImageSequenceOptions ImageSequenceOptionsFromJson(const nlohmann::json& options);
+
+// The limits of a sequence whose frame 0 is `first` (the readers check frame 0 with them).
+ImageLimits ImageLimitsFor(const ImageSequenceOptions& options, const ImageSize& first);
 
 // KITTI odometry: <root>/image_0 (gray) .. image_3 (colour), <root>/calib.txt (P0..P3, Tr),
 // <root>/times.txt, poses: options.poses, else <root>/poses.txt, else
@@ -108,8 +119,14 @@ std::string FileLine(const std::string& file, int line);
 // True for a line of only blanks, tabs and a carriage return.
 bool IsBlankLine(const std::string& line);
 
-// The lines of a text file, without line ends. Throws "<path>: no such file (<what>)" when it is
-// absent, e.g. what = "the poses file".
+// Empty when `path` is a regular file (or a link to one); else what it is: "no such file", "is a
+// folder, expected <expected>", ... (a folder named 000003.png is not missing).
+std::string FileProblem(const std::string& path, const std::string& expected);
+// Removes a UTF-8 byte order mark (EF BB BF, as Windows editors save) from the start of a file's
+// first line: it would hide the first key or number.
+void SkipByteOrderMark(std::string* first_line);
+// The lines of a text file, without line ends or a byte order mark. Throws "<path>: no such file
+// (<what>)" when it is absent, e.g. what = "the poses file".
 std::vector<std::string> ReadTextLines(const std::string& path, const std::string& what);
 // The blank-separated numbers of line `line` (1-based) of `file`. Throws
 // "<file>:<line>: column <c> (number <k>): 'x' is not a finite number" for text, NaN or inf.

@@ -2,8 +2,10 @@
 
 #include "host/io/json_stream.h"
 
+#include <cctype>
 #include <cstdint>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -161,6 +163,63 @@ std::size_t TooDeepAt(const std::string& text, std::size_t max_depth) {
   return std::string::npos;
 }
 
+// Keys that appear twice in one object: nlohmann keeps the last silently, and a typo must never
+// be silently ignored. A scan of the text (already parsed, so well formed) that follows the
+// nesting to name each with its JSON path and both places.
+std::vector<Problem> DuplicateKeys(const std::string& text) {
+  struct Frame {
+    bool object = false;
+    std::size_t index = 0;                       // arrays: the element being read
+    std::string path;                            // this container's JSON path
+    std::map<std::string, std::size_t> keys;     // objects: key -> byte of its first quote
+    std::string key;                             // objects: the key of the value being read
+  };
+  std::vector<Problem> problems;
+  std::vector<Frame> stack;
+  auto child_path = [&stack]() -> std::string {
+    if (stack.empty()) return "";
+    const Frame& f = stack.back();
+    if (!f.object) return f.path + "[" + std::to_string(f.index) + "]";
+    return f.path.empty() ? f.key : f.path + "." + f.key;
+  };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '{' || c == '[') {
+      Frame f;
+      f.object = c == '{';
+      f.path = child_path();
+      stack.push_back(std::move(f));
+    } else if (c == '}' || c == ']') {
+      if (!stack.empty()) stack.pop_back();
+    } else if (c == ',') {
+      if (!stack.empty() && !stack.back().object) ++stack.back().index;
+    } else if (c == '"') {
+      std::size_t end = i + 1;
+      while (end < text.size() && text[end] != '"') end += text[end] == '\\' ? 2 : 1;
+      std::size_t next = end + 1;
+      while (next < text.size() && std::isspace(static_cast<unsigned char>(text[next]))) ++next;
+      if (!stack.empty() && stack.back().object && next < text.size() && text[next] == ':') {
+        Frame& f = stack.back();
+        std::string key;
+        try {
+          key = json::parse(text.substr(i, end + 1 - i)).get<std::string>();
+        } catch (const json::exception&) {
+          key = text.substr(i + 1, end - i - 1);
+        }
+        f.key = key;
+        const auto [it, first] = f.keys.emplace(key, i);
+        if (!first)
+          problems.push_back({f.path.empty() ? key : f.path + "." + key,
+                              "the key appears twice (" + LineColumn(text, it->second) + " and " +
+                                  LineColumn(text, i) +
+                                  "); JSON would keep the last one silently: remove one"});
+      }
+      i = end;
+    }
+  }
+  return problems;
+}
+
 void ParseStage(const json& v, std::size_t index, JobSpec* job, std::vector<Problem>* problems) {
   const std::string path = "pipeline[" + std::to_string(index) + "]";
   if (!v.is_object()) {
@@ -209,14 +268,45 @@ fs::path JobSpec::Resolve(const std::string& p) const {
   return path.is_absolute() ? path : (base_dir / path).lexically_normal();
 }
 
+std::string ExpandTemplate(const std::string& tmpl,
+                           const std::vector<std::pair<std::string, std::string>>& values) {
+  std::string out;
+  for (std::size_t pos = 0; pos < tmpl.size();) {
+    bool replaced = false;
+    for (const auto& [key, value] : values)
+      if (tmpl.compare(pos, key.size(), key) == 0) {
+        out += value;
+        pos += key.size();
+        replaced = true;
+        break;
+      }
+    if (!replaced) out += tmpl[pos++];
+  }
+  return out;
+}
+
 fs::path JobSpec::OutputDirectory(const std::string& sequence_name) const {
-  std::string s = output.directory;
-  auto replace = [&s](const std::string& key, const std::string& value) {
-    for (std::size_t pos; (pos = s.find(key)) != std::string::npos;) s.replace(pos, key.size(), value);
-  };
-  replace("{sequence}", sequence_name);
-  replace("{job}", Name());
-  return Resolve(s);
+  return Resolve(ExpandTemplate(output.directory, {{"{sequence}", sequence_name}, {"{job}", Name()}}));
+}
+
+fs::path JobSpec::BatchDirectory() const {
+  fs::path prefix;
+  bool has_sequence = false;
+  for (const fs::path& c : fs::path(output.directory)) {
+    if (c.string().find("{sequence}") != std::string::npos) {
+      has_sequence = true;
+      break;
+    }
+    prefix /= c;
+  }
+  fs::path dir = OutputDirectory("");  // no {sequence}: the one output folder
+  if (has_sequence) {
+    const std::string s = ExpandTemplate(prefix.string(), {{"{job}", Name()}});
+    dir = Resolve(s.empty() ? "." : s);
+  }
+  dir = dir.lexically_normal();
+  if (dir.has_relative_path() && dir.filename().empty()) dir = dir.parent_path();
+  return fs::absolute(dir);
 }
 
 std::vector<Problem> CheckOutputTemplate(const std::string& tmpl, const std::string& path) {
@@ -283,6 +373,7 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
                                 TypeName(root)});
     return result;
   }
+  for (Problem& p : DuplicateKeys(text)) problems.push_back(std::move(p));
 
   ObjectReader r(root, "", &problems);
   if (auto d = r.String("description", false)) job.description = *d;
@@ -356,16 +447,29 @@ JobParseResult ParseJobFile(const fs::path& file) {
     r.problems.push_back({"", file.string() + ": is a folder, expected a JSON job file"});
     return r;
   }
+  // At most kMaxJobFileBytes + 1 bytes: a device or a huge file is not read without bound.
   std::ifstream in(file, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  if (!in.good() && !in.eof()) {
+  std::string text;
+  char chunk[1 << 16];
+  while (in && text.size() <= kMaxJobFileBytes) {
+    in.read(chunk, sizeof(chunk));
+    text.append(chunk, static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad() || (!in && !in.eof())) {
     JobParseResult r;
     r.job.file = file;
     r.problems.push_back({"", file.string() + ": cannot read"});
     return r;
   }
-  return ParseJobText(ss.str(), file);
+  if (text.size() > kMaxJobFileBytes) {
+    JobParseResult r;
+    r.job.file = file;
+    r.problems.push_back({"", file.string() + ": more than " +
+                                  std::to_string(kMaxJobFileBytes >> 20) +
+                                  " MiB: not a job file (a job file is a few kB of JSON)"});
+    return r;
+  }
+  return ParseJobText(text, file);
 }
 
 }  // namespace imr::io

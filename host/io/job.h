@@ -7,12 +7,17 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace imr::io {
+
+// The largest job file read (a job is a few kB; /dev/zero is not one).
+inline constexpr std::uintmax_t kMaxJobFileBytes = 64u << 20;
 
 // Longest accepted stage timeout: a year. Longer is surely a typo, and keeps deadlines finite.
 inline constexpr double kMaxStageTimeoutSeconds = 365.0 * 24 * 3600;
@@ -63,7 +68,16 @@ struct JobSpec {
   std::filesystem::path Resolve(const std::string& p) const;
   // The output folder of one sequence, template expanded and resolved.
   std::filesystem::path OutputDirectory(const std::string& sequence_name) const;
+  // The batch folder (absolute): the part of output.directory before its first component with
+  // {sequence} ("runs/{sequence}" -> "runs", "out/{job}/{sequence}/mesh" -> "out/<job>"); the
+  // output folder itself for a template without {sequence}.
+  std::filesystem::path BatchDirectory() const;
 };
+
+// `tmpl` with each placeholder ("{sequence}", ...) replaced by its value, in one pass over the
+// template: a value that holds a placeholder ("x{job}", a folder named "{sequence}") is text.
+std::string ExpandTemplate(const std::string& tmpl,
+                           const std::vector<std::pair<std::string, std::string>>& values);
 
 struct JobParseResult {
   JobSpec job;

@@ -123,6 +123,32 @@ TEST(Job, SeveralSequencesNeedTheSequencePlaceholder) {
   EXPECT_TRUE(HasProblem(r.problems, "output.directory: several sequences would share one folder"));
 }
 
+TEST(Job, PlaceholdersAreReplacedInOnePass) {
+  // A value holding a placeholder is text: the replacement used to find it again and spin.
+  EXPECT_EQ(ExpandTemplate("runs/{job}/{sequence}", {{"{sequence}", "x{job}"}, {"{job}", "{job}"}}),
+            "runs/{job}/x{job}");
+  EXPECT_EQ(ExpandTemplate("{a}{b}{", {{"{a}", "{b}"}, {"{b}", "B"}}), "{b}B{");
+  const JobParseResult r = ParseJobText(kGood, "/data/jobs/{job}.json");
+  ASSERT_TRUE(r.ok()) << Dump(r.problems);
+  EXPECT_EQ(r.job.OutputDirectory("{sequence}"), "/data/jobs/runs/{job}/{sequence}");
+  EXPECT_EQ(r.job.BatchDirectory(), "/data/jobs/runs/{job}");
+}
+
+TEST(Job, DuplicateKeysAreNamedWithBothPlaces) {
+  const std::string text =
+      "{\"sequences\": [\"a\"], \"input\": {\"format\": \"synthetic\"},\n"
+      " \"pipeline\": [{\"kind\": \"exporter\", \"plugin\": \"x\", \"params\": {\"a\": [{\"k\": 1, \"\\u006b\": 2}]}}],\n"
+      " \"output\": {\"directory\": \"runs/{sequence}\"}, \"output\": {}}";
+  const JobParseResult r = ParseJobText(text, "j.json");
+  EXPECT_TRUE(HasProblem(r.problems, "pipeline[0].params.a[0].k: the key appears twice (line 2, "
+                                     "column 69 and line 2, column 77)"))
+      << Dump(r.problems);
+  EXPECT_TRUE(HasProblem(r.problems, "output: the key appears twice (line 3, column 2 and line 3, "
+                                     "column 46)"))
+      << Dump(r.problems);
+  EXPECT_TRUE(ParseJobText(kGood, "j.json").ok());  // equal keys in different objects are fine
+}
+
 TEST(Schema, ChecksTypesRangesEnumsAndUnknownKeys) {
   const nlohmann::json schema = nlohmann::json::parse(R"({
     "window": {"type": "integer", "minimum": 1, "default": 15},

@@ -57,9 +57,8 @@ Vec3 JsonFields::Vector3(const json& j, const std::string& path) const {
   // A position this far out is a broken export, not a scene: squared distances overflow to inf
   // and the engine's geometry stops meaning anything.
   for (int i = 0; i < 3; ++i)
-    if (std::abs(v[i]) > kMaxCoordinate)
-      Fail(path + "[" + std::to_string(i) + "]",
-           "expected a coordinate within +-1e12 (scene units), got " + Describe(j[i]));
+    if (const std::string p = CoordinateProblem(v[i]); !p.empty())
+      Fail(path + "[" + std::to_string(i) + "]", p);
   return v;
 }
 
@@ -80,7 +79,7 @@ Mat3 JsonFields::Rotation(const json& j, const std::string& path) const {
       Fail(row, "expected a row of 3 numbers, got " + Describe(j[i]));
     for (int k = 0; k < 3; ++k) r[i][k] = Number(j[i][k], row + "[" + std::to_string(k) + "]");
   }
-  const std::string problem = RotationProblem(r);
+  const std::string problem = CheckRotation(&r);
   if (!problem.empty()) Fail(path, "the rotation " + problem);
   return r;
 }

@@ -12,10 +12,6 @@
 
 namespace imr::io {
 
-// Largest coordinate accepted in a position (camera centre, point): far beyond any scene (1e12
-// metres), far below where squared distances overflow.
-inline constexpr double kMaxCoordinate = 1e12;
-
 class JsonFields {
  public:
   explicit JsonFields(std::string file) : file_(std::move(file)) {}
@@ -35,7 +31,7 @@ class JsonFields {
   std::string String(const nlohmann::json& j, const std::string& path) const;
   Vec3 Vector3(const nlohmann::json& j, const std::string& path) const;  // |x| <= kMaxCoordinate
   std::vector<double> Numbers(const nlohmann::json& j, const std::string& path) const;
-  // 3x3 rows; also checks that it is a rotation.
+  // 3x3 rows; also checks that it is a rotation (re-orthonormalised within kRotationTolerance).
   Mat3 Rotation(const nlohmann::json& j, const std::string& path) const;
 
  private:

@@ -18,9 +18,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// Tolerance on the rotations of poses files: KITTI writes 9 significant digits.
-constexpr double kRotationTolerance = 1e-4;
-
 [[noreturn]] void Fail(const std::string& message) { throw std::runtime_error(message); }
 
 // Rigid transform x' = r x + t.
@@ -138,8 +135,8 @@ class CalibFile {
 
   Mat3 Rotation(const std::string& key, const std::string& what) const {
     int line = 0;
-    const Mat3 r = FromRowMajor9(Numbers(key, 9, what, &line));
-    if (const std::string p = RotationProblem(r, kRotationTolerance); !p.empty())
+    Mat3 r = FromRowMajor9(Numbers(key, 9, what, &line));
+    if (const std::string p = CheckRotation(&r); !p.empty())
       Fail(FileLine(path_, line) + ": " + key + " " + p);
     return r;
   }
@@ -156,8 +153,8 @@ class CalibFile {
   // A 3x4 [R | t] on one line, e.g. Tr in calib.txt.
   Rigid Transform34(const std::string& key, const std::string& what) const {
     int line = 0;
-    const Rigid a = FromRowMajor12(Numbers(key, 12, what + ", row-major 3x4", &line));
-    if (const std::string p = RotationProblem(a.r, kRotationTolerance); !p.empty())
+    Rigid a = FromRowMajor12(Numbers(key, 12, what + ", row-major 3x4", &line));
+    if (const std::string p = CheckRotation(&a.r); !p.empty())
       Fail(FileLine(path_, line) + ": the rotation of " + key + " " + p);
     return a;
   }
@@ -215,8 +212,11 @@ std::vector<Rigid> ReadPosesFile(const std::string& path) {
       Fail(FileLine(path, line) + ": " + std::to_string(v.size()) +
            " numbers, expected 12 (row-major 3x4 [R | t], camera -> world)");
     poses.push_back(FromRowMajor12(v));
-    if (const std::string p = RotationProblem(poses.back().r, kRotationTolerance); !p.empty())
+    if (const std::string p = CheckRotation(&poses.back().r); !p.empty())
       Fail(FileLine(path, line) + ": the rotation (numbers 1-3, 5-7, 9-11) " + p);
+    for (int k : {3, 7, 11})
+      if (const std::string p = CoordinateProblem(v[static_cast<std::size_t>(k)]); !p.empty())
+        Fail(FileLine(path, line) + ": number " + std::to_string(k + 1) + " (the translation): " + p);
   }
   return poses;
 }
@@ -355,9 +355,8 @@ void CheckPoseCount(const std::string& poses_path, std::size_t poses, const Fram
   // Fewer images than poses is usually one image lost from the middle: name it.
   for (std::size_t i = 0; i < poses && static_cast<int>(poses) > s.count; ++i) {
     const fs::path image = s.image_dir / Numbered(static_cast<int>(i), s.digits, ".png");
-    std::error_code ec;
-    if (!fs::is_regular_file(image, ec))
-      Fail(image.string() + ": no such file (the image of pose line " + std::to_string(i + 1) +
+    if (const std::string p = FileProblem(image.string(), "a .png image"); !p.empty())
+      Fail(image.string() + ": " + p + " (the image of pose line " + std::to_string(i + 1) +
            " of " + poses_path + "; " + s.image_dir.string() + " has " + std::to_string(s.count) +
            " images for " + std::to_string(poses) + " poses (lines))");
   }
@@ -370,19 +369,19 @@ void CheckPoseCount(const std::string& poses_path, std::size_t poses, const Fram
 // frame src; `offset` = b_k - b_p moves it to the chosen camera.
 void AddFrames(const FrameSource& s, const std::vector<int>& selected,
                const std::vector<Rigid>& camera_to_world, const Vec3& offset,
-               const std::vector<double>& times, const RectifiedCamera& rect, ImageSequence* seq) {
+               const std::vector<double>& times, const RectifiedCamera& rect,
+               const ImageSequenceOptions& options, ImageSequence* seq) {
   for (const int src : selected) {
     const fs::path image = s.image_dir / Numbered(src, s.digits, ".png");
-    std::error_code ec;
-    if (!fs::is_regular_file(image, ec))
-      Fail(image.string() + ": no such file (the image of source frame " + std::to_string(src) +
-           ")");
+    if (const std::string p = FileProblem(image.string(), "a .png image"); !p.empty())
+      Fail(image.string() + ": " + p + " (the image of source frame " + std::to_string(src) + ")");
   }
   Intrinsics k;
   k.source_model = "kitti_rectified";
   k.source_params = rect.projection;
-  const ImageSize size =
-      ReadImageSize((s.image_dir / Numbered(selected[0], s.digits, ".png")).string());
+  const ImageSize size = ReadImageSize((s.image_dir / Numbered(selected[0], s.digits, ".png")).string(),
+                                       ImageLimitsFor(options, {}));
+  seq->image_limits = ImageLimitsFor(options, size);
   k.width = size.width;
   k.height = size.height;
   k.fx = rect.fx;
@@ -540,7 +539,7 @@ ImageSequence ReadKittiOdometry(const std::string& root_arg, const ImageSequence
 
   const std::vector<int> selected = SelectSourceFrames(source.count, o, root_arg);
   const Vec3 offset = Sub(rect.baseline, poses_rect.baseline);
-  AddFrames(source, selected, poses, offset, times, rect, &seq);
+  AddFrames(source, selected, poses, offset, times, rect, o, &seq);
 
   json& s = seq.summary;
   s["layout"] = seq.layout;
@@ -710,7 +709,7 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
     s["times"] = "none found: 0.1 s steps (KITTI's 10 Hz)";
   }
 
-  AddFrames(source, selected, camera_to_world, offset, times, rect, &seq);
+  AddFrames(source, selected, camera_to_world, offset, times, rect, o, &seq);
   s["baseline_applied"] = ToJson(offset);
   SummariseFrames(source, selected, o, &seq);
 

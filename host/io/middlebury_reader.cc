@@ -14,9 +14,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// The files hold rotations to 15+ digits; this only refuses what is not a rotation at all.
-constexpr double kRotationTolerance = 1e-4;
-
 [[noreturn]] void Fail(const std::string& message) { throw std::runtime_error(message); }
 
 // The one *_par.txt in a folder, or the file itself.
@@ -106,15 +103,17 @@ ImageSequence ReadMiddlebury(const std::string& path, const ImageSequenceOptions
     Mat3 r{};
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) r[a][b] = v[9 + a * 3 + b];
-    if (const std::string p = RotationProblem(r, kRotationTolerance); !p.empty())
+    if (const std::string p = CheckRotation(&r); !p.empty())
       Fail(FileLine(file, line) + ": R (numbers 10-18) " + p);
+    for (std::size_t k = 18; k < 21; ++k)
+      if (const std::string p = CoordinateProblem(v[k]); !p.empty())
+        Fail(FileLine(file, line) + ": number " + std::to_string(k + 1) + " (t): " + p);
     const int j = frame_of[static_cast<std::size_t>(src)];
     if (j < 0) continue;
 
     const fs::path image = folder / name;
-    std::error_code ec;
-    if (!fs::is_regular_file(image, ec))
-      Fail(image.string() + ": no such file (the image of " + FileLine(file, line) + ")");
+    if (const std::string p = FileProblem(image.string(), "an image file"); !p.empty())
+      Fail(image.string() + ": " + p + " (the image of " + FileLine(file, line) + ")");
 
     ImageFrame f;
     f.index = j;
@@ -129,7 +128,8 @@ ImageSequence ReadMiddlebury(const std::string& path, const ImageSequenceOptions
     k.source_model = "middlebury_K";
     k.source_params.assign(v.begin(), v.begin() + 9);
     if (j == 0) {
-      const ImageSize size = ReadImageSize(image.string());
+      const ImageSize size = ReadImageSize(image.string(), ImageLimitsFor(o, {}));
+      seq.image_limits = ImageLimitsFor(o, size);
       k.width = size.width;
       k.height = size.height;
     } else {

@@ -254,6 +254,27 @@ TEST(Conventions, QuaternionsAndRotationChecks) {
   EXPECT_NE(RotationProblem(reflection).find("reflection"), std::string::npos);
 }
 
+TEST(Conventions, RotationsWithinTheToleranceAreReOrthonormalised) {
+  // 6 significant digits (1e-6 off, as dinoSparseRing): accepted and made orthonormal to
+  // rounding, near where it was; 2e-4 off: refused, naming the tolerance.
+  const Mat3 exact = QuaternionToRotation({0.9, 0.1, -0.3, 0.2});
+  Mat3 r = exact;
+  for (auto& row : r)
+    for (double& x : row) x = std::round(x * 1e6) / 1e6 * (1 + 1.4e-6);
+  EXPECT_GT(std::abs(Determinant(r) - 1.0), 1e-6);
+  EXPECT_EQ(CheckRotation(&r), "");
+  EXPECT_EQ(RotationProblem(r, 1e-14), "");
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) EXPECT_NEAR(r[i][j], exact[i][j], 5e-6);
+  Mat3 off = exact;
+  for (double& x : off[0]) x *= 1 + 2e-4;
+  const Mat3 kept = off;
+  EXPECT_NE(CheckRotation(&off).find("more than the 0.0001 imr re-orthonormalises"), std::string::npos);
+  EXPECT_EQ(off, kept);  // a refused rotation is left as it was
+  EXPECT_EQ(CoordinateProblem(-1e12), "");
+  EXPECT_EQ(CoordinateProblem(1e300), "expected a coordinate within +-1e12 (scene units), got 1e+300");
+}
+
 TEST(Conventions, DistortionFollowsOpenCvForEveryModel) {
   // OpenMVG pinhole_brown_t2 (k1 k2 k3 t1 t2) and COLMAP OPENCV (k1 k2 p1 p2) agree when k3 = 0.
   JsonFields f("test");

@@ -4,6 +4,7 @@
 #include "host/io/json_stream.h"
 #include "host/io/openmvg_reader.h"
 #include "host/io/schema.h"
+#include "host/util/json_text.h"
 
 #include <algorithm>
 #include <cmath>
@@ -453,7 +454,7 @@ std::string StreamRecorder::SlamJson() const {
                         "reproduces the run"},
                {"min_views", 1}};
   if (placeholder) note["placeholder_intrinsics"] = "some cameras' intrinsics were unknown: pinhole f=500, 1000x1000";
-  std::string head = note.dump();
+  std::string head = DumpJson(note);  // written_by holds the sequence's name: bytes
   head.pop_back();  // reopen the object to append the keyframes
   s += "\"imr_stream\": " + head + ", \"keyframes\": [\n";
   for (std::size_t k = 0; k < keyframes_.size(); ++k) {
@@ -471,7 +472,7 @@ std::string StreamRecorder::SlamJson() const {
     const json e = {{"intrinsicId", j},
                     {"value", {{"polymorphic_id", 2147483649u}, {"polymorphic_name", name},
                                {"ptr_wrapper", {{"id", 2147483649u + j}, {"data", data}}}}}};
-    s += "  " + e.dump() + (j + 1 < intr.size() ? ",\n" : "\n");
+    s += "  " + DumpJson(e) + (j + 1 < intr.size() ? ",\n" : "\n");
   }
   s += "],\n\"views\": [\n";
   for (std::size_t i = 0; i < views_.size(); ++i) {
@@ -479,7 +480,7 @@ std::string StreamRecorder::SlamJson() const {
     const Mat3 r = v.geometry ? v.geometry->rotation : Identity3();
     const json name = v.geometry && !v.geometry->name.empty() ? v.geometry->name : "view_" + std::to_string(v.id);
     s += "  {\"viewId\": " + std::to_string(v.id) + ", \"keyframe\": " + std::to_string(v.keyframe) +
-         ", \"local_path\": \"\", \"filename\": " + name.dump() +
+         ", \"local_path\": \"\", \"filename\": " + DumpJson(name) +  // image names are bytes
          ", \"width\": " + std::to_string(intr[view_intr[i]].width) +
          ", \"height\": " + std::to_string(intr[view_intr[i]].height) +
          ", \"id_intrinsic\": " + std::to_string(view_intr[i]) + ",\n   \"extrinsic\": {\"rotation\": [" +

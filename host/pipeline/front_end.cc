@@ -177,7 +177,7 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     const bool keyframe = IsKeyframe(index);
 
     auto t0 = std::chrono::steady_clock::now();
-    const io::Image image = io::ReadImage(frame.image_path);
+    const io::Image image = io::ReadImage(frame.image_path, sequence_.image_limits);
     if (width_ == 0) {
       width_ = image.width;
       height_ = image.height;

@@ -2,6 +2,7 @@
 
 #include "host/io/engine_options.h"
 #include "host/io/input_formats.h"
+#include "host/util/json_text.h"
 #include "host/util/log.h"
 
 #include <glob.h>
@@ -52,8 +53,38 @@ std::string GlobMatchName(const std::string& pattern, const std::string& match) 
   return name.empty() ? PathName(match) : name;
 }
 
+// Each sequence writes its own folder inside the batch folder: two sharing one would overwrite
+// each other, and "." or ".." (a glob ".*/" matches them) would write into the batch folder or
+// above it. `owners`: the output folders seen so far, with their sequences.
+void CheckOutputFolder(const SequenceRef& s, const std::string& path, const fs::path& batch,
+                       std::map<fs::path, std::string>* owners, ValidatedJob* v) {
+  const io::JobSpec& job = v->job;
+  fs::path out = fs::absolute(job.OutputDirectory(s.name)).lexically_normal();
+  if (out.has_relative_path() && out.filename().empty()) out = out.parent_path();
+  const std::string who = "sequence '" + JsonText(s.name) + "': its output folder " + out.string();
+  if (job.output.directory.find("{sequence}") != std::string::npos) {
+    const fs::path rel = out.lexically_relative(batch);
+    if (rel.empty() || rel == ".") {
+      v->problems.push_back({path, who + " is the batch folder itself (where the summary and " +
+                                       "imr-batch/ go)"});
+      return;
+    }
+    if (*rel.begin() == "..") {
+      v->problems.push_back({path, who + " is outside the batch folder " + batch.string()});
+      return;
+    }
+  }
+  const auto [it, first] = owners->emplace(out, s.name);
+  if (!first)
+    v->problems.push_back({"output.directory", "sequences '" + JsonText(it->second) + "' and '" +
+                                                   JsonText(s.name) + "' would both write to " +
+                                                   out.string()});
+}
+
 void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
   const io::JobSpec& job = v->job;
+  const fs::path batch = job.BatchDirectory();
+  std::map<fs::path, std::string> owners;
   std::set<std::string> seen_names;
   for (std::size_t i = 0; i < job.sequences.size(); ++i) {
     const std::string path = "sequences[" + std::to_string(i) + "]";
@@ -90,10 +121,11 @@ void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
     }
     for (auto& s : found) {
       if (!seen_names.insert(s.name).second) {
-        v->problems.push_back({path, "two sequences are named '" + s.name +
+        v->problems.push_back({path, "two sequences are named '" + JsonText(s.name) +
                                          "': their outputs would collide"});
         continue;
       }
+      CheckOutputFolder(s, path, batch, &owners, v);
       v->sequences.push_back(std::move(s));
     }
   }
@@ -111,12 +143,14 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
   const io::JobSpec& job = v->job;
   std::map<std::string, int> count;
   std::vector<std::string> exporter_formats;
+  bool unknown_exporter = false;  // its formats are unknown: do not call every format unwritten
   for (std::size_t i = 0; i < job.pipeline.size(); ++i) {
     const io::StageSpec& stage = job.pipeline[i];
     nlohmann::json params = stage.params;
     ++count[stage.kind];
     const plugin::PluginInfo* info = registry.Find(stage.plugin);
     if (info == nullptr) {
+      unknown_exporter |= stage.kind == "exporter";
       auto known = registry.Ids(stage.kind);
       v->problems.push_back(
           {stage.json_path + ".plugin",
@@ -169,7 +203,7 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
     v->problems.push_back({"pipeline", "no exporter stage: nothing would be written"});
   for (std::size_t i = 0; i < job.output.formats.size(); ++i) {
     const std::string& f = job.output.formats[i];
-    if (count["exporter"] > 0 &&
+    if (count["exporter"] > 0 && !unknown_exporter &&
         std::find(exporter_formats.begin(), exporter_formats.end(), f) == exporter_formats.end())
       v->problems.push_back({"output.formats[" + std::to_string(i) + "]",
                              io::Describe(f) + " is not written by any exporter stage (they write " +

@@ -11,6 +11,7 @@
 #include "host/io/input_formats.h"
 #include "host/io/slam_json.h"
 #include "host/util/atomic_file.h"
+#include "host/util/json_text.h"
 #include "host/util/sha256.h"
 #include "host/util/log.h"
 
@@ -20,6 +21,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <set>
 
@@ -48,32 +50,54 @@ json PluginJson(const plugin::PluginInfo& info, const json& params) {
 
 json StatsJson(const engine::EngineStats& s) {
   const auto& t = s.time;
+  // Every counter engine::EngineStats keeps (REPORT.md lists them).
   return {{"seconds", {{"steiner", t.steiner}, {"shrink", t.shrink}, {"move", t.move},
-                       {"insert", t.insert}, {"cast", t.cast}, {"grow", t.grow},
-                       {"extract", t.extract}, {"total", t.total}}},
+                       {"insert", t.insert}, {"cast", t.cast}, {"scan", t.scan},
+                       {"grow", t.grow}, {"extract", t.extract}, {"total", t.total}}},
           {"keyframes", s.updates},
           {"rays_cast", s.rays_cast},
           {"rays_cast_backward", s.rays_cast_backward},
           {"rays_skipped_too_long", s.rays_skipped_too_long},
           {"rays_truncated", s.rays_truncated},
           {"cells_traversed", s.cells_traversed},
+          {"cells_weighted", s.cells_weighted},
           {"points_inserted", s.points_inserted},
           {"points_moved", s.points_moved},
           {"moves_skipped", s.moves_skipped},
           {"points_dropped", s.points_dropped},
+          {"points_duplicate", s.points_duplicate},
           {"points_removed", s.points_removed},
           {"steiner_points", s.steiner_points},
+          {"steiner_dropped", s.steiner_dropped},
           {"cells_grown", s.cells_grown},
           {"cells_shrunk", s.cells_shrunk},
+          {"policy_calls", s.policy_calls},
+          {"rays_scan_cells", s.rays_scan_cells},
           {"vertices", s.vertices},
           {"cells", s.cells},
           {"cells_in_o", s.cells_in_o}};
 }
 
-std::string Replace(std::string s, const std::string& from, const std::string& to) {
-  for (std::size_t pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos + to.size()))
-    s.replace(pos, from.size(), to);
-  return s;
+// When most points never entered the triangulation (all at one position, at a camera, or cut
+// off by the reconstructed volume), the mesh rests on a few points and is mostly the Steiner
+// grid's: "ok" alone would hide it. Empty when a half or less was refused. points_duplicate
+// counts new points and moves that landed on an existing vertex.
+std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mesh& mesh) {
+  const int64_t refused = s.points_dropped + s.points_duplicate;
+  if (refused == 0 || 2 * refused <= s.points_inserted + refused) return {};
+  std::size_t steiner_only = 0;
+  if (mesh.point_ids.size() * 3 == mesh.vertices.size())
+    for (std::size_t f = 0; f + 2 < mesh.faces.size(); f += 3)
+      if (mesh.point_ids[mesh.faces[f]] < 0 && mesh.point_ids[mesh.faces[f + 1]] < 0 &&
+          mesh.point_ids[mesh.faces[f + 2]] < 0)
+        ++steiner_only;
+  return "most points never entered the mesh: " + std::to_string(s.points_duplicate) +
+         " new points or moves were at the position of a point already in it and " +
+         std::to_string(s.points_dropped) +
+         " new points were dropped (their conflict zone met the reconstructed volume), against " +
+         std::to_string(s.points_inserted) + " inserted; " + std::to_string(steiner_only) +
+         " of the mesh's " + std::to_string(mesh.faces.size() / 3) +
+         " triangles touch no data point (Steiner grid only). Are the points' positions right?";
 }
 
 using Exporters = std::vector<std::pair<const io::StageSpec*, plugin::LoadedInstance>>;
@@ -99,7 +123,7 @@ class TraceFile {
   }
   ~TraceFile() { Finish(); }
   void Write(const json& line) {
-    out_ << line.dump() << '\n';
+    out_ << DumpJson(line) << '\n';
     out_.flush();
     if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
   }
@@ -396,6 +420,12 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   // Rays longer than max_ray_length are not cast: most of them skipped usually means the
   // scene is not in metres (or is much larger or smaller than the defaults assume).
   const engine::EngineStats& stats = engine.Stats();
+  // Warnings: on stderr and in report.json (the summary lists them).
+  json warnings = json::array();
+  auto warn = [&](const std::string& w) {
+    LogWarning("[" + JsonText(seq.name) + "] " + w);
+    warnings.push_back(w);
+  };
   std::string scale_hint;
   if (stats.rays_skipped_too_long > stats.rays_cast) {
     scale_hint = std::to_string(stats.rays_skipped_too_long) + " of " +
@@ -403,8 +433,9 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                  " rays were longer than engine.max_ray_length (" +
                  std::to_string(v.engine_options.max_ray_length) +
                  "): set max_ray_length and steiner_spacing to the scene's scale";
-    LogWarning("[" + seq.name + "] " + scale_hint);
+    warn(scale_hint);
   }
+  if (const std::string w = RefusedPointsWarning(stats, mesh); !w.empty()) warn(w);
   if (mesh.faces.empty())
     throw std::runtime_error("no surface was reconstructed (0 triangles after " +
                              std::to_string(keyframes) + " keyframes): nothing to export" +
@@ -413,9 +444,9 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   // Exports first (each whole or absent), then the mesh, then the report.
   json exports = json::object();
   if (recorder && recorder->unrepresentable() > 0)
-    LogWarning("[" + seq.name + "] " + std::to_string(recorder->unrepresentable()) +
-               " points entered the engine with no camera: the exported stream cannot hold "
-               "them, so its replay will differ");
+    warn(std::to_string(recorder->unrepresentable()) +
+         " points entered the engine with no camera: the exported stream cannot hold them, so "
+         "its replay will differ");
   if (!options.export_stream.empty()) {
     const fs::path p = ExpandExportPath(options.export_stream, v, seq.name);
     if (p.has_parent_path()) fs::create_directories(p.parent_path());
@@ -453,7 +484,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
 
   json report;
   report["imr_version"] = Version();
-  report["job"] = fs::absolute(job.file).string();
+  report["job"] = fs::absolute(job.file).lexically_normal().string();
   report["sequence"] = {{"name", seq.name}, {"source", seq.source}};
   report["input"] = {{"format", job.input.format}, {"options", v.input_options}};
   if (format->sequences_are_paths) report["input"]["checksums"] = InputChecksums(seq.source, front_end);
@@ -492,6 +523,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   report["stage_seconds"] = stages;
   if (!snapshots.empty()) report["snapshots"] = snapshots;
   if (!exports.empty()) report["exports"] = exports;
+  if (!warnings.empty()) report["warnings"] = warnings;
   if (options.check_invariants_every > 0)
     report["invariant_checks"] = {{"every", options.check_invariants_every},
                                   {"count", checks},
@@ -508,7 +540,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   report["seconds"] = result->seconds;
   // report.json is staged with the meshes and moved in last: when it cannot be written (a full
   // disk) no mesh of the failed run is left under a final name either.
-  WriteFileAtomically(staging.path() / "report.json", report.dump(2) + "\n");
+  WriteFileAtomically(staging.path() / "report.json", DumpJson(report, 2) + "\n");
   result->files = staging.Commit(commit_last);
   result->report = std::move(report);
   result->ok = true;
@@ -551,6 +583,31 @@ std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob
                          " sequences; put {sequence} or {output} in the path so that each gets "
                          "its own (e.g. '{output}/stream.json')");
   }
+  // An export must not be (or hold) an output folder: a stream file where a sequence's folder
+  // goes breaks that sequence on every later run.
+  auto folder = [](const fs::path& p) {
+    fs::path n = fs::absolute(p).lexically_normal();
+    return n.has_relative_path() && n.filename().empty() ? n.parent_path() : n;
+  };
+  std::map<fs::path, std::string> folders;  // output folders and their parents -> a sequence
+  for (const SequenceRef& s : v.sequences)
+    for (fs::path p = folder(v.job.OutputDirectory(s.name)); p.has_relative_path(); p = p.parent_path())
+      folders.emplace(p, s.name);
+  for (const auto& [flag, value] : flags) {
+    if (value->empty()) continue;
+    for (const SequenceRef& s : v.sequences) {
+      const fs::path p = folder(ExpandExportPath(*value, v, s.name));
+      const auto it = folders.find(p);
+      if (it == folders.end()) continue;
+      problems.push_back(std::string(flag) + " " + *value + ": " + p.string() +
+                         (p == folder(v.job.OutputDirectory(it->second))
+                              ? " is the output folder of sequence '"
+                              : " holds the output folder of sequence '") +
+                         JsonText(it->second) + "'; name a file (or folder) of its own, e.g. " +
+                         "'{output}/stream.json'");
+      break;
+    }
+  }
   for (const auto& [a, b] : {std::pair{&o.export_stream, &o.export_colmap},
                              std::pair{&o.export_stream, &o.trace},
                              std::pair{&o.export_colmap, &o.trace}})
@@ -561,10 +618,9 @@ std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob
 }
 
 fs::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& v, const std::string& sequence) {
-  std::string s = Replace(tmpl, "{sequence}", sequence);
-  s = Replace(s, "{job}", v.job.Name());
-  s = Replace(s, "{output}", v.job.OutputDirectory(sequence).string());
-  return fs::path(s);
+  return io::ExpandTemplate(tmpl, {{"{sequence}", sequence},
+                                   {"{job}", v.job.Name()},
+                                   {"{output}", v.job.OutputDirectory(sequence).string()}});
 }
 
 SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,

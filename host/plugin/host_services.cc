@@ -8,6 +8,7 @@ namespace imr::plugin {
 namespace {
 
 std::atomic<bool> g_cancel{false};
+std::atomic<int> g_cancel_signal{0};
 
 void LogService(void*, int32_t level, const char* message) {
   if (message == nullptr) return;
@@ -34,8 +35,13 @@ const imr_host_services* HostServices() {
   return &services;
 }
 
-void RequestCancel() { g_cancel = true; }
+void RequestCancel(int signal) {
+  int none = 0;
+  if (signal != 0) g_cancel_signal.compare_exchange_strong(none, signal);
+  g_cancel = true;
+}
 bool CancelRequested() { return g_cancel.load(); }
+int CancelSignal() { return g_cancel_signal.load(); }
 
 LoadedInstance CreateInstance(const PluginInfo& info, const nlohmann::json& params) {
   return LoadedInstance{info.library,

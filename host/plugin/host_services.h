@@ -1,5 +1,5 @@
 // The services the host hands to every plugin instance (SDK imr_host_services): log lines go to
-// imr's log, progress to debug lines, cancellation follows SIGINT/SIGTERM.
+// imr's log, progress to debug lines, cancellation follows SIGINT/SIGTERM/SIGHUP.
 #pragma once
 
 #include <imr/sdk/plugin.h>
@@ -16,9 +16,11 @@ namespace imr::plugin {
 // Services shared by all instances of this process.
 const imr_host_services* HostServices();
 
-// Cancellation: set by the signal handlers the CLI installs; plugins poll it.
-void RequestCancel();
+// Cancellation: set by the signal handlers the CLI installs (async-signal-safe); plugins poll
+// it. CancelSignal: the first signal that asked (0: none, or asked without a signal).
+void RequestCancel(int signal = 0);
 bool CancelRequested();
+int CancelSignal();
 
 // An instance of a loaded plugin that also keeps its library loaded.
 struct LoadedInstance {

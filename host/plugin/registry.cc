@@ -1,11 +1,14 @@
 #include "host/plugin/registry.h"
 
 #include "host/io/schema.h"
+#include "host/plugin/elf_check.h"
 
 #include <imr/sdk/host.hpp>
 
 #include <boost/dll/runtime_symbol_info.hpp>
 #include <boost/dll/shared_library.hpp>
+
+#include <dlfcn.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -47,8 +50,15 @@ void PluginRegistry::Scan(const std::vector<fs::path>& paths) {
     std::error_code ec;
     if (fs::is_directory(entry, ec)) {
       std::vector<fs::path> files;
-      for (const auto& e : fs::directory_iterator(entry, ec))
-        if (e.is_regular_file() && e.path().extension() == ".so") files.push_back(e.path());
+      // Never throws: an entry that cannot be read (a symbolic link loop) is a refusal.
+      for (auto it = fs::directory_iterator(entry, ec); !ec && it != fs::directory_iterator();
+           it.increment(ec)) {
+        if (it->path().extension() != ".so") continue;
+        std::error_code entry_ec;
+        if (it->is_regular_file(entry_ec)) files.push_back(it->path());
+        else if (entry_ec) refusals_.push_back({it->path(), "cannot read: " + entry_ec.message()});
+      }
+      if (ec) refusals_.push_back({entry, "cannot list the folder: " + ec.message()});
       std::sort(files.begin(), files.end());  // deterministic precedence within a folder
       for (const auto& f : files) LoadFile(f);
     } else if (fs::is_regular_file(entry, ec)) {
@@ -60,15 +70,38 @@ void PluginRegistry::Scan(const std::vector<fs::path>& paths) {
 }
 
 bool PluginRegistry::LoadFile(const fs::path& file) {
+  // Its headers first: a file cut short would crash the process (SIGBUS) inside dlopen, and a
+  // library without the entry symbol is not loaded at all (its constructors would run).
+  const ElfCheck elf = CheckElfFile(file, IMR_ENTRY_SYMBOL);
+  if (!elf.problem.empty()) {
+    refusals_.push_back({file, "cannot load: " + elf.problem});
+    return false;
+  }
+  if (elf.symbols_known && !elf.has_entry) {
+    refusals_.push_back({file, std::string("not an imr plugin: no entry symbol '") +
+                                   IMR_ENTRY_SYMBOL + "' in its dynamic symbol table"});
+    return false;
+  }
+  // dlopen itself for the loader's own message (Boost.DLL's adds an unrelated errno text);
+  // RTLD_NOW: an unresolved symbol fails here, not mid-run.
+  void* handle = ::dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (handle == nullptr) {
+    const char* e = ::dlerror();
+    std::string why = e != nullptr ? e : "unknown error";
+    if (why.rfind(file.string() + ": ", 0) == 0) why.erase(0, file.string().size() + 2);
+    refusals_.push_back({file, "cannot load: " + why});
+    return false;
+  }
   auto lib = std::make_shared<boost::dll::shared_library>();
   try {
-    // RTLD_NOW: an unresolved symbol fails here, with the loader's message, not mid-run.
     lib->load(boost::dll::fs::path(file.string()),
               boost::dll::load_mode::rtld_now | boost::dll::load_mode::rtld_local);
   } catch (const std::exception& e) {
+    ::dlclose(handle);
     refusals_.push_back({file, std::string("cannot load: ") + e.what()});
     return false;
   }
+  ::dlclose(handle);  // the library stays loaded: `lib` holds its own reference
   if (!lib->has(IMR_ENTRY_SYMBOL)) {
     refusals_.push_back({file, std::string("not an imr plugin: no entry symbol '") +
                                    IMR_ENTRY_SYMBOL + "'"});

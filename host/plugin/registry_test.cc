@@ -1,9 +1,16 @@
 #include "host/plugin/registry.h"
 
+#include "host/plugin/elf_check.h"
 #include "host/plugin/host_services.h"
 #include "host/plugin/policy_adapter.h"
 
 #include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 
 namespace imr::plugin {
 namespace {
@@ -33,6 +40,29 @@ TEST(Registry, RefusesWithTheFileNamed) {
   EXPECT_NE(r.refusals()[2].ToString().find("/no/such/folder: plugin path does not exist"),
             std::string::npos);
   EXPECT_TRUE(r.plugins().empty());
+}
+
+TEST(Registry, FilesAreJudgedByTheirElfHeadersBeforeLoading) {
+  // Cut short: refused by size (dlopen would map past the end: SIGBUS).
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("imr-elf-test-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ifstream in(IMR_EXAMPLE_PLUGIN, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ofstream(dir / "half.so", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  std::ofstream(dir / "script.so") << "/* GNU ld script */\nGROUP ( libc.so.6 )\n";
+  ElfCheck c = CheckElfFile(dir / "half.so", IMR_ENTRY_SYMBOL);
+  EXPECT_EQ(c.problem.rfind("truncated: " + std::to_string(bytes.size() / 2) + " bytes", 0), 0u) << c.problem;
+  c = CheckElfFile(dir / "script.so", IMR_ENTRY_SYMBOL);
+  EXPECT_NE(c.problem.find("not an ELF shared library"), std::string::npos) << c.problem;
+  c = CheckElfFile(IMR_EXAMPLE_PLUGIN, IMR_ENTRY_SYMBOL);
+  EXPECT_EQ(c.problem, "");
+  EXPECT_TRUE(c.symbols_known && c.has_entry);
+  c = CheckElfFile(IMR_NO_ENTRY_PLUGIN, IMR_ENTRY_SYMBOL);
+  EXPECT_EQ(c.problem, "");
+  EXPECT_TRUE(c.symbols_known);
+  EXPECT_FALSE(c.has_entry);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Registry, FirstPathWinsForAnId) {

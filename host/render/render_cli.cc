@@ -272,7 +272,7 @@ int Run(const std::vector<std::string>& args) {
     const io::ImageFrame& frame = seq.frames[static_cast<std::size_t>(n)];
     io::Image image;
     const bool no_image = vm.count("no-image") > 0 || format == "slam_json";
-    if (!no_image) image = io::ReadImage(frame.image_path);
+    if (!no_image) image = io::ReadImage(frame.image_path, seq.image_limits);
     const Camera camera = CameraOf(frame.camera);
     if (!no_image && (image.width != camera.width || image.height != camera.height))
       throw std::runtime_error(frame.image_path + ": image is " + std::to_string(image.width) + "x" +

@@ -1,6 +1,7 @@
 #include "host/report/viewer_page.h"
 
 #include "host/util/atomic_file.h"
+#include "host/util/json_text.h"
 #include "host/util/text_codec.h"
 
 #include <unistd.h>
@@ -127,7 +128,7 @@ Row ReadRow(const json& s, std::size_t index, const fs::path& run_dir, std::vect
   r.row = s;
   if (!s.contains("name") || !s["name"].is_string())
     throw std::invalid_argument(where + ".name: expected a string");
-  r.name = s["name"].get<std::string>();
+  r.name = JsonText(s["name"].get<std::string>());
   if (s.contains("ok")) {
     if (!s["ok"].is_boolean()) throw std::invalid_argument(where + ".ok: expected true or false");
     r.ok = s["ok"].get<bool>();
@@ -141,7 +142,7 @@ Row ReadRow(const json& s, std::size_t index, const fs::path& run_dir, std::vect
   if (s.contains("error") && s["error"].is_string()) r.error = s["error"].get<std::string>();
   for (const char* key : {"output_directory", "output"})
     if (s.contains(key) && s[key].is_string() && r.output.empty())
-      r.output = Absolute(s[key].get<std::string>(), run_dir);
+      r.output = Absolute(GetBytes(s, key), run_dir);  // a name's bytes (host/util/json_text.h)
   if (s.contains("files")) {
     if (!s["files"].is_array()) throw std::invalid_argument(where + ".files: expected an array");
     for (const json& f : s["files"]) {
@@ -364,7 +365,7 @@ std::string ReadAsGlb(const fs::path& path) {
     }
   if (base.empty()) g.erase("buffers");
   else g["buffers"] = json::array({{{"byteLength", bin.size()}}});
-  std::string text = g.dump();
+  std::string text = DumpJson(g);
   while (text.size() % 4 != 0) text.push_back(' ');
   std::string glb = "glTF";
   PutU32(&glb, 2);
@@ -530,7 +531,7 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
     h << "</ul>\n";
   }
   // The mesh table as JSON; "</" cannot end the script element early once escaped.
-  std::string meshes_json = meshes.dump();
+  std::string meshes_json = DumpJson(meshes);
   for (std::size_t pos = 0; (pos = meshes_json.find("</", pos)) != std::string::npos; pos += 3)
     meshes_json.replace(pos, 2, "<\\/");
   h << "<script type=\"application/json\" id=\"imr-meshes\">" << meshes_json << "</script>\n"

@@ -31,7 +31,11 @@ std::string RandomSuffix() {
 
 void WriteFileAtomically(const fs::path& path, std::string_view contents) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + RandomSuffix());
+  // ".<name>.tmp-<12 hex>": 18 bytes more than the name, which may itself be near NAME_MAX
+  // (255); a long name is cut in the temporary (the random suffix keeps it unique).
+  std::string name = path.filename().string();
+  if (name.size() > 200) name.resize(200);
+  const fs::path tmp = dir / ("." + name + ".tmp-" + RandomSuffix());
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) Fail(path, std::string("cannot write: ") + std::strerror(errno));
   const char* p = contents.data();

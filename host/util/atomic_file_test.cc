@@ -42,6 +42,14 @@ TEST_F(AtomicFile, WritesAndReplacesWithoutLeavingTemporaries) {
   EXPECT_EQ(CountEntries(dir_), 1);
 }
 
+TEST_F(AtomicFile, NamesUpToNameMaxFit) {
+  // The temporary adds 18 bytes to the name: a 255-byte name used to fail ("File name too long").
+  const std::string name(250, 'n');
+  WriteFileAtomically(dir_ / (name + ".json"), "long");
+  EXPECT_EQ(Read(dir_ / (name + ".json")), "long");
+  EXPECT_EQ(CountEntries(dir_), 1);
+}
+
 TEST_F(AtomicFile, FailureNamesThePathAndKeepsTheOldFile) {
   WriteFileAtomically(dir_ / "keep.txt", "old");
   // Root ignores permission bits, so make the folder impossible instead: a file in its way.

@@ -15,5 +15,13 @@ TEST(ExitStatus, CountsFailuresBelowTheUsageCode) {
   EXPECT_EQ(ExitStatusForFailures(256) % 256, kExitMaxFailures);  // 256 would read as 0
 }
 
+TEST(ExitStatus, EnvironmentErrorsAreNeitherFailureCountsNorUsage) {
+  for (int code : {kExitCantCreate, kExitTempFail}) {
+    EXPECT_GT(code, kExitUsage);
+    EXPECT_LT(code, 126);  // 126 and up: the shell's (not executable, not found, signals)
+  }
+  EXPECT_NE(kExitCantCreate, kExitTempFail);
+}
+
 }  // namespace
 }  // namespace imr
