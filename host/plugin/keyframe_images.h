@@ -23,7 +23,7 @@ namespace imr::plugin {
 struct KeyframeImageStoreOptions {
   // Decoded bytes kept at most: held images count, released ones are evicted (least recently
   // used first) to stay within it. Asking for an image that would take held bytes beyond it fails.
-  uint64_t budget_bytes = uint64_t{1} << 30;
+  uint64_t budget_bytes = uint64_t{512} << 20;
 
   // Empty when usable, else which field and why.
   std::string Check() const;

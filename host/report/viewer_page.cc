@@ -242,10 +242,30 @@ const char* kScript = R"JS(
     urls[i] = URL.createObjectURL(new Blob([bytes], { type: 'model/gltf-binary' }));
     if (i === current) viewer.src = urls[i];
   };
+  // An upright imr mesh opens at the start of its camera path, looking along it (a street is
+  // long and narrow: the whole of it is a sliver); any other mesh is framed whole.
+  function frame(m) {
+    if (m.view) {
+      const f = m.view.from, t = m.view.to;
+      const dx = f[0] - t[0], dz = f[2] - t[2];
+      const d = Math.max(Math.hypot(dx, dz), 1e-6);
+      viewer.minCameraOrbit = 'auto auto 0m';
+      viewer.maxFieldOfView = '60deg';
+      viewer.cameraTarget = t[0] + 'm ' + t[1] + 'm ' + t[2] + 'm';
+      viewer.cameraOrbit = (Math.atan2(dx, dz) * 180 / Math.PI) + 'deg 75deg ' + (1.2 * d) + 'm';
+      viewer.fieldOfView = '50deg';
+    } else {
+      viewer.minCameraOrbit = 'auto auto auto';
+      viewer.cameraTarget = 'auto auto auto';
+      viewer.cameraOrbit = '0deg 75deg 105%';
+      viewer.fieldOfView = 'auto';
+    }
+  }
   function show(i) {
     const m = meshes[i];
     if (!m || !viewer) return;
     current = i;
+    frame(m);
     say('Loading ' + m.name + ' ...');
     document.querySelectorAll('button[data-mesh]').forEach(function (b) {
       b.disabled = Number(b.dataset.mesh) === i;
@@ -287,14 +307,41 @@ const char* kScript = R"JS(
 })();
 )JS";
 
-// True when a GLB's materials carry a base colour texture or a primitive has COLOR_0: the page
-// then shows its own colours instead of painting it.
-bool HasColor(const std::string& glb) {
-  if (glb.size() < 20) return false;
+// A GLB's JSON chunk (null when it has none that parses).
+json GlbJson(const std::string& glb) {
+  if (glb.size() < 20) return nullptr;
   uint32_t length = 0;
   std::memcpy(&length, glb.data() + 12, 4);
-  if (20 + static_cast<std::size_t>(length) > glb.size()) return false;
-  const json g = json::parse(glb.begin() + 20, glb.begin() + 20 + length, nullptr, false);
+  if (20 + static_cast<std::size_t>(length) > glb.size()) return nullptr;
+  json g = json::parse(glb.begin() + 20, glb.begin() + 20 + length, nullptr, false);
+  return g.is_object() ? g : json(nullptr);
+}
+
+// Where the view opens for an upright imr mesh: from its first keyframe toward one a few
+// keyframes on (the exporter's "imr_upright" root node records both, in glTF coordinates);
+// null for other meshes (the viewer frames the whole mesh).
+json OpeningView(const json& g) {
+  if (!g.is_object()) return nullptr;
+  for (const json& n : g.value("nodes", json::array())) {
+    if (!n.is_object() || !n.contains("extras") || !n["extras"].is_object()) continue;
+    const json u = n["extras"].value("imr_upright", json());
+    if (!u.is_object() || !u.contains("view_from") || !u.contains("view_to")) continue;
+    const json& from = u["view_from"];
+    const json& to = u["view_to"];
+    auto point = [](const json& p) {
+      if (!p.is_array() || p.size() != 3) return false;
+      for (const json& x : p)
+        if (!x.is_number() || !std::isfinite(x.get<double>())) return false;
+      return true;
+    };
+    if (point(from) && point(to)) return {{"from", from}, {"to", to}};
+  }
+  return nullptr;
+}
+
+// True when a GLB's materials carry a base colour texture or a primitive has COLOR_0: the page
+// then shows its own colours instead of painting it.
+bool HasColor(const json& g) {
   if (!g.is_object()) return false;
   for (const json& m : g.value("materials", json::array()))
     if (m.is_object() && m.contains("pbrMetallicRoughness") &&
@@ -476,14 +523,16 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
       continue;
     }
     const fs::path js = assets / "meshes" / (std::to_string(i) + ".js");
-    const bool colored = HasColor(glb);
+    const json gltf = GlbJson(glb);
+    const bool colored = HasColor(gltf);
     WriteFileAtomically(js, "imrMeshLoaded(" + std::to_string(i) + ",\"" + Base64Encode(glb) + "\");\n");
     result.files.push_back(js);
     const json faces = At(r.report, "/mesh/faces");
     meshes.push_back({{"name", r.name},
                       {"script", UrlPath(js.lexically_relative(run_dir))},
                       {"faces", faces.is_null() ? json("?") : faces},
-                      {"colored", colored}});
+                      {"colored", colored},
+                      {"view", OpeningView(gltf)}});
     ++result.meshes_viewable;
   }
 

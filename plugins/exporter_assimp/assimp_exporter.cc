@@ -370,6 +370,11 @@ void WriteBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
   if (!error.empty()) throw std::runtime_error(error);
 }
 
+// C = -R^T t.
+void CameraCenter(const imr_camera& c, double out[3]) {
+  for (int k = 0; k < 3; ++k) out[k] = -(c.R[k] * c.t[0] + c.R[3 + k] * c.t[1] + c.R[6 + k] * c.t[2]);
+}
+
 // FNV-1a over raw bytes: the key of the texturing cache (the same mesh for every format).
 uint64_t Hash(uint64_t h, const void* data, std::size_t bytes) {
   const auto* p = static_cast<const uint8_t*>(data);
@@ -491,7 +496,14 @@ class AssimpExporter : public imr::sdk::Exporter {
     } else if (std::string(f.name) != "obj" && (write_ids || upright)) {
       EditGltf(path, std::string(f.name) == "glb", [&](GltfDocument& g) {
         if (write_ids) ConvertGltfPointIds(g);
-        if (upright) SetUprightNode(g, rotation);
+        if (upright) {
+          // A viewer's natural start: from the first keyframe, toward one a few keyframes on.
+          const auto& k = request.keyframes;
+          double from[3], to[3];
+          CameraCenter(k.front(), from);
+          CameraCenter(k[std::min<std::size_t>(k.size() - 1, 4)], to);
+          SetUprightNode(g, rotation, from, to);
+        }
       });
     }
     host_.Debug("wrote " + path.string() + ": " + std::to_string(mesh.vertex_count()) +

@@ -355,23 +355,34 @@ void ConvertGltfPointIds(GltfDocument& g) {
   }
 }
 
-void SetUprightNode(GltfDocument& g, const double rotation[9]) {
+void SetUprightNode(GltfDocument& g, const double rotation[9], const double view_from[3],
+                    const double view_to[3]) {
   using nlohmann::json;
   json& doc = g.doc;
   const auto scene = doc.value("scene", std::size_t{0});
   if (!doc.contains("scenes") || scene >= doc["scenes"].size()) Fail(g.file, "no scene");
   json& roots = doc["scenes"][scene]["nodes"];
-  json matrix = json::array();  // column-major
+  json matrix = json::array();  // column-major; + 0.0 turns -0 into 0
   for (int col = 0; col < 4; ++col)
     for (int row = 0; row < 4; ++row)
-      matrix.push_back(row < 3 && col < 3 ? rotation[3 * row + col] : (row == col ? 1.0 : 0.0));
-  json node = {{"name", "imr_upright"},
-               {"children", roots},
-               {"matrix", matrix},
-               {"extras",
-                {{"imr_upright",
-                  "rotation from the sequence's world frame (the vertex data's) to glTF's +Y up: "
-                  "the keyframe cameras' mean up is +Y, their mean viewing direction -Z"}}}};
+      matrix.push_back(row < 3 && col < 3 ? rotation[3 * row + col] + 0.0 : (row == col ? 1.0 : 0.0));
+  auto rotated = [&](const double* x) {
+    json p = json::array();
+    for (int row = 0; row < 3; ++row)
+      p.push_back(rotation[3 * row] * x[0] + rotation[3 * row + 1] * x[1] + rotation[3 * row + 2] * x[2] + 0.0);
+    return p;
+  };
+  json node = {
+      {"name", "imr_upright"},
+      {"children", roots},
+      {"matrix", matrix},
+      {"extras",
+       {{"imr_upright",
+         {{"about",
+           "this node's rotation takes the sequence's world frame (the vertex data's) to glTF's "
+           "+Y up: the keyframe cameras' mean up is +Y, their mean viewing direction -Z"},
+          {"view_from", rotated(view_from)},
+          {"view_to", rotated(view_to)}}}}}};
   doc["nodes"].push_back(node);
   roots = json::array({doc["nodes"].size() - 1});
 }

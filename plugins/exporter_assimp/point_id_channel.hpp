@@ -60,8 +60,11 @@ void EditGltf(const std::filesystem::path& file, bool binary,
 void ConvertGltfPointIds(GltfDocument& gltf);
 
 // Puts the scene's root nodes under a new root node "imr_upright" whose matrix is `rotation`
-// (row-major 3x3, world -> glTF), marked with extras {"imr_upright": ...} so that imr's own
-// readers can read the vertices in the sequence's frame.
-void SetUprightNode(GltfDocument& gltf, const double rotation[9]);
+// (row-major 3x3, world -> glTF), marked with extras {"imr_upright": {...}} so that imr's own
+// readers can read the vertices in the sequence's frame. `view_from` and `view_to` (world
+// coordinates: the first keyframe's centre and one a few keyframes on) are recorded there in
+// glTF coordinates, for viewers that want to open at the start of the camera path.
+void SetUprightNode(GltfDocument& gltf, const double rotation[9], const double view_from[3],
+                    const double view_to[3]);
 
 }  // namespace imr::exporter_assimp
