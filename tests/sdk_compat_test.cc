@@ -11,6 +11,8 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <vector>
+#include <array>
 
 #include "host/eval/mesh_io.h"
 #include "test_util.h"
@@ -19,6 +21,8 @@ namespace imr::testing {
 namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
+
+json ReadJson(const fs::path& p) { return json::parse(ReadText(p)); }
 
 class SdkCompat : public ::testing::Test {
  protected:
@@ -42,7 +46,7 @@ class SdkCompat : public ::testing::Test {
                       {"input", {{"format", "kitti_odometry"}}},
                       {"engine", {{"steiner_export", "any_steiner"}}},
                       {"pipeline", pipeline},
-                      {"plugin_paths", {IMR_SDK_TEST_PLUGIN_DIR}},
+                      {"plugin_paths", {IMR_SDK_TEST_PLUGIN_DIR, IMR_EXAMPLE_PLUGIN_DIR}},
                       {"output", {{"directory", (*dir_ / name).string()}, {"formats", formats}}}};
     WriteText(*dir_ / (name + ".json"), job.dump(2));
     return RunShell(Quote(IMR_EXE) + " run -q " + Quote((*dir_ / (name + ".json")).string()));
@@ -95,6 +99,44 @@ TEST_F(SdkCompat, PluginBuiltAgainstAbi10ExportsGeometryInToday) {
     ASSERT_EQ(n, 3u);
     ASSERT_EQ((std::array<uint32_t, 3>{a, b, c}), ply.triangles[t]) << "face " << t;
   }
+}
+
+// The SDK's example of ABI 1.1 (sdk/examples/vertex_color_exporter): a PLY coloured from the
+// nearest keyframe image, close to the assimp exporter's vertex colours of the same run.
+TEST_F(SdkCompat, ExampleExporterColoursFromTheKeyframeImages) {
+  const CommandResult r = Run("example", {{{"kind", "exporter"}, {"plugin", "org.imr.example.exporter.vertex_color"}},
+                                          {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}},
+                              {"colored_ply", "ply"});
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  auto colours = [](const fs::path& ply) {  // ASCII: x y z r g b per vertex
+    std::ifstream in(ply);
+    std::string line;
+    std::size_t n = 0;
+    while (std::getline(in, line) && line != "end_header")
+      if (line.rfind("element vertex ", 0) == 0) n = std::stoul(line.substr(15));
+    std::vector<std::array<int, 3>> c(n);
+    for (auto& rgb : c) {
+      double x, y, z;
+      in >> x >> y >> z >> rgb[0] >> rgb[1] >> rgb[2];
+    }
+    return c;
+  };
+  const auto example = colours(*dir_ / "example" / "mesh_colored.ply");
+  ASSERT_FALSE(example.empty());
+  // The assimp exporter's binary PLY: x y z nx ny nz (floats), point_id (int), red green blue.
+  const std::string bytes = ReadText(*dir_ / "example" / "mesh.ply");
+  const std::size_t body = bytes.find("end_header\n") + 11;
+  ASSERT_EQ((bytes.size() - body - 13 * ReadJson(*dir_ / "example" / "report.json")["mesh"]["faces"].get<std::size_t>()),
+            example.size() * 31);
+  double differ = 0;
+  int grey = 0;
+  for (std::size_t i = 0; i < example.size(); ++i) {
+    const auto* c = reinterpret_cast<const uint8_t*>(bytes.data() + body + 31 * i + 28);
+    for (int k = 0; k < 3; ++k) differ += std::abs(example[i][k] - c[k]) / 3.0;
+    grey += example[i] == std::array<int, 3>{128, 128, 128};
+  }
+  EXPECT_LT(grey, static_cast<int>(example.size()) / 10) << "most vertices take an image's colour";
+  EXPECT_LT(differ / static_cast<double>(example.size()), 25.0) << "mean difference from the exporter's colours";
 }
 
 TEST_F(SdkCompat, ImageOutOfRangeIsAClearError) {
