@@ -5,11 +5,13 @@
 // with vertex colours only, once with the texture atlas. Figures: texturing time (textured minus
 // plain export) per keyframe and per megapixel of atlas, the atlas (pages, pixels, bytes), the
 // images decoded, and the resident memory the textured export adds (peak RSS during the export
-// minus RSS before it; the peak is reset through /proc/self/clear_refs). Input: --sequence DIR (a
+// minus RSS before it, each export in a forked child; the peak is reset through
+// /proc/self/clear_refs). Input: --sequence DIR (a
 // KITTI odometry folder with colour images) and --mesh FILE (its mesh, PLY/OBJ/glTF), or neither:
 // imr-synth renders a colour street and `imr run` reconstructs it first. Prints a table, then one
 // JSON object as the last line.
 #include <sched.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -116,9 +118,9 @@ int Main(const TextureArgs& a) {
   const io::ImageSequence seq = io::ReadKittiOdometry(sequence, so);
   std::vector<imr_camera> keyframes;
   std::vector<std::string> paths;
-  const int n = static_cast<int>(seq.frames.size());
-  for (int f = 0; f < n; ++f) {
-    if (f % a.keyframe_every != 0 && f + 1 != n) continue;
+  const int frame_count = static_cast<int>(seq.frames.size());
+  for (int f = 0; f < frame_count; ++f) {
+    if (f % a.keyframe_every != 0 && f + 1 != frame_count) continue;
     const io::CameraGeometry& g = seq.frames[f].camera;
     keyframes.push_back(pipeline::ToPluginCamera(g, g.intrinsics.width, g.intrinsics.height));
     paths.push_back(seq.frames[f].image_path);
@@ -144,7 +146,7 @@ int Main(const TextureArgs& a) {
 
   // One export as the host does it: a fresh image store (nothing decoded before), a fresh
   // instance (no cache from an earlier export), a fresh staging folder.
-  auto run = [&](const json& params, const std::string& tag, int round) {
+  auto measure = [&](const json& params, const std::string& tag, int round) {
     Export e;
     const fs::path dir = work / ("out-" + tag + "-" + std::to_string(round));
     fs::remove_all(dir);
@@ -181,6 +183,54 @@ int Main(const TextureArgs& a) {
     if (!a.keep) fs::remove_all(dir);
     return e;
   };
+  // Each export in a child process (fork): its peak RSS is its own, not memory an earlier export
+  // freed and the allocator kept.
+  auto run = [&](const json& params, const std::string& tag, int round) {
+    int fds[2];
+    if (::pipe(fds) != 0) throw std::runtime_error("pipe failed");
+    const pid_t pid = ::fork();
+    if (pid < 0) throw std::runtime_error("fork failed");
+    if (pid == 0) {
+      ::close(fds[0]);
+      std::string out;
+      try {
+        const Export e = measure(params, tag, round);
+        out = json{{"seconds", e.seconds}, {"rss_before_kb", e.rss_before_kb}, {"peak_kb", e.peak_kb},
+                   {"pages", e.pages}, {"atlas_pixels", e.atlas_pixels}, {"atlas_bytes", e.atlas_bytes},
+                   {"file_bytes", e.file_bytes}, {"decodes", e.images.decodes},
+                   {"requests", e.images.requests}, {"peak_cached", e.images.peak_bytes},
+                   {"decode_seconds", e.images.decode_seconds}}
+                  .dump();
+      } catch (const std::exception& ex) {
+        out = json{{"error", ex.what()}}.dump();
+      }
+      const ssize_t n = ::write(fds[1], out.data(), out.size());
+      ::_exit(n == static_cast<ssize_t>(out.size()) ? 0 : 1);
+    }
+    ::close(fds[1]);
+    std::string text;
+    char buf[4096];
+    for (ssize_t n; (n = ::read(fds[0], buf, sizeof buf)) > 0;) text.append(buf, static_cast<std::size_t>(n));
+    ::close(fds[0]);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    const json j = json::parse(text.empty() ? "{}" : text, nullptr, false);
+    if (!j.is_object() || j.contains("error") || !j.contains("seconds"))
+      throw std::runtime_error(tag + " export failed: " + (j.is_object() && j.contains("error") ? j["error"].get<std::string>() : text));
+    Export e;
+    e.seconds = j["seconds"];
+    e.rss_before_kb = j["rss_before_kb"];
+    e.peak_kb = j["peak_kb"];
+    e.pages = j["pages"];
+    e.atlas_pixels = j["atlas_pixels"];
+    e.atlas_bytes = j["atlas_bytes"];
+    e.file_bytes = j["file_bytes"];
+    e.images.decodes = j["decodes"];
+    e.images.requests = j["requests"];
+    e.images.peak_bytes = j["peak_cached"];
+    e.images.decode_seconds = j["decode_seconds"];
+    return e;
+  };
   struct Setting {
     std::string tag;
     json params;
@@ -210,16 +260,16 @@ int Main(const TextureArgs& a) {
   std::printf("%s\n", MachineLine().c_str());
   std::printf("mesh %s: %zu vertices, %zu triangles; %zu keyframes of %dx%d (every %d of %d frames)\n",
               mesh_file.c_str(), view.vertex_count, view.face_count, keyframes.size(), width, height,
-              a.keyframe_every, n);
+              a.keyframe_every, frame_count);
   std::printf("%-9s %9s %12s %10s\n", "export", "seconds", "added MiB", "files MiB");
   for (const Setting& s : settings)
     std::printf("%-9s %9.3f %12.1f %10.2f\n", s.tag.c_str(), median(s, secs), median(s, added),
                 median(s, [](const Export& e) { return static_cast<double>(e.file_bytes); }) / 1048576.0);
-  std::printf("atlas: %d page(s), %.2f Mpx, %.2f MiB (JPEG); images: %lld decoded, %lld requests, "
-              "%.1f MiB cached at most\n",
+  std::printf("atlas: %d page(s), %.2f Mpx, %.2f MiB (JPEG); images: %lld decoded in %.3f s, %lld "
+              "requests, %.1f MiB cached at most\n",
               t.pages, mpx, static_cast<double>(t.atlas_bytes) / 1048576.0,
-              static_cast<long long>(t.images.decodes), static_cast<long long>(t.images.requests),
-              static_cast<double>(t.images.peak_bytes) / 1048576.0);
+              static_cast<long long>(t.images.decodes), t.images.decode_seconds,
+              static_cast<long long>(t.images.requests), static_cast<double>(t.images.peak_bytes) / 1048576.0);
   std::printf("texturing (textured - plain export): %.3f s = %.1f ms per keyframe, %.1f ms per atlas Mpx\n",
               texturing, 1e3 * texturing / kf, mpx > 0 ? 1e3 * texturing / mpx : 0.0);
   std::printf("vertex colours only (colors - plain): %.3f s = %.1f ms per keyframe\n", colors - plain,
@@ -240,6 +290,7 @@ int Main(const TextureArgs& a) {
                                  {"colors", median(settings[1], added)},
                                  {"textured", median(settings[2], added)}}},
               {"images", {{"decodes", t.images.decodes}, {"requests", t.images.requests},
+                          {"decode_seconds", t.images.decode_seconds},
                           {"peak_cached_bytes", t.images.peak_bytes}}},
               {"repeat", a.repeat},
               {"load_average", LoadAverage()}};
