@@ -438,7 +438,7 @@ class AssimpExporter : public imr::sdk::Exporter {
     Appearance look;
     const TexturedMesh* tm = nullptr;
     if ((vertex_colors_ || texturing_.texture) && request.keyframe_images && !request.keyframes.empty())
-      tm = Texturing(request);
+      tm = Texturing(request, /*atlas=*/f.texture && texturing_.texture);
     if (vertex_colors_) {
       if (tm != nullptr && !tm->vertex_rgb.empty()) look.vertex_rgb = tm->vertex_rgb.data();
       else if (mesh.vertex_colors.size() == 3 * mesh.vertex_count()) look.vertex_rgb = mesh.vertex_colors.data();
@@ -514,17 +514,20 @@ class AssimpExporter : public imr::sdk::Exporter {
   }
 
  private:
-  // The colours and atlas of this request's mesh, computed once for all its formats.
-  const TexturedMesh* Texturing(const imr::sdk::ExportRequest& request) {
+  // The colours (and, when `atlas`, the atlas) of this request's mesh, computed once for all its
+  // formats: a PLY-only export builds no atlas; a later format that needs one builds it then.
+  const TexturedMesh* Texturing(const imr::sdk::ExportRequest& request, bool atlas) {
     const imr::sdk::MeshView& mesh = request.mesh;
     uint64_t key = 0xcbf29ce484222325ull;
     key = Hash(key, mesh.vertices.data(), mesh.vertices.size() * sizeof(double));
     key = Hash(key, mesh.faces.data(), mesh.faces.size() * sizeof(uint32_t));
     key = Hash(key, request.keyframes.data(), request.keyframes.size() * sizeof(imr_camera));
-    if (cache_ && cache_key_ == key) return &*cache_;
+    if (cache_ && cache_key_ == key && (cache_atlas_ || !atlas)) return &*cache_;
     cache_.reset();
     encoded_.clear();
     TexturingOptions o = texturing_;
+    o.texture = atlas;
+    cache_atlas_ = atlas;
     cache_ = ColorAndTexture(
         mesh, request.keyframes,
         [&](uint64_t i) { return host_.GetKeyframeImage(i); }, o, [&] { host_.CheckCancelled(); });
@@ -534,7 +537,8 @@ class AssimpExporter : public imr::sdk::Exporter {
                std::to_string(s.faces_textured) + " of " + std::to_string(s.faces) +
                " triangles textured in " + std::to_string(s.patches) + " patches (seams " +
                std::to_string(s.seams_best_view) + " -> " + std::to_string(s.seams) + ", " +
-               std::to_string(s.seams_forced) + " unavoidable), " +
+               std::to_string(s.seams_forced) + " unavoidable, " +
+               std::to_string(s.expansion_cycles) + " expansion cycles), " +
                std::to_string(cache_->pages.size()) + " atlas page(s), " +
                std::to_string(s.atlas_pixels) + " pixels, " + std::to_string(s.seconds_total) + " s");
     return &*cache_;
@@ -555,6 +559,7 @@ class AssimpExporter : public imr::sdk::Exporter {
   int jpeg_quality_ = 90;
   std::optional<TexturedMesh> cache_;
   uint64_t cache_key_ = 0;
+  bool cache_atlas_ = false;  // the cached result has the atlas
   std::vector<std::vector<uint8_t>> encoded_;  // per page, encoded once for all formats
 };
 
