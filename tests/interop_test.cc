@@ -49,17 +49,19 @@ json Job(const std::string& sequence, const std::string& format, const json& eng
 struct PlyMesh {
   std::vector<std::array<float, 3>> vertices;
   std::vector<int32_t> point_ids;
+  std::vector<std::array<uint8_t, 3>> colors;  // empty: no red green blue
   std::vector<std::array<int32_t, 3>> faces;
 };
 
-// The binary PLY the assimp exporter writes (float properties, an int point_id, uchar/int lists).
+// The binary PLY the assimp exporter writes (float properties, an int point_id, uchar red green
+// blue, uchar/int lists).
 PlyMesh ReadPly(const fs::path& p) {
   const std::string b = ReadText(p);
   const std::size_t end = b.find("end_header\n");
   EXPECT_NE(end, std::string::npos) << p;
   std::istringstream header(b.substr(0, end));
   std::string line;
-  std::size_t nv = 0, nf = 0, vertex_bytes = 0, x_at = 0, id_at = SIZE_MAX;
+  std::size_t nv = 0, nf = 0, vertex_bytes = 0, x_at = 0, id_at = SIZE_MAX, red_at = SIZE_MAX;
   bool in_vertex = false;
   while (std::getline(header, line)) {
     std::istringstream l(line);
@@ -73,7 +75,8 @@ PlyMesh ReadPly(const fs::path& p) {
       l >> type >> name;
       if (name == "x") x_at = vertex_bytes;
       if (name == "point_id") id_at = vertex_bytes;
-      vertex_bytes += 4;
+      if (name == "red") red_at = vertex_bytes;
+      vertex_bytes += type == "uchar" ? 1 : 4;
     }
   }
   PlyMesh m;
@@ -85,6 +88,7 @@ PlyMesh ReadPly(const fs::path& p) {
     int32_t id = -1;
     if (id_at != SIZE_MAX) std::memcpy(&id, d + id_at, 4);
     m.point_ids.push_back(id);
+    if (red_at != SIZE_MAX) m.colors.push_back({uint8_t(d[red_at]), uint8_t(d[red_at + 1]), uint8_t(d[red_at + 2])});
   }
   for (std::size_t i = 0; i < nf; ++i) {
     EXPECT_EQ(static_cast<unsigned char>(*d), 3u);
@@ -202,6 +206,40 @@ TEST_F(Interop, AStreamWithMovingPointsReplaysToTheSameMesh) {
   for (const char* k : {"points_moved", "moves_skipped", "rays_cast", "rays_cast_backward",
                         "points_inserted", "cells", "cells_in_o", "keyframes"})
     EXPECT_EQ(replay["engine"][k], run["engine"][k]) << k;
+}
+
+// Engine-only inputs carry no images; a COLMAP model's points3D colours colour the mesh: each
+// vertex of a point takes that point's RGB, Steiner vertices are grey (issue 17).
+TEST_F(Interop, ColmapPointColoursColourTheMesh) {
+  json j = Job("street", "synthetic", nullptr, "run");
+  j["input"]["options"] = {{"frames", 30}, {"seed", 5}};
+  auto r = Imr("run -q " + Quote(WriteJob(j, "street.json").string()) + " --export-colmap " +
+               Quote((dir_ / "model").string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_TRUE(ReadPly(dir_ / "run" / "mesh.ply").colors.empty()) << "a synthetic stream has no colours";
+  io::ColmapModel model = io::ReadColmapModel(dir_ / "model");
+  auto paint = [](uint64_t id) {
+    return std::array<uint8_t, 3>{uint8_t(id * 37 % 256), uint8_t(id * 91 % 256), uint8_t(id * 13 % 256)};
+  };
+  for (auto& p : model.points) p.rgb = paint(p.id);
+  fs::remove_all(dir_ / "model");
+  fs::create_directories(dir_ / "model");
+  io::WriteColmapText(model, dir_ / "model");
+  r = Imr("run -q " + Quote(WriteJob(Job((dir_ / "model").string(), "colmap", nullptr, "colored"),
+                                     "colored.json").string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const PlyMesh m = ReadPly(dir_ / "colored" / "mesh.ply");
+  ASSERT_EQ(m.colors.size(), m.vertices.size());
+  int points = 0;
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    if (m.point_ids[i] < 0) {
+      EXPECT_EQ(m.colors[i], (std::array<uint8_t, 3>{128, 128, 128})) << "Steiner vertex " << i;
+      continue;
+    }
+    ++points;
+    ASSERT_EQ(m.colors[i], paint(static_cast<uint64_t>(m.point_ids[i]))) << "vertex " << i;
+  }
+  EXPECT_GT(points, 100);
 }
 
 TEST_F(Interop, ExportPathsMustSeparateSequences) {

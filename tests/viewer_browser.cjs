@@ -7,7 +7,9 @@
 //        --screenshot page.png --viewer-screenshot viewer.png [--timeout-ms 60000]
 //
 // Prints one JSON line: {ok, loads, shown, errors: [...], console_errors: [...], requests_refused:
-// [...], images: {total, loaded}, viewer: {width, height}}. Exit status 0 when ok, 1 otherwise.
+// [...], images: {total, loaded}, viewer: {width, height}, textures (materials with a loaded base
+// colour texture), blob_requests: {started, finished, failed: [...]}}. Exit status 0 when ok, 1
+// otherwise.
 'use strict';
 const fs = require('fs');
 const os = require('os');
@@ -31,7 +33,8 @@ function args() {
   const { chromium } = require(path.join(a.nodeModules, 'playwright-core'));
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'imr-chromium-'));
   const result = { ok: false, loads: 0, shown: null, errors: [], console_errors: [],
-                   requests_refused: [], images: null, viewer: null };
+                   requests_refused: [], images: null, viewer: null, textures: 0,
+                   blob_requests: { started: 0, finished: 0, failed: [] } };
   let context;
   try {
     context = await chromium.launchPersistentContext(profile, {
@@ -53,6 +56,21 @@ function args() {
     });
     // model-viewer's load / error events, caught on the way down (they do not bubble).
     await page.addInitScript(() => {
+      // In-page blobs: the mesh the page hands <model-viewer>, and the textures three.js decodes
+      // from it (each image of a GLB is fetched through a blob: URL). Counted here: with request
+      // routing on, the browser does not report blob: requests to playwright.
+      window.__imrBlobs = { started: 0, finished: 0, failed: [] };
+      const fetch0 = window.fetch;
+      window.fetch = function (input, init) {
+        const url = typeof input === 'string' ? input : (input && input.url) || '';
+        if (!url.startsWith('blob:')) return fetch0.call(this, input, init);
+        window.__imrBlobs.started += 1;
+        return fetch0.call(this, input, init).then((r) => {
+          if (r.ok) window.__imrBlobs.finished += 1;
+          else window.__imrBlobs.failed.push(url + ': ' + r.status);
+          return r;
+        }, (e) => { window.__imrBlobs.failed.push(url + ': ' + e); throw e; });
+      };
       window.__imrEvents = [];
       for (const type of ['load', 'error'])
         document.addEventListener(type, (e) => {
@@ -72,6 +90,16 @@ function args() {
     }, null, { timeout: a.timeoutMs });
     await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
     result.shown = await page.evaluate(() => window.imrViewer && window.imrViewer.shown);
+    result.blob_requests = await page.evaluate(() => window.__imrBlobs);
+    // Materials of the shown model whose base colour texture three.js has (a loaded image).
+    result.textures = await page.evaluate(() => {
+      let n = 0;
+      for (const m of document.querySelector('model-viewer').model.materials) {
+        const t = m.pbrMetallicRoughness.baseColorTexture;
+        if (t && t.texture && t.texture.source) n += 1;
+      }
+      return n;
+    });
     result.images = await page.evaluate(() => {
       const imgs = Array.from(document.images);
       return { total: imgs.length, loaded: imgs.filter((i) => i.complete && i.naturalWidth > 0).length };
@@ -82,7 +110,8 @@ function args() {
     await viewer.screenshot({ path: a.viewerScreenshot });
     await page.screenshot({ path: a.screenshot, fullPage: true });
     result.ok = result.loads >= 1 && result.errors.length === 0 && result.console_errors.length === 0 &&
-                result.requests_refused.length === 0 && result.images.loaded === result.images.total;
+                result.requests_refused.length === 0 && result.images.loaded === result.images.total &&
+                result.blob_requests.failed.length === 0;
   } catch (e) {
     result.errors.push(String(e && e.message || e));
   } finally {

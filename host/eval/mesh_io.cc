@@ -605,7 +605,11 @@ class GltfReader {
     const json& node = Item("nodes", n);
     Mat4 world;
     try {
-      world = Mul4(parent, LocalTransform(node));
+      // imr's display rotation (the exporter's "imr_upright" root): skipped, so that an imr
+      // glTF reads back in its sequence's frame like its OBJ and PLY.
+      const bool imr_upright = node.contains("extras") && node["extras"].is_object() &&
+                               node["extras"].contains("imr_upright");
+      world = imr_upright ? parent : Mul4(parent, LocalTransform(node));
     } catch (const json::exception& e) {
       Fail(path_, "nodes[" + std::to_string(n) + "]: bad transform (" + e.what() + ")");
     }

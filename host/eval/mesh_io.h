@@ -9,7 +9,9 @@
 //                 element face with a list "vertex_indices" or "vertex_index" (any integer count
 //                 and index types), polygons fan-triangulated; other elements skipped.
 //   .gltf / .glb  glTF 2.0: every triangle primitive (mode 4, 5, 6) of the nodes of the default
-//                 scene, with the nodes' transforms (matrix or TRS) applied; POSITION of any
+//                 scene, with the nodes' transforms (matrix or TRS) applied — except the
+//                 rotation of a node marked extras.imr_upright (the exporter's upright root:
+//                 imr's own glTF reads back in its sequence's frame); POSITION of any
 //                 component type (normalised integers as KHR_mesh_quantization), indices of any
 //                 unsigned type or none; buffers from files beside it, base64 data URIs, or the
 //                 GLB BIN chunk. Other attributes (NORMAL, imr's _POINT_ID) are ignored.

@@ -309,6 +309,23 @@ TEST_F(MeshIo, GltfMatrixStripAndNoIndices) {
   ExpectVertex(m, 3, {1, 1, 5});
 }
 
+// The exporter's upright root (a display rotation, extras.imr_upright) is not applied: imr's glTF
+// reads back in the sequence's frame; any other node's rotation still is.
+TEST_F(MeshIo, GltfImrUprightRootIsTheSequencesFrame) {
+  const std::string buf = SquareBuffer();
+  json doc = SquareGltf({{"byteLength", buf.size()},
+                         {"uri", "data:application/octet-stream;base64," + Base64(buf)}});
+  doc["nodes"].push_back({{"name", "imr_upright"},
+                          {"children", {0}},
+                          {"matrix", {1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1}},
+                          {"extras", {{"imr_upright", "display rotation"}}}});
+  doc["scenes"][0]["nodes"] = {2};
+  ExpectSquareScene(ReadMesh(Write("upright.gltf", doc.dump())));
+  doc["nodes"][2].erase("extras");  // an ordinary root: its rotation counts (y -> -z)
+  const TriangleMesh m = ReadMesh(Write("rotated.gltf", doc.dump()));
+  ExpectVertex(m, 5, {10, 0, -2}, 1e-6);
+}
+
 TEST_F(MeshIo, GltfErrors) {
   const std::string buf = SquareBuffer();
   auto e = ErrorOf(Write("nobin.gltf", SquareGltf({{"byteLength", buf.size()}, {"uri", "gone.bin"}}).dump()));

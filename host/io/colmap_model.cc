@@ -381,6 +381,8 @@ SfmModel ColmapToSfm(const ColmapModel& m, const std::string& where) {
     SfmPoint sp;
     sp.id = p.id;
     sp.position = p.xyz;
+    sp.has_rgb = true;
+    sp.rgb = p.rgb;
     for (const auto& e : p.track) {
       const auto& q = images.at(e.image_id)->points2d[e.point2d_idx];
       sp.observations.push_back({e.image_id, q.x, q.y});

@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -39,6 +41,12 @@ class KeyframeSource {
   virtual const CameraGeometry* Camera(uint64_t camera_id) const {
     (void)camera_id;
     return nullptr;
+  }
+  // The colour (red, green, blue) the input gives 3D point `point_id`, for exporters of
+  // engine-only inputs (COLMAP points3D); false when it gives none.
+  virtual bool PointColor(uint64_t point_id, std::array<uint8_t, 3>* rgb) const {
+    (void)point_id, (void)rgb;
+    return false;
   }
   // Figures about the input for the report (views, points, observations, what was skipped and
   // why), as a JSON object; null when there is nothing to say.

@@ -42,6 +42,12 @@ class SfmSource : public PrecomputedKeyframeSource {
     auto it = by_id_.find(id);
     return it == by_id_.end() ? nullptr : &model_.views[it->second];
   }
+  bool PointColor(uint64_t id, std::array<uint8_t, 3>* rgb) const override {
+    auto it = colors_.find(id);
+    if (it == colors_.end()) return false;
+    *rgb = it->second;
+    return true;
+  }
   json Summary() const override { return summary_; }
 
  private:
@@ -107,12 +113,15 @@ class SfmSource : public PrecomputedKeyframeSource {
                 {"points_skipped_too_few_views", skipped},
                 {"min_views", opt_.min_views},
                 {"keyframes", keyframes}};
-    model_.points = {};  // everything needed is in the updates now
+    for (const SfmPoint& p : model_.points)
+      if (p.has_rgb) colors_[p.id] = p.rgb;
+    model_.points = {};  // everything needed is in the updates now (and the colours)
   }
 
   SfmModel model_;
   SfmReplayOptions opt_;
   std::unordered_map<uint64_t, std::size_t> by_id_;
+  std::unordered_map<uint64_t, std::array<uint8_t, 3>> colors_;  // points the file coloured
   json summary_;
 };
 

@@ -23,6 +23,8 @@ struct SfmPoint {
   uint64_t id = 0;
   Vec3 position{};
   std::vector<SfmObservation> observations;
+  bool has_rgb = false;            // the file gives the point's colour (COLMAP points3D)
+  std::array<uint8_t, 3> rgb{};    // red, green, blue
 };
 
 // What both readers deliver, in the convention of camera_model.h.

@@ -19,21 +19,6 @@ double SecondsSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-imr_camera ToPluginCamera(const io::CameraGeometry& g, int width, int height) {
-  imr_camera c{};
-  c.id = g.id;
-  const io::Intrinsics& k = g.intrinsics;
-  const double K[9] = {k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0};
-  std::copy(std::begin(K), std::end(K), c.K);
-  for (int r = 0; r < 3; ++r) {
-    for (int col = 0; col < 3; ++col) c.R[3 * r + col] = g.rotation[r][col];
-    c.t[r] = g.translation[r];
-  }
-  c.width = width;
-  c.height = height;
-  return c;
-}
-
 engine::Camera ToEngineCamera(const io::CameraGeometry& g) {
   engine::Camera c;
   c.id = g.id;
@@ -62,6 +47,23 @@ double Median(std::vector<double> v) {
 }
 
 }  // namespace
+
+imr_camera ToPluginCamera(const io::CameraGeometry& g, int width, int height) {
+  imr_camera c{};
+  c.id = g.id;
+  const io::Intrinsics& k = g.intrinsics;
+  if (g.has_intrinsics && k.projectable && k.fx > 0.0 && k.fy > 0.0) {
+    const double K[9] = {k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0};
+    std::copy(std::begin(K), std::end(K), c.K);
+  }
+  for (int r = 0; r < 3; ++r) {
+    for (int col = 0; col < 3; ++col) c.R[3 * r + col] = g.rotation[r][col];
+    c.t[r] = g.translation[r];
+  }
+  c.width = width;
+  c.height = height;
+  return c;
+}
 
 std::string FrontEndOptions::Check() const {
   if (keyframe_every < 1) return "keyframe_every: expected >= 1";

@@ -64,6 +64,10 @@ struct SyntheticTruth {
 // Reads scene.json; throws std::runtime_error naming the file and field.
 SyntheticTruth ReadSyntheticTruth(const std::string& path);
 
+// A camera as plugins see it (imr_camera): K from the intrinsics (all zero when unknown or not
+// a pinhole the host can project), R and t, the image size given.
+imr_camera ToPluginCamera(const io::CameraGeometry& g, int width, int height);
+
 class ImageFrontEndSource : public io::KeyframeSource {
  public:
   // The instances must outlive the source.

@@ -7,6 +7,7 @@
 #include "host/pipeline/front_end.h"
 #include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
+#include "host/plugin/keyframe_images.h"
 #include "host/plugin/policy_adapter.h"
 #include "host/io/input_formats.h"
 #include "host/io/slam_json.h"
@@ -18,6 +19,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -142,11 +144,56 @@ class TraceFile {
   std::ofstream out_;
 };
 
+// What an export carries beside the mesh (SDK 1.1): the keyframes so far, their image files
+// (inputs with images) and the source, which may know the points' colours.
+struct ExportContext {
+  std::vector<imr_camera> keyframes;
+  std::vector<std::string> image_paths;  // one per keyframe, or empty: no images
+  const io::KeyframeSource* source = nullptr;
+
+  // Records the cameras of a keyframe update: the keyframe's own camera for image inputs (the
+  // update also carries the frames between keyframes), every new camera for the others.
+  void Add(const engine::KeyframeUpdate& update, const io::KeyframeInfo& kf,
+           const ImageFrontEndSource* front_end) {
+    auto camera_of = [&](const engine::Camera& c) {
+      if (const io::CameraGeometry* g = source->Camera(c.id); g != nullptr)
+        return ToPluginCamera(*g, g->intrinsics.width, g->intrinsics.height);
+      io::CameraGeometry g;  // only the centre and rotation the engine got
+      g.id = c.id;
+      for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 3; ++k) g.rotation[r][k] = c.rotation[3 * r + k];
+      io::SetFromCenter(g.rotation, c.center, &g);
+      return ToPluginCamera(g, 0, 0);
+    };
+    if (front_end != nullptr) {
+      for (const engine::Camera& c : update.cameras) {
+        if (c.id != static_cast<uint64_t>(kf.frame)) continue;
+        keyframes.push_back(camera_of(c));
+        image_paths.push_back(front_end->sequence().frames.at(c.id).image_path);
+      }
+      return;
+    }
+    for (const engine::Camera& c : update.cameras)
+      if (seen_.insert(c.id).second) keyframes.push_back(camera_of(c));
+  }
+
+ private:
+  std::set<uint64_t> seen_;
+};
+
+// How the keyframe images were served to one export (all formats of one mesh).
+struct ExportImageStats {
+  plugin::KeyframeImageStoreStats store;
+  int keyframes = 0;
+};
+
 // Writes `mesh` into `directory` as stem.<format> for every format, each through the first
-// exporter stage that writes it.
-void ExportMesh(const engine::Mesh& mesh, const std::vector<std::string>& formats,
-                const Exporters& exporters, const fs::path& directory, const std::string& stem,
-                StageWatch& watch, double stage_timeout) {
+// exporter stage that writes it, with the keyframes of `context` (their images decoded on demand
+// for this export only, within a bounded cache).
+ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& context,
+                            const std::vector<std::string>& formats, const Exporters& exporters,
+                            const fs::path& directory, const std::string& stem, StageWatch& watch,
+                            double stage_timeout) {
   imr_mesh_view view{};
   view.struct_size = sizeof(view);
   view.vertices = mesh.vertices.data();
@@ -154,6 +201,24 @@ void ExportMesh(const engine::Mesh& mesh, const std::vector<std::string>& format
   view.faces = mesh.faces.data();
   view.face_count = mesh.faces.size() / 3;
   view.point_ids = mesh.point_ids.data();
+  // The points' own colours, when the input gives any (grey where it gives none).
+  std::vector<uint8_t> colors;
+  if (context.source != nullptr && context.image_paths.empty()) {
+    bool any = false;
+    colors.assign(mesh.vertices.size(), 128);
+    std::array<uint8_t, 3> rgb{};
+    for (std::size_t i = 0; i < mesh.point_ids.size(); ++i)
+      if (mesh.point_ids[i] >= 0 &&
+          context.source->PointColor(static_cast<uint64_t>(mesh.point_ids[i]), &rgb)) {
+        std::copy(rgb.begin(), rgb.end(), colors.begin() + static_cast<std::ptrdiff_t>(3 * i));
+        any = true;
+      }
+    if (!any) colors.clear();
+  }
+  view.vertex_colors = colors.empty() ? nullptr : colors.data();
+  std::optional<plugin::KeyframeImageStore> images;
+  if (!context.image_paths.empty()) images.emplace(context.image_paths);
+  const plugin::ScopedKeyframeImages scope(images ? &*images : nullptr);
   std::set<std::string> written;
   const std::string dir = directory.string();
   for (const std::string& mesh_format : formats) {
@@ -166,12 +231,20 @@ void ExportMesh(const engine::Mesh& mesh, const std::vector<std::string>& format
       req.directory = dir.c_str();
       req.stem = stem.c_str();
       req.format = mesh_format.c_str();
+      req.keyframes = context.keyframes.empty() ? nullptr : context.keyframes.data();
+      req.keyframe_count = context.keyframes.size();
+      req.keyframe_images = images ? 1 : 0;
       const WatchedStage watched = WatchedStageOf(*stage, stage_timeout);
       const StageWatch::Call call = watch.Enter(watched);
       inst.instance.ExportMesh(&req);
       written.insert(mesh_format);
+      if (images) images->ReleaseAll();  // holds end with the call (plugin.h)
     }
   }
+  ExportImageStats stats;
+  stats.keyframes = static_cast<int>(context.keyframes.size());
+  if (images) stats.store = images->stats();
+  return stats;
 }
 
 // What the sequence was made from, by content: SHA-256 of each file of the source (a file, or the
@@ -339,6 +412,8 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   engine::KeyframeUpdate update;
   io::KeyframeInfo kf;
   io::CanonicalOrder canonical;
+  ExportContext export_context;
+  export_context.source = source.get();
   std::optional<io::StreamRecorder> recorder;
   if (!options.export_stream.empty() || !options.export_colmap.empty())
     recorder.emplace(source.get(), std::string("imr ") + Version() + ", job " + job.Name() +
@@ -365,6 +440,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + ": weight policy " +
                                policy->error());
     if (recorder) recorder->Record(update, kf);
+    export_context.Add(update, kf, front_end);
     ++keyframes;
     double this_check = -1.0;
     if (options.check_invariants_every > 0 && keyframes % options.check_invariants_every == 0) {
@@ -396,8 +472,8 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
         std::snprintf(stem, sizeof(stem), "_kf%06d", keyframes);
         StagingDirectory dir(result->output_directory / "snapshots");
         watch.SetPosition("snapshot after keyframe " + std::to_string(kf.index));
-        ExportMesh(snap, job.output.formats, exporters, dir.path(), job.output.stem + stem, watch,
-                   options.stage_timeout);
+        ExportMesh(snap, export_context, job.output.formats, exporters, dir.path(),
+                   job.output.stem + stem, watch, options.stage_timeout);
         for (auto& f : dir.Commit()) result->extra_files.push_back(std::move(f));
         snapshots.push_back({{"keyframe", keyframes}, {"frame", kf.frame},
                              {"stem", "snapshots/" + job.output.stem + stem},
@@ -477,8 +553,9 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   const auto export_start = std::chrono::steady_clock::now();
   StagingDirectory staging(result->output_directory);
   watch.SetPosition("writing the mesh after the last keyframe");
-  ExportMesh(mesh, job.output.formats, exporters, staging.path(), job.output.stem, watch,
-             options.stage_timeout);
+  const ExportImageStats export_images =
+      ExportMesh(mesh, export_context, job.output.formats, exporters, staging.path(),
+                 job.output.stem, watch, options.stage_timeout);
   const std::vector<std::string> commit_last = {job.output.stem + ".gltf", "report.json"};
   const double export_seconds = Seconds(export_start);
 
@@ -518,6 +595,15 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   }
   stages["engine"] = engine_seconds;
   stages["export"] = export_seconds;
+  // What the exporters were given (SDK 1.1) and how the keyframe images were served to them.
+  report["export_input"] = {{"keyframes", export_images.keyframes},
+                      {"keyframe_images", !export_context.image_paths.empty()}};
+  if (export_images.store.requests > 0)
+    report["export_input"]["image_service"] = {{"requests", export_images.store.requests},
+                                         {"decodes", export_images.store.decodes},
+                                         {"evictions", export_images.store.evictions},
+                                         {"peak_bytes", export_images.store.peak_bytes},
+                                         {"decode_seconds", export_images.store.decode_seconds}};
   if (!snapshots.empty()) stages["snapshots"] = snapshot_seconds;
   if (!v.evaluation.is_null()) stages["evaluation"] = evaluation_seconds;
   report["stage_seconds"] = stages;

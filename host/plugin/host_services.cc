@@ -1,8 +1,10 @@
 #include "host/plugin/host_services.h"
 
+#include "host/plugin/keyframe_images.h"
 #include "host/util/log.h"
 
 #include <atomic>
+#include <cstdio>
 
 namespace imr::plugin {
 namespace {
@@ -27,11 +29,31 @@ void ProgressService(void*, double fraction, const char* message) {
 
 int32_t CancelService(void*) { return g_cancel.load() ? 1 : 0; }
 
+imr_status KeyframeImageService(void*, uint64_t index, imr_image_view* out, imr_error* error) {
+  std::string message;
+  imr_status status = IMR_INVALID_ARGUMENT;
+  if (KeyframeImageStore* store = CurrentKeyframeImages(); store != nullptr)
+    status = store->Acquire(index, out, &message);
+  else
+    message = "keyframe image " + std::to_string(index) +
+              ": no keyframe images here (only during an export whose request has "
+              "keyframe_images set; this input has no images)";
+  if (status != IMR_OK && error != nullptr)
+    std::snprintf(error->message, sizeof(error->message), "%s", message.c_str());
+  return status;
+}
+
+void ReleaseKeyframeImageService(void*, uint64_t index) {
+  if (KeyframeImageStore* store = CurrentKeyframeImages(); store != nullptr) store->Release(index);
+}
+
 }  // namespace
 
 const imr_host_services* HostServices() {
   static const imr_host_services services{sizeof(imr_host_services), IMR_HOST_SERVICES_VERSION,
-                                          nullptr, &LogService, &ProgressService, &CancelService};
+                                          nullptr,          &LogService,
+                                          &ProgressService, &CancelService,
+                                          &KeyframeImageService, &ReleaseKeyframeImageService};
   return &services;
 }
 

@@ -1,5 +1,6 @@
 // The services the host hands to every plugin instance (SDK imr_host_services): log lines go to
-// imr's log, progress to debug lines, cancellation follows SIGINT/SIGTERM/SIGHUP.
+// imr's log, progress to debug lines, cancellation follows SIGINT/SIGTERM/SIGHUP, keyframe images
+// come from the store a ScopedKeyframeImages installed (keyframe_images.h).
 #pragma once
 
 #include <imr/sdk/plugin.h>

@@ -243,10 +243,30 @@ const char* kScript = R"JS(
     urls[i] = URL.createObjectURL(new Blob([bytes], { type: 'model/gltf-binary' }));
     if (i === current) viewer.src = urls[i];
   };
+  // An upright imr mesh opens at the start of its camera path, looking along it (a street is
+  // long and narrow: the whole of it is a sliver); any other mesh is framed whole.
+  function frame(m) {
+    if (m.view) {
+      const f = m.view.from, t = m.view.to;
+      const dx = f[0] - t[0], dz = f[2] - t[2];
+      const d = Math.max(Math.hypot(dx, dz), 1e-6);
+      viewer.minCameraOrbit = 'auto auto 0m';
+      viewer.maxFieldOfView = '60deg';
+      viewer.cameraTarget = t[0] + 'm ' + t[1] + 'm ' + t[2] + 'm';
+      viewer.cameraOrbit = (Math.atan2(dx, dz) * 180 / Math.PI) + 'deg 75deg ' + (1.2 * d) + 'm';
+      viewer.fieldOfView = '50deg';
+    } else {
+      viewer.minCameraOrbit = 'auto auto auto';
+      viewer.cameraTarget = 'auto auto auto';
+      viewer.cameraOrbit = '0deg 75deg 105%';
+      viewer.fieldOfView = 'auto';
+    }
+  }
   function show(i) {
     const m = meshes[i];
     if (!m || !viewer) return;
     current = i;
+    frame(m);
     say('Loading ' + m.name + ' ...');
     document.querySelectorAll('button[data-mesh]').forEach(function (b) {
       b.disabled = Number(b.dataset.mesh) === i;
@@ -263,11 +283,11 @@ const char* kScript = R"JS(
       window.imrViewer.shown = current;
       const m = meshes[current];
       say(m.name + ': ' + m.faces + ' triangles. Drag to turn, scroll to zoom, right-drag to pan.');
-      try {  // the meshes carry no material: give them a colour that shows their shape
+      try {  // a plain mesh gets a colour that shows its shape; a textured or coloured one keeps its own
         for (const mat of viewer.model.materials) {
-          mat.pbrMetallicRoughness.setBaseColorFactor([0.92, 0.65, 0.3, 1]);
+          if (!m.colored) mat.pbrMetallicRoughness.setBaseColorFactor([0.92, 0.65, 0.3, 1]);
           mat.pbrMetallicRoughness.setMetallicFactor(0);
-          mat.pbrMetallicRoughness.setRoughnessFactor(0.8);
+          mat.pbrMetallicRoughness.setRoughnessFactor(m.colored ? 1 : 0.8);
           mat.setDoubleSided(true);
         }
       } catch (e) { /* the view works without */ }
@@ -287,6 +307,52 @@ const char* kScript = R"JS(
   if (viewer && first >= 0) show(first);
 })();
 )JS";
+
+// A GLB's JSON chunk (null when it has none that parses).
+json GlbJson(const std::string& glb) {
+  if (glb.size() < 20) return nullptr;
+  uint32_t length = 0;
+  std::memcpy(&length, glb.data() + 12, 4);
+  if (20 + static_cast<std::size_t>(length) > glb.size()) return nullptr;
+  json g = json::parse(glb.begin() + 20, glb.begin() + 20 + length, nullptr, false);
+  return g.is_object() ? g : json(nullptr);
+}
+
+// Where the view opens for an upright imr mesh: from its first keyframe toward one a few
+// keyframes on (the exporter's "imr_upright" root node records both, in glTF coordinates);
+// null for other meshes (the viewer frames the whole mesh).
+json OpeningView(const json& g) {
+  if (!g.is_object()) return nullptr;
+  for (const json& n : g.value("nodes", json::array())) {
+    if (!n.is_object() || !n.contains("extras") || !n["extras"].is_object()) continue;
+    const json u = n["extras"].value("imr_upright", json());
+    if (!u.is_object() || !u.contains("view_from") || !u.contains("view_to")) continue;
+    const json& from = u["view_from"];
+    const json& to = u["view_to"];
+    auto point = [](const json& p) {
+      if (!p.is_array() || p.size() != 3) return false;
+      for (const json& x : p)
+        if (!x.is_number() || !std::isfinite(x.get<double>())) return false;
+      return true;
+    };
+    if (point(from) && point(to)) return {{"from", from}, {"to", to}};
+  }
+  return nullptr;
+}
+
+// True when a GLB's materials carry a base colour texture or a primitive has COLOR_0: the page
+// then shows its own colours instead of painting it.
+bool HasColor(const json& g) {
+  if (!g.is_object()) return false;
+  for (const json& m : g.value("materials", json::array()))
+    if (m.is_object() && m.contains("pbrMetallicRoughness") &&
+        m["pbrMetallicRoughness"].contains("baseColorTexture"))
+      return true;
+  for (const json& mesh : g.value("meshes", json::array()))
+    for (const json& p : mesh.value("primitives", json::array()))
+      if (p.is_object() && p.contains("attributes") && p["attributes"].contains("COLOR_0")) return true;
+  return false;
+}
 
 }  // namespace
 
@@ -322,10 +388,6 @@ std::string ReadAsGlb(const fs::path& path) {
   }
   if (!g.is_object() || !g.contains("asset") || At(g, "/asset/version") != "2.0")
     throw std::runtime_error(path.string() + ": not glTF 2.0 (asset.version is not \"2.0\")");
-  if (g.contains("images"))
-    for (const json& im : g["images"])
-      if (im.contains("uri"))
-        throw std::runtime_error(path.string() + ": images with a uri cannot be packed (imr's meshes have none)");
   // Buffers, concatenated, each 4-byte aligned.
   std::string bin;
   std::vector<std::size_t> base;
@@ -363,7 +425,39 @@ std::string ReadAsGlb(const fs::path& path) {
       v["buffer"] = 0;
       v["byteOffset"] = v.value("byteOffset", std::size_t{0}) + base[b];
     }
-  if (base.empty()) g.erase("buffers");
+  // Images beside the .gltf (a texture atlas) or in data URIs go into the binary chunk too.
+  if (g.contains("images"))
+    for (std::size_t i = 0; i < g["images"].size(); ++i) {
+      json& im = g["images"][i];
+      if (!im.contains("uri")) continue;
+      const std::string what = "images[" + std::to_string(i) + "] of " + path.string();
+      if (!im["uri"].is_string()) throw std::runtime_error(path.string() + ": " + what + ": uri is not a string");
+      const std::string uri = im["uri"].get<std::string>();
+      std::string data, mime;
+      if (uri.rfind("data:", 0) == 0) {
+        const std::size_t comma = uri.find(',');
+        if (comma == std::string::npos || uri.substr(0, comma).find(";base64") == std::string::npos ||
+            !Base64Decode(uri.substr(comma + 1), &data))
+          throw std::runtime_error(path.string() + ": images[" + std::to_string(i) + "]: bad data URI");
+        mime = uri.substr(5, uri.find(';') - 5);
+      } else {
+        const fs::path file = path.parent_path() / PercentDecode(uri);
+        data = ReadBytes(file, what);
+        const std::string ext = Lower(file.extension().string());
+        mime = ext == ".png" ? "image/png" : ext == ".jpg" || ext == ".jpeg" ? "image/jpeg" : "";
+        if (mime.empty())
+          throw std::runtime_error(path.string() + ": " + what + ": " + uri +
+                                   " is neither PNG nor JPEG (the only images a GLB holds)");
+      }
+      if (!g.contains("bufferViews")) g["bufferViews"] = json::array();
+      g["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", data.size()}});
+      bin += data;
+      while (bin.size() % 4 != 0) bin.push_back('\0');
+      im.erase("uri");
+      im["bufferView"] = g["bufferViews"].size() - 1;
+      if (!im.contains("mimeType")) im["mimeType"] = mime;
+    }
+  if (bin.empty()) g.erase("buffers");
   else g["buffers"] = json::array({{{"byteLength", bin.size()}}});
   std::string text = DumpJson(g);
   while (text.size() % 4 != 0) text.push_back(' ');
@@ -430,12 +524,16 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
       continue;
     }
     const fs::path js = assets / "meshes" / (std::to_string(i) + ".js");
+    const json gltf = GlbJson(glb);
+    const bool colored = HasColor(gltf);
     WriteFileAtomically(js, "imrMeshLoaded(" + std::to_string(i) + ",\"" + Base64Encode(glb) + "\");\n");
     result.files.push_back(js);
     const json faces = At(r.report, "/mesh/faces");
     meshes.push_back({{"name", r.name},
                       {"script", UrlPath(js.lexically_relative(run_dir))},
-                      {"faces", faces.is_null() ? json("?") : faces}});
+                      {"faces", faces.is_null() ? json("?") : faces},
+                      {"colored", colored},
+                      {"view", OpeningView(gltf)}});
     ++result.meshes_viewable;
   }
 

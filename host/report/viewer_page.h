@@ -7,7 +7,10 @@
 // each mesh is written as a small script, assets/meshes/<n>.js, holding the GLB in base64; the
 // page loads it with a <script> tag when the mesh is asked for (the first one at once) and hands
 // the bytes to <model-viewer> as a blob: URL. A .gltf with its .bin (no .glb beside it) is packed
-// into a GLB on the way. The meshes stay where they are; the page also links them.
+// into a GLB on the way (with its texture images). A textured or vertex-coloured mesh shows its
+// own colours; a plain one is painted orange so that its shape shows. The meshes stay where they
+// are; the page also links them. imr's glTF meshes stand upright (their root node's rotation,
+// +Y up), so the view opens looking the way the cameras looked.
 //
 // Written files (each atomically; index.html last): RUN_DIR/index.html,
 // RUN_DIR/assets/model-viewer-umd.min.js, RUN_DIR/assets/meshes/<n>.js.
@@ -86,9 +89,9 @@ ViewerPageResult WriteBatchPage(const std::filesystem::path& run_dir,
 // tools/setup.sh put in the source tree's tools/node/node_modules. Empty when none exists.
 std::filesystem::path FindModelViewerScript();
 
-// A glTF 2.0 file with external or data-URI buffers packed into one GLB (bytes); a .glb is
-// returned as it is. Throws std::runtime_error naming the file when it cannot (not glTF 2.0,
-// a missing buffer, external images).
+// A glTF 2.0 file with external or data-URI buffers and images (PNG, JPEG: a texture atlas
+// beside it) packed into one GLB (bytes); a .glb is returned as it is. Throws
+// std::runtime_error naming the file when it cannot (not glTF 2.0, a missing buffer or image).
 std::string ReadAsGlb(const std::filesystem::path& path);
 
 }  // namespace imr::report

@@ -1,6 +1,8 @@
 // The assimp exporter (DESIGN.md section 7, "Outputs"): writes the output surface as OBJ, binary
 // PLY, glTF 2.0 or GLB, with per-vertex normals and, where the format has a place for them, the
 // per-vertex point ids that trace the mesh back to its 3D points (DESIGN.md section 3, "Output").
+// Since SDK 1.1 it colours the surface from the keyframe images (vertex colours, a texture atlas:
+// texturing.hpp) and writes glTF upright (a root node's rotation).
 #include <imr/sdk/plugin.hpp>
 
 #include <fcntl.h>
@@ -14,6 +16,7 @@
 #include <assimp/material.h>
 #include <assimp/mesh.h>
 #include <assimp/scene.h>
+#include <assimp/texture.h>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -24,13 +27,30 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <optional>
+#include <unordered_map>
+
 #include "point_id_channel.hpp"
+#include "texturing.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using imr::exporter_assimp::AtlasPage;
+using imr::exporter_assimp::ColorAndTexture;
 using imr::exporter_assimp::ConvertGltfPointIds;
-using imr::exporter_assimp::ConvertPlyPointIds;
+using imr::exporter_assimp::EditGltf;
+using imr::exporter_assimp::GltfDocument;
+using imr::exporter_assimp::SetUprightNode;
+using imr::exporter_assimp::TexturedMesh;
+using imr::exporter_assimp::TexturingOptions;
+using imr::exporter_assimp::TexturingStats;
+using imr::exporter_assimp::UprightRotation;
+using imr::exporter_assimp::VertexNormals;
+using imr::exporter_assimp::RewritePly;
 using imr::exporter_assimp::EncodedPointId;
 using imr::exporter_assimp::EncodePointId;
 using imr::exporter_assimp::kMaxGltfPointId;
@@ -110,15 +130,17 @@ struct Format {
   const char* assimp_id;  // assimp's exporter id
   const char* extension;
   int64_t max_point_id;  // largest id the format's attribute holds exactly; 0: no ids
+  bool texture;          // has a place for a texture atlas
 };
 
-// "objnomtl": one file, no .mtl beside it (the mesh has one plain material anyway).
+// "objnomtl": one file, no .mtl beside it (the mesh has one plain material); a textured OBJ uses
+// assimp's "obj" (an .mtl naming the atlas images).
 // "plyb": assimp's binary PLY, little-endian on this host.
 constexpr std::array<Format, 4> kFormatTable = {{
-    {"obj", "objnomtl", ".obj", 0},
-    {"ply", "plyb", ".ply", kMaxPointId},
-    {"gltf", "gltf2", ".gltf", kMaxGltfPointId},
-    {"glb", "glb2", ".glb", kMaxGltfPointId},
+    {"obj", "objnomtl", ".obj", 0, true},
+    {"ply", "plyb", ".ply", kMaxPointId, false},
+    {"gltf", "gltf2", ".gltf", kMaxGltfPointId, true},
+    {"glb", "glb2", ".glb", kMaxGltfPointId, true},
 }};
 
 const Format& FindFormat(const std::string& name) {
@@ -170,137 +192,375 @@ void CheckMesh(const imr::sdk::MeshView& mesh, const Format& format, bool check_
   }
 }
 
-// Area-weighted vertex normals from the counter-clockwise faces; (0, 0, 1) where undefined.
-void ComputeNormals(const imr::sdk::MeshView& mesh, aiVector3D* out) {
-  const std::size_t nv = mesh.vertex_count();
-  std::vector<double> acc(3 * nv, 0.0);
-  const double* v = mesh.vertices.data();
-  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-    const uint32_t a = mesh.faces[3 * f], b = mesh.faces[3 * f + 1], c = mesh.faces[3 * f + 2];
-    double e1[3], e2[3];
+// What goes into the files beside the geometry.
+struct Appearance {
+  const uint8_t* vertex_rgb = nullptr;    // 3 per input vertex, or null: no colours
+  const TexturedMesh* texture = nullptr;  // faces with a page are textured; null: none
+  std::vector<std::string> page_paths;    // the material's texture path per page ("*i": embedded)
+};
+
+// One output mesh (one material): the input faces it holds, and its vertices as (input vertex,
+// patch) pairs so that a vertex on a seam between patches is split (it has two texture
+// coordinates there).
+struct Part {
+  std::vector<uint32_t> faces;   // input face indices
+  int page = -1;                 // atlas page, -1: no texture
+};
+
+aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& normals,
+                  const Part& part, const Appearance& look, bool with_point_ids,
+                  bool colors_on_textured, const std::string& name, unsigned material) {
+  const TexturedMesh* tex = part.page >= 0 ? look.texture : nullptr;
+  std::unordered_map<uint64_t, uint32_t> index;
+  std::vector<uint32_t> source;  // input vertex of each output vertex
+  std::vector<uint32_t> corner;  // output vertex of each corner, 3 per face of the part
+  std::vector<aiVector3D> uv;
+  corner.reserve(3 * part.faces.size());
+  for (const uint32_t f : part.faces)
     for (int k = 0; k < 3; ++k) {
-      e1[k] = v[3 * b + k] - v[3 * a + k];
-      e2[k] = v[3 * c + k] - v[3 * a + k];
+      const uint32_t v = mesh.faces[3 * f + k];
+      const uint64_t key = tex ? (uint64_t{static_cast<uint32_t>(tex->face_patch[f])} << 32 | v) : v;
+      const auto [it, added] = index.emplace(key, static_cast<uint32_t>(source.size()));
+      if (added) {
+        source.push_back(v);
+        // assimp's convention: v up from the bottom (its glTF writer flips it back to glTF's).
+        if (tex) uv.emplace_back(tex->face_uv[6 * f + 2 * k], 1.0f - tex->face_uv[6 * f + 2 * k + 1], 0.0f);
+      }
+      corner.push_back(it->second);
     }
-    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                         e1[0] * e2[1] - e1[1] * e2[0]};  // |n| = 2 * area
-    for (const uint32_t i : {a, b, c})
-      for (int k = 0; k < 3; ++k) acc[3 * i + k] += n[k];
+  auto* m = new aiMesh();
+  const auto nv = static_cast<unsigned>(source.size());
+  const auto nf = static_cast<unsigned>(part.faces.size());
+  m->mName = aiString(name);
+  m->mMaterialIndex = material;
+  m->mPrimitiveTypes = aiPrimitiveType_TRIANGLE;
+  m->mNumVertices = nv;
+  m->mVertices = new aiVector3D[nv];
+  m->mNormals = new aiVector3D[nv];
+  for (unsigned i = 0; i < nv; ++i) {
+    const std::size_t s = source[i];
+    m->mVertices[i] = aiVector3D(static_cast<ai_real>(mesh.vertices[3 * s]),
+                                 static_cast<ai_real>(mesh.vertices[3 * s + 1]),
+                                 static_cast<ai_real>(mesh.vertices[3 * s + 2]));
+    const double* n = &normals[3 * s];
+    m->mNormals[i] = n[0] == 0 && n[1] == 0 && n[2] == 0
+                         ? aiVector3D(0, 0, 1)
+                         : aiVector3D(static_cast<ai_real>(n[0]), static_cast<ai_real>(n[1]),
+                                      static_cast<ai_real>(n[2]));
   }
-  for (std::size_t i = 0; i < nv; ++i) {
-    const double* n = &acc[3 * i];
-    const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    out[i] = len > 0 && std::isfinite(len)
-                 ? aiVector3D(static_cast<ai_real>(n[0] / len), static_cast<ai_real>(n[1] / len),
-                              static_cast<ai_real>(n[2] / len))
-                 : aiVector3D(0, 0, 1);
+  unsigned channel = 0;
+  if (tex) {
+    m->mNumUVComponents[channel] = 2;
+    m->mTextureCoords[channel] = new aiVector3D[nv];
+    std::copy(uv.begin(), uv.end(), m->mTextureCoords[channel]);
+    ++channel;
   }
+  if (with_point_ids) {  // the last texture channel (point_id_channel.hpp)
+    m->mNumUVComponents[channel] = 2;
+    m->mTextureCoords[channel] = new aiVector3D[nv];
+    for (unsigned i = 0; i < nv; ++i) {
+      const EncodedPointId e = EncodePointId(mesh.point_ids[source[i]]);
+      m->mTextureCoords[channel][i] = aiVector3D(e.hi, e.lo, 0);
+    }
+  }
+  if (look.vertex_rgb != nullptr && (!tex || colors_on_textured)) {
+    m->mColors[0] = new aiColor4D[nv];
+    for (unsigned i = 0; i < nv; ++i) {
+      const uint8_t* c = look.vertex_rgb + 3 * static_cast<std::size_t>(source[i]);
+      // (b + 0.5) / 255: exact bytes again after the writers' truncating * 255.
+      m->mColors[0][i] = aiColor4D((c[0] + 0.5f) / 255.0f, (c[1] + 0.5f) / 255.0f,
+                                   (c[2] + 0.5f) / 255.0f, 1.0f);
+    }
+  }
+  m->mNumFaces = nf;
+  m->mFaces = new aiFace[nf];
+  for (unsigned f = 0; f < nf; ++f) {
+    aiFace& face = m->mFaces[f];
+    face.mNumIndices = 3;
+    face.mIndices = new unsigned[3]{corner[3 * f], corner[3 * f + 1], corner[3 * f + 2]};
+  }
+  return m;
 }
 
-// A complete scene: one root node holding one triangle mesh with one plain material.
+aiMaterial* Material(const std::string& name, bool white, const std::string& texture) {
+  auto* material = new aiMaterial();
+  const aiString n(name);
+  material->AddProperty(&n, AI_MATKEY_NAME);
+  // White under a texture or vertex colours (glTF multiplies them); light grey on plain meshes.
+  const aiColor3D color = white ? aiColor3D(1.0f, 1.0f, 1.0f) : aiColor3D(0.8f, 0.8f, 0.8f);
+  material->AddProperty(&color, 1, AI_MATKEY_COLOR_DIFFUSE);
+  if (!texture.empty()) {
+    const aiString path(texture);
+    material->AddProperty(&path, AI_MATKEY_TEXTURE_DIFFUSE(0));
+  }
+  return material;
+}
+
+// A complete scene: one root node holding one mesh per atlas page (with its textured material)
+// and one for the faces without texture (vertex colours, or the plain grey material).
 std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::string& name,
-                                    bool with_point_ids) {
+                                    bool with_point_ids, const Appearance& look,
+                                    bool colors_on_textured) {
   auto scene = std::make_unique<aiScene>();
-  const auto nv = static_cast<unsigned>(mesh.vertex_count());
-  const auto nf = static_cast<unsigned>(mesh.face_count());
-
-  scene->mNumMaterials = 1;
-  scene->mMaterials = new aiMaterial*[1]{new aiMaterial()};
-  const aiString material_name("imr_surface");
-  scene->mMaterials[0]->AddProperty(&material_name, AI_MATKEY_NAME);
-  const aiColor3D grey(0.8f, 0.8f, 0.8f);
-  scene->mMaterials[0]->AddProperty(&grey, 1, AI_MATKEY_COLOR_DIFFUSE);
-
-  scene->mNumMeshes = 1;
-  scene->mMeshes = new aiMesh*[1]{new aiMesh()};
-  aiMesh& m = *scene->mMeshes[0];
-  m.mName = aiString(name);
-  m.mMaterialIndex = 0;
-  m.mPrimitiveTypes = aiPrimitiveType_TRIANGLE;
-  m.mNumVertices = nv;
-  m.mVertices = new aiVector3D[nv];
-  for (unsigned i = 0; i < nv; ++i)
-    m.mVertices[i] = aiVector3D(static_cast<ai_real>(mesh.vertices[3 * i]),
-                                static_cast<ai_real>(mesh.vertices[3 * i + 1]),
-                                static_cast<ai_real>(mesh.vertices[3 * i + 2]));
-  m.mNormals = new aiVector3D[nv];
-  ComputeNormals(mesh, m.mNormals);
-  if (with_point_ids) {
-    m.mNumUVComponents[0] = 2;
-    m.mTextureCoords[0] = new aiVector3D[nv];
-    for (unsigned i = 0; i < nv; ++i) {
-      const EncodedPointId e = EncodePointId(mesh.point_ids[i]);
-      m.mTextureCoords[0][i] = aiVector3D(e.hi, e.lo, 0);
+  const std::vector<double> normals = VertexNormals(mesh);
+  std::vector<Part> parts;
+  if (look.texture != nullptr) {
+    parts.resize(look.texture->pages.size() + 1);
+    for (std::size_t p = 0; p + 1 < parts.size(); ++p) parts[p].page = static_cast<int>(p);
+    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+      const int page = look.texture->face_page[f];
+      parts[page >= 0 ? static_cast<std::size_t>(page) : parts.size() - 1].faces.push_back(
+          static_cast<uint32_t>(f));
     }
+  } else {
+    parts.resize(1);
+    parts[0].faces.resize(mesh.face_count());
+    for (std::size_t f = 0; f < mesh.face_count(); ++f) parts[0].faces[f] = static_cast<uint32_t>(f);
   }
-  m.mNumFaces = nf;
-  m.mFaces = new aiFace[nf];
-  for (unsigned f = 0; f < nf; ++f) {
-    aiFace& face = m.mFaces[f];
-    face.mNumIndices = 3;
-    face.mIndices = new unsigned[3]{mesh.faces[3 * f], mesh.faces[3 * f + 1], mesh.faces[3 * f + 2]};
-  }
+  std::erase_if(parts, [](const Part& p) { return p.faces.empty(); });
 
+  std::vector<aiMaterial*> materials;
+  std::vector<aiMesh*> meshes;
+  for (const Part& part : parts) {
+    const bool textured = part.page >= 0;
+    const auto material = static_cast<unsigned>(materials.size());
+    materials.push_back(textured ? Material("imr_atlas" + std::to_string(part.page), true,
+                                            look.page_paths[static_cast<std::size_t>(part.page)])
+                                 : Material("imr_surface", look.vertex_rgb != nullptr, ""));
+    const std::string mesh_name = parts.size() == 1 ? name
+                                  : textured        ? name + "_atlas" + std::to_string(part.page)
+                                                    : name + "_untextured";
+    meshes.push_back(BuildPart(mesh, normals, part, look, with_point_ids, colors_on_textured,
+                               mesh_name, material));
+  }
+  scene->mNumMaterials = static_cast<unsigned>(materials.size());
+  scene->mMaterials = new aiMaterial*[materials.size()];
+  std::copy(materials.begin(), materials.end(), scene->mMaterials);
+  scene->mNumMeshes = static_cast<unsigned>(meshes.size());
+  scene->mMeshes = new aiMesh*[meshes.size()];
+  std::copy(meshes.begin(), meshes.end(), scene->mMeshes);
   scene->mRootNode = new aiNode(name);
-  scene->mRootNode->mNumMeshes = 1;
-  scene->mRootNode->mMeshes = new unsigned[1]{0};
+  scene->mRootNode->mNumMeshes = scene->mNumMeshes;
+  scene->mRootNode->mMeshes = new unsigned[scene->mNumMeshes];
+  for (unsigned i = 0; i < scene->mNumMeshes; ++i) scene->mRootNode->mMeshes[i] = i;
   return scene;
+}
+
+// An atlas page encoded as PNG or JPEG (OpenCV's imgcodecs).
+std::vector<uint8_t> EncodePage(const AtlasPage& page, const std::string& format, int jpeg_quality) {
+  cv::Mat rgb(page.height, page.width, CV_8UC3, const_cast<uint8_t*>(page.rgb.data()));
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  std::vector<uint8_t> bytes;
+  const std::vector<int> params = format == "png" ? std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 3}
+                                                  : std::vector<int>{cv::IMWRITE_JPEG_QUALITY, jpeg_quality};
+  if (!cv::imencode("." + format, bgr, bytes, params))
+    throw std::runtime_error("cannot encode a " + std::to_string(page.width) + "x" +
+                             std::to_string(page.height) + " atlas page as " + format);
+  return bytes;
+}
+
+void WriteBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
+  std::string error;
+  {
+    CheckedIOSystem io(&error);
+    std::unique_ptr<Assimp::IOStream> out(io.Open(path.string().c_str(), "wb"));
+    if (out) out->Write(bytes.data(), 1, bytes.size());
+  }
+  if (!error.empty()) throw std::runtime_error(error);
+}
+
+// C = -R^T t.
+void CameraCenter(const imr_camera& c, double out[3]) {
+  for (int k = 0; k < 3; ++k) out[k] = -(c.R[k] * c.t[0] + c.R[3 + k] * c.t[1] + c.R[6 + k] * c.t[2]);
+}
+
+// FNV-1a over raw bytes: the key of the texturing cache (the same mesh for every format).
+uint64_t Hash(uint64_t h, const void* data, std::size_t bytes) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  for (std::size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+  return h;
 }
 
 class AssimpExporter : public imr::sdk::Exporter {
  public:
   static constexpr const char* kId = "org.imr.exporter.assimp";
-  static constexpr const char* kVersion = "1.0.0";
+  static constexpr const char* kVersion = "1.1.0";
   static constexpr const char* kDescription =
       "Mesh files through assimp: OBJ, binary PLY, glTF 2.0, GLB; normals in all, point ids in "
-      "PLY and glTF/GLB (OBJ has no place for them)";
+      "PLY and glTF/GLB, colours and a texture atlas from the keyframe images, glTF upright";
   static constexpr const char* kParamsSchema = R"({
   "point_ids": {"type": "boolean", "default": true,
-    "description": "Write each vertex's 3D point id (-1 for Steiner points) where the format has a per-vertex attribute: PLY 'property int point_id' (ids up to 2^31 - 1), glTF/GLB attribute '_POINT_ID' (SCALAR FLOAT as glTF forbids UNSIGNED_INT attributes; ids up to 2^24, exact). OBJ cannot keep them. An id beyond the format's range is an error."}
+    "description": "Write each vertex's 3D point id (-1 for Steiner points) where the format has a per-vertex attribute: PLY 'property int point_id' (ids up to 2^31 - 1), glTF/GLB attribute '_POINT_ID' (SCALAR FLOAT as glTF forbids UNSIGNED_INT attributes; ids up to 2^24, exact). OBJ cannot keep them. An id beyond the format's range is an error."},
+  "vertex_colors": {"type": "boolean", "default": true,
+    "description": "Per-vertex colours: from the keyframe images that see each vertex when the input has images, else the colours the input gives its points (COLMAP points3D). PLY 'red green blue alpha' (uchar), glTF/GLB COLOR_0 (on the faces without texture when there is one), OBJ 'v x y z r g b'."},
+  "texture": {"type": "boolean", "default": true,
+    "description": "OBJ, glTF and GLB get a texture atlas from the keyframe images (inputs with images): each triangle from one view (resolution, angle, visibility; neighbours prefer the same view), patches packed into atlas pages; glTF baseColorTexture (embedded in GLB, files beside .gltf and .obj/.mtl). Triangles no keyframe sees whole keep vertex colours."},
+  "atlas_size": {"type": "integer", "default": 4096, "minimum": 64, "maximum": 16384,
+    "description": "Pixels on a side of an atlas page (pages are cut to what they hold; more pages when one is full)."},
+  "atlas_format": {"type": "string", "default": "jpg", "enum": ["jpg", "png"],
+    "description": "Atlas image format: JPEG (small) or PNG (lossless)."},
+  "jpeg_quality": {"type": "integer", "default": 90, "minimum": 1, "maximum": 100,
+    "description": "JPEG quality of the atlas pages."},
+  "keyframe_step": {"type": "integer", "default": 1, "minimum": 1,
+    "description": "Colour and texture from every n-th keyframe (and the last one)."},
+  "seam_penalty": {"type": "number", "default": 1.0, "minimum": 0.0,
+    "description": "Smoothness weight of the view selection: the cost of two adjacent triangles taking different views, against a data term in [0, 1] (1 - projected area / the triangle's best). 0: every triangle takes its best view."},
+  "upright": {"type": "boolean", "default": true,
+    "description": "glTF/GLB: put the mesh under a root node 'imr_upright' whose rotation makes the world's up (the keyframe cameras' mean up) glTF's +Y and their mean viewing direction -Z, so viewers open it standing and facing the way the cameras looked. Vertex data stays in the sequence's frame; OBJ and PLY keep the sequence's frame."}
 })";
   static constexpr const char* kFormats = "obj,ply,gltf,glb";
 
   AssimpExporter(const imr::sdk::Params& params, const imr::sdk::Host& host) : host_(host) {
-    for (const auto& [key, value] : params.Json().items())
-      if (key != "point_ids")
-        throw InvalidArgument("params." + key + ": unknown parameter (known: point_ids)");
     point_ids_ = params.Get<bool>("point_ids", true);
+    vertex_colors_ = params.Get<bool>("vertex_colors", true);
+    texturing_.texture = params.Get<bool>("texture", true);
+    texturing_.atlas_size = params.Get<int>("atlas_size", 4096);
+    texturing_.keyframe_step = params.Get<int>("keyframe_step", 1);
+    texturing_.seam_penalty = params.Get<double>("seam_penalty", 1.0);
+    atlas_format_ = params.Get<std::string>("atlas_format", "jpg");
+    jpeg_quality_ = params.Get<int>("jpeg_quality", 90);
+    upright_ = params.Get<bool>("upright", true);
+    if (const std::string e = texturing_.Check(); !e.empty()) throw InvalidArgument("params." + e);
   }
 
-  void Export(const imr::sdk::MeshView& mesh, const std::string& directory,
-              const std::string& stem, const std::string& format) override {
-    const Format& f = FindFormat(format);
+  void ExportMesh(const imr::sdk::ExportRequest& request) override {
+    const imr::sdk::MeshView& mesh = request.mesh;
+    const std::string& stem = request.stem;
+    const Format& f = FindFormat(request.format);
     if (stem.empty() || stem.find('/') != std::string::npos || stem == "." || stem == "..")
       throw InvalidArgument("stem \"" + stem + "\" is not a plain file name");
     const bool write_ids = point_ids_ && f.max_point_id > 0 && !mesh.point_ids.empty();
     CheckMesh(mesh, f, write_ids);
     host_.CheckCancelled();
 
-    const fs::path path = fs::path(directory) / (stem + f.extension);
-    std::unique_ptr<aiScene> scene = BuildScene(mesh, stem, write_ids);
+    // Colours and texture: from the images when there are any, else the input's point colours.
+    Appearance look;
+    const TexturedMesh* tm = nullptr;
+    if ((vertex_colors_ || texturing_.texture) && request.keyframe_images && !request.keyframes.empty())
+      tm = Texturing(request, /*atlas=*/f.texture && texturing_.texture);
+    if (vertex_colors_) {
+      if (tm != nullptr && !tm->vertex_rgb.empty()) look.vertex_rgb = tm->vertex_rgb.data();
+      else if (mesh.vertex_colors.size() == 3 * mesh.vertex_count()) look.vertex_rgb = mesh.vertex_colors.data();
+    }
+    const fs::path path = fs::path(request.directory) / (stem + f.extension);
+    if (f.texture && tm != nullptr && texturing_.texture && tm->stats.faces_textured > 0) {
+      look.texture = tm;
+      for (std::size_t p = 0; p < tm->pages.size(); ++p) {
+        const std::vector<uint8_t>& bytes = EncodedPage(p);
+        if (std::string(f.name) == "glb") {
+          look.page_paths.push_back("*" + std::to_string(p));  // embedded (scene->mTextures[p])
+        } else {
+          const std::string file = stem + "_atlas" + std::to_string(p) + "." + atlas_format_;
+          WriteBytes(fs::path(request.directory) / file, bytes);
+          look.page_paths.push_back(file);
+        }
+      }
+    }
+    host_.CheckCancelled();
+
+    std::unique_ptr<aiScene> scene =
+        BuildScene(mesh, stem, write_ids, look, /*colors_on_textured=*/std::string(f.name) == "obj");
+    if (look.texture != nullptr && std::string(f.name) == "glb") {
+      scene->mNumTextures = static_cast<unsigned>(tm->pages.size());
+      scene->mTextures = new aiTexture*[scene->mNumTextures];
+      for (unsigned p = 0; p < scene->mNumTextures; ++p) {
+        const std::vector<uint8_t>& bytes = EncodedPage(p);
+        auto* t = new aiTexture();
+        t->mWidth = static_cast<unsigned>(bytes.size());  // compressed: mHeight 0, mWidth bytes
+        t->mHeight = 0;
+        t->pcData = new aiTexel[(bytes.size() + sizeof(aiTexel) - 1) / sizeof(aiTexel)];
+        std::memcpy(t->pcData, bytes.data(), bytes.size());
+        std::snprintf(t->achFormatHint, sizeof(t->achFormatHint), "%s", atlas_format_.c_str());
+        t->mFilename = aiString(stem + "_atlas" + std::to_string(p) + "." + atlas_format_);
+        scene->mTextures[p] = t;
+      }
+    }
+    const char* assimp_id = std::string(f.name) == "obj" && look.texture != nullptr ? "obj" : f.assimp_id;
     {
       std::string write_error;
       Assimp::Exporter exporter;
       exporter.SetIOHandler(new CheckedIOSystem(&write_error));  // the exporter owns it
-      const aiReturn r = exporter.Export(scene.get(), f.assimp_id, path.string());
+      const aiReturn r = exporter.Export(scene.get(), assimp_id, path.string());
       if (!write_error.empty()) throw std::runtime_error(write_error);
       if (r != aiReturn_SUCCESS)
-        throw std::runtime_error("assimp could not write " + path.string() + " (" + f.assimp_id +
+        throw std::runtime_error("assimp could not write " + path.string() + " (" + assimp_id +
                                  "): " + exporter.GetErrorString());
     }
     scene.reset();
-    if (write_ids) {
-      if (format == "ply") ConvertPlyPointIds(path);
-      else ConvertGltfPointIds(path, format == "glb");
+    double rotation[9];
+    const bool upright = upright_ && f.max_point_id == kMaxGltfPointId &&
+                         UprightRotation(request.keyframes, rotation);
+    if (std::string(f.name) == "ply") {
+      if (write_ids || look.vertex_rgb != nullptr) RewritePly(path, write_ids);
+    } else if (std::string(f.name) != "obj" && (write_ids || upright)) {
+      EditGltf(path, std::string(f.name) == "glb", [&](GltfDocument& g) {
+        if (write_ids) ConvertGltfPointIds(g);
+        if (upright) {
+          // A viewer's natural start: from the first keyframe, toward one a few keyframes on.
+          const auto& k = request.keyframes;
+          double from[3], to[3];
+          CameraCenter(k.front(), from);
+          CameraCenter(k[std::min<std::size_t>(k.size() - 1, 4)], to);
+          SetUprightNode(g, rotation, from, to);
+        }
+      });
     }
     host_.Debug("wrote " + path.string() + ": " + std::to_string(mesh.vertex_count()) +
                 " vertices, " + std::to_string(mesh.face_count()) + " triangles" +
-                (write_ids ? ", point ids" : ""));
+                (write_ids ? ", point ids" : "") + (look.vertex_rgb ? ", vertex colours" : "") +
+                (look.texture ? ", " + std::to_string(tm->pages.size()) + " atlas page(s)" : "") +
+                (upright ? ", upright" : ""));
   }
 
  private:
+  // The colours (and, when `atlas`, the atlas) of this request's mesh, computed once for all its
+  // formats: a PLY-only export builds no atlas; a later format that needs one builds it then.
+  const TexturedMesh* Texturing(const imr::sdk::ExportRequest& request, bool atlas) {
+    const imr::sdk::MeshView& mesh = request.mesh;
+    uint64_t key = 0xcbf29ce484222325ull;
+    key = Hash(key, mesh.vertices.data(), mesh.vertices.size() * sizeof(double));
+    key = Hash(key, mesh.faces.data(), mesh.faces.size() * sizeof(uint32_t));
+    key = Hash(key, request.keyframes.data(), request.keyframes.size() * sizeof(imr_camera));
+    if (cache_ && cache_key_ == key && (cache_atlas_ || !atlas)) return &*cache_;
+    cache_.reset();
+    encoded_.clear();
+    TexturingOptions o = texturing_;
+    o.texture = atlas;
+    cache_atlas_ = atlas;
+    cache_ = ColorAndTexture(
+        mesh, request.keyframes,
+        [&](uint64_t i) { return host_.GetKeyframeImage(i); }, o, [&] { host_.CheckCancelled(); });
+    cache_key_ = key;
+    const TexturingStats& s = cache_->stats;
+    host_.Info("texturing: " + std::to_string(s.views) + " keyframes, " +
+               std::to_string(s.faces_textured) + " of " + std::to_string(s.faces) +
+               " triangles textured in " + std::to_string(s.patches) + " patches (seams " +
+               std::to_string(s.seams_best_view) + " -> " + std::to_string(s.seams) + ", " +
+               std::to_string(s.seams_forced) + " unavoidable, " +
+               std::to_string(s.expansion_cycles) + " expansion cycles), " +
+               std::to_string(cache_->pages.size()) + " atlas page(s), " +
+               std::to_string(s.atlas_pixels) + " pixels, " + std::to_string(s.seconds_total) + " s");
+    return &*cache_;
+  }
+
+  const std::vector<uint8_t>& EncodedPage(std::size_t page) {
+    if (encoded_.size() != cache_->pages.size()) encoded_.assign(cache_->pages.size(), {});
+    if (encoded_[page].empty()) encoded_[page] = EncodePage(cache_->pages[page], atlas_format_, jpeg_quality_);
+    return encoded_[page];
+  }
+
   imr::sdk::Host host_;
   bool point_ids_ = true;
+  bool vertex_colors_ = true;
+  bool upright_ = true;
+  TexturingOptions texturing_;
+  std::string atlas_format_ = "jpg";
+  int jpeg_quality_ = 90;
+  std::optional<TexturedMesh> cache_;
+  uint64_t cache_key_ = 0;
+  bool cache_atlas_ = false;  // the cached result has the atlas
+  std::vector<std::vector<uint8_t>> encoded_;  // per page, encoded once for all formats
 };
 
 }  // namespace

@@ -27,10 +27,13 @@
 #include <string>
 #include <vector>
 
+#include "test_helpers.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using namespace imr::exporter_assimp::testing;
 using Point = std::array<float, 3>;
 using Triangle = std::array<float, 9>;  // three corners in winding order
 
@@ -182,18 +185,6 @@ void ExpectOutwardUnitNormals(const ReadBack& r, const Point& centre, std::size_
 
 // ---- readers for point ids --------------------------------------------------------------------
 
-std::vector<uint8_t> Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-template <typename T>
-T LoadLE(const uint8_t* p) {
-  T v;
-  std::memcpy(&v, p, sizeof(T));
-  return v;
-}
-
 struct PlyVertices {
   std::vector<std::string> properties;  // "type name"
   std::map<Point, int64_t> ids;         // empty when there is no point_id property
@@ -237,37 +228,6 @@ PlyVertices ReadPly(const fs::path& file) {
   return out;
 }
 
-struct Gltf {
-  json doc;
-  std::vector<uint8_t> bin;
-};
-
-Gltf LoadGltf(const fs::path& file) {
-  Gltf g;
-  const std::vector<uint8_t> bytes = Slurp(file);
-  if (file.extension() == ".glb") {
-    const auto json_len = LoadLE<uint32_t>(bytes.data() + 12);
-    g.doc = json::parse(bytes.begin() + 20, bytes.begin() + 20 + json_len);
-    const std::size_t bin_at = 20 + json_len;
-    g.bin.assign(bytes.begin() + static_cast<std::ptrdiff_t>(bin_at + 8), bytes.end());
-  } else {
-    g.doc = json::parse(bytes.begin(), bytes.end());
-    g.bin = Slurp(file.parent_path() / g.doc["buffers"][0]["uri"].get<std::string>());
-  }
-  return g;
-}
-
-// Floats of a tightly packed FLOAT accessor.
-std::vector<float> AccessorFloats(const Gltf& g, std::size_t index) {
-  const json& a = g.doc["accessors"][index];
-  const json& v = g.doc["bufferViews"][a["bufferView"].get<std::size_t>()];
-  const std::size_t n = a["count"].get<std::size_t>() * (a["type"] == "VEC3" ? 3 : 1);
-  const std::size_t at = v.value("byteOffset", std::size_t{0}) + a.value("byteOffset", std::size_t{0});
-  std::vector<float> out(n);
-  std::memcpy(out.data(), g.bin.data() + at, 4 * n);
-  return out;
-}
-
 // Position -> _POINT_ID of every primitive; empty when there is no _POINT_ID attribute.
 std::map<Point, int64_t> GltfIds(const Gltf& g) {
   std::map<Point, int64_t> out;
@@ -284,26 +244,6 @@ std::map<Point, int64_t> GltfIds(const Gltf& g) {
         out[{pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]}] = static_cast<int64_t>(ids[i]);
     }
   return out;
-}
-
-// ---- the validator ----------------------------------------------------------------------------
-
-struct Validation {
-  int exit_code = -1;
-  std::string output;
-};
-
-Validation RunValidator(const fs::path& file) {
-  Validation v;
-  const std::string cmd = std::string("'") + IMR_NODE_EXECUTABLE + "' '" + IMR_VALIDATE_GLTF_JS +
-                          "' '" + IMR_NODE_MODULES + "' '" + file.string() + "' 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return v;
-  char buf[4096];
-  while (std::fgets(buf, sizeof(buf), pipe) != nullptr) v.output += buf;
-  const int status = pclose(pipe);
-  v.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return v;
 }
 
 // ---- fixture ----------------------------------------------------------------------------------
@@ -351,19 +291,7 @@ class AssimpExporter : public ::testing::Test {
     }
   }
 
-  void ExpectValid(const fs::path& file) {
-    ASSERT_FALSE(std::string(IMR_NODE_EXECUTABLE).empty())
-        << "node was not found when configuring: run the set-up script in tools/ "
-           "(it installs nodejs and runs npm ci --prefix tools/node), then re-run cmake";
-    ASSERT_TRUE(fs::exists(IMR_NODE_EXECUTABLE)) << "node missing: " << IMR_NODE_EXECUTABLE;
-    ASSERT_TRUE(fs::exists(fs::path(IMR_NODE_MODULES) / "gltf-validator" / "package.json"))
-        << "the glTF validator is not installed in " << IMR_NODE_MODULES
-        << ": run the set-up script in tools/ (npm ci --prefix tools/node)";
-    const Validation v = RunValidator(file);
-    EXPECT_EQ(v.exit_code, 0) << "glTF validator report for " << file << ":\n" << v.output;
-    EXPECT_NE(v.output.find("summary: 0 errors"), std::string::npos) << v.output;
-    std::cout << v.output;  // warnings and infos, for the record
-  }
+  void ExpectValid(const fs::path& file) { ExpectValidGltf(file); }
 
   boost::dll::shared_library lib_;
   const imr_plugin_descriptor* descriptor_ = nullptr;
@@ -376,13 +304,20 @@ TEST_F(AssimpExporter, DescriptorDeclaresFormatsAndParams) {
   EXPECT_EQ(imr::sdk::CheckDescriptor(descriptor_), "");
   EXPECT_EQ(descriptor_->kind, IMR_KIND_EXPORTER);
   EXPECT_STREQ(descriptor_->id, kId);
-  EXPECT_STREQ(descriptor_->version, "1.0.0");
+  EXPECT_STREQ(descriptor_->version, "1.1.0");
+  EXPECT_EQ(descriptor_->abi_minor, 1);
   EXPECT_STREQ(descriptor_->exporter->formats, "obj,ply,gltf,glb");
   const json schema = json::parse(descriptor_->params_schema);
   ASSERT_TRUE(schema.contains("point_ids"));
   EXPECT_EQ(schema["point_ids"]["type"], "boolean");
   EXPECT_EQ(schema["point_ids"]["default"], true);
-  EXPECT_EQ(schema.size(), 1u);
+  // Colour and texture (issue 17): the job options a user sets.
+  EXPECT_EQ(schema["texture"]["default"], true);
+  EXPECT_EQ(schema["vertex_colors"]["default"], true);
+  EXPECT_EQ(schema["atlas_size"]["default"], 4096);
+  EXPECT_EQ(schema["keyframe_step"]["default"], 1);
+  EXPECT_EQ(schema["upright"]["default"], true);
+  EXPECT_EQ(schema.size(), 9u);
 }
 
 TEST_F(AssimpExporter, RoundTripKeepsPositionsTrianglesWindingAndNormals) {

@@ -83,18 +83,25 @@ bool DecodePointId(double hi, double lo, int64_t* id) {
   return *id >= kMinPointId && *id <= kMaxPointId;
 }
 
-void ConvertPlyPointIds(const fs::path& ply) {
+void RewritePly(const fs::path& ply, bool point_ids) {
   const Bytes in = ReadFile(ply);
   static const std::string kEnd = "end_header\n";
   const auto end = std::search(in.begin(), in.end(), kEnd.begin(), kEnd.end());
   if (end == in.end()) Fail(ply, "no end_header");
   const std::size_t body = static_cast<std::size_t>(end - in.begin()) + kEnd.size();
 
+  // The vertex record as the header declares it; colours are "uchar" whatever their size.
+  struct Property {
+    std::string type, name;
+    std::size_t size = 0;  // bytes as declared
+    bool color = false;    // red, green, blue, alpha
+  };
+  std::vector<Property> properties;
+  std::vector<std::string> before, after;  // header lines around the vertex properties
   std::istringstream header(std::string(in.begin(), in.begin() + static_cast<std::ptrdiff_t>(body)));
-  std::ostringstream out_header;
   std::string line, element;
-  std::size_t vertex_count = 0, record = 0, s_offset = 0;
-  bool binary_le = false, has_s = false, has_t = false;
+  std::size_t vertex_count = 0, face_count = 0;
+  bool binary_le = false;
   while (std::getline(header, line)) {
     std::istringstream words(line);
     std::string key;
@@ -106,61 +113,111 @@ void ConvertPlyPointIds(const fs::path& ply) {
     } else if (key == "element") {
       words >> element;
       if (element == "vertex") words >> vertex_count;
+      if (element == "face") words >> face_count;
     } else if (key == "property" && element == "vertex") {
-      std::string type, name;
-      words >> type >> name;
-      const std::size_t size = PlyTypeSize(type);
-      if (size == 0) Fail(ply, "vertex property \"" + line + "\"");
-      if (name == "s" && type == "float") {
-        has_s = true;
-        s_offset = record;
-        out_header << "property int point_id\n";
-        record += size;
-        continue;
-      }
-      if (name == "t") {
-        if (!has_s || type != "float" || record != s_offset + 4) Fail(ply, "t does not follow s");
-        has_t = true;
-        record += size;
-        continue;
-      }
-      record += size;
+      Property p;
+      words >> p.type >> p.name;
+      p.size = PlyTypeSize(p.type);
+      if (p.size == 0) Fail(ply, "vertex property \"" + line + "\"");
+      p.color = p.type == "uchar" && (p.name == "red" || p.name == "green" || p.name == "blue" ||
+                                      p.name == "alpha");
+      properties.push_back(p);
+      continue;
     }
-    out_header << line << '\n';
-    if (key == "format")
-      out_header << "comment point_id: id of the vertex's 3D point, -1 for Steiner points\n";
+    (properties.empty() ? before : after).push_back(line);
   }
   if (!binary_le) Fail(ply, "not binary_little_endian");
-  if (!has_s || !has_t) Fail(ply, "no s/t vertex properties carrying the point ids");
-  if (body + vertex_count * record > in.size()) Fail(ply, "file shorter than its vertices");
+
+  // assimp 5.2's binary writer declares colours "uchar" but writes four floats in [0, 1]: tell
+  // which from the file's size (faces: a uchar count and three ints each).
+  std::size_t declared = 0, colors = 0;
+  for (const Property& p : properties) {
+    declared += p.size;
+    colors += p.color;
+  }
+  const std::size_t faces_bytes = face_count * 13;
+  const std::size_t float_record = declared + 3 * colors;
+  bool float_colors = false;
+  if (in.size() == body + vertex_count * declared + faces_bytes) {
+    float_colors = false;
+  } else if (colors > 0 && in.size() == body + vertex_count * float_record + faces_bytes) {
+    float_colors = true;
+  } else {
+    Fail(ply, "its size fits no vertex layout (" + std::to_string(in.size()) + " bytes)");
+  }
+
+  // Output: the same properties, s t -> int point_id (when asked), colours -> uchar red green
+  // blue (alpha dropped).
+  std::ostringstream out_header;
+  for (const std::string& l : before) {
+    out_header << l << '\n';
+    if (l.rfind("format", 0) == 0 && point_ids)
+      out_header << "comment point_id: id of the vertex's 3D point, -1 for Steiner points\n";
+  }
+  std::size_t record = 0, s_offset = 0, out_record = 0;
+  bool has_s = false, has_t = false;
+  struct Copy {
+    std::size_t from, size, to;
+    bool float_to_byte;
+  };
+  std::vector<Copy> copies;
+  for (const Property& p : properties) {
+    const std::size_t in_size = p.color && float_colors ? 4 : p.size;
+    if (point_ids && p.name == "s" && p.type == "float" && !has_s) {
+      has_s = true;
+      s_offset = record;
+      out_header << "property int point_id\n";
+      copies.push_back({record, 8, out_record, false});  // decoded below
+      out_record += 4;
+    } else if (point_ids && p.name == "t" && has_s && !has_t) {
+      if (p.type != "float" || record != s_offset + 4) Fail(ply, "t does not follow s");
+      has_t = true;
+    } else if (p.color && p.name == "alpha") {
+      // dropped
+    } else {
+      out_header << "property " << p.type << " " << p.name << '\n';
+      copies.push_back({record, in_size, out_record, p.color && float_colors});
+      out_record += p.size;
+    }
+    record += in_size;
+  }
+  if (point_ids && (!has_s || !has_t)) Fail(ply, "no s/t vertex properties carrying the point ids");
+  for (const std::string& l : after) out_header << l << '\n';
 
   const std::string h = out_header.str();
-  const std::size_t new_record = record - 4;
   Bytes out;
-  out.reserve(h.size() + in.size() - body - 4 * vertex_count);
+  out.reserve(h.size() + vertex_count * out_record + faces_bytes);
   out.insert(out.end(), h.begin(), h.end());
   const std::size_t vertices_at = out.size();
-  out.resize(vertices_at + vertex_count * new_record);
+  out.resize(vertices_at + vertex_count * out_record);
   for (std::size_t i = 0; i < vertex_count; ++i) {
     const uint8_t* src = in.data() + body + i * record;
-    uint8_t* dst = out.data() + vertices_at + i * new_record;
-    int64_t id = 0;
-    if (!DecodePointId(Load<float>(src + s_offset), Load<float>(src + s_offset + 4), &id))
-      Fail(ply, "vertex " + std::to_string(i) + " does not carry a point id");
-    std::memcpy(dst, src, s_offset);
-    Store<int32_t>(dst + s_offset, static_cast<int32_t>(id));
-    std::memcpy(dst + s_offset + 4, src + s_offset + 8, record - s_offset - 8);
+    uint8_t* dst = out.data() + vertices_at + i * out_record;
+    for (const Copy& c : copies) {
+      if (point_ids && c.from == s_offset && c.size == 8) {
+        int64_t id = 0;
+        if (!DecodePointId(Load<float>(src + s_offset), Load<float>(src + s_offset + 4), &id))
+          Fail(ply, "vertex " + std::to_string(i) + " does not carry a point id");
+        Store<int32_t>(dst + c.to, static_cast<int32_t>(id));
+      } else if (c.float_to_byte) {
+        // The writer multiplies by 255 and truncates; the exporter stores (b + 0.5) / 255.
+        const float v = Load<float>(src + c.from);
+        dst[c.to] = static_cast<uint8_t>(std::clamp(std::floor(v * 255.0f), 0.0f, 255.0f));
+      } else {
+        std::memcpy(dst + c.to, src + c.from, c.size);
+      }
+    }
   }
   out.insert(out.end(), in.begin() + static_cast<std::ptrdiff_t>(body + vertex_count * record),
              in.end());
   WriteFile(ply, out);
 }
 
-void ConvertGltfPointIds(const fs::path& file, bool binary) {
+void EditGltf(const fs::path& file, bool binary, const std::function<void(GltfDocument&)>& edit) {
   using nlohmann::json;
-  json doc;
-  Bytes buffer;
-  fs::path bin_path;
+  GltfDocument g;
+  g.file = file;
+  g.binary = binary;
   {
     const Bytes in = ReadFile(file);
     if (binary) {
@@ -169,49 +226,81 @@ void ConvertGltfPointIds(const fs::path& file, bool binary) {
       const auto json_len = Load<uint32_t>(in.data() + 12);
       if (Load<uint32_t>(in.data() + 16) != kChunkJson || 20 + json_len > in.size())
         Fail(file, "first chunk is not JSON");
-      doc = json::parse(in.begin() + 20, in.begin() + 20 + json_len);
+      g.doc = json::parse(in.begin() + 20, in.begin() + 20 + json_len);
       const std::size_t bin_at = 20 + json_len;
       if (bin_at + 8 > in.size() || Load<uint32_t>(in.data() + bin_at + 4) != kChunkBin)
         Fail(file, "no BIN chunk");
       const auto bin_len = Load<uint32_t>(in.data() + bin_at);
       if (bin_at + 8 + bin_len > in.size()) Fail(file, "BIN chunk truncated");
-      buffer.assign(in.begin() + static_cast<std::ptrdiff_t>(bin_at + 8),
-                    in.begin() + static_cast<std::ptrdiff_t>(bin_at + 8 + bin_len));
+      g.buffer.assign(in.begin() + static_cast<std::ptrdiff_t>(bin_at + 8),
+                      in.begin() + static_cast<std::ptrdiff_t>(bin_at + 8 + bin_len));
     } else {
-      doc = json::parse(in.begin(), in.end());
+      g.doc = json::parse(in.begin(), in.end());
     }
   }
-  json& buffers = doc["buffers"];
+  json& buffers = g.doc["buffers"];
   if (!buffers.is_array() || buffers.size() != 1) Fail(file, "expected exactly one buffer");
   if (!binary) {
     const std::string uri = buffers[0].value("uri", "");
     if (uri.empty() || uri.find(':') != std::string::npos || uri.find('/') != std::string::npos)
       Fail(file, "buffer uri \"" + uri + "\" is not a file beside it");
-    bin_path = file.parent_path() / uri;
-    buffer = ReadFile(bin_path);
+    g.buffer_file = file.parent_path() / uri;
+    g.buffer = ReadFile(g.buffer_file);
   }
   const auto byte_length = buffers[0].value("byteLength", std::size_t{0});
-  if (byte_length > buffer.size()) Fail(file, "buffer shorter than its byteLength");
-  buffer.resize(byte_length);  // drop GLB padding; re-added on write
+  if (byte_length > g.buffer.size()) Fail(file, "buffer shorter than its byteLength");
+  g.buffer.resize(byte_length);  // drop GLB padding; re-added on write
 
-  json& accessors = doc["accessors"];
-  json& views = doc["bufferViews"];
+  edit(g);
+  g.doc["buffers"][0]["byteLength"] = g.buffer.size();
+
+  if (!binary) {
+    const std::string text = g.doc.dump(2) + "\n";
+    WriteFile(file, Bytes(text.begin(), text.end()));
+    WriteFile(g.buffer_file, g.buffer);
+    return;
+  }
+  std::string text = g.doc.dump();
+  text.resize(Padded4(text.size()), ' ');
+  const std::size_t bin_len = Padded4(g.buffer.size());
+  Bytes out(12 + 8 + text.size() + 8 + bin_len, 0);
+  Store<uint32_t>(out.data(), kGlbMagic);
+  Store<uint32_t>(out.data() + 4, 2);
+  Store<uint32_t>(out.data() + 8, static_cast<uint32_t>(out.size()));
+  Store<uint32_t>(out.data() + 12, static_cast<uint32_t>(text.size()));
+  Store<uint32_t>(out.data() + 16, kChunkJson);
+  std::memcpy(out.data() + 20, text.data(), text.size());
+  uint8_t* bin = out.data() + 20 + text.size();
+  Store<uint32_t>(bin, static_cast<uint32_t>(bin_len));
+  Store<uint32_t>(bin + 4, kChunkBin);
+  std::memcpy(bin + 8, g.buffer.data(), g.buffer.size());
+  WriteFile(file, out);
+}
+
+void ConvertGltfPointIds(GltfDocument& g) {
+  using nlohmann::json;
+  const fs::path& file = g.file;
+  Bytes& buffer = g.buffer;
+  json& accessors = g.doc["accessors"];
+  json& views = g.doc["bufferViews"];
   struct Freed {
     std::size_t begin, end;
   };
   std::vector<Freed> freed;
-  for (json& mesh : doc["meshes"]) {
+  for (json& mesh : g.doc["meshes"]) {
     for (json& primitive : mesh["primitives"]) {
       json& attributes = primitive["attributes"];
-      if (!attributes.contains("TEXCOORD_0")) Fail(file, "a primitive has no point-id channel");
-      const auto a = attributes["TEXCOORD_0"].get<std::size_t>();
+      // The ids ride in the last texture channel: TEXCOORD_1 behind an atlas, else TEXCOORD_0.
+      const std::string channel = attributes.contains("TEXCOORD_1") ? "TEXCOORD_1" : "TEXCOORD_0";
+      if (!attributes.contains(channel)) Fail(file, "a primitive has no point-id channel");
+      const auto a = attributes[channel].get<std::size_t>();
       json& accessor = accessors.at(a);
       if (accessor.value("componentType", 0) != kFloat || accessor.value("type", "") != "VEC2")
-        Fail(file, "TEXCOORD_0 is not FLOAT VEC2");
+        Fail(file, channel + " is not FLOAT VEC2");
       const auto v = accessor.at("bufferView").get<std::size_t>();
       for (std::size_t i = 0; i < accessors.size(); ++i)
         if (i != a && accessors[i].value("bufferView", json(-1)) == json(v))
-          Fail(file, "TEXCOORD_0 shares its bufferView");
+          Fail(file, channel + " shares its bufferView");
       json& view = views.at(v);
       const auto count = accessor.at("count").get<std::size_t>();
       const auto stride = view.value("byteStride", std::size_t{8});
@@ -220,7 +309,7 @@ void ConvertGltfPointIds(const fs::path& file, bool binary) {
       const auto first = view_at + accessor.value("byteOffset", std::size_t{0});
       if (count == 0 || first + (count - 1) * stride + 8 > view_at + view_len ||
           view_at + view_len > buffer.size())
-        Fail(file, "TEXCOORD_0 outside its buffer");
+        Fail(file, channel + " outside its buffer");
 
       // Decode everything before overwriting: the packed ids overlap the pairs.
       std::vector<float> ids(count);
@@ -248,7 +337,7 @@ void ConvertGltfPointIds(const fs::path& file, bool binary) {
       accessor["max"] = json::array({hi_id});
       accessor.erase("byteOffset");
       accessor.erase("normalized");
-      attributes.erase("TEXCOORD_0");
+      attributes.erase(channel);
       attributes["_POINT_ID"] = a;
     }
   }
@@ -264,29 +353,38 @@ void ConvertGltfPointIds(const fs::path& file, bool binary) {
       if (at >= f.end) view["byteOffset"] = at - len;
     }
   }
-  buffers[0]["byteLength"] = buffer.size();
+}
 
-  if (!binary) {
-    const std::string text = doc.dump(2) + "\n";
-    WriteFile(file, Bytes(text.begin(), text.end()));
-    WriteFile(bin_path, buffer);
-    return;
-  }
-  std::string text = doc.dump();
-  text.resize(Padded4(text.size()), ' ');
-  const std::size_t bin_len = Padded4(buffer.size());
-  Bytes out(12 + 8 + text.size() + 8 + bin_len, 0);
-  Store<uint32_t>(out.data(), kGlbMagic);
-  Store<uint32_t>(out.data() + 4, 2);
-  Store<uint32_t>(out.data() + 8, static_cast<uint32_t>(out.size()));
-  Store<uint32_t>(out.data() + 12, static_cast<uint32_t>(text.size()));
-  Store<uint32_t>(out.data() + 16, kChunkJson);
-  std::memcpy(out.data() + 20, text.data(), text.size());
-  uint8_t* bin = out.data() + 20 + text.size();
-  Store<uint32_t>(bin, static_cast<uint32_t>(bin_len));
-  Store<uint32_t>(bin + 4, kChunkBin);
-  std::memcpy(bin + 8, buffer.data(), buffer.size());
-  WriteFile(file, out);
+void SetUprightNode(GltfDocument& g, const double rotation[9], const double view_from[3],
+                    const double view_to[3]) {
+  using nlohmann::json;
+  json& doc = g.doc;
+  const auto scene = doc.value("scene", std::size_t{0});
+  if (!doc.contains("scenes") || scene >= doc["scenes"].size()) Fail(g.file, "no scene");
+  json& roots = doc["scenes"][scene]["nodes"];
+  json matrix = json::array();  // column-major; + 0.0 turns -0 into 0
+  for (int col = 0; col < 4; ++col)
+    for (int row = 0; row < 4; ++row)
+      matrix.push_back(row < 3 && col < 3 ? rotation[3 * row + col] + 0.0 : (row == col ? 1.0 : 0.0));
+  auto rotated = [&](const double* x) {
+    json p = json::array();
+    for (int row = 0; row < 3; ++row)
+      p.push_back(rotation[3 * row] * x[0] + rotation[3 * row + 1] * x[1] + rotation[3 * row + 2] * x[2] + 0.0);
+    return p;
+  };
+  json node = {
+      {"name", "imr_upright"},
+      {"children", roots},
+      {"matrix", matrix},
+      {"extras",
+       {{"imr_upright",
+         {{"about",
+           "this node's rotation takes the sequence's world frame (the vertex data's) to glTF's "
+           "+Y up: the keyframe cameras' mean up is +Y, their mean viewing direction -Z"},
+          {"view_from", rotated(view_from)},
+          {"view_to", rotated(view_to)}}}}}};
+  doc["nodes"].push_back(node);
+  roots = json::array({doc["nodes"].size() - 1});
 }
 
 }  // namespace imr::exporter_assimp

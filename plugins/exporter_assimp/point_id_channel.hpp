@@ -2,14 +2,17 @@
 // always runs JoinIdenticalVertices (which reorders vertices and drops unused ones). So each
 // vertex's id rides through assimp in texture-coordinate channel 0 as two exactly representable
 // floats, and once assimp has written the file that channel is turned into a proper integer
-// attribute: PLY `property int point_id`, glTF `_POINT_ID` (SCALAR FLOAT). Because the
-// id travels with its vertex, whatever assimp does to vertex order stays right, and two vertices
+// attribute: PLY `property int point_id`, glTF `_POINT_ID` (SCALAR FLOAT). (Behind a texture
+// atlas's coordinates, channel 0, the ids ride in channel 1.) Because the id travels with its vertex, whatever assimp does to vertex order stays right, and two vertices
 // with different ids are never merged (their texture coordinates differ).
 #pragma once
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <limits>
+#include <nlohmann/json.hpp>
+#include <vector>
 
 namespace imr::exporter_assimp {
 
@@ -31,13 +34,37 @@ EncodedPointId EncodePointId(int64_t id);
 // writer changed the channel).
 bool DecodePointId(double hi, double lo, int64_t* id);
 
-// Rewrite a binary little-endian PLY written by assimp: the float properties `s t` become
-// `int point_id`. Throws std::runtime_error naming the file on any surprise.
-void ConvertPlyPointIds(const std::filesystem::path& ply);
+// Rewrite a binary little-endian PLY written by assimp: with `point_ids`, the float properties
+// `s t` become `int point_id`; vertex colours become `uchar red green blue` (assimp 5.2 declares
+// uchar but writes four floats; alpha is dropped). Throws std::runtime_error naming the file on
+// any surprise.
+void RewritePly(const std::filesystem::path& ply, bool point_ids);
 
-// Rewrite a glTF (JSON + .bin) or GLB written by assimp: every primitive's TEXCOORD_0 becomes
-// `_POINT_ID` (SCALAR FLOAT, Steiner = -1; ids must not exceed kMaxGltfPointId), and the freed
-// bytes are removed from the buffer. Throws std::runtime_error naming the file.
-void ConvertGltfPointIds(const std::filesystem::path& gltf_or_glb, bool binary);
+// A glTF as assimp wrote it, loaded for editing: the JSON and its one buffer.
+struct GltfDocument {
+  std::filesystem::path file;
+  bool binary = false;                 // GLB (else .gltf + the .bin its buffer names)
+  nlohmann::json doc;
+  std::vector<uint8_t> buffer;         // buffers[0], byteLength bytes
+  std::filesystem::path buffer_file;   // .gltf only
+};
+
+// Loads `file` (GLB when `binary`), lets `edit` change it, and writes it back (the .bin too).
+// Throws std::runtime_error naming the file on any surprise.
+void EditGltf(const std::filesystem::path& file, bool binary,
+              const std::function<void(GltfDocument&)>& edit);
+
+// Every primitive's point-id channel (its highest-numbered TEXCOORD_n: TEXCOORD_0, or TEXCOORD_1
+// behind a texture's coordinates) becomes `_POINT_ID` (SCALAR FLOAT, Steiner = -1; ids must not
+// exceed kMaxGltfPointId), and the freed bytes are removed from the buffer.
+void ConvertGltfPointIds(GltfDocument& gltf);
+
+// Puts the scene's root nodes under a new root node "imr_upright" whose matrix is `rotation`
+// (row-major 3x3, world -> glTF), marked with extras {"imr_upright": {...}} so that imr's own
+// readers can read the vertices in the sequence's frame. `view_from` and `view_to` (world
+// coordinates: the first keyframe's centre and one a few keyframes on) are recorded there in
+// glTF coordinates, for viewers that want to open at the start of the camera path.
+void SetUprightNode(GltfDocument& gltf, const double rotation[9], const double view_from[3],
+                    const double view_to[3]);
 
 }  // namespace imr::exporter_assimp

@@ -12,6 +12,9 @@ int RunScalingBench(int argc, char** argv);
 int RunEvaluateBench(int argc, char** argv);
 int RunPeersBench(int argc, char** argv);
 #endif
+#ifdef IMR_BENCH_TEXTURE
+int RunTextureBench(int argc, char** argv);
+#endif
 }
 
 namespace {
@@ -31,7 +34,10 @@ void Usage() {
                "         imr vs COLMAP's delaunay_mesher on identical input (needs\n"
                "         tools/bench/peers/build_colmap.sh)\n"
                "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
-               "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n");
+               "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n"
+               "  texture [--sequence DIR --mesh FILE] [--frames N] [--repeat N] [--atlas-size PX]\n"
+               "         colouring and texturing a mesh from its keyframe images: time per\n"
+               "         keyframe and per atlas megapixel, atlas size, added memory\n");
 }
 }  // namespace
 
@@ -48,6 +54,9 @@ int main(int argc, char** argv) {
 #ifdef IMR_BENCH_EVALUATE
   if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
   if (sub == "peers") return imr::bench::RunPeersBench(argc - 2, argv + 2);
+#endif
+#ifdef IMR_BENCH_TEXTURE
+  if (sub == "texture") return imr::bench::RunTextureBench(argc - 2, argv + 2);
 #endif
   std::fprintf(stderr, "imr-bench: unknown subcommand '%s'\n", sub.c_str());
   Usage();

@@ -80,6 +80,25 @@ Renderer::Renderer(const synthetic::Scene& scene, const SceneTexture& texture,
   gauss_.resize(1 << 16);
   for (size_t k = 0; k < gauss_.size(); ++k)
     gauss_[k] = static_cast<float>(InverseNormalCdf((k + 0.5) / static_cast<double>(1 << 16)));
+  all_small_.resize(caster_.small_count());
+  std::iota(all_small_.begin(), all_small_.end(), 0u);
+}
+
+Rgb Renderer::ColorToward(const Vec3& center, const Vec3& p, int rect, int* hit) const {
+  // Render's ray through a pixel centre has camera z = 1: scale p - center to that.
+  const Vec3 d = Sub(p, center);
+  const double z = CameraFromScene(d)[2];
+  if (!(z > 0.0)) {
+    *hit = -1;
+    return {};
+  }
+  const Vec3 ddx = SceneFromCamera({1.0 / camera_.fx, 0.0, 0.0});
+  const Vec3 ddy = SceneFromCamera({0.0, 1.0 / camera_.fy, 0.0});
+  if (rect >= 0) {
+    *hit = rect;
+    return ShadeHit(center, Scale(d, 1.0 / z), ddx, ddy, rect, z);
+  }
+  return Shade(center, Scale(d, 1.0 / z), ddx, ddy, all_small_.data(), all_small_.size(), hit);
 }
 
 Renderer::TileBins Renderer::Bin(const Vec3& center) const {
@@ -138,14 +157,19 @@ Rgb Renderer::Shade(const Vec3& o, const Vec3& dir, const Vec3& ddx, const Vec3&
     return Sky(dir);
   }
   *rect = hit.rect;
-  const Rect& r = scene_.rects()[static_cast<size_t>(hit.rect)];
+  return ShadeHit(o, dir, ddx, ddy, hit.rect, hit.t);
+}
+
+Rgb Renderer::ShadeHit(const Vec3& o, const Vec3& dir, const Vec3& ddx, const Vec3& ddy, int rect,
+                       double t) const {
+  const Rect& r = scene_.rects()[static_cast<size_t>(rect)];
   Vec3 n = Cross(r.u, r.v);
-  const Vec3 p = Add(o, Scale(dir, hit.t));
-  const Rgb albedo = texture_.Albedo(hit.rect, p, HitDerivative(dir, n, hit.t, ddx),
-                                     HitDerivative(dir, n, hit.t, ddy));
+  const Vec3 p = Add(o, Scale(dir, t));
+  const Rgb albedo = texture_.Albedo(rect, p, HitDerivative(dir, n, t, ddx),
+                                     HitDerivative(dir, n, t, ddy));
   if (Dot(n, dir) > 0.0) n = Scale(n, -1.0);  // The side facing the camera.
   const double light = kAmbient + kDiffuse * std::max(0.0, Dot(n, kSun));
-  const double distance = hit.t * std::sqrt(Dot(dir, dir));
+  const double distance = t * std::sqrt(Dot(dir, dir));
   const double haze = distance / (distance + kHazeDistance);
   auto mix = [&](float a, float h) {
     return static_cast<float>(a * light * (1.0 - haze) + h * haze);

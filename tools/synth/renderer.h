@@ -31,12 +31,23 @@ class Renderer {
   // the rig (rig.h). `frame` only seeds the noise.
   cv::Mat Render(const Vec3& center, int frame) const;
 
+  // The scene's own colour at scene point p as the camera centred at `center` sees it: what
+  // Render gives the pixel whose centre ray passes through p, before noise and quantisation and
+  // without edge supersampling (the texture filtered over that pixel's footprint, lit, hazed).
+  // With `rect` >= 0: the colour of that rect at p (p on it), whatever lies in front of it; with
+  // -1: of whatever the ray meets first. The rect shaded through *hit (-1: nothing, the sky).
+  // For tests that compare a texture made from the images with the truth (the exporter's atlas).
+  synthetic::Rgb ColorToward(const Vec3& center, const Vec3& p, int rect, int* hit) const;
+
  private:
   // Shaded colour (linear, 0..1) of the ray center + t * dir, its pixel footprint spanned by the
   // direction derivatives ddx, ddy. Returns the rect hit (-1: sky) through *rect.
   // Only the small rects in small[0..n) are tested (with every large one).
   synthetic::Rgb Shade(const Vec3& o, const Vec3& dir, const Vec3& ddx, const Vec3& ddy,
                        const uint32_t* small, size_t n, int* rect) const;
+  // The colour of rect `rect` hit at o + t * dir (Shade after its ray cast).
+  synthetic::Rgb ShadeHit(const Vec3& o, const Vec3& dir, const Vec3& ddx, const Vec3& ddy,
+                          int rect, double t) const;
 
   // The small rects (RayCaster) whose projection, grown by one pixel, meets each kTile x kTile
   // pixel tile of the view from `center`: every ray through a pixel of the tile needs only those.
@@ -54,6 +65,7 @@ class Renderer {
   Intrinsics camera_;
   RenderOptions options_;
   std::vector<float> gauss_;  // Standard normal quantiles, indexed by a hash (the noise).
+  std::vector<uint32_t> all_small_;  // Every small rect (ColorToward tests them all).
 };
 
 struct LidarOptions {

@@ -33,7 +33,7 @@ extern "C" {
  * appended at the end of structs; a host accepts plugins of any minor of its major and reads only
  * the fields their struct_size covers. */
 #define IMR_ABI_MAJOR 1
-#define IMR_ABI_MINOR 0
+#define IMR_ABI_MINOR 1
 
 #define IMR_ENTRY_SYMBOL "imr_plugin_entry"
 
@@ -68,7 +68,20 @@ typedef struct imr_error {
 #define IMR_LOG_WARNING 2
 #define IMR_LOG_ERROR 3
 
-#define IMR_HOST_SERVICES_VERSION 1
+/* An 8-bit image: a frame for the features plugin, a keyframe image for an exporter. */
+typedef struct imr_image_view {
+  uint32_t struct_size;
+  int32_t width;
+  int32_t height;
+  int32_t channels;       /* 1 (gray) or 3 (BGR) */
+  int64_t stride_bytes;   /* bytes between rows */
+  const uint8_t* pixels;  /* 8-bit, rows top to bottom */
+} imr_image_view;
+
+/* Version 1: ABI 1.0 (log, progress, is_cancelled). Version 2: ABI 1.1 (keyframe images). A
+ * plugin uses a service only when struct_size covers it: a 1.1 plugin run by a 1.0 host sees a
+ * 40-byte table and does without images; a 1.0 plugin never looks past its own fields. */
+#define IMR_HOST_SERVICES_VERSION 2
 typedef struct imr_host_services {
   uint32_t struct_size; /* sizeof(imr_host_services) as the host knows it */
   uint32_t version;     /* IMR_HOST_SERVICES_VERSION */
@@ -79,6 +92,20 @@ typedef struct imr_host_services {
   void (*progress)(void* host_data, double fraction, const char* message);
   /* Non-zero when the host wants the current call to stop early (return IMR_CANCELLED). */
   int32_t (*is_cancelled)(void* host_data);
+  /* --- since ABI 1.1 (version 2) --- */
+  /* The image of keyframe `index` (0 .. keyframe_count - 1 of the imr_export_request being
+   * served; only during export_mesh, and only when the request's keyframe_images is non-zero),
+   * decoded by the host: 8-bit gray or BGR, the size of the keyframe's imr_camera. `*out` stays
+   * valid until release_keyframe_image(index) or the end of the export_mesh call, whichever comes
+   * first. The host decodes an image once and keeps it while it is held or while its cache has
+   * room (a bounded budget): release what you no longer need. Fails with IMR_INVALID_ARGUMENT
+   * (an index out of range, no export call in progress) or IMR_ERROR (the file cannot be
+   * decoded, the budget is exhausted by held images), with a message in `error`. */
+  imr_status (*keyframe_image)(void* host_data, uint64_t index, imr_image_view* out,
+                               imr_error* error);
+  /* Done with keyframe `index`'s image (a no-op when it is not held). Acquisitions are counted:
+   * an image asked for twice is released after two releases. */
+  void (*release_keyframe_image)(void* host_data, uint64_t index);
 } imr_host_services;
 
 /* ------------------------------------------------------------------------------------------ */
@@ -136,6 +163,10 @@ typedef struct imr_mesh_view {
                                side the normal points to (toward free space) */
   uint64_t face_count;
   const int64_t* point_ids; /* vertex_count ids of the 3D points, -1 for Steiner; may be NULL */
+  /* --- since ABI 1.1: read only when struct_size covers it --- */
+  /* 3 * vertex_count bytes, red green blue per vertex: the colours of the 3D points as the input
+   * gave them (e.g. COLMAP points3D), grey for Steiner points; NULL when the input has none. */
+  const uint8_t* vertex_colors;
 } imr_mesh_view;
 
 typedef struct imr_export_request {
@@ -145,6 +176,16 @@ typedef struct imr_export_request {
   const char* directory; /* existing folder to write into (the host moves files from it) */
   const char* stem;      /* file name without extension, e.g. "mesh" */
   const char* format;    /* one of the plugin's formats, e.g. "obj", "ply", "gltf", "glb" */
+  /* --- since ABI 1.1: read only when struct_size covers them --- */
+  /* The sequence's keyframe cameras so far, in order (the vertices' world frame; imr_camera's
+   * convention). Intrinsics K are all zero for a camera whose input gives none; width and height
+   * are its image size (0 when unknown). NULL / 0 when the input has no cameras. */
+  const imr_camera* keyframes;
+  uint64_t keyframe_count;
+  /* Non-zero when host services' keyframe_image gives the image of every keyframe (inputs with
+   * images); 0 for engine-only inputs (SfM / SLAM exports, synthetic streams). */
+  int32_t keyframe_images;
+  uint32_t reserved1;
 } imr_export_request;
 
 typedef struct imr_exporter_api {
@@ -160,15 +201,6 @@ typedef struct imr_exporter_api {
 } imr_exporter_api;
 
 /* --- features (DESIGN.md section 5) ------------------------------------------------------- */
-
-typedef struct imr_image_view {
-  uint32_t struct_size;
-  int32_t width;
-  int32_t height;
-  int32_t channels;       /* 1 (gray) or 3 (BGR) */
-  int64_t stride_bytes;   /* bytes between rows */
-  const uint8_t* pixels;  /* 8-bit */
-} imr_image_view;
 
 typedef struct imr_track_observation {
   uint64_t track_id; /* stable across frames */
@@ -275,11 +307,15 @@ static_assert(offsetof(imr_plugin_descriptor, params_schema) == 40, "ABI: descri
 static_assert(offsetof(imr_plugin_descriptor, create) == 48, "ABI: descriptor layout");
 static_assert(offsetof(imr_plugin_descriptor, exporter) == 88, "ABI: descriptor layout");
 static_assert(sizeof(imr_plugin_descriptor) == 160, "ABI: descriptor size");
-static_assert(sizeof(imr_host_services) == 40, "ABI: host services size");
+static_assert(sizeof(imr_host_services) == 56, "ABI: host services size");
+static_assert(offsetof(imr_host_services, keyframe_image) == 40, "ABI: host services 1.1");
 static_assert(sizeof(imr_error) == IMR_ERROR_MESSAGE_CAPACITY, "ABI: error buffer");
 static_assert(sizeof(imr_transfer_request) == 56, "ABI: transfer request");
-static_assert(sizeof(imr_mesh_view) == 48, "ABI: mesh view");
-static_assert(sizeof(imr_export_request) == 40, "ABI: export request");
+static_assert(sizeof(imr_mesh_view) == 56, "ABI: mesh view");
+static_assert(offsetof(imr_mesh_view, vertex_colors) == 48, "ABI: mesh view 1.1");
+static_assert(sizeof(imr_export_request) == 64, "ABI: export request");
+static_assert(offsetof(imr_export_request, keyframes) == 40, "ABI: export request 1.1");
+static_assert(sizeof(imr_image_view) == 32, "ABI: image view");
 static_assert(sizeof(imr_camera) == 184, "ABI: camera");
 static_assert(sizeof(imr_track_observation) == 24, "ABI: track observation");
 static_assert(sizeof(imr_point_estimate) == 48, "ABI: point estimate");

@@ -13,6 +13,10 @@
 //   };
 //   IMR_PLUGIN_EXPORT(MyPolicy)            // several classes: IMR_PLUGIN_EXPORT(A, B, C)
 //
+// An exporter overrides Export (geometry) or, since ABI 1.1, ExportMesh (the request with the
+// keyframe cameras; Host::GetKeyframeImage fetches their images): see
+// examples/vertex_color_exporter.
+//
 // The wrapper builds the C descriptor (plugin.h), converts parameters, and catches every
 // exception at the boundary: throw imr::sdk::InvalidArgument for bad parameters or input, any
 // other std::exception for failures; the host receives a status and the message.
@@ -29,6 +33,7 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace imr::sdk {
@@ -93,7 +98,51 @@ class Params {
   nlohmann::json json_ = nlohmann::json::object();
 };
 
-// The host's services (logging, progress, cancellation), safe to call when the host gave none.
+// A keyframe image held from the host (Host::KeyframeImage): 8-bit gray or BGR pixels, valid
+// while this object lives (and at most until the export call that asked for it returns). Released
+// to the host on destruction. Move-only.
+class KeyframeImage {
+ public:
+  KeyframeImage() = default;
+  KeyframeImage(const imr_host_services* s, uint64_t index, const imr_image_view& view)
+      : s_(s), index_(index), view_(view) {}
+  KeyframeImage(KeyframeImage&& o) noexcept
+      : s_(std::exchange(o.s_, nullptr)), index_(o.index_), view_(o.view_) {}
+  KeyframeImage& operator=(KeyframeImage&& o) noexcept {
+    if (this != &o) {
+      Release();
+      s_ = std::exchange(o.s_, nullptr);
+      index_ = o.index_;
+      view_ = o.view_;
+    }
+    return *this;
+  }
+  KeyframeImage(const KeyframeImage&) = delete;
+  KeyframeImage& operator=(const KeyframeImage&) = delete;
+  ~KeyframeImage() { Release(); }
+
+  const imr_image_view& view() const { return view_; }
+  int width() const { return view_.width; }
+  int height() const { return view_.height; }
+  int channels() const { return view_.channels; }
+  // Row y (top to bottom), width() * channels() bytes.
+  const uint8_t* Row(int y) const { return view_.pixels + static_cast<std::ptrdiff_t>(y) * view_.stride_bytes; }
+  uint64_t index() const { return index_; }
+  // Gives the image back to the host now.
+  void Release() {
+    if (s_ != nullptr && s_->release_keyframe_image != nullptr)
+      s_->release_keyframe_image(s_->host_data, index_);
+    s_ = nullptr;
+  }
+
+ private:
+  const imr_host_services* s_ = nullptr;
+  uint64_t index_ = 0;
+  imr_image_view view_{};
+};
+
+// The host's services (logging, progress, cancellation; since 1.1 keyframe images), safe to call
+// when the host gave none or an older table.
 class Host {
  public:
   Host() = default;
@@ -116,6 +165,37 @@ class Host {
   // Throws Cancelled when the host asked to stop: call it between units of work.
   void CheckCancelled() const {
     if (IsCancelled()) throw Cancelled();
+  }
+  // True when the host's table has the keyframe-image services (a 1.1 host or newer).
+  bool HasKeyframeImages() const {
+    return Has(offsetof(imr_host_services, release_keyframe_image)) && s_->keyframe_image &&
+           s_->release_keyframe_image;
+  }
+  // The image of keyframe `index` of the export in progress (ExportRequest::keyframes). Throws
+  // InvalidArgument with the host's message for an index out of range, std::runtime_error when
+  // the host cannot give it (an older host, an image that does not decode, its budget exhausted).
+  KeyframeImage GetKeyframeImage(uint64_t index) const {
+    if (!HasKeyframeImages())
+      throw std::runtime_error("keyframe images: the host does not provide them (its services "
+                               "table predates plugin ABI 1.1)");
+    imr_image_view view{};
+    imr_error error{};
+    const imr_status status = s_->keyframe_image(s_->host_data, index, &view, &error);
+    if (status != IMR_OK) {
+      const std::string message = error.message[0] != '\0'
+                                      ? std::string(error.message)
+                                      : "keyframe image " + std::to_string(index) + ": failed";
+      if (status == IMR_INVALID_ARGUMENT) throw InvalidArgument(message);
+      throw std::runtime_error(message);
+    }
+    if (view.pixels == nullptr || view.width <= 0 || view.height <= 0 ||
+        (view.channels != 1 && view.channels != 3) ||
+        view.stride_bytes < static_cast<int64_t>(view.width) * view.channels) {
+      KeyframeImage release(s_, index, view);
+      throw std::runtime_error("keyframe image " + std::to_string(index) +
+                               ": the host gave an unusable view");
+    }
+    return KeyframeImage(s_, index, view);
   }
 
  private:
@@ -154,17 +234,40 @@ struct MeshView {
   std::span<const double> vertices;   // 3 per vertex
   std::span<const uint32_t> faces;    // 3 per triangle, counter-clockwise seen from free space
   std::span<const int64_t> point_ids; // 1 per vertex (-1: Steiner), or empty
+  std::span<const uint8_t> vertex_colors;  // since 1.1: 3 per vertex (RGB) from the input, or empty
   std::size_t vertex_count() const { return vertices.size() / 3; }
   std::size_t face_count() const { return faces.size() / 3; }
 };
 
-// Mesh exporter: declare `static constexpr const char* kFormats = "obj,ply";`.
+// Everything an export call carries (since 1.1; a 1.0 host gives no keyframes).
+struct ExportRequest {
+  MeshView mesh;
+  std::string directory;  // existing staging folder to write into
+  std::string stem;       // file name without extension
+  std::string format;     // one of kFormats
+  // The keyframe cameras, in order (imr_camera: K, R, t world -> camera, image size). K is zero
+  // for a camera whose input gives no intrinsics.
+  std::span<const imr_camera> keyframes;
+  // True when Host::GetKeyframeImage(i) gives keyframe i's image (inputs with images).
+  bool keyframe_images = false;
+};
+
+// Mesh exporter: declare `static constexpr const char* kFormats = "obj,ply";` and override one
+// of the two calls: Export (geometry only, the 1.0 call) or ExportMesh (the whole request, with
+// the keyframe cameras and images).
 class Exporter : public PluginBase {
  public:
   static constexpr imr_plugin_kind kKind = IMR_KIND_EXPORTER;
   // Write directory/stem.<format extension> (and companions). `format` is one of kFormats.
   virtual void Export(const MeshView& mesh, const std::string& directory, const std::string& stem,
-                      const std::string& format) = 0;
+                      const std::string& format) {
+    (void)mesh, (void)directory, (void)stem, (void)format;
+    throw std::logic_error("exporter overrides neither Export nor ExportMesh");
+  }
+  // The same with the keyframes (since 1.1). By default, Export with the geometry.
+  virtual void ExportMesh(const ExportRequest& request) {
+    Export(request.mesh, request.directory, request.stem, request.format);
+  }
 };
 
 // Feature tracker: return every track observed in this frame; storage stays with the plugin.
@@ -307,11 +410,23 @@ imr_status ExportMesh(imr_instance* instance, const imr_export_request* r,
     if (r == nullptr || r->mesh == nullptr) throw InvalidArgument("export: no mesh");
     const imr_mesh_view& m = *r->mesh;
     const auto nv = static_cast<std::size_t>(m.vertex_count);
-    MeshView view{{m.vertices, 3 * nv},
-                  {m.faces, 3 * static_cast<std::size_t>(m.face_count)},
-                  {m.point_ids, m.point_ids ? nv : 0}};
-    Self<T>(instance)->Export(view, r->directory ? r->directory : ".", r->stem ? r->stem : "mesh",
-                              r->format ? r->format : "");
+    // Fields of a newer minor exist only when the host's struct is long enough (1.0 hosts).
+    const bool colors = m.struct_size >= offsetof(imr_mesh_view, vertex_colors) + sizeof(void*) &&
+                        m.vertex_colors != nullptr;
+    ExportRequest req;
+    req.mesh = MeshView{{m.vertices, 3 * nv},
+                        {m.faces, 3 * static_cast<std::size_t>(m.face_count)},
+                        {m.point_ids, m.point_ids ? nv : 0},
+                        {m.vertex_colors, colors ? 3 * nv : 0}};
+    req.directory = r->directory ? r->directory : ".";
+    req.stem = r->stem ? r->stem : "mesh";
+    req.format = r->format ? r->format : "";
+    if (r->struct_size >= offsetof(imr_export_request, reserved1) + sizeof(uint32_t) &&
+        r->keyframes != nullptr) {
+      req.keyframes = {r->keyframes, static_cast<std::size_t>(r->keyframe_count)};
+      req.keyframe_images = r->keyframe_images != 0;
+    }
+    static_cast<Exporter*>(Self<T>(instance))->ExportMesh(req);
   });
 }
 

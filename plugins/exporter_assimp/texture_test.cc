@@ -1,0 +1,576 @@
+// Colour and texture from keyframe images (issue 17), against imr-synth's known scene: the exact
+// street (Scene::StreetCanyon, each rect cut into 0.5 m triangles) is seen by keyframes that the
+// generator's own renderer draws (tools/synth, in memory), and what the exporter makes of them is
+// compared with the colour the generator gives the scene there (Renderer::ColorToward: the
+// texture filtered over a pixel, lit, before noise). First the algorithm itself (texturing.hpp),
+// then the files through the real plugin (.so) driven with a host-services table that serves the
+// images: glTF/GLB (Khronos validator, the embedded or beside-it atlas read back at the
+// triangles), OBJ + MTL re-read by assimp with its texture, PLY colours read back, the upright
+// root node, the job options (texture off, keyframe_step), engine-only inputs' point colours.
+#include <imr/sdk/host.hpp>
+#include <imr/sdk/plugin.hpp>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <assimp/Importer.hpp>
+#include <assimp/material.h>
+#include <assimp/scene.h>
+#include <boost/dll/shared_library.hpp>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <numeric>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
+
+#include "host/synthetic/stream.h"
+#include "test_helpers.hpp"
+#include "texturing.hpp"
+#include "tools/synth/raycaster.h"
+#include "tools/synth/renderer.h"
+#include "tools/synth/rig.h"
+
+namespace imr::exporter_assimp {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using synth::Vec3;
+using namespace imr::exporter_assimp::testing;
+
+constexpr int kFrames = 40, kKeyframeEvery = 4, kWidth = 621, kHeight = 188;
+constexpr double kCell = 0.5;       // metres: the triangles' size
+constexpr double kGreyLevels = 20;  // the issue's tolerance
+constexpr double kShare = 0.90;     // ... at this share of the triangles / vertices
+
+double Grey(double r, double g, double b) { return 0.299 * r + 0.587 * g + 0.114 * b; }
+
+// The known scene, its keyframes (cameras and images) and its exact mesh.
+struct KnownScene {
+  synthetic::Scene scene = synthetic::Scene::StreetCanyon(synthetic::StreetLength(kFrames, 1.0), 7);
+  synthetic::SceneTexture texture{scene, 7};
+  synth::RayCaster caster{scene};
+  synth::Rig rig = synth::Rig::Kitti(kWidth, kHeight);
+  synth::Renderer renderer{scene, texture, caster, rig.camera, [] {
+                             synth::RenderOptions o;
+                             o.color = true;
+                             return o;
+                           }()};
+  std::vector<Vec3> centers;
+  std::vector<imr_camera> cameras;
+  std::vector<cv::Mat> images;  // BGR
+  std::vector<double> vertices;
+  std::vector<uint32_t> faces;
+  std::vector<int64_t> ids;
+  std::vector<int> face_rect, vertex_rect;
+
+  KnownScene() {
+    const Vec3 offset = synth::SceneFromCamera(rig.CameraOffset(2));
+    for (int f = 0; f < kFrames; ++f) {
+      if (f % kKeyframeEvery != 0 && f + 1 != kFrames) continue;
+      const Vec3 c = synthetic::Add(synthetic::StreetCameraCenter(f, 1.0), offset);
+      centers.push_back(c);
+      images.push_back(renderer.Render(c, f));
+      // Every camera of the rig: x = scene x, y = -scene z, z = scene y; t = -R C.
+      imr_camera cam{};
+      cam.id = static_cast<uint64_t>(f);
+      const double R[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0};
+      std::copy(R, R + 9, cam.R);
+      for (int r = 0; r < 3; ++r) cam.t[r] = -(R[3 * r] * c[0] + R[3 * r + 1] * c[1] + R[3 * r + 2] * c[2]);
+      const double K[9] = {rig.camera.fx, 0, rig.camera.cx, 0, rig.camera.fy, rig.camera.cy, 0, 0, 1};
+      std::copy(K, K + 9, cam.K);
+      cam.width = kWidth;
+      cam.height = kHeight;
+      cameras.push_back(cam);
+    }
+    // Each rect as a grid of triangles, counter-clockwise seen from the camera path's side.
+    const auto& rects = scene.rects();
+    for (std::size_t r = 0; r < rects.size(); ++r) {
+      const synthetic::Rect& q = rects[r];
+      const int nu = std::max(1, static_cast<int>(std::ceil(2 * q.half_u / kCell)));
+      const int nv = std::max(1, static_cast<int>(std::ceil(2 * q.half_v / kCell)));
+      const Vec3 toward = {0.0, std::clamp(q.center[1], 0.0, double{kFrames}), 1.65};
+      const bool flip = synthetic::Dot(synthetic::Cross(q.u, q.v), synthetic::Sub(toward, q.center)) < 0;
+      const auto base = static_cast<uint32_t>(vertices.size() / 3);
+      for (int j = 0; j <= nv; ++j)
+        for (int i = 0; i <= nu; ++i) {
+          const Vec3 p = synthetic::Add(
+              q.center, synthetic::Add(synthetic::Scale(q.u, (2.0 * i / nu - 1) * q.half_u),
+                                       synthetic::Scale(q.v, (2.0 * j / nv - 1) * q.half_v)));
+          vertices.insert(vertices.end(), p.begin(), p.end());
+          ids.push_back(static_cast<int64_t>(ids.size()));
+          vertex_rect.push_back(static_cast<int>(r));
+        }
+      for (int j = 0; j < nv; ++j)
+        for (int i = 0; i < nu; ++i) {
+          const uint32_t a = base + static_cast<uint32_t>(j * (nu + 1) + i), b = a + 1,
+                         c = a + static_cast<uint32_t>(nu + 2), d = a + static_cast<uint32_t>(nu + 1);
+          for (const std::array<uint32_t, 3> t : {std::array<uint32_t, 3>{a, b, c}, std::array<uint32_t, 3>{a, c, d}}) {
+            if (flip) faces.insert(faces.end(), {t[0], t[2], t[1]});
+            else faces.insert(faces.end(), t.begin(), t.end());
+            face_rect.push_back(static_cast<int>(r));
+          }
+        }
+    }
+  }
+
+  // The rect a point of the surface lies on (the nearest; files do not say).
+  int RectAt(const Vec3& p) const {
+    int best = -1;
+    double d = 1e300;
+    for (std::size_t r = 0; r < scene.rects().size(); ++r) {
+      const synthetic::Rect& q = scene.rects()[r];
+      const Vec3 x = synthetic::Sub(p, q.center);
+      const double a = std::clamp(synthetic::Dot(x, q.u), -q.half_u, q.half_u);
+      const double b = std::clamp(synthetic::Dot(x, q.v), -q.half_v, q.half_v);
+      const Vec3 e = synthetic::Sub(x, synthetic::Add(synthetic::Scale(q.u, a), synthetic::Scale(q.v, b)));
+      if (const double dd = synthetic::Dot(e, e); dd < d) d = dd, best = static_cast<int>(r);
+    }
+    return best;
+  }
+
+  imr::sdk::MeshView View() const {
+    return {{vertices.data(), vertices.size()}, {faces.data(), faces.size()}, {ids.data(), ids.size()}, {}};
+  }
+  Vec3 Vertex(std::size_t i) const { return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]}; }
+  Vec3 Centroid(std::size_t f) const {
+    Vec3 c{};
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) c[a] += vertices[3 * faces[3 * f + k] + a] / 3.0;
+    return c;
+  }
+  // The scene's own grey level at p, a point of rect `rect`, as keyframe k sees it there (its
+  // texture filtered over k's pixel, lit), whatever lies in front; -1 outside k's image. With
+  // `unoccluded`, also -1 when something hides p from k.
+  double TrueGrey(std::size_t k, const Vec3& p, int rect, bool unoccluded = false) const {
+    const Vec3 d = synthetic::Sub(p, centers[k]);
+    const Vec3 c = synth::CameraFromScene(d);
+    if (!(c[2] > 0.1)) return -1;
+    const double u = rig.camera.fx * c[0] / c[2] + rig.camera.cx, v = rig.camera.fy * c[1] / c[2] + rig.camera.cy;
+    if (u < 0 || v < 0 || u > kWidth - 1 || v > kHeight - 1) return -1;
+    synth::RayCaster::Hit hit;
+    if (unoccluded && caster.Cast(centers[k], d, 1.0, &hit) && hit.rect != rect &&
+        hit.t < 1.0 - 1e-3 / std::sqrt(synthetic::Dot(d, d)))
+      return -1;
+    int shaded = -1;
+    const synthetic::Rgb rgb = renderer.ColorToward(centers[k], p, rect, &shaded);
+    return 255.0 * Grey(rgb.r, rgb.g, rgb.b);
+  }
+};
+
+const KnownScene& Scene() {
+  static const KnownScene* s = new KnownScene();
+  return *s;
+}
+
+// A host-services table serving the scene's images, counting what the plugin asks for.
+struct FakeHost {
+  const std::vector<cv::Mat>* images = nullptr;
+  std::vector<int> acquired, held;
+  imr_host_services services{};
+
+  explicit FakeHost(const std::vector<cv::Mat>& im) : images(&im), acquired(im.size()), held(im.size()) {
+    services.struct_size = sizeof(services);
+    services.version = IMR_HOST_SERVICES_VERSION;
+    services.host_data = this;
+    services.keyframe_image = [](void* d, uint64_t i, imr_image_view* out, imr_error* e) -> imr_status {
+      auto* h = static_cast<FakeHost*>(d);
+      if (i >= h->images->size()) {
+        std::snprintf(e->message, sizeof(e->message), "keyframe image %llu is out of range",
+                      static_cast<unsigned long long>(i));
+        return IMR_INVALID_ARGUMENT;
+      }
+      const cv::Mat& m = (*h->images)[i];
+      *out = {sizeof(imr_image_view), m.cols, m.rows, m.channels(), static_cast<int64_t>(m.step), m.data};
+      ++h->acquired[i];
+      ++h->held[i];
+      return IMR_OK;
+    };
+    services.release_keyframe_image = [](void* d, uint64_t i) {
+      auto* h = static_cast<FakeHost*>(d);
+      if (i < h->held.size() && h->held[i] > 0) --h->held[i];
+    };
+  }
+  int Held() const { return std::accumulate(held.begin(), held.end(), 0); }
+};
+
+// Grey level of an RGB image at texture coordinates (u, v) (glTF's: origin top-left), bilinear.
+double AtlasGrey(const cv::Mat& bgr, double u, double v) {
+  const double x = u * bgr.cols - 0.5, y = v * bgr.rows - 0.5;
+  const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, bgr.cols - 2);
+  const int y0 = std::clamp(static_cast<int>(std::floor(y)), 0, bgr.rows - 2);
+  const double fx = std::clamp(x - x0, 0.0, 1.0), fy = std::clamp(y - y0, 0.0, 1.0);
+  double g = 0;
+  for (int j = 0; j < 2; ++j)
+    for (int i = 0; i < 2; ++i) {
+      const cv::Vec3b p = bgr.at<cv::Vec3b>(y0 + j, x0 + i);
+      g += (i ? fx : 1 - fx) * (j ? fy : 1 - fy) * Grey(p[2], p[1], p[0]);
+    }
+  return g;
+}
+
+struct Agreement {
+  int compared = 0, within = 0;
+  double Share() const { return compared > 0 ? static_cast<double>(within) / compared : 0.0; }
+  void Add(double got, double want) {
+    ++compared;
+    within += std::fabs(got - want) <= kGreyLevels;
+  }
+};
+
+TEST(Texturing, AtlasAndVertexColoursMatchTheScenesOwnTexture) {
+  const KnownScene& s = Scene();
+  FakeHost host(s.images);
+  const imr::sdk::Host h(&host.services);
+  TexturingOptions o;
+  o.atlas_size = 2048;
+  const TexturedMesh t = ColorAndTexture(s.View(), s.cameras, [&](uint64_t i) { return h.GetKeyframeImage(i); }, o);
+  const TexturingStats& st = t.stats;
+  std::cout << "faces " << st.faces << ", textured " << st.faces_textured << ", patches " << st.patches
+            << ", seams " << st.seams_best_view << " -> " << st.seams << " (" << st.seams_forced
+            << " unavoidable), pages " << t.pages.size() << ", atlas " << st.atlas_pixels << " px, "
+            << st.seconds_total << " s\n";
+  EXPECT_EQ(st.views, static_cast<int>(s.cameras.size()));
+  EXPECT_EQ(host.Held(), 0) << "every image is released";
+  for (std::size_t k = 0; k < s.images.size(); ++k) EXPECT_LE(host.acquired[k], 2) << "keyframe " << k;
+  ASSERT_FALSE(t.pages.empty());
+  // Much of the scene is textured; the smoothness term never adds seams (its effect is measured
+  // where it shows: SmoothnessTermJoinsViewsOfEqualQuality).
+  EXPECT_GT(st.faces_textured, st.faces / 3);
+  EXPECT_LE(st.seams, st.seams_best_view);
+
+  // The texture at each textured triangle's centroid against the scene seen from that view.
+  std::vector<cv::Mat> pages;
+  for (const AtlasPage& p : t.pages) {
+    cv::Mat rgb(p.height, p.width, CV_8UC3, const_cast<uint8_t*>(p.rgb.data())), bgr;
+    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    pages.push_back(bgr);
+  }
+  Agreement texture;
+  for (std::size_t f = 0; f < s.faces.size() / 3; ++f) {
+    if (t.face_page[f] < 0) continue;
+    const double want = s.TrueGrey(static_cast<std::size_t>(t.face_view[f]), s.Centroid(f), s.face_rect[f]);
+    ASSERT_GE(want, 0) << "face " << f << ": outside its view's image";
+    double u = 0, v = 0;
+    for (int k = 0; k < 3; ++k) u += t.face_uv[6 * f + 2 * k] / 3, v += t.face_uv[6 * f + 2 * k + 1] / 3;
+    texture.Add(AtlasGrey(pages[static_cast<std::size_t>(t.face_page[f])], u, v), want);
+  }
+  std::cout << "texture: " << texture.within << " of " << texture.compared << " centroids within "
+            << kGreyLevels << " grey levels\n";
+  EXPECT_GE(texture.Share(), kShare);
+
+  // Vertex colours against the scene as the keyframes that see the vertex see it there, weighted
+  // as the exporter weights its samples: by (cos(viewing angle) / depth)^2. Vertices on a rect's
+  // border are left out: there the images show two surfaces at once (a car's edge over the road),
+  // and one colour per vertex cannot be both.
+  Agreement colours, border;
+  for (std::size_t i = 0; i < s.vertices.size() / 3; ++i) {
+    const Vec3 p = s.Vertex(i);
+    const synthetic::Rect& q = s.scene.rects()[static_cast<std::size_t>(s.vertex_rect[i])];
+    const Vec3 x = synthetic::Sub(p, q.center);
+    const bool on_border = std::fabs(std::fabs(synthetic::Dot(x, q.u)) - q.half_u) < 1e-6 ||
+                           std::fabs(std::fabs(synthetic::Dot(x, q.v)) - q.half_v) < 1e-6;
+    const Vec3 n = synthetic::Cross(q.u, q.v);
+    double sum = 0, weight = 0;
+    for (std::size_t k = 0; k < s.centers.size(); ++k) {
+      const double want = s.TrueGrey(k, p, s.vertex_rect[i], /*unoccluded=*/true);
+      if (want < 0) continue;
+      const Vec3 d = synthetic::Sub(s.centers[k], p);
+      const double cosine = std::fabs(synthetic::Dot(n, d)) / std::sqrt(synthetic::Dot(d, d));
+      const double z = synth::CameraFromScene(synthetic::Sub(p, s.centers[k]))[2];
+      sum += want * (cosine / z) * (cosine / z);
+      weight += (cosine / z) * (cosine / z);
+    }
+    if (!(weight > 0)) continue;
+    const uint8_t* c = &t.vertex_rgb[3 * i];
+    (on_border ? border : colours).Add(Grey(c[0], c[1], c[2]), sum / weight);
+  }
+  std::cout << "vertex colours on rect borders (not counted): " << border.within << " of "
+            << border.compared << " within " << kGreyLevels << " grey levels\n";
+  std::cout << "vertex colours: " << colours.within << " of " << colours.compared << " within "
+            << kGreyLevels << " grey levels\n";
+  EXPECT_GT(colours.compared, 1000);
+  EXPECT_GE(colours.Share(), kShare);
+}
+
+// The smoothness term on a 40 x 40 grid of quads seen by two views: where their qualities are
+// equal up to noise (the best view flips at random from face to face), the labelling joins the
+// faces into one view; where one view is clearly better (left half: view 0, right half: view 1),
+// the data term wins and one seam line remains between the halves.
+TEST(Texturing, SmoothnessTermJoinsViewsOfEqualQuality) {
+  constexpr int n = 40;
+  std::vector<double> vertices;
+  std::vector<uint32_t> faces;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) vertices.insert(vertices.end(), {double(i), double(j), 0.0});
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const auto a = static_cast<uint32_t>(j * (n + 1) + i);
+      faces.insert(faces.end(), {a, a + 1, a + n + 2, a, a + n + 2, a + n + 1});
+    }
+  const imr::sdk::MeshView mesh{{vertices.data(), vertices.size()}, {faces.data(), faces.size()}, {}, {}};
+  uint32_t noise = 12345;
+  auto jitter = [&] {
+    noise = noise * 1664525u + 1013904223u;
+    return 0.9f + 0.2f * static_cast<float>(noise >> 8) / static_cast<float>(1u << 24);
+  };
+  std::vector<ViewCandidate> equal, split;
+  for (uint32_t f = 0; f < faces.size() / 3; ++f) {
+    for (int32_t v = 0; v < 2; ++v) equal.push_back({f, v, 100.0f * jitter()});
+    const bool left = (f / 2) % n < n / 2;
+    split.push_back({f, 0, left ? 100.0f : 30.0f});
+    split.push_back({f, 1, left ? 30.0f : 100.0f});
+  }
+  TexturingStats st;
+  std::vector<int32_t> label = SelectViews(mesh, equal, 2, 1.0, &st);
+  std::cout << "equal qualities: seams " << st.seams_best_view << " -> " << st.seams << "\n";
+  EXPECT_GT(st.seams_best_view, 1000);  // ~half of the 4,720 interior edges
+  EXPECT_EQ(st.seams, 0);
+  EXPECT_EQ(std::count(label.begin(), label.end(), label[0]), static_cast<long>(label.size()));
+  EXPECT_EQ(SelectViews(mesh, equal, 2, 0.0, &st), [&] {  // no smoothness: the best views
+    std::vector<int32_t> best(faces.size() / 3);
+    for (std::size_t f = 0; f < best.size(); ++f) best[f] = equal[2 * f].quality >= equal[2 * f + 1].quality ? 0 : 1;
+    return best;
+  }());
+  label = SelectViews(mesh, split, 2, 1.0, &st);
+  EXPECT_EQ(st.seams_best_view, n);  // one line of n quads' edges
+  EXPECT_EQ(st.seams, n);
+  for (uint32_t f = 0; f < label.size(); ++f) EXPECT_EQ(label[f], (f / 2) % n < n / 2 ? 0 : 1) << f;
+}
+
+// ---- the files, through the plugin -----------------------------------------------------------
+
+class TexturedFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    lib_.load(IMR_EXPORTER_SO, boost::dll::load_mode::rtld_now);
+    descriptor_ = lib_.get<const imr_plugin_descriptor*(uint32_t)>("imr_plugin_entry")(0);
+    dir_ = fs::temp_directory_path() / ("imr_texture_test_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Exports the known scene in `formats` with one instance (as the host does); the main files.
+  std::vector<fs::path> Export(FakeHost* host, const std::vector<std::string>& formats,
+                               const std::string& params = "{}", const uint8_t* colors = nullptr,
+                               bool images = true) {
+    const KnownScene& s = Scene();
+    imr::sdk::Instance inst(descriptor_, params, &host->services);
+    imr_mesh_view view{};
+    view.struct_size = sizeof(view);
+    view.vertices = s.vertices.data();
+    view.vertex_count = s.vertices.size() / 3;
+    view.faces = s.faces.data();
+    view.face_count = s.faces.size() / 3;
+    view.point_ids = s.ids.data();
+    view.vertex_colors = colors;
+    std::vector<fs::path> files;
+    const std::string d = dir_.string(), stem = "scene";
+    for (const std::string& format : formats) {
+      imr_export_request req{};
+      req.mesh = &view;
+      req.directory = d.c_str();
+      req.stem = stem.c_str();
+      req.format = format.c_str();
+      req.keyframes = s.cameras.data();
+      req.keyframe_count = s.cameras.size();
+      req.keyframe_images = images ? 1 : 0;
+      inst.ExportMesh(&req);
+      files.push_back(dir_ / (stem + "." + format));
+    }
+    return files;
+  }
+
+  boost::dll::shared_library lib_;
+  const imr_plugin_descriptor* descriptor_ = nullptr;
+  fs::path dir_;
+};
+
+// The textured triangles of a glTF (positions, texture coordinates, its atlas) against the scene:
+// each centroid's texel against the scene seen from the keyframes that see it, the best match
+// counting (the file does not say which view a triangle took; a wrong mapping matches none).
+Agreement GltfTextureAgreement(const fs::path& file) {
+  const KnownScene& s = Scene();
+  const Gltf g = LoadGltf(file);
+  const json& doc = g.doc;
+  Agreement a;
+  for (const json& prim : doc["meshes"][0]["primitives"]) {
+    const json& attr = prim["attributes"];
+    const json& material = doc["materials"][prim["material"].get<std::size_t>()];
+    if (!attr.contains("TEXCOORD_0")) continue;
+    const std::size_t tex = material["pbrMetallicRoughness"]["baseColorTexture"]["index"];
+    const json& image = doc["images"][doc["textures"][tex]["source"].get<std::size_t>()];
+    cv::Mat atlas;
+    if (image.contains("bufferView")) {
+      const json& bv = doc["bufferViews"][image["bufferView"].get<std::size_t>()];
+      const std::vector<uint8_t> bytes(g.bin.begin() + bv.value("byteOffset", 0),
+                                       g.bin.begin() + bv.value("byteOffset", 0) + bv["byteLength"].get<long>());
+      atlas = cv::imdecode(bytes, cv::IMREAD_COLOR);
+    } else {
+      atlas = cv::imread((file.parent_path() / image["uri"].get<std::string>()).string(), cv::IMREAD_COLOR);
+    }
+    EXPECT_FALSE(atlas.empty()) << image.dump();
+    if (atlas.empty()) continue;
+    const std::vector<double> pos = AccessorValues(g, attr["POSITION"]);
+    const std::vector<double> uv = AccessorValues(g, attr["TEXCOORD_0"]);
+    const std::vector<double> idx = AccessorValues(g, prim["indices"]);
+    for (std::size_t t = 0; t + 2 < idx.size(); t += 3) {
+      Vec3 c{};
+      double u = 0, v = 0;
+      for (int k = 0; k < 3; ++k) {
+        const auto i = static_cast<std::size_t>(idx[t + k]);
+        for (int d = 0; d < 3; ++d) c[d] += pos[3 * i + d] / 3;
+        u += uv[2 * i] / 3, v += uv[2 * i + 1] / 3;
+      }
+      const double got = AtlasGrey(atlas, u, v);
+      double best = 1e9;
+      const int rect = s.RectAt(c);
+      for (std::size_t k = 0; k < s.centers.size(); ++k)
+        if (const double want = s.TrueGrey(k, c, rect); want >= 0) best = std::min(best, std::fabs(got - want));
+      a.Add(best, 0.0);
+    }
+  }
+  return a;
+}
+
+TEST_F(TexturedFiles, GltfGlbObjAndPlyCarryTheTextureAndColours) {
+  const KnownScene& s = Scene();
+  FakeHost host(s.images);
+  const std::vector<fs::path> files = Export(&host, {"glb", "gltf", "obj", "ply"});
+  EXPECT_EQ(host.Held(), 0);
+  for (std::size_t k = 0; k < s.images.size(); ++k)
+    EXPECT_LE(host.acquired[k], 2) << "keyframe " << k << ": texturing runs once for all formats";
+
+  // glTF and GLB: valid, textured, upright, the texture right at the triangles.
+  for (const fs::path& file : {files[0], files[1]}) {
+    SCOPED_TRACE(file.filename().string());
+    ExpectValidGltf(file);
+    const json doc = LoadGltf(file).doc;
+    ASSERT_TRUE(doc.contains("images"));
+    EXPECT_EQ(doc["images"][0].contains("bufferView"), file.extension() == ".glb") << "embedded in GLB only";
+    if (file.extension() == ".gltf") {
+      EXPECT_TRUE(fs::exists(dir_ / doc["images"][0]["uri"].get<std::string>()));
+    }
+    const Agreement a = GltfTextureAgreement(file);
+    std::cout << file.filename() << ": " << a.within << " of " << a.compared << " centroids within "
+              << kGreyLevels << " grey levels\n";
+    EXPECT_GT(a.compared, 1000);
+    EXPECT_GE(a.Share(), kShare);
+    // Upright: the cameras' up (scene +z) is glTF's +Y, their viewing direction (scene +y) is -Z.
+    const json& root = doc["nodes"][doc["scenes"][0]["nodes"][0].get<std::size_t>()];
+    EXPECT_EQ(root["name"], "imr_upright");
+    const std::vector<double> m = root["matrix"];  // column-major
+    const double want[16] = {1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1};
+    for (int i = 0; i < 16; ++i) EXPECT_NEAR(m[static_cast<std::size_t>(i)], want[i], 1e-9) << i;
+    // Faces nobody sees keep vertex colours (a second primitive with COLOR_0, no texture).
+    bool colored = false;
+    for (const json& prim : doc["meshes"][0]["primitives"])
+      colored = colored || (prim["attributes"].contains("COLOR_0") && !prim["attributes"].contains("TEXCOORD_0"));
+    EXPECT_TRUE(colored);
+  }
+
+  // OBJ + MTL: assimp reads the material's texture and the texture coordinates back.
+  {
+    Assimp::Importer importer;
+    const aiScene* scene = importer.ReadFile(files[2].string(), 0);
+    ASSERT_NE(scene, nullptr) << importer.GetErrorString();
+    int textured = 0;
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
+      const aiMesh& m = *scene->mMeshes[i];
+      aiString path;
+      if (scene->mMaterials[m.mMaterialIndex]->Get(AI_MATKEY_TEXTURE_DIFFUSE(0), path) != AI_SUCCESS) continue;
+      ++textured;
+      EXPECT_TRUE(m.HasTextureCoords(0));
+      const cv::Mat atlas = cv::imread((dir_ / path.C_Str()).string(), cv::IMREAD_COLOR);
+      ASSERT_FALSE(atlas.empty()) << path.C_Str();
+      Agreement a;
+      for (unsigned f = 0; f < m.mNumFaces; ++f) {
+        Vec3 c{};
+        double u = 0, v = 0;
+        for (int k = 0; k < 3; ++k) {
+          const unsigned i2 = m.mFaces[f].mIndices[k];
+          c[0] += m.mVertices[i2].x / 3.0, c[1] += m.mVertices[i2].y / 3.0, c[2] += m.mVertices[i2].z / 3.0;
+          u += m.mTextureCoords[0][i2].x / 3.0, v += (1.0 - m.mTextureCoords[0][i2].y) / 3.0;  // OBJ: v up
+        }
+        double best = 1e9;
+        const int rect = s.RectAt(c);
+        for (std::size_t k = 0; k < s.centers.size(); ++k)
+          if (const double want = s.TrueGrey(k, c, rect); want >= 0)
+            best = std::min(best, std::fabs(AtlasGrey(atlas, u, v) - want));
+        a.Add(best, 0.0);
+      }
+      std::cout << "obj " << path.C_Str() << ": " << a.within << " of " << a.compared << " within\n";
+      EXPECT_GE(a.Share(), kShare);
+    }
+    EXPECT_GE(textured, 1);
+  }
+
+  // PLY: red green blue per vertex, read back; equal to the algorithm's colours.
+  {
+    FakeHost again(s.images);
+    const imr::sdk::Host h(&again.services);
+    const TexturedMesh t = ColorAndTexture(s.View(), s.cameras, [&](uint64_t i) { return h.GetKeyframeImage(i); }, {});
+    const std::vector<uint8_t> bytes = Slurp(files[3]);
+    const std::string text(bytes.begin(), bytes.end());
+    const std::size_t end = text.find("end_header\n") + 11;
+    EXPECT_NE(text.find("property int point_id\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"),
+              std::string::npos) << text.substr(0, end);
+    const std::size_t record = 6 * 4 + 4 + 3, nv = s.vertices.size() / 3;
+    ASSERT_EQ(bytes.size(), end + nv * record + s.faces.size() / 3 * 13);
+    int same = 0;
+    for (std::size_t i = 0; i < nv; ++i) {
+      const uint8_t* r = bytes.data() + end + i * record;
+      const auto id = static_cast<std::size_t>(LoadLE<int32_t>(r + 24));  // the vertex, by its id
+      same += std::equal(r + 28, r + 31, t.vertex_rgb.begin() + static_cast<std::ptrdiff_t>(3 * id));
+    }
+    EXPECT_EQ(same, static_cast<int>(nv));
+  }
+}
+
+TEST_F(TexturedFiles, OptionsTextureOffAndKeyframeStep) {
+  const KnownScene& s = Scene();
+  FakeHost plain(s.images);
+  const fs::path glb = Export(&plain, {"glb"}, R"({"texture": false})")[0];
+  ExpectValidGltf(glb);
+  const json doc = LoadGltf(glb).doc;
+  EXPECT_FALSE(doc.contains("images"));
+  EXPECT_TRUE(doc["meshes"][0]["primitives"][0]["attributes"].contains("COLOR_0"));
+  for (std::size_t k = 0; k < s.images.size(); ++k) EXPECT_EQ(plain.acquired[k], 1) << k;
+
+  FakeHost step(s.images);
+  Export(&step, {"glb"}, R"({"keyframe_step": 3})");
+  for (std::size_t k = 0; k < s.images.size(); ++k)
+    EXPECT_EQ(step.acquired[k] > 0, k % 3 == 0 || k + 1 == s.images.size()) << k;
+}
+
+// Engine-only inputs: no images, the points' own colours (e.g. COLMAP's) in PLY and glTF.
+TEST_F(TexturedFiles, InputPointColoursWithoutImages) {
+  const KnownScene& s = Scene();
+  FakeHost host(s.images);
+  std::vector<uint8_t> colors(s.vertices.size());
+  for (std::size_t i = 0; i < colors.size(); ++i) colors[i] = static_cast<uint8_t>((i * 37) % 251);
+  const std::vector<fs::path> files = Export(&host, {"ply", "glb"}, "{}", colors.data(), false);
+  EXPECT_EQ(std::accumulate(host.acquired.begin(), host.acquired.end(), 0), 0);
+  const std::vector<uint8_t> bytes = Slurp(files[0]);
+  const std::size_t end = std::string(bytes.begin(), bytes.end()).find("end_header\n") + 11;
+  const std::size_t record = 6 * 4 + 4 + 3;
+  for (std::size_t i = 0; i < s.vertices.size() / 3; ++i) {
+    const uint8_t* r = bytes.data() + end + i * record;
+    const auto id = static_cast<std::size_t>(LoadLE<int32_t>(r + 24));
+    ASSERT_TRUE(std::equal(r + 28, r + 31, colors.begin() + static_cast<std::ptrdiff_t>(3 * id))) << i;
+  }
+  ExpectValidGltf(files[1]);
+  const json doc = LoadGltf(files[1]).doc;
+  EXPECT_FALSE(doc.contains("images"));
+  EXPECT_TRUE(doc["meshes"][0]["primitives"][0]["attributes"].contains("COLOR_0"));
+}
+
+}  // namespace
+}  // namespace imr::exporter_assimp

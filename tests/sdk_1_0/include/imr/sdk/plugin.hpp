@@ -1,0 +1,391 @@
+// imr plugin SDK, C++ side for plugin authors: a plugin is one class and one macro.
+//
+//   #include <imr/sdk/plugin.hpp>
+//
+//   class MyPolicy : public imr::sdk::WeightPolicy {
+//    public:
+//     static constexpr const char* kId = "com.example.policy.max";
+//     static constexpr const char* kVersion = "1.0.0";
+//     static constexpr const char* kDescription = "New cells take the largest removed weight";
+//     static constexpr const char* kParamsSchema = R"({})";
+//     MyPolicy(const imr::sdk::Params& params, const imr::sdk::Host& host) {}
+//     void Transfer(const imr::sdk::TransferRequest& request) override { ... }
+//   };
+//   IMR_PLUGIN_EXPORT(MyPolicy)            // several classes: IMR_PLUGIN_EXPORT(A, B, C)
+//
+// The wrapper builds the C descriptor (plugin.h), converts parameters, and catches every
+// exception at the boundary: throw imr::sdk::InvalidArgument for bad parameters or input, any
+// other std::exception for failures; the host receives a status and the message.
+#pragma once
+
+#include <imr/sdk/plugin.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <nlohmann/json.hpp>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace imr::sdk {
+
+// Thrown by plugin code for bad parameters or bad input; reported as IMR_INVALID_ARGUMENT.
+class InvalidArgument : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Thrown by plugin code when the host asked to stop; reported as IMR_CANCELLED.
+class Cancelled : public std::runtime_error {
+ public:
+  Cancelled() : std::runtime_error("cancelled by the host") {}
+};
+
+// Plugin parameters: the job's `params` object, checked against the class's kParamsSchema and
+// with its defaults filled in by the wrapper before the constructor runs (so every declared
+// parameter is present, and a default is written once, in the schema).
+class Params {
+ public:
+  Params() = default;
+  explicit Params(nlohmann::json json) : json_(std::move(json)) {}
+
+  static Params Parse(const char* text) {
+    if (text == nullptr || *text == '\0') return Params(nlohmann::json::object());
+    nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (j.is_discarded() || !j.is_object()) throw InvalidArgument("params: expected a JSON object");
+    return Params(std::move(j));
+  }
+
+  bool Has(const std::string& name) const { return json_.contains(name); }
+
+  // The value of a parameter declared in kParamsSchema (its default when the job gave none).
+  template <typename T>
+  T Get(const std::string& name) const {
+    auto it = json_.find(name);
+    if (it == json_.end() || it->is_null())
+      throw InvalidArgument("params." + name + ": missing (is it declared in kParamsSchema?)");
+    try {
+      return it->get<T>();
+    } catch (const std::exception&) {
+      throw InvalidArgument("params." + name + ": unexpected type (" + it->dump() + ")");
+    }
+  }
+
+  // The value of `name`, or `fallback` when absent. Throws InvalidArgument on a wrong type.
+  template <typename T>
+  T Get(const std::string& name, const T& fallback) const {
+    auto it = json_.find(name);
+    if (it == json_.end() || it->is_null()) return fallback;
+    try {
+      return it->get<T>();
+    } catch (const std::exception&) {
+      throw InvalidArgument("params." + name + ": unexpected type (" + it->dump() + ")");
+    }
+  }
+
+  const nlohmann::json& Json() const { return json_; }
+
+ private:
+  nlohmann::json json_ = nlohmann::json::object();
+};
+
+// The host's services (logging, progress, cancellation), safe to call when the host gave none.
+class Host {
+ public:
+  Host() = default;
+  explicit Host(const imr_host_services* services) : s_(services) {}
+
+  void Log(int32_t level, const std::string& message) const {
+    if (Has(offsetof(imr_host_services, log)) && s_->log) s_->log(s_->host_data, level, message.c_str());
+  }
+  void Debug(const std::string& m) const { Log(IMR_LOG_DEBUG, m); }
+  void Info(const std::string& m) const { Log(IMR_LOG_INFO, m); }
+  void Warning(const std::string& m) const { Log(IMR_LOG_WARNING, m); }
+  void Progress(double fraction, const char* message = nullptr) const {
+    if (Has(offsetof(imr_host_services, progress)) && s_->progress)
+      s_->progress(s_->host_data, fraction, message);
+  }
+  bool IsCancelled() const {
+    return Has(offsetof(imr_host_services, is_cancelled)) && s_->is_cancelled &&
+           s_->is_cancelled(s_->host_data) != 0;
+  }
+  // Throws Cancelled when the host asked to stop: call it between units of work.
+  void CheckCancelled() const {
+    if (IsCancelled()) throw Cancelled();
+  }
+
+ private:
+  // A field exists when the host's struct is long enough to hold it (older hosts: fewer fields).
+  bool Has(std::size_t field_offset) const {
+    return s_ != nullptr && s_->struct_size >= field_offset + sizeof(void*);
+  }
+  const imr_host_services* s_ = nullptr;
+};
+
+// ---- kinds ---------------------------------------------------------------------------------
+
+// Base of every plugin class: virtual destructor so the wrapper can delete through it.
+class PluginBase {
+ public:
+  virtual ~PluginBase() = default;
+};
+
+struct TransferRequest {
+  std::span<const double> removed_centroids;  // 3 per removed cell, packed xyz
+  std::span<const double> removed_weights;    // 1 per removed cell
+  std::span<const double> added_centroids;    // 3 per new cell, packed xyz
+  std::span<double> added_weights;            // out: 1 per new cell
+  std::size_t removed_count() const { return removed_weights.size(); }
+  std::size_t added_count() const { return added_weights.size(); }
+};
+
+// Weight-transfer policy (DESIGN.md section 3): give each new cell a weight from the removed ones.
+class WeightPolicy : public PluginBase {
+ public:
+  static constexpr imr_plugin_kind kKind = IMR_KIND_WEIGHT_POLICY;
+  virtual void Transfer(const TransferRequest& request) = 0;
+};
+
+struct MeshView {
+  std::span<const double> vertices;   // 3 per vertex
+  std::span<const uint32_t> faces;    // 3 per triangle, counter-clockwise seen from free space
+  std::span<const int64_t> point_ids; // 1 per vertex (-1: Steiner), or empty
+  std::size_t vertex_count() const { return vertices.size() / 3; }
+  std::size_t face_count() const { return faces.size() / 3; }
+};
+
+// Mesh exporter: declare `static constexpr const char* kFormats = "obj,ply";`.
+class Exporter : public PluginBase {
+ public:
+  static constexpr imr_plugin_kind kKind = IMR_KIND_EXPORTER;
+  // Write directory/stem.<format extension> (and companions). `format` is one of kFormats.
+  virtual void Export(const MeshView& mesh, const std::string& directory, const std::string& stem,
+                      const std::string& format) = 0;
+};
+
+// Feature tracker: return every track observed in this frame; storage stays with the plugin.
+class Features : public PluginBase {
+ public:
+  static constexpr imr_plugin_kind kKind = IMR_KIND_FEATURES;
+  virtual std::span<const imr_track_observation> ProcessFrame(const imr_camera& camera,
+                                                             const imr_image_view& image,
+                                                             bool is_keyframe) = 0;
+};
+
+// Point refiner: on keyframes fill `out` with views into storage kept by the plugin.
+class Refiner : public PluginBase {
+ public:
+  static constexpr imr_plugin_kind kKind = IMR_KIND_REFINER;
+  virtual void AddFrame(const imr_camera& camera,
+                        std::span<const imr_track_observation> observations, bool is_keyframe,
+                        imr_refiner_update* out) = 0;
+};
+
+// ---- the wrapper behind IMR_PLUGIN_EXPORT ----------------------------------------------------
+namespace detail {
+
+inline void WriteError(imr_error* error, const char* message) {
+  if (error == nullptr) return;
+  std::snprintf(error->message, sizeof(error->message), "%s", message ? message : "");
+}
+
+// Runs `body`, mapping exceptions to statuses: nothing escapes across the C boundary.
+template <typename F>
+imr_status Guard(imr_error* error, F&& body) noexcept {
+  try {
+    body();
+    return IMR_OK;
+  } catch (const InvalidArgument& e) {
+    WriteError(error, e.what());
+    return IMR_INVALID_ARGUMENT;
+  } catch (const Cancelled& e) {
+    WriteError(error, e.what());
+    return IMR_CANCELLED;
+  } catch (const std::exception& e) {
+    WriteError(error, e.what());
+    return IMR_ERROR;
+  } catch (...) {
+    WriteError(error, "unknown exception in plugin");
+    return IMR_ERROR;
+  }
+}
+
+// Checks `params` against a schema in the language of plugin.h (the host validates jobs too; this
+// covers hosts and tests that do not) and returns them with the schema's defaults filled in.
+// Throws InvalidArgument naming the first unknown, mistyped or out-of-range parameter.
+inline Params CheckedAgainstSchema(const char* schema_text, const Params& params) {
+  const nlohmann::json schema = nlohmann::json::parse(
+      schema_text && *schema_text ? schema_text : "{}", nullptr, /*allow_exceptions=*/false);
+  if (!schema.is_object()) throw std::runtime_error("plugin bug: kParamsSchema is not a JSON object");
+  nlohmann::json out = params.Json();
+  for (const auto& [name, v] : out.items()) {
+    auto it = schema.find(name);
+    if (it == schema.end()) {
+      std::string known;
+      for (const auto& [k, _] : schema.items()) known += (known.empty() ? "" : ", ") + k;
+      throw InvalidArgument("params." + name + ": unknown parameter" +
+                            (known.empty() ? std::string(" (none accepted)") : " (known: " + known + ")"));
+    }
+    const nlohmann::json& spec = *it;
+    const std::string type = spec.value("type", "");
+    const auto fail = [&](const std::string& why) {
+      throw InvalidArgument("params." + name + ": " + why + " (got " + v.dump() + ")");
+    };
+    if (type == "integer" && !v.is_number_integer()) fail("expected an integer");
+    if (type == "number" && (!v.is_number() || !std::isfinite(v.get<double>())))
+      fail("expected a finite number");
+    if (type == "boolean" && !v.is_boolean()) fail("expected true or false");
+    if (type == "string" && !v.is_string()) fail("expected a string");
+    if (type == "string_array") {
+      bool ok = v.is_array();
+      for (const auto& e : v) ok = ok && e.is_string();
+      if (!ok) fail("expected an array of strings");
+    }
+    if (v.is_number()) {
+      const double x = v.get<double>();
+      if (spec.contains("minimum") && x < spec["minimum"].get<double>())
+        fail("below the minimum " + spec["minimum"].dump());
+      if (spec.contains("maximum") && x > spec["maximum"].get<double>())
+        fail("above the maximum " + spec["maximum"].dump());
+    }
+    if (spec.contains("enum")) {
+      bool found = false;
+      for (const auto& e : spec["enum"]) found = found || e == v;
+      if (!found) fail("expected one of " + spec["enum"].dump());
+    }
+  }
+  for (const auto& [name, spec] : schema.items())
+    if (!out.contains(name) && spec.is_object() && spec.contains("default")) out[name] = spec["default"];
+  return Params(std::move(out));
+}
+
+template <typename T>
+T* Self(imr_instance* instance) {
+  return static_cast<T*>(reinterpret_cast<PluginBase*>(instance));
+}
+
+template <typename T>
+imr_status Create(const char* params_json, const imr_host_services* host, imr_instance** out,
+                  imr_error* error) noexcept {
+  if (out == nullptr) return IMR_INVALID_ARGUMENT;
+  *out = nullptr;
+  return Guard(error, [&] {
+    PluginBase* p = new T(CheckedAgainstSchema(T::kParamsSchema, Params::Parse(params_json)),
+                          Host(host));
+    *out = reinterpret_cast<imr_instance*>(p);
+  });
+}
+
+inline void Destroy(imr_instance* instance) noexcept {
+  delete reinterpret_cast<PluginBase*>(instance);
+}
+
+template <typename T>
+imr_status Transfer(imr_instance* instance, const imr_transfer_request* r,
+                    imr_error* error) noexcept {
+  return Guard(error, [&] {
+    if (r == nullptr || r->struct_size < sizeof(imr_transfer_request))
+      throw InvalidArgument("transfer: request struct too small");
+    const auto nr = static_cast<std::size_t>(r->removed_count);
+    const auto na = static_cast<std::size_t>(r->added_count);
+    TransferRequest req{{r->removed_centroids, 3 * nr},
+                        {r->removed_weights, nr},
+                        {r->added_centroids, 3 * na},
+                        {r->added_weights, na}};
+    Self<T>(instance)->Transfer(req);
+  });
+}
+
+template <typename T>
+imr_status ExportMesh(imr_instance* instance, const imr_export_request* r,
+                      imr_error* error) noexcept {
+  return Guard(error, [&] {
+    if (r == nullptr || r->mesh == nullptr) throw InvalidArgument("export: no mesh");
+    const imr_mesh_view& m = *r->mesh;
+    const auto nv = static_cast<std::size_t>(m.vertex_count);
+    MeshView view{{m.vertices, 3 * nv},
+                  {m.faces, 3 * static_cast<std::size_t>(m.face_count)},
+                  {m.point_ids, m.point_ids ? nv : 0}};
+    Self<T>(instance)->Export(view, r->directory ? r->directory : ".", r->stem ? r->stem : "mesh",
+                              r->format ? r->format : "");
+  });
+}
+
+template <typename T>
+imr_status ProcessFrame(imr_instance* instance, const imr_camera* camera,
+                        const imr_image_view* image, int32_t is_keyframe, imr_track_view* out,
+                        imr_error* error) noexcept {
+  return Guard(error, [&] {
+    if (camera == nullptr || image == nullptr || out == nullptr)
+      throw InvalidArgument("process_frame: null argument");
+    auto tracks = Self<T>(instance)->ProcessFrame(*camera, *image, is_keyframe != 0);
+    out->observations = tracks.data();
+    out->count = tracks.size();
+  });
+}
+
+template <typename T>
+imr_status AddFrame(imr_instance* instance, const imr_camera* camera,
+                    const imr_track_observation* obs, uint64_t count, int32_t is_keyframe,
+                    imr_refiner_update* out, imr_error* error) noexcept {
+  return Guard(error, [&] {
+    if (camera == nullptr || out == nullptr || (obs == nullptr && count > 0))
+      throw InvalidArgument("add_frame: null argument");
+    *out = imr_refiner_update{};
+    Self<T>(instance)->AddFrame(*camera, {obs, static_cast<std::size_t>(count)}, is_keyframe != 0,
+                                out);
+  });
+}
+
+template <typename T>
+const imr_plugin_descriptor* DescriptorFor() noexcept {
+  static_assert(std::is_base_of_v<PluginBase, T>, "a plugin class derives from an imr::sdk kind");
+  static const imr_plugin_descriptor d = [] {
+    imr_plugin_descriptor x{};
+    x.struct_size = sizeof(imr_plugin_descriptor);
+    x.abi_major = IMR_ABI_MAJOR;
+    x.abi_minor = IMR_ABI_MINOR;
+    x.kind = T::kKind;
+    x.id = T::kId;
+    x.version = T::kVersion;
+    x.description = T::kDescription;
+    x.params_schema = T::kParamsSchema;
+    x.create = &Create<T>;
+    x.destroy = &Destroy;
+    // Only the table of the class's own kind is instantiated.
+    if constexpr (T::kKind == IMR_KIND_WEIGHT_POLICY) {
+      static const imr_weight_policy_api api{sizeof(api), 0, &Transfer<T>};
+      x.weight_policy = &api;
+    } else if constexpr (T::kKind == IMR_KIND_FEATURES) {
+      static const imr_features_api api{sizeof(api), 0, &ProcessFrame<T>};
+      x.features = &api;
+    } else if constexpr (T::kKind == IMR_KIND_REFINER) {
+      static const imr_refiner_api api{sizeof(api), 0, &AddFrame<T>};
+      x.refiner = &api;
+    } else if constexpr (T::kKind == IMR_KIND_EXPORTER) {
+      static const imr_exporter_api api{sizeof(api), 0, T::kFormats, &ExportMesh<T>};
+      x.exporter = &api;
+    }
+    return x;
+  }();
+  return &d;
+}
+
+template <typename... Ts>
+const imr_plugin_descriptor* Entry(uint32_t index) noexcept {
+  static const imr_plugin_descriptor* const table[] = {DescriptorFor<Ts>()...};
+  return index < sizeof...(Ts) ? table[index] : nullptr;
+}
+
+}  // namespace detail
+}  // namespace imr::sdk
+
+// Export the plugin classes of this library through the one entry symbol.
+#define IMR_PLUGIN_EXPORT(...)                                                               \
+  extern "C" IMR_PLUGIN_API const imr_plugin_descriptor* imr_plugin_entry(uint32_t index) { \
+    return ::imr::sdk::detail::Entry<__VA_ARGS__>(index);                                  \
+  }
