@@ -56,11 +56,14 @@ namespace {
 
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 
-// One ray stored in a cell (kRays mode): camera, point, and the ring (0 = T, 1 = N1, 2 = N2).
+// One ray stored in a cell. kRays: camera index, point, and the ring (level: 0 = T, 1 = N1,
+// 2 = N2). kExact: the ray's index among its point's cameras (camera), the point, and the ray's
+// generation when it was added (level): an entry whose generation is not the ray's current one
+// is stale (the ray was un-cast since) and is dropped when met.
 struct RayEntry {
   uint32_t camera;
   uint32_t point;
-  uint8_t level;
+  uint32_t level;
 };
 
 struct VertexInfo {
@@ -73,7 +76,10 @@ struct CellInfo {
   int64_t weight = 0;     // In units of EngineOptions::weight_unit.
   uint64_t stamp = 0;     // Ray stamp: a cell joins T, N1 or N2 once per ray.
   bool in_o = false;      // Member of O (outside, the manifold part of free space).
-  std::vector<RayEntry> rays;  // kRays: at most K rays that raised this cell's weight.
+  bool fresh = false;     // kExact: made by the triangulation change being processed.
+  uint32_t slot = 0;      // kExact: index of the cell among those being made (scratch).
+  std::vector<RayEntry> rays;  // kRays: at most K rays that raised this cell's weight; kExact:
+                               // every ray that crosses it (and stale entries, see RayEntry).
 };
 
 using Vb = CGAL::Triangulation_vertex_base_with_info_3<VertexInfo, K>;
@@ -202,8 +208,15 @@ struct Engine::Impl {
     uint64_t id = 0;
     Vertex_handle vertex;        // Valid when in_triangulation.
     bool in_triangulation = false;
+    bool removed = false;        // Removed by an update (never enters again); a point refused
+                                 // at insertion (duplicate, dropped) tries again when it moves.
     Vec3 position{};             // Latest estimate received.
     std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
+    // kExact, parallel to cameras: whether the ray is cast, and where it ended when it was (the
+    // point's position then; a ray older than the window keeps its end when the point moves).
+    std::vector<uint8_t> ray_cast;
+    std::vector<uint32_t> ray_gen;  // generation: +1 at each un-cast (entries made before: stale)
+    std::vector<Point> ray_end;
   };
 
   EngineOptions opt;
@@ -254,6 +267,11 @@ struct Engine::Impl {
     }
     unit = {ToUnits(opt.w1), ToUnits(opt.w2), ToUnits(opt.w3)};
     threshold = ToUnits(opt.free_threshold);
+    if (opt.visibility_mode == VisibilityMode::kExact) {
+      // A cell's weight is w1 times the rays that cross it.
+      if (unit[0] <= 0) init = Status::Error("invalid engine options: exact mode needs w1 > 0");
+      threshold = unit[0] * opt.exact_min_rays - 1;
+    }
   }
 
   int64_t ToUnits(double w) const {
@@ -398,16 +416,18 @@ struct Engine::Impl {
   // neighbours, N2 = neighbours of N1; each cell once per ray (DESIGN §3, paper §2.1).
   void CastRay(uint32_t cam, uint32_t pt, int sign) {
     const PointRecord& rec = points[pt];
-    if (!rec.in_triangulation) return;
-    const Point& a = rec.vertex->point();
-    const Point& b = cameras[cam];
-    const double len2 = CGAL::squared_distance(a, b);
-    if (len2 > opt.max_ray_length * opt.max_ray_length) {
-      ++stats.rays_skipped_too_long;
+    if (opt.visibility_mode == VisibilityMode::kExact) {
+      const size_t k = RayIndex(rec, cam);
+      if (k == static_cast<size_t>(-1)) return;
+      if (sign > 0) ExactCast(pt, k);
+      else ExactUncast(pt, k);
       return;
     }
-    if (len2 <= 0.0) return;  // A point at the camera centre carves nothing.
+    if (!rec.in_triangulation) return;
     if (dt.dimension() != 3) return;
+    const Point& b = cameras[cam];
+    Point a;
+    if (!RaySegment(rec.vertex->point(), b, &a)) return;
     if (sign > 0) ++stats.rays_cast;
     else ++stats.rays_cast_backward;
     ++stamp;
@@ -471,6 +491,388 @@ struct Engine::Impl {
           ++weighted;
         }
     stats.cells_weighted += weighted;
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // kExact: every cell holds the rays (camera, point) whose segment crosses it, so a cell's weight
+  // is exactly w1 times their number. Casting adds a ray to the cells its segment crosses,
+  // un-casting removes it from the same cells (the ray keeps the end it was cast with, so both
+  // walk the same segment). When the triangulation replaces cells (an insertion's conflict zone,
+  // a removed vertex's star), the new cells fill exactly the volume of the old ones: the rays
+  // held by the old cells are walked again through that volume only, and nothing else changes.
+
+  // Walks the segment a -> b through the cells it crosses, from `hint` (a cell near a), calling
+  // visit(cell) once per finite cell. Stops at the hull or after max_cells_per_ray cells.
+  template <class Visit>
+  void Walk(const Point& a, const Point& b, Cell_handle hint, Visit&& visit) {
+    ++stamp;
+    int steps = 0;
+    try {
+      auto it = dt.segment_traverser_cells_begin(a, b, hint);
+      const auto end = dt.segment_traverser_cells_end();
+      for (; it != end; ++it) {
+        Cell_handle c = it;
+        if (dt.is_infinite(c)) break;
+        if (++steps > opt.max_cells_per_ray) {
+          ++stats.rays_truncated;
+          break;
+        }
+        if (c->info().stamp == stamp) continue;
+        c->info().stamp = stamp;
+        visit(c);
+      }
+    } catch (...) {
+      ++stats.rays_truncated;
+    }
+  }
+
+  // Index of camera `cam` in a point's list, or npos.
+  static size_t RayIndex(const PointRecord& rec, uint32_t cam) {
+    for (size_t k = 0; k < rec.cameras.size(); ++k)
+      if (rec.cameras[k] == cam) return k;
+    return static_cast<size_t>(-1);
+  }
+
+  // A cell near where a walk of point pt's ray starts: the point's vertex when the ray ends
+  // there, else any cell near it (the traverser locates the start from it).
+  Cell_handle WalkHint(const PointRecord& rec) const {
+    if (rec.in_triangulation) return rec.vertex->cell();
+    return last_vertex != Vertex_handle() ? last_vertex->cell() : Cell_handle();
+  }
+
+  // kExact: is a cell's entry the current cast of its ray?
+  bool Live(const RayEntry& e) const {
+    const PointRecord& rec = points[e.point];
+    return e.camera < rec.ray_cast.size() && rec.ray_cast[e.camera] &&
+           rec.ray_gen[e.camera] == e.level;
+  }
+
+  // Adds ray k of point pt (its current generation) to a cell. A cell's list keeps stale entries
+  // until it is destroyed or holds twice as many entries as rays: then it is compacted.
+  void AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
+    CellInfo& info = c->info();
+    const int64_t before = info.weight;
+    const int64_t live = unit[0] > 0 ? before / unit[0] : 0;
+    if (static_cast<int64_t>(info.rays.size()) >= 2 * live + 8) {
+      info.rays.erase(std::remove_if(info.rays.begin(), info.rays.end(),
+                                     [&](const RayEntry& e) { return !Live(e); }),
+                      info.rays.end());
+    }
+    info.rays.push_back({k, pt, points[pt].ray_gen[k]});
+    info.weight += unit[0];
+    Ledger(before, info.weight);
+    if (before <= threshold && info.weight > threshold) MarkDirty(c);
+  }
+
+  // The segment a ray carves: from its point to its camera, or, for a ray longer than
+  // max_ray_length with long_rays = near_camera, the max_ray_length next to the camera (the
+  // space near the camera is free whatever the far end is). False: the ray carves nothing.
+  bool RaySegment(const Point& p, const Point& cam, Point* start) {
+    const double len2 = CGAL::squared_distance(p, cam);
+    if (len2 <= 0.0) return false;  // A point at the camera centre carves nothing.
+    if (len2 <= opt.max_ray_length * opt.max_ray_length) {
+      *start = p;
+      return true;
+    }
+    ++stats.rays_skipped_too_long;
+    if (opt.long_rays == LongRays::kSkip) return false;
+    ++stats.rays_truncated_to_camera;
+    const double f = opt.max_ray_length / std::sqrt(len2);
+    *start = Point(cam.x() + f * (p.x() - cam.x()), cam.y() + f * (p.y() - cam.y()),
+                   cam.z() + f * (p.z() - cam.z()));
+    return true;
+  }
+
+  // Ray k of point pt, cast from the point's current position.
+  void ExactCast(uint32_t pt, size_t k) {
+    PointRecord& rec = points[pt];
+    if (!rec.in_triangulation || rec.ray_cast[k] || dt.dimension() != 3) return;
+    const uint32_t cam = rec.cameras[k];
+    const Point& b = cameras[cam];
+    Point a;
+    if (!RaySegment(rec.vertex->point(), b, &a)) return;
+    ++stats.rays_cast;
+    int64_t n = 0;
+    rec.ray_cast[k] = 1;
+    rec.ray_end[k] = a;
+    Walk(a, b, rec.vertex->cell(), [&](Cell_handle c) {
+      AddRay(c, pt, static_cast<uint32_t>(k));
+      ++n;
+    });
+    stats.cells_traversed += n;
+    stats.cells_weighted += n;
+  }
+
+  // Takes ray k of point pt out of the cells it was cast into: the same segment walked again
+  // takes one off each cell's count; its entries there become stale (a new generation).
+  // A short list is searched first (a cell reached only by a walk that disagrees with the one
+  // that gave it the ray, through an edge or a vertex, keeps its count); a long one, deep in free
+  // space, is not: that would cost more than all the rest.
+  void ExactUncast(uint32_t pt, size_t k) {
+    PointRecord& rec = points[pt];
+    if (!rec.ray_cast[k]) return;
+    const RayEntry mine{static_cast<uint32_t>(k), pt, rec.ray_gen[k]};
+    rec.ray_cast[k] = 0;
+    ++rec.ray_gen[k];
+    ++stats.rays_cast_backward;
+    const uint32_t cam = rec.cameras[k];
+    Walk(rec.ray_end[k], cameras[cam], WalkHint(rec), [&](Cell_handle c) {
+      const int64_t before = c->info().weight;
+      bool held = before >= unit[0];
+      if (held && c->info().rays.size() <= kSearchUncastBelow) {
+        held = false;
+        for (const RayEntry& e : c->info().rays)
+          held = held || (e.point == mine.point && e.camera == mine.camera && e.level == mine.level);
+      }
+      if (!held) {
+        ++stats.ray_mismatches;
+        return;
+      }
+      c->info().weight -= unit[0];
+      Ledger(before, c->info().weight);
+    });
+  }
+  static constexpr size_t kSearchUncastBelow = 32;
+
+  // A tetrahedron's four face planes, oriented so that inside is n . x >= off on each.
+  struct TetPlanes {
+    double n[4][3];
+    double off[4];
+  };
+  static TetPlanes PlanesOf(Cell_handle c) {
+    TetPlanes t;
+    for (int i = 0; i < 4; ++i) {
+      const Point& p0 = c->vertex((i + 1) & 3)->point();
+      const Point& p1 = c->vertex((i + 2) & 3)->point();
+      const Point& p2 = c->vertex((i + 3) & 3)->point();
+      const Point& q = c->vertex(i)->point();
+      const double u[3] = {p1.x() - p0.x(), p1.y() - p0.y(), p1.z() - p0.z()};
+      const double v[3] = {p2.x() - p0.x(), p2.y() - p0.y(), p2.z() - p0.z()};
+      double* n = t.n[i];
+      n[0] = u[1] * v[2] - u[2] * v[1];
+      n[1] = u[2] * v[0] - u[0] * v[2];
+      n[2] = u[0] * v[1] - u[1] * v[0];
+      const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      double off = n[0] * p0.x() + n[1] * p0.y() + n[2] * p0.z();
+      const double side = n[0] * q.x() + n[1] * q.y() + n[2] * q.z() - off;
+      const double sign = (side < 0.0 ? -1.0 : 1.0) / (nn > 0.0 ? nn : 1.0);
+      for (int k = 0; k < 3; ++k) n[k] *= sign;
+      t.off[i] = off * sign;
+    }
+    return t;
+  }
+
+  // The part t in [lo, hi] of segment a + t d (t in [0, 1]) inside a tetrahedron, the faces that
+  // bound it (-1: the segment's own end), and whether another face bounds it within rounding
+  // (the segment passes through an edge or a vertex there: the caller walks with exact
+  // predicates instead).
+  struct Clip {
+    double lo = 0.0, hi = 1.0;
+    int lo_face = -1, hi_face = -1;
+    bool lo_tie = false, hi_tie = false;
+    bool grazing = false;  // the segment runs within rounding of a face's plane
+  };
+  static bool ClipSegment(const TetPlanes& t, const double a[3], const double d[3], Clip* out) {
+    Clip c;
+    const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double eps = 1e-9;  // in t: well below any cell a ray crosses
+    for (int i = 0; i < 4; ++i) {
+      const double f0 = t.n[i][0] * a[0] + t.n[i][1] * a[1] + t.n[i][2] * a[2] - t.off[i];
+      const double fd = t.n[i][0] * d[0] + t.n[i][1] * d[1] + t.n[i][2] * d[2];
+      if (std::abs(fd) <= 1e-12 * len) {
+        if (f0 < -1e-9 * len) return false;
+        if (f0 <= 1e-9 * len) c.grazing = true;
+        continue;
+      }
+      const double ti = -f0 / fd;
+      if (fd > 0.0) {  // entering through face i
+        if (ti > c.lo + eps) c.lo = ti, c.lo_face = i, c.lo_tie = false;
+        else if (ti > c.lo - eps && c.lo_face >= 0) c.lo_tie = true;
+      } else {  // leaving through face i
+        if (ti < c.hi - eps) c.hi = ti, c.hi_face = i, c.hi_tie = false;
+        else if (ti < c.hi + eps && c.hi_face >= 0) c.hi_tie = true;
+      }
+    }
+    *out = c;
+    return c.lo <= c.hi + eps;
+  }
+
+  // The rays held by cells about to be destroyed, each with the part of its segment (parameter
+  // t in [0, 1] from its end to its camera) that lies in those cells, and the facet through
+  // which it enters them (the cell before it, which survives, and the facet's index there).
+  struct HoleRay {
+    uint32_t camera;
+    uint32_t point;
+    double t0, t1;
+    Cell_handle before;  // null: the part starts inside (at the ray's end) or is ambiguous
+    int facet;
+    Cell_handle first;   // the destroyed cell where the part starts (scratch)
+    int entry_face;
+    uint32_t next;       // next ray of the same point in the list (scratch)
+  };
+  struct Hole {
+    std::vector<HoleRay> rays;
+  };
+  std::vector<uint64_t> point_hole_mark;  // per point: the hole that lists its rays
+  std::vector<uint32_t> point_hole_head;  // per point: its first ray in that hole's list
+  uint64_t hole_count = 0;
+  std::vector<TetPlanes> fresh_planes;    // planes of the cells being made, by their slot
+
+  // kExact, before cells are destroyed: the rays they hold and where.
+  void CollectHoleRays(const std::vector<Cell_handle>& cells, Hole* hole) {
+    std::vector<HoleRay>& out = hole->rays;
+    out.clear();
+    ++hole_count;
+    if (point_hole_mark.size() < points.size()) {
+      point_hole_mark.resize(points.size(), 0);
+      point_hole_head.resize(points.size(), 0);
+    }
+    for (Cell_handle c : cells) c->info().fresh = true;  // "destroyed" while collecting
+    for (Cell_handle c : cells) {
+      if (dt.is_infinite(c) || c->info().rays.empty()) continue;
+      const TetPlanes planes = PlanesOf(c);
+      for (const RayEntry& e : c->info().rays) {
+        if (!Live(e)) continue;  // a stale entry: dropped with the cell
+        const PointRecord& rec = points[e.point];
+        const size_t k = e.camera;
+        const Point& end = rec.ray_end[k];
+        const Point& cam = cameras[rec.cameras[k]];
+        const double a[3] = {end.x(), end.y(), end.z()};
+        const double d[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
+        Clip cl;
+        HoleRay r{e.camera, e.point, 0.0, 1.0, Cell_handle(), -1, Cell_handle(), -1, 0};
+        if (ClipSegment(planes, a, d, &cl)) {
+          r.t0 = cl.lo;
+          r.t1 = cl.hi;
+          if (cl.lo_face >= 0 && !cl.lo_tie) r.first = c, r.entry_face = cl.lo_face;
+        }
+        // Merge with the ray's other parts: the hull of the parts, entered at the first one.
+        uint32_t* link = nullptr;
+        bool merged = false;
+        if (point_hole_mark[e.point] == hole_count) {
+          for (uint32_t i = point_hole_head[e.point];; i = out[i].next) {
+            HoleRay& x = out[i];
+            if (x.camera == e.camera) {
+              if (r.t0 < x.t0) x.t0 = r.t0, x.first = r.first, x.entry_face = r.entry_face;
+              x.t1 = std::max(x.t1, r.t1);
+              merged = true;
+              break;
+            }
+            if (x.next == 0xFFFFFFFFu) {
+              link = &x.next;
+              break;
+            }
+          }
+        } else {
+          point_hole_mark[e.point] = hole_count;
+          point_hole_head[e.point] = static_cast<uint32_t>(out.size());
+        }
+        if (merged) continue;
+        r.next = 0xFFFFFFFFu;
+        if (link) *link = static_cast<uint32_t>(out.size());
+        out.push_back(r);
+      }
+    }
+    for (HoleRay& r : out) {
+      if (r.first == Cell_handle() || r.t0 <= 0.0) continue;
+      const Cell_handle b = r.first->neighbor(r.entry_face);
+      if (dt.is_infinite(b) || b->info().fresh) continue;  // entered at an edge: ambiguous
+      r.before = b;
+      r.facet = b->index(r.first);
+    }
+    for (Cell_handle c : cells) c->info().fresh = false;
+  }
+
+  // kExact, after the new cells exist: each ray of the hole walked again over its part inside
+  // the hole (a little beyond, for rounding), adding it to the new cells it crosses. The walk
+  // starts at the surviving facet where the ray entered the hole (or at its end's vertex) and
+  // steps from face to face; where it passes within rounding of an edge or a vertex, it walks
+  // with CGAL's exact traversal instead.
+  void RefillHole(const std::vector<Cell_handle>& added, const Hole& h) {
+    const std::vector<HoleRay>& hole = h.rays;
+    if (hole.empty()) return;
+    Cell_handle hint;
+    fresh_planes.clear();
+    for (Cell_handle c : added) {
+      if (dt.is_infinite(c)) continue;
+      c->info().fresh = true;
+      c->info().slot = static_cast<uint32_t>(fresh_planes.size());
+      fresh_planes.push_back(PlanesOf(c));
+      if (hint == Cell_handle()) hint = c;
+    }
+    constexpr double kPad = 1e-6;
+    // A face-to-face walk meets each new cell once per ray; when it gives up part way, the exact
+    // walk skips the cells it already gave the ray.
+    std::vector<Cell_handle>& given = incident_scratch;
+    auto add = [&](Cell_handle c, const HoleRay& r, bool check) {
+      if (!c->info().fresh) return;
+      if (check && std::find(given.begin(), given.end(), c) != given.end()) return;
+      if (!check) given.push_back(c);
+      AddRay(c, r.point, r.camera);
+      ++stats.cells_rewalked;
+    };
+    for (const HoleRay& r : hole) {
+      const PointRecord& rec = points[r.point];
+      const size_t k = r.camera;  // the ray's index among its point's cameras
+      const Point& e = rec.ray_end[k];
+      const Point& cam = cameras[rec.cameras[k]];
+      given.clear();
+      const double a[3] = {e.x(), e.y(), e.z()};
+      const double d[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
+      const double t_end = std::min(1.0, r.t1 + kPad);
+      ++stats.rays_rewalked;
+      // The start: the cell behind the entry facet, or the new cell at the ray's end vertex.
+      Cell_handle c;
+      double t = r.t0;
+      if (r.before != Cell_handle()) {
+        c = r.before->neighbor(r.facet);
+      } else if (r.t0 <= 0.0 && rec.in_triangulation && rec.vertex->point() == e) {
+        // The new cell at the ray's end vertex that the ray leaves into; none or two (it leaves
+        // along a facet or an edge): the exact walk decides.
+        int found = 0;
+        for (Cell_handle x : added) {
+          if (dt.is_infinite(x) || !x->has_vertex(rec.vertex)) continue;
+          Clip cl;
+          if (ClipSegment(fresh_planes[x->info().slot], a, d, &cl) && cl.lo <= 1e-9 &&
+              cl.hi > 1e-9) {
+            c = x;
+            if (++found > 1 || cl.hi_tie || cl.grazing) break;
+          }
+        }
+        if (found != 1) c = Cell_handle();
+        t = 0.0;
+      }
+      bool exact = c == Cell_handle();
+      for (int steps = 0; !exact; ++steps) {
+        if (steps > opt.max_cells_per_ray) {
+          exact = true;
+          break;
+        }
+        Clip cl;
+        const bool ok = c->info().fresh
+                            ? ClipSegment(fresh_planes[c->info().slot], a, d, &cl)
+                            : ClipSegment(PlanesOf(c), a, d, &cl);
+        if (!ok || cl.hi_tie || cl.grazing || cl.hi_face < 0 || cl.hi < t - 1e-9) {
+          exact = true;
+          break;
+        }
+        add(c, r, false);
+        if (cl.hi >= t_end) break;
+        const Cell_handle next = c->neighbor(cl.hi_face);
+        if (dt.is_infinite(next)) break;
+        t = cl.hi;
+        c = next;
+      }
+      if (exact) {
+        // The whole ray with exact predicates, as casting and un-casting walk it (cells already
+        // given the ray are skipped): where a part of it runs through an edge or a vertex, a
+        // walk of that part alone could choose other cells than the whole walk does.
+        ++stats.rays_rewalked_exact;
+        Walk(e, cam, rec.in_triangulation ? WalkHint(rec) : hint,
+             [&](Cell_handle x) { add(x, r, true); });
+      }
+    }
+    for (Cell_handle c : added) c->info().fresh = false;
   }
 
   std::vector<uint32_t> Window(const PointRecord& rec) const {
@@ -560,9 +962,11 @@ struct Engine::Impl {
     std::vector<double> centroids;
     std::vector<double> weights;
     std::vector<RayEntry> rays;  // kRays: rays stored in R (the set U of Lovi et al.).
+    Hole hole;                   // kExact: the rays R's cells hold, and where.
   };
 
   void CollectRemoved(const std::vector<Cell_handle>& cells, Removed* r) {
+    if (opt.visibility_mode == VisibilityMode::kExact) CollectHoleRays(cells, &r->hole);
     for (Cell_handle c : cells) {
       dirty.erase(c);
       Ledger(c->info().weight, 0);  // the cell is about to be destroyed
@@ -624,6 +1028,11 @@ struct Engine::Impl {
       }
     }
     for (Cell_handle c : added) Ledger(0, c->info().weight);
+    if (opt.visibility_mode == VisibilityMode::kExact) {
+      const auto t0 = Clock::now();
+      RefillHole(added, r.hole);
+      stats.time.cast += Seconds(t0, Clock::now());
+    }
     for (Cell_handle c : finite)
       if (IsFree(c)) MarkDirty(c);
   }
@@ -819,6 +1228,11 @@ struct Engine::Impl {
       const uint32_t c = camera_index.at(id);
       if (std::find(rec.cameras.begin(), rec.cameras.end(), c) != rec.cameras.end()) continue;
       rec.cameras.push_back(c);
+      if (opt.visibility_mode == VisibilityMode::kExact) {
+        rec.ray_cast.push_back(0);
+        rec.ray_gen.push_back(0);
+        rec.ray_end.push_back(Point(0, 0, 0));
+      }
       if (added) added->push_back(c);
     }
   }
@@ -836,7 +1250,14 @@ struct Engine::Impl {
 
   void RemovePoint(uint32_t pt) {
     PointRecord& rec = points[pt];
-    if (!rec.in_triangulation) return;
+    if (opt.visibility_mode == VisibilityMode::kExact) {
+      ExactRemovePoint(pt);
+      return;
+    }
+    if (!rec.in_triangulation) {
+      rec.removed = true;
+      return;
+    }
     std::vector<Cell_handle> inc;
     dt.incident_cells(rec.vertex, std::back_inserter(inc));
     if (!Shrink(inc, {rec.vertex->point()})) {
@@ -849,6 +1270,7 @@ struct Engine::Impl {
     std::vector<RayEntry> u;
     RemoveVertex(rec.vertex, rays_mode ? &u : nullptr);
     rec.in_triangulation = false;
+    rec.removed = true;
     rec.vertex = Vertex_handle();
     ++stats.points_removed;
     if (rays_mode) {
@@ -859,17 +1281,111 @@ struct Engine::Impl {
     }
   }
 
+  // kExact removal: every ray of the point out of its cells, then the vertex (its star's other
+  // rays walked again through the new cells).
+  void ExactRemovePoint(uint32_t pt) {
+    PointRecord& rec = points[pt];
+    if (rec.in_triangulation) {
+      std::vector<Cell_handle> inc;
+      dt.incident_cells(rec.vertex, std::back_inserter(inc));
+      if (!Shrink(inc, {rec.vertex->point()})) {
+        ++stats.moves_skipped;  // Cannot be removed without breaking dO; keep it.
+        return;
+      }
+    }
+    const auto t0 = Clock::now();
+    for (size_t k = 0; k < rec.cameras.size(); ++k) ExactUncast(pt, k);
+    stats.time.cast += Seconds(t0, Clock::now());
+    rec.removed = true;
+    if (rec.in_triangulation) {
+      const Vertex_handle v = rec.vertex;
+      rec.in_triangulation = false;
+      rec.vertex = Vertex_handle();
+      RemoveVertex(v, nullptr);
+      ++stats.points_removed;
+    }
+  }
+
+  // kExact move: the rays of the last W cameras follow the point (un-cast, vertex removed and
+  // re-inserted, cast again); older rays keep the end they were cast with.
+  void ExactMovePoint(uint32_t pt, const MovedPoint& m) {
+    PointRecord& rec = points[pt];
+    auto cast_window = [&]() {
+      const auto t0 = Clock::now();
+      const size_t n = rec.cameras.size(), w = static_cast<size_t>(opt.window);
+      for (size_t k = n > w ? n - w : 0; k < n; ++k) ExactCast(pt, k);
+      stats.time.cast += Seconds(t0, Clock::now());
+    };
+    if (!rec.in_triangulation) {
+      MoveAbsentPoint(pt, m);
+      return;
+    }
+    rec.position = m.position;
+    const Point p_new = ToPoint(m.position);
+    const Point p_old = rec.vertex->point();
+    if (p_new == p_old) {
+      AddCameras(rec, m.camera_ids, nullptr);
+      cast_window();
+      return;
+    }
+    std::vector<Cell_handle> d;
+    dt.incident_cells(rec.vertex, std::back_inserter(d));
+    Dt::Locate_type lt;
+    int li, lj;
+    Cell_handle loc = dt.locate(p_new, lt, li, lj, rec.vertex->cell());
+    if (lt == Dt::VERTEX) {
+      ++stats.moves_duplicate;
+      ++stats.moves_skipped;
+      AddCameras(rec, m.camera_ids, nullptr);
+      cast_window();
+      return;
+    }
+    dt.find_conflicts(p_new, loc, CGAL::Emptyset_iterator(), std::back_inserter(d));
+    std::sort(d.begin(), d.end());
+    d.erase(std::unique(d.begin(), d.end()), d.end());
+    if (!Shrink(d, {p_old, p_new})) {
+      ++stats.moves_skipped;
+      AddCameras(rec, m.camera_ids, nullptr);
+      cast_window();
+      return;
+    }
+    {
+      const auto t0 = Clock::now();
+      const size_t n = rec.cameras.size(), w = static_cast<size_t>(opt.window);
+      for (size_t k = n > w ? n - w : 0; k < n; ++k) ExactUncast(pt, k);
+      stats.time.cast += Seconds(t0, Clock::now());
+    }
+    const Vertex_handle v_old = rec.vertex;
+    rec.in_triangulation = false;
+    rec.vertex = Vertex_handle();
+    RemoveVertex(v_old, nullptr);
+    bool dup = false;
+    Vertex_handle v = InsertPoint(p_new, pt, false, &dup, nullptr);
+    AddCameras(rec, m.camera_ids, nullptr);
+    if (v == Vertex_handle()) {
+      ++stats.points_dropped;  // Cannot happen once D was shrunk; counted if it ever does.
+      return;
+    }
+    rec.vertex = v;
+    rec.in_triangulation = true;
+    ++stats.points_moved;
+    cast_window();
+  }
+
   // Move p_old -> p_new (paper §3): backward cast over the last W cameras, remove, transfer,
   // insert, transfer, forward cast; or, in kRays mode, the Refinement Event Handler of Lovi et al.
   void MovePoint(uint32_t pt, const MovedPoint& m) {
-    PointRecord& rec = points[pt];
-    rec.position = m.position;
-    std::vector<uint32_t> added_cams;
-    if (!rec.in_triangulation) {
-      AddCameras(rec, m.camera_ids, nullptr);
-      ++stats.moves_skipped;
+    if (opt.visibility_mode == VisibilityMode::kExact) {
+      ExactMovePoint(pt, m);
       return;
     }
+    PointRecord& rec = points[pt];
+    if (!rec.in_triangulation) {
+      MoveAbsentPoint(pt, m);
+      return;
+    }
+    rec.position = m.position;
+    std::vector<uint32_t> added_cams;
     const Point p_new = ToPoint(m.position);
     const Point p_old = rec.vertex->point();
     const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
@@ -894,7 +1410,7 @@ struct Engine::Impl {
     int li, lj;
     Cell_handle loc = dt.locate(p_new, lt, li, lj, rec.vertex->cell());
     if (lt == Dt::VERTEX) {
-      ++stats.points_duplicate;
+      ++stats.moves_duplicate;
       ++stats.moves_skipped;
       cast_new_observations();
       return;
@@ -958,10 +1474,17 @@ struct Engine::Impl {
     rec0.id = np.id;
     rec0.position = np.position;
     AddCameras(rec0, np.camera_ids, nullptr);
+    Enter(pt, /*again=*/false);
+  }
+
+  // A point not in the triangulation enters it at its latest position, with its rays; false
+  // when refused (a vertex there already, or its conflict zone could not leave O). `again`: a
+  // point refused before, trying again as it moves.
+  bool Enter(uint32_t pt, bool again) {
     bool dup = false;
     std::vector<RayEntry> u;
     const bool rays_mode = opt.visibility_mode == VisibilityMode::kRays;
-    const Point p = ToPoint(np.position);
+    const Point p = ToPoint(points[pt].position);
     if (opt.transfer_camera_side) {
       side_apex = &p;
       side_cams = &points[pt].cameras;
@@ -971,19 +1494,93 @@ struct Engine::Impl {
     side_cams = nullptr;
     PointRecord& rec = points[pt];
     if (v == Vertex_handle()) {
-      if (dup) ++stats.points_duplicate;
-      else ++stats.points_dropped;
-      return;
+      if (!again) ++(dup ? stats.points_duplicate : stats.points_dropped);
+      return false;
     }
     rec.vertex = v;
     rec.in_triangulation = true;
-    ++stats.points_inserted;
+    ++(again ? stats.points_reentered : stats.points_inserted);
     if (rays_mode) {
       for (uint32_t c : rec.cameras) u.push_back({c, pt, 0});
       TimedRecast(std::move(u), -1);
+    } else if (opt.visibility_mode == VisibilityMode::kExact) {
+      const auto t0 = Clock::now();
+      for (size_t k = 0; k < rec.cameras.size(); ++k) ExactCast(pt, k);
+      stats.time.cast += Seconds(t0, Clock::now());
     } else {
       for (uint32_t c : rec.cameras) TimedCast(c, pt, +1);
     }
+    return true;
+  }
+
+  // A move of a point that is not in the triangulation: removed ones stay out; one refused at
+  // insertion (a duplicate, or dropped) tries again at its new position.
+  void MoveAbsentPoint(uint32_t pt, const MovedPoint& m) {
+    PointRecord& rec = points[pt];
+    rec.position = m.position;
+    AddCameras(rec, m.camera_ids, nullptr);
+    if (rec.removed || !Enter(pt, /*again=*/true)) ++stats.moves_skipped;
+  }
+
+  // Takes out of O (keeping dO manifold, lowest weight first) every cell with a vertex within
+  // `radius` of one of the given vertices, so that the next grow labels that region again in
+  // weight order, as growing from scratch would, instead of in the order the points arrived.
+  void PeelAround(const std::vector<Vertex_handle>& centres, double radius) {
+    const auto t0 = Clock::now();
+    const double r2 = radius * radius;
+    ++stamp;
+    const uint64_t seen = stamp;
+    std::vector<Cell_handle> region, todo, inc;
+    for (Vertex_handle v : centres) {
+      const Point& p = v->point();
+      inc.clear();
+      dt.incident_cells(v, std::back_inserter(inc));
+      todo.assign(inc.begin(), inc.end());
+      while (!todo.empty()) {
+        const Cell_handle c = todo.back();
+        todo.pop_back();
+        if (c->info().stamp == seen || dt.is_infinite(c)) continue;
+        bool near = false;
+        for (int i = 0; i < 4 && !near; ++i)
+          near = !dt.is_infinite(c->vertex(i)) &&
+                 CGAL::squared_distance(c->vertex(i)->point(), p) <= r2;
+        if (!near) continue;
+        c->info().stamp = seen;
+        region.push_back(c);
+        for (int i = 0; i < 4; ++i) todo.push_back(c->neighbor(i));
+      }
+    }
+    struct Item {
+      int64_t weight;
+      uint64_t order;
+      Cell_handle cell;
+      bool operator<(const Item& o) const {
+        return weight != o.weight ? weight > o.weight : order > o.order;
+      }
+    };
+    std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> start;
+    for (Cell_handle c : region)
+      if (c->info().in_o) start.push_back({CellKey(c), c});
+    std::sort(start.begin(), start.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::priority_queue<Item> q;
+    uint64_t order = 0;
+    for (const auto& s : start) q.push({s.second->info().weight, order++, s.second});
+    int64_t budget = static_cast<int64_t>(start.size()) * 4 * opt.shrink_passes + 16;
+    while (!q.empty() && budget-- > 0) {
+      Cell_handle c = q.top().cell;
+      q.pop();
+      if (!c->info().in_o || !ToggleKeepsManifold(c)) continue;
+      SetInO(c, false);
+      ++stats.cells_shrunk;
+      MarkDirty(c);
+      for (int i = 0; i < 4; ++i) {
+        Cell_handle n = c->neighbor(i);
+        MarkDirty(n);
+        if (n->info().in_o && n->info().stamp == seen) q.push({n->info().weight, order++, n});
+      }
+    }
+    stats.time.shrink += Seconds(t0, Clock::now());
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -1078,6 +1675,18 @@ struct Engine::Impl {
       for (const NewPoint& p : u.new_points) InsertNewPoint(p);
     });
     const auto tg = Clock::now();
+    if (opt.regrow_radius > 0.0) {
+      std::vector<Vertex_handle> changed;
+      for (const MovedPoint& m : u.moved_points) {
+        const PointRecord& rec = points[point_index.at(m.id)];
+        if (rec.in_triangulation) changed.push_back(rec.vertex);
+      }
+      for (const NewPoint& p : u.new_points) {
+        const PointRecord& rec = points[point_index.at(p.id)];
+        if (rec.in_triangulation) changed.push_back(rec.vertex);
+      }
+      PeelAround(changed, opt.regrow_radius);
+    }
     Grow();
     stats.time.grow += Seconds(tg, Clock::now());
     const double dt_s = Seconds(t0, Clock::now());
@@ -1171,6 +1780,18 @@ struct Engine::Impl {
         fail(DescribeCell(c) + " has weight " + std::to_string(FromUnits(info.weight)) +
              " < 0 although nonnegative_weights is on (a weight-transfer policy returned a "
              "negative weight?)");
+      }
+      if (opt.visibility_mode == VisibilityMode::kExact && !dt.is_infinite(c)) {
+        // The count is the number of live entries, each ray at most once.
+        std::vector<std::pair<uint32_t, uint32_t>> live;
+        for (const RayEntry& e : info.rays)
+          if (Live(e)) live.push_back({e.point, e.camera});
+        std::sort(live.begin(), live.end());
+        if (std::adjacent_find(live.begin(), live.end()) != live.end())
+          fail(DescribeCell(c) + " holds a ray twice");
+        if (info.weight != unit[0] * static_cast<int64_t>(live.size()))
+          fail(DescribeCell(c) + " has weight " + std::to_string(FromUnits(info.weight)) +
+               " but holds " + std::to_string(live.size()) + " rays");
       }
       if (rays_mode) {
         int64_t stored = 0;
@@ -1523,6 +2144,78 @@ std::vector<BoundaryFacetProbe> EngineInternals::ProbeBoundary(const Engine& e) 
     }
   }
   return out;
+}
+
+std::vector<CellProbe> EngineInternals::ProbeCells(const Engine& e) {
+  const Engine::Impl& m = *e.impl_;
+  std::vector<CellProbe> out;
+  for (auto c = m.dt.finite_cells_begin(); c != m.dt.finite_cells_end(); ++c) {
+    CellProbe p;
+    for (int k = 0; k < 4; ++k) {
+      const Vertex_handle v = c->vertex(k);
+      const int64_t id = v->info().id;
+      p.point_ids[k] = id >= 0 ? static_cast<int64_t>(m.points[id].id) : -1;
+      p.vertices[k] = {v->point().x(), v->point().y(), v->point().z()};
+    }
+    p.weight = m.FromUnits(c->info().weight);
+    p.in_o = c->info().in_o;
+    p.free = m.IsFree(c);
+    out.push_back(p);
+  }
+  return out;
+}
+
+std::string EngineInternals::CheckRaySets(Engine& e) {
+  Engine::Impl& m = *e.impl_;
+  if (m.opt.visibility_mode != VisibilityMode::kExact) return "not in exact mode";
+  int64_t live = 0, visits = 0;
+  for (auto c = m.dt.finite_cells_begin(); c != m.dt.finite_cells_end(); ++c)
+    for (const RayEntry& r : c->info().rays) live += m.Live(r) ? 1 : 0;
+  for (uint32_t pt = 0; pt < m.points.size(); ++pt) {
+    const auto& rec = m.points[pt];
+    for (size_t k = 0; k < rec.cameras.size(); ++k) {
+      if (!rec.ray_cast[k]) continue;
+      std::string missing;
+      m.Walk(rec.ray_end[k], m.cameras[rec.cameras[k]], m.WalkHint(rec), [&](Cell_handle c) {
+        ++visits;
+        bool held = false;
+        for (const RayEntry& r : c->info().rays)
+          held = held || (r.point == pt && r.camera == k && m.Live(r));
+        if (!held && missing.empty()) missing = m.DescribeCell(c);
+      });
+      if (!missing.empty())
+        return "the ray of point " + std::to_string(rec.id) + " from camera " +
+               std::to_string(m.camera_ids[rec.cameras[k]]) + " crosses " + missing +
+               ", which does not hold it";
+    }
+  }
+  if (live != visits)
+    return "the cells hold " + std::to_string(live) + " rays, the rays cross " +
+           std::to_string(visits) + " cells";
+  return {};
+}
+
+void EngineInternals::Regrow(Engine& e) {
+  Engine::Impl& m = *e.impl_;
+  for (auto c = m.dt.all_cells_begin(); c != m.dt.all_cells_end(); ++c) m.SetInO(c, false);
+  m.dirty.clear();
+  m.Grow();
+}
+
+void EngineInternals::RecastAllAndRegrow(Engine& e) {
+  Engine::Impl& m = *e.impl_;
+  for (auto c = m.dt.all_cells_begin(); c != m.dt.all_cells_end(); ++c) {
+    m.SetInO(c, false);
+    m.Ledger(c->info().weight, 0);
+    c->info().weight = 0;
+    c->info().rays.clear();
+  }
+  for (auto& rec : m.points) std::fill(rec.ray_cast.begin(), rec.ray_cast.end(), 0);
+  m.dirty.clear();
+  for (uint32_t pt = 0; pt < m.points.size(); ++pt)
+    for (uint32_t cam : m.points[pt].cameras) m.CastRay(cam, pt, +1);
+  m.dirty.clear();
+  m.Grow();
 }
 
 }  // namespace internal

@@ -36,6 +36,9 @@ class Status {
 enum class VisibilityMode {
   kWeights,  // The paper's efficient approach: weights only, backward casting + transfer policy.
   kRays,     // The straightforward baseline (Lovi et al. 2011): per-cell ray lists, re-casting.
+  kExact,    // Every cell holds the set of rays that cross it; where the triangulation changes,
+             // only the rays of the destroyed cells are walked again, through the new cells.
+             // Weights are exact (what re-casting every ray would give) and no policy is needed.
 };
 std::string ToString(VisibilityMode mode);
 bool FromString(const std::string& s, VisibilityMode* mode);
@@ -43,11 +46,19 @@ bool FromString(const std::string& s, VisibilityMode* mode);
 // Which triangles of dO touching Steiner points the exported mesh leaves out.
 enum class SteinerExportRule {
   kNone,         // Export all of dO (a closed surface).
-  kAllSteiner,   // Drop triangles whose three vertices are Steiner points (default).
-  kAnySteiner,   // Drop triangles with at least one Steiner vertex.
+  kAllSteiner,   // Drop triangles whose three vertices are Steiner points.
+  kAnySteiner,   // Drop triangles with at least one Steiner vertex (default).
 };
 std::string ToString(SteinerExportRule rule);
 bool FromString(const std::string& s, SteinerExportRule* rule);
+
+// What a ray longer than max_ray_length carves.
+enum class LongRays {
+  kSkip,        // Nothing (the paper: a point that far is not trusted).
+  kNearCamera,  // Its max_ray_length next to the camera: that space is free wherever the point is.
+};
+std::string ToString(LongRays rule);
+bool FromString(const std::string& s, LongRays* rule);
 
 struct EngineOptions {
   double steiner_spacing = 5.0;       // Steiner grid step, metres (paper: 5 m).
@@ -59,12 +70,20 @@ struct EngineOptions {
   double w1 = 1.0;                    // Weight added to cells traversed by a ray (T).
   double w2 = 0.8;                    // Weight added to their neighbours (N1).
   double w3 = 0.2;                    // Weight added to the neighbours of N1 (N2).
-  double free_threshold = 1.0;        // T_w: a cell is free space when weight > T_w.
+  double free_threshold = 1.0;        // T_w: a cell is free space when weight > T_w (weights
+                                      // and rays modes).
+  int exact_min_rays = 2;             // kExact: a cell is free space when at least this many
+                                      // rays cross it.
   int window = 15;                    // W: rays re-cast on a move come from the last W cameras.
-  double max_ray_length = 30.0;       // Rays longer than this (metres) are not cast.
-  VisibilityMode visibility_mode = VisibilityMode::kWeights;  // Efficient or baseline.
+  double max_ray_length = 40.0;       // Rays longer than this (metres) are not cast whole.
+  LongRays long_rays = LongRays::kNearCamera;  // What such a ray carves.
+  VisibilityMode visibility_mode = VisibilityMode::kExact;  // Exact ray sets, the paper's
+                                      // weights, or the baseline.
   int rays_per_cell = 5;              // K of the forgetting heuristic (kRays mode only).
-  SteinerExportRule steiner_export = SteinerExportRule::kAllSteiner;  // Export filter.
+  double regrow_radius = 2.0;         // After each update, cells within this distance of a moved
+                                      // or new point leave O (keeping it manifold) and are grown
+                                      // again in weight order; 0: off.
+  SteinerExportRule steiner_export = SteinerExportRule::kAnySteiner;  // Export filter.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (DESIGN §3 step 3)
                                       // when true; else they start at 0 and the point's own rays,
@@ -144,15 +163,24 @@ struct EngineStats {
   int64_t updates = 0;
   int64_t rays_cast = 0;              // Forward casts (including re-casts).
   int64_t rays_cast_backward = 0;
-  int64_t rays_skipped_too_long = 0;  // Longer than max_ray_length.
+  int64_t rays_skipped_too_long = 0;  // Longer than max_ray_length (cast whole: none of them).
+  int64_t rays_truncated_to_camera = 0;  // Of those, cast over max_ray_length next to the camera.
   int64_t rays_truncated = 0;         // Hit max_cells_per_ray or a traversal failure.
+  int64_t rays_rewalked = 0;          // kExact: rays walked again through the new cells of a hole.
+  int64_t rays_rewalked_exact = 0;    // kExact: of those, walked with exact predicates (near an
+                                      // edge or vertex, or no entry facet known).
+  int64_t cells_rewalked = 0;         // kExact: new cells those walks gave a ray.
+  int64_t ray_mismatches = 0;         // kExact: a ray not found where a walk expected it (or
+                                      // found where no walk reaches): degenerate traversals.
   int64_t cells_traversed = 0;        // Cells of T over all rays.
   int64_t cells_weighted = 0;         // Cells of T, N1 and N2 over all rays.
   int64_t points_inserted = 0;
   int64_t points_moved = 0;
   int64_t moves_skipped = 0;          // Move refused: its cells could not be shrunk out of O.
   int64_t points_dropped = 0;         // New point dropped (conflict zone met O after shrink).
-  int64_t points_duplicate = 0;       // New point or move onto an existing vertex: dropped.
+  int64_t points_duplicate = 0;       // New point onto an existing vertex: not inserted.
+  int64_t moves_duplicate = 0;        // Move onto an existing vertex: refused (moves_skipped).
+  int64_t points_reentered = 0;       // Points refused at insertion that entered at a later move.
   int64_t points_removed = 0;
   int64_t steiner_points = 0;
   int64_t steiner_dropped = 0;

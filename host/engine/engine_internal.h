@@ -29,6 +29,15 @@ struct BoundaryFacetProbe {
   bool outside_hull_adjacent = false;  // It touches the convex hull (never joins O).
 };
 
+// A finite cell as the labelling sees it (diagnostics: its place against a known scene).
+struct CellProbe {
+  std::array<Vec3, 4> vertices{};
+  std::array<int64_t, 4> point_ids{};  // External point ids; -1 for a Steiner vertex.
+  double weight = 0.0;
+  bool in_o = false;
+  bool free = false;                   // weight > T_w
+};
+
 class EngineInternals {
  public:
   // --- Ray casting (DESIGN §3). ---
@@ -67,6 +76,16 @@ class EngineInternals {
 
   // --- Diagnostics. ---
   static std::vector<BoundaryFacetProbe> ProbeBoundary(const Engine& e);
+  static std::vector<CellProbe> ProbeCells(const Engine& e);
+  // kExact: walks every cast ray again (exact predicates) and checks that each cell it crosses
+  // holds it, and that no cell holds a ray that does not cross it. Empty when all agree, else
+  // what disagreed first. Costs a re-cast of every ray (tests).
+  static std::string CheckRaySets(Engine& e);
+  // Forgets every weight and O, re-casts every point's rays (all its cameras) through today's
+  // triangulation and grows O again: the labelling a batch run would give on the same cells.
+  static void RecastAllAndRegrow(Engine& e);
+  // Empties O and grows it again from the best cell (weights kept).
+  static void Regrow(Engine& e);
 
   // --- Breaking invariants on purpose (tests of CheckInvariants). ---
   // Toggles the first collected cell whose toggle would break dO's manifoldness, skipping the

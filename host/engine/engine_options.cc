@@ -7,12 +7,18 @@
 namespace imr::engine {
 
 std::string ToString(VisibilityMode mode) {
-  return mode == VisibilityMode::kRays ? "rays" : "weights";
+  switch (mode) {
+    case VisibilityMode::kWeights: return "weights";
+    case VisibilityMode::kRays: return "rays";
+    case VisibilityMode::kExact: return "exact";
+  }
+  return "weights";
 }
 
 bool FromString(const std::string& s, VisibilityMode* mode) {
   if (s == "weights") *mode = VisibilityMode::kWeights;
   else if (s == "rays") *mode = VisibilityMode::kRays;
+  else if (s == "exact") *mode = VisibilityMode::kExact;
   else return false;
   return true;
 }
@@ -34,6 +40,17 @@ bool FromString(const std::string& s, SteinerExportRule* rule) {
   return true;
 }
 
+std::string ToString(LongRays rule) {
+  return rule == LongRays::kSkip ? "skip" : "near_camera";
+}
+
+bool FromString(const std::string& s, LongRays* rule) {
+  if (s == "skip") *rule = LongRays::kSkip;
+  else if (s == "near_camera") *rule = LongRays::kNearCamera;
+  else return false;
+  return true;
+}
+
 bool EngineOptions::Check(std::string* error) const {
   std::ostringstream e;
   auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
@@ -47,6 +64,8 @@ bool EngineOptions::Check(std::string* error) const {
     e << "w1, w2, w3 must be finite and >= 0; ";
   if (!std::isfinite(free_threshold)) e << "free_threshold must be finite; ";
   if (window < 1) e << "window must be >= 1; ";
+  if (exact_min_rays < 1) e << "exact_min_rays must be >= 1; ";
+  if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";
   if (!finite_positive(max_ray_length)) e << "max_ray_length must be > 0; ";
   if (rays_per_cell < 1) e << "rays_per_cell must be >= 1; ";
   if (!std::isfinite(shrink_radius) || shrink_radius < 0.0) e << "shrink_radius must be >= 0; ";

@@ -23,11 +23,19 @@ const json& EngineOptionsSchema() {
                    {"description", "W: a move re-casts the rays of the last W cameras"}};
     s["max_ray_length"] = {{"type", "number"}, {"default", d.max_ray_length}, {"minimum", 0.01},
                            {"description", "rays longer than this (metres) are not cast"}};
+    s["long_rays"] = {{"type", "string"},
+                      {"default", engine::ToString(d.long_rays)},
+                      {"enum", {engine::ToString(engine::LongRays::kSkip),
+                                engine::ToString(engine::LongRays::kNearCamera)}},
+                      {"description", "a ray longer than max_ray_length carves nothing (skip) or "
+                                      "its max_ray_length next to the camera (near_camera)"}};
     s["visibility_mode"] = {{"type", "string"},
                             {"default", engine::ToString(d.visibility_mode)},
                             {"enum", {engine::ToString(engine::VisibilityMode::kWeights),
-                                      engine::ToString(engine::VisibilityMode::kRays)}},
-                            {"description", "weights (the paper's policy) or rays (Lovi et al.)"}};
+                                      engine::ToString(engine::VisibilityMode::kRays),
+                                      engine::ToString(engine::VisibilityMode::kExact)}},
+                            {"description", "weights (the paper's transfer policy), rays (Lovi et "
+                                            "al.) or exact (per-cell ray sets, re-walked locally)"}};
     s["rays_per_cell"] = {{"type", "integer"}, {"default", d.rays_per_cell}, {"minimum", 1},
                           {"description", "K of the forgetting heuristic (rays mode)"}};
     s["steiner_export"] = {
@@ -59,6 +67,13 @@ const json& EngineOptionsSchema() {
                           {"description", "passes of shrink over E"}};
     s["check_invariants"] = {{"type", "boolean"}, {"default", d.check_after_update},
                              {"description", "full manifold check after every keyframe (slow)"}};
+    s["regrow_radius"] = {{"type", "number"}, {"default", d.regrow_radius}, {"minimum", 0.0},
+                          {"description", "after each keyframe, O is labelled again in weight "
+                                          "order within this distance (metres) of moved and new "
+                                          "points; 0: off"}};
+    s["exact_min_rays"] = {{"type", "integer"}, {"default", d.exact_min_rays}, {"minimum", 1},
+                           {"description", "exact mode: a cell is free space when at least this "
+                                           "many rays cross it"}};
     return s;
   }();
   return schema;
@@ -78,6 +93,7 @@ bool EngineOptionsFromJson(const json& j, engine::EngineOptions* o, std::vector<
   o->window = v["window"];
   o->max_ray_length = v["max_ray_length"];
   engine::FromString(v["visibility_mode"].get<std::string>(), &o->visibility_mode);
+  engine::FromString(v["long_rays"].get<std::string>(), &o->long_rays);
   o->rays_per_cell = v["rays_per_cell"];
   engine::FromString(v["steiner_export"].get<std::string>(), &o->steiner_export);
   o->transfer_on_insert = v["transfer_on_insert"];
@@ -87,6 +103,8 @@ bool EngineOptionsFromJson(const json& j, engine::EngineOptions* o, std::vector<
   o->shrink_radius = v["shrink_radius"];
   o->shrink_passes = v["shrink_passes"];
   o->check_after_update = v["check_invariants"];
+  o->regrow_radius = v["regrow_radius"];
+  o->exact_min_rays = v["exact_min_rays"];
   std::string error;
   if (!o->Check(&error)) {
     problems->push_back({"engine", error});
@@ -105,6 +123,7 @@ json EngineOptionsToJson(const engine::EngineOptions& o) {
           {"window", o.window},
           {"max_ray_length", o.max_ray_length},
           {"visibility_mode", engine::ToString(o.visibility_mode)},
+          {"long_rays", engine::ToString(o.long_rays)},
           {"rays_per_cell", o.rays_per_cell},
           {"steiner_export", engine::ToString(o.steiner_export)},
           {"transfer_on_insert", o.transfer_on_insert},
@@ -113,6 +132,8 @@ json EngineOptionsToJson(const engine::EngineOptions& o) {
           {"steiner_jitter", o.steiner_jitter},
           {"shrink_radius", o.shrink_radius},
           {"shrink_passes", o.shrink_passes},
+          {"regrow_radius", o.regrow_radius},
+          {"exact_min_rays", o.exact_min_rays},
           {"check_invariants", o.check_after_update}};
 }
 

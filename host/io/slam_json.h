@@ -38,7 +38,7 @@ namespace imr::io {
 struct SlamJsonOptions {
   int min_views = 0;           // 0: 2, or what the file's imr_stream says (1 for imr exports)
   double min_move = 0.0;       // a later X closer than this to the current estimate is no move
-  int views_per_keyframe = 1;  // used when the views carry no "keyframe" numbers
+  int views_per_keyframe = 5;  // used when the views carry no "keyframe" numbers
 };
 SlamJsonOptions SlamJsonOptionsFromJson(const nlohmann::json& options);
 nlohmann::json SlamJsonOptionsSchema();

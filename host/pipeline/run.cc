@@ -60,7 +60,12 @@ json StatsJson(const engine::EngineStats& s) {
           {"rays_cast", s.rays_cast},
           {"rays_cast_backward", s.rays_cast_backward},
           {"rays_skipped_too_long", s.rays_skipped_too_long},
+          {"rays_truncated_to_camera", s.rays_truncated_to_camera},
           {"rays_truncated", s.rays_truncated},
+          {"rays_rewalked", s.rays_rewalked},
+          {"rays_rewalked_exact", s.rays_rewalked_exact},
+          {"cells_rewalked", s.cells_rewalked},
+          {"ray_mismatches", s.ray_mismatches},
           {"cells_traversed", s.cells_traversed},
           {"cells_weighted", s.cells_weighted},
           {"points_inserted", s.points_inserted},
@@ -68,6 +73,8 @@ json StatsJson(const engine::EngineStats& s) {
           {"moves_skipped", s.moves_skipped},
           {"points_dropped", s.points_dropped},
           {"points_duplicate", s.points_duplicate},
+          {"moves_duplicate", s.moves_duplicate},
+          {"points_reentered", s.points_reentered},
           {"points_removed", s.points_removed},
           {"steiner_points", s.steiner_points},
           {"steiner_dropped", s.steiner_dropped},
@@ -82,11 +89,12 @@ json StatsJson(const engine::EngineStats& s) {
 
 // When most points never entered the triangulation (all at one position, at a camera, or cut
 // off by the reconstructed volume), the mesh rests on a few points and is mostly the Steiner
-// grid's: "ok" alone would hide it. Empty when a half or less was refused. points_duplicate
-// counts new points and moves that landed on an existing vertex.
+// grid's: "ok" alone would hide it. Empty when a half or less was refused (points refused at
+// first and entered later, as they moved, count as entered).
 std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mesh& mesh) {
-  const int64_t refused = s.points_dropped + s.points_duplicate;
-  if (refused == 0 || 2 * refused <= s.points_inserted + refused) return {};
+  const int64_t entered = s.points_inserted + s.points_reentered;
+  const int64_t refused = s.points_dropped + s.points_duplicate - s.points_reentered;
+  if (refused <= 0 || 2 * refused <= entered + refused) return {};
   std::size_t steiner_only = 0;
   if (mesh.point_ids.size() * 3 == mesh.vertices.size())
     for (std::size_t f = 0; f + 2 < mesh.faces.size(); f += 3)
@@ -94,10 +102,11 @@ std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mes
           mesh.point_ids[mesh.faces[f + 2]] < 0)
         ++steiner_only;
   return "most points never entered the mesh: " + std::to_string(s.points_duplicate) +
-         " new points or moves were at the position of a point already in it and " +
+         " new points were at the position of a point already in it and " +
          std::to_string(s.points_dropped) +
-         " new points were dropped (their conflict zone met the reconstructed volume), against " +
-         std::to_string(s.points_inserted) + " inserted; " + std::to_string(steiner_only) +
+         " were dropped (their conflict zone met the reconstructed volume); " +
+         std::to_string(s.points_reentered) + " of them entered later, as they moved, against " +
+         std::to_string(s.points_inserted) + " inserted at once; " + std::to_string(steiner_only) +
          " of the mesh's " + std::to_string(mesh.faces.size() / 3) +
          " triangles touch no data point (Steiner grid only). Are the points' positions right?";
 }

@@ -12,10 +12,15 @@
 
 namespace imr::engine::testing {
 
-// A visibility mode as one name: nearest, mean, weighted_mean (weights mode with that policy),
-// rays5, rays1 (the baseline with K = 5 or K = 1).
+// A visibility mode as one name: exact (per-cell ray sets, no policy), nearest, mean,
+// weighted_mean (weights mode with that policy), rays5, rays1 (the baseline with K = 5 or K = 1).
 inline bool ConfigureMode(const std::string& mode, EngineOptions* options,
                           std::unique_ptr<WeightTransferPolicy>* policy) {
+  if (mode == "exact") {
+    options->visibility_mode = VisibilityMode::kExact;
+    policy->reset();
+    return true;
+  }
   if (mode == "rays5" || mode == "rays1") {
     options->visibility_mode = VisibilityMode::kRays;
     options->rays_per_cell = mode == "rays5" ? 5 : 1;
