@@ -513,6 +513,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   auto warn = [&](const std::string& w) {
     LogWarning("[" + JsonText(seq.name) + "] " + w);
     warnings.push_back(w);
+    result->warnings.push_back(w);
   };
   std::string scale_hint;
   if (stats.rays_skipped_too_long > stats.rays_cast) {
