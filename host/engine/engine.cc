@@ -1946,6 +1946,12 @@ Status Engine::ApplyUpdate(const KeyframeUpdate& update) {
 Mesh Engine::ExtractMesh() const {
   const auto t0 = Clock::now();
   Mesh m = impl_->ToMesh(impl_->Boundary(), impl_->opt.steiner_export);
+  const EngineOptions& o = impl_->opt;
+  if (o.fill_holes_perimeter > 0.0 || o.smoothing_iterations > 0) {
+    FillSmallHoles(&m, o.fill_holes_perimeter);
+    SmoothTaubin(&m, o.smoothing_iterations);
+    CanonicalizeMesh(&m);
+  }
   impl_->stats.time.extract += Seconds(t0, Clock::now());
   return m;
 }

@@ -84,6 +84,11 @@ struct EngineOptions {
                                       // or new point leave O (keeping it manifold) and are grown
                                       // again in weight order; 0: off.
   SteinerExportRule steiner_export = SteinerExportRule::kAnySteiner;  // Export filter.
+  double fill_holes_perimeter = 16.0; // Export: holes of the exported mesh with a perimeter up
+                                      // to this (metres; 0: none) are closed by a fan around a
+                                      // new vertex at their centroid.
+  int smoothing_iterations = 0;       // Export: Taubin lambda|mu smoothing steps (boundary
+                                      // vertices fixed; topology unchanged); 0: none.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (DESIGN §3 step 3)
                                       // when true; else they start at 0 and the point's own rays,
@@ -252,6 +257,15 @@ class Engine {
 // same surface is written identically by every run. ExtractMesh and ExtractBoundary return
 // canonical meshes.
 void CanonicalizeMesh(Mesh* mesh);
+
+// Closes every boundary loop of at most `max_edges` edges and `max_perimeter` in length with a
+// fan of triangles around a new vertex (point id -1) at its centroid; a 2-manifold with boundary
+// stays one. Returns the holes closed.
+int FillSmallHoles(Mesh* mesh, double max_perimeter, int max_edges = 64);
+// Taubin's lambda|mu smoothing (`iterations` pairs of steps toward the neighbours' mean): noise
+// is smoothed without the shrinking of plain Laplacian steps. Boundary vertices stay; faces and
+// topology are unchanged.
+void SmoothTaubin(Mesh* mesh, int iterations, double lambda = 0.5, double mu = -0.53);
 
 // Checks an exported mesh: every edge in one or two triangles (two with opposite orientation),
 // every vertex one closed or open fan. closed = true also requires every edge in two triangles.

@@ -65,6 +65,9 @@ bool EngineOptions::Check(std::string* error) const {
   if (!std::isfinite(free_threshold)) e << "free_threshold must be finite; ";
   if (window < 1) e << "window must be >= 1; ";
   if (exact_min_rays < 1) e << "exact_min_rays must be >= 1; ";
+  if (!std::isfinite(fill_holes_perimeter) || fill_holes_perimeter < 0.0)
+    e << "fill_holes_perimeter must be >= 0; ";
+  if (smoothing_iterations < 0) e << "smoothing_iterations must be >= 0; ";
   if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";
   if (!finite_positive(max_ray_length)) e << "max_ray_length must be > 0; ";
   if (rays_per_cell < 1) e << "rays_per_cell must be >= 1; ";

@@ -32,6 +32,8 @@ TEST(EngineOptionsTest, DefaultsAreValid) {
   EXPECT_EQ(o.regrow_radius, 2.0);
   EXPECT_EQ(o.max_ray_length, 40.0);
   EXPECT_EQ(o.long_rays, LongRays::kNearCamera);
+  EXPECT_EQ(o.fill_holes_perimeter, 16.0);
+  EXPECT_EQ(o.smoothing_iterations, 0);
 }
 
 TEST(EngineOptionsTest, CheckNamesTheBadField) {
@@ -447,6 +449,84 @@ namespace {
 
 // The same surface stored in another order (vertices renumbered, faces shuffled and rotated)
 // comes out identical, and every triangle keeps its orientation.
+// An octahedron, oriented outward; `skip` faces left out.
+Mesh Octahedron(std::vector<int> skip = {}) {
+  Mesh m;
+  m.vertices = {1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1};
+  m.point_ids = {0, 1, 2, 3, 4, 5};
+  const uint32_t f[8][3] = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
+                            {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+  for (int i = 0; i < 8; ++i)
+    if (std::find(skip.begin(), skip.end(), i) == skip.end())
+      m.faces.insert(m.faces.end(), f[i], f[i] + 3);
+  return m;
+}
+
+TEST(FillSmallHolesTest, ClosesHolesUpToThePerimeterAndStaysManifold) {
+  // One triangular hole (perimeter 3 * sqrt(2) = 4.24): too long for 4, closed with 4.5.
+  Mesh m = Octahedron({0});
+  ASSERT_TRUE(CheckMesh(m, false).ok);
+  EXPECT_FALSE(CheckMesh(m, true).ok);
+  EXPECT_EQ(FillSmallHoles(&m, 4.0), 0);
+  EXPECT_EQ(m.faces.size(), 21u);
+  EXPECT_EQ(FillSmallHoles(&m, 4.5), 1);
+  EXPECT_EQ(m.faces.size(), 30u);  // a fan of three around a new vertex
+  EXPECT_EQ(m.point_ids.back(), -1);
+  const ManifoldCheckResult closed = CheckMesh(m, true);
+  EXPECT_TRUE(closed.ok) << closed.message;
+  // Two holes that share no vertex: both closed. A mesh without holes is left as it is.
+  Mesh two = Octahedron({0, 6});
+  EXPECT_EQ(FillSmallHoles(&two, 10.0), 2);
+  EXPECT_TRUE(CheckMesh(two, true).ok);
+  EXPECT_EQ(FillSmallHoles(&two, 10.0), 0);
+  // A hole with more edges than allowed stays open: the four faces around vertex 4 leave a
+  // square (perimeter 5.66).
+  Mesh square = Octahedron({0, 1, 2, 3});
+  EXPECT_EQ(FillSmallHoles(&square, 10.0, /*max_edges=*/3), 0);
+  EXPECT_EQ(FillSmallHoles(&square, 10.0), 1);
+  EXPECT_TRUE(CheckMesh(square, true).ok);
+}
+
+TEST(SmoothTaubinTest, LowersRoughnessKeepsBoundaryAndTopology) {
+  // A 21 x 21 grid in z = 0 with noise in z: roughness = mean |z| of the interior vertices.
+  Mesh m;
+  const int n = 21;
+  uint64_t state = 12345;
+  auto noise = [&]() {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return (static_cast<double>(state >> 11) / 9007199254740992.0 - 0.5) * 0.2;
+  };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      m.vertices.insert(m.vertices.end(), {0.5 * i, 0.5 * j, noise()});
+      m.point_ids.push_back(i * n + j);
+    }
+  for (int i = 0; i + 1 < n; ++i)
+    for (int j = 0; j + 1 < n; ++j) {
+      const uint32_t a = i * n + j, b = a + 1, c = a + n, d = c + 1;
+      m.faces.insert(m.faces.end(), {a, c, b, b, c, d});
+    }
+  auto roughness = [&](const Mesh& x) {
+    double s = 0.0;
+    int k = 0;
+    for (int i = 1; i + 1 < n; ++i)
+      for (int j = 1; j + 1 < n; ++j, ++k) s += std::abs(x.vertices[3 * (i * n + j) + 2]);
+    return s / k;
+  };
+  const Mesh before = m;
+  SmoothTaubin(&m, 5);
+  EXPECT_LT(roughness(m), 0.5 * roughness(before));
+  EXPECT_EQ(m.faces, before.faces);
+  const ManifoldCheckResult r = CheckMesh(m, false);
+  EXPECT_TRUE(r.ok) << r.message;
+  EXPECT_EQ(r.boundary_vertices, CheckMesh(before, false).boundary_vertices);
+  // Boundary vertices stay where they were.
+  for (int i = 0; i < n; ++i)
+    for (const int v : {i, i * n, i * n + n - 1, (n - 1) * n + i})
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(m.vertices[3 * v + k], before.vertices[3 * v + k]);
+  SmoothTaubin(&m, 0);  // no steps: unchanged
+}
+
 TEST(CanonicalizeMeshTest, OrderIndependentAndOrientationKept) {
   // A tetrahedron's surface, outward-oriented, with one Steiner vertex.
   Mesh a;

@@ -45,6 +45,12 @@ const json& EngineOptionsSchema() {
                   engine::ToString(engine::SteinerExportRule::kAllSteiner),
                   engine::ToString(engine::SteinerExportRule::kAnySteiner)}},
         {"description", "which triangles touching Steiner points the exported mesh drops"}};
+    s["fill_holes_perimeter"] = {
+        {"type", "number"}, {"default", d.fill_holes_perimeter}, {"minimum", 0.0},
+        {"description", "export: close holes with a perimeter up to this (metres; 0: none)"}};
+    s["smoothing_iterations"] = {
+        {"type", "integer"}, {"default", d.smoothing_iterations}, {"minimum", 0},
+        {"description", "export: Taubin smoothing steps, boundary fixed (0: none)"}};
     s["transfer_on_insert"] = {
         {"type", "boolean"}, {"default", d.transfer_on_insert},
         {"description", "cells made by inserting a new point get weights from the policy (DESIGN "
@@ -96,6 +102,8 @@ bool EngineOptionsFromJson(const json& j, engine::EngineOptions* o, std::vector<
   engine::FromString(v["long_rays"].get<std::string>(), &o->long_rays);
   o->rays_per_cell = v["rays_per_cell"];
   engine::FromString(v["steiner_export"].get<std::string>(), &o->steiner_export);
+  o->fill_holes_perimeter = v["fill_holes_perimeter"];
+  o->smoothing_iterations = v["smoothing_iterations"];
   o->transfer_on_insert = v["transfer_on_insert"];
   o->transfer_camera_side = v["transfer_camera_side"];
   o->nonnegative_weights = v["nonnegative_weights"];
@@ -126,6 +134,8 @@ json EngineOptionsToJson(const engine::EngineOptions& o) {
           {"long_rays", engine::ToString(o.long_rays)},
           {"rays_per_cell", o.rays_per_cell},
           {"steiner_export", engine::ToString(o.steiner_export)},
+          {"fill_holes_perimeter", o.fill_holes_perimeter},
+          {"smoothing_iterations", o.smoothing_iterations},
           {"transfer_on_insert", o.transfer_on_insert},
           {"transfer_camera_side", o.transfer_camera_side},
           {"nonnegative_weights", o.nonnegative_weights},

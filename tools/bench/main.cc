@@ -11,6 +11,7 @@ int RunScalingBench(int argc, char** argv);
 #ifdef IMR_BENCH_EVALUATE
 int RunEvaluateBench(int argc, char** argv);
 int RunPeersBench(int argc, char** argv);
+int RunQualityBench(int argc, char** argv);
 #endif
 #ifdef IMR_BENCH_TEXTURE
 int RunTextureBench(int argc, char** argv);
@@ -33,6 +34,9 @@ void Usage() {
                "  peers [--frames N] [--colmap PATH]\n"
                "         imr vs COLMAP's delaunay_mesher on identical input (needs\n"
                "         tools/bench/peers/build_colmap.sh)\n"
+               "  quality [--inputs street,synth,kitti,stream] [--frames N] [--before IMR] ...\n"
+               "         surface quality per input (completeness, precision, F, distances,\n"
+               "         manifold, time, memory) beside the Piazza mesher and COLMAP\n"
                "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
                "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n"
                "  texture [--sequence DIR --mesh FILE] [--frames N] [--repeat N] [--atlas-size PX]\n"
@@ -54,6 +58,7 @@ int main(int argc, char** argv) {
 #ifdef IMR_BENCH_EVALUATE
   if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
   if (sub == "peers") return imr::bench::RunPeersBench(argc - 2, argv + 2);
+  if (sub == "quality") return imr::bench::RunQualityBench(argc - 2, argv + 2);
 #endif
 #ifdef IMR_BENCH_TEXTURE
   if (sub == "texture") return imr::bench::RunTextureBench(argc - 2, argv + 2);

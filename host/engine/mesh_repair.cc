@@ -1,0 +1,126 @@
+// What the export does to dO's exported part after the Steiner rule (no CGAL here): filling small
+// holes and smoothing, both keeping the mesh a 2-manifold (with the same boundary, for
+// smoothing).
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <unordered_map>
+#include <vector>
+
+#include "host/engine/engine.h"
+
+namespace imr::engine {
+namespace {
+
+double Distance(const Mesh& m, uint32_t a, uint32_t b) {
+  double s = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const double d = m.vertices[3 * a + k] - m.vertices[3 * b + k];
+    s += d * d;
+  }
+  return std::sqrt(s);
+}
+
+// Boundary half-edges: those whose reverse no face has, as `next[a] = b` (one per boundary vertex
+// on a manifold with boundary). Vertices without one map to kNone.
+constexpr uint32_t kNone = 0xFFFFFFFFu;
+std::vector<uint32_t> BoundaryNext(const Mesh& m) {
+  const size_t nv = m.vertices.size() / 3;
+  std::vector<uint64_t> directed;  // a << 32 | b
+  directed.reserve(m.faces.size());
+  for (size_t t = 0; t + 2 < m.faces.size(); t += 3)
+    for (int k = 0; k < 3; ++k) {
+      const uint64_t a = m.faces[t + k], b = m.faces[t + (k + 1) % 3];
+      directed.push_back(a << 32 | b);
+    }
+  std::sort(directed.begin(), directed.end());
+  std::vector<uint32_t> next(nv, kNone);
+  for (const uint64_t key : directed) {
+    const uint32_t a = static_cast<uint32_t>(key >> 32), b = static_cast<uint32_t>(key);
+    const uint64_t reverse = static_cast<uint64_t>(b) << 32 | a;
+    if (!std::binary_search(directed.begin(), directed.end(), reverse)) next[a] = b;
+  }
+  return next;
+}
+
+}  // namespace
+
+int FillSmallHoles(Mesh* m, double max_perimeter, int max_edges) {
+  if (max_perimeter <= 0.0 || max_edges < 3) return 0;
+  const std::vector<uint32_t> next = BoundaryNext(*m);
+  std::vector<uint8_t> seen(next.size(), 0);
+  int filled = 0;
+  std::vector<uint32_t> loop;
+  for (uint32_t start = 0; start < next.size(); ++start) {
+    if (next[start] == kNone || seen[start]) continue;
+    loop.clear();
+    double perimeter = 0.0;
+    bool closed = false;
+    for (uint32_t v = start; loop.size() <= static_cast<size_t>(max_edges);) {
+      if (seen[v]) {
+        closed = v == start;
+        break;
+      }
+      seen[v] = 1;
+      loop.push_back(v);
+      const uint32_t w = next[v];
+      if (w == kNone) break;
+      perimeter += Distance(*m, v, w);
+      v = w;
+    }
+    // Mark the rest of a long loop so it is walked once.
+    for (uint32_t v = loop.empty() ? start : next[loop.back()]; v != kNone && !seen[v]; v = next[v])
+      seen[v] = 1;
+    if (!closed || loop.size() < 3 || loop.size() > static_cast<size_t>(max_edges) ||
+        perimeter > max_perimeter)
+      continue;
+    // A fan around the loop's centroid: each boundary edge a -> b gets the face (b, a, centre),
+    // oriented like the face the edge already has.
+    std::array<double, 3> c{0.0, 0.0, 0.0};
+    for (uint32_t v : loop)
+      for (int k = 0; k < 3; ++k) c[k] += m->vertices[3 * v + k] / static_cast<double>(loop.size());
+    const uint32_t centre = static_cast<uint32_t>(m->vertices.size() / 3);
+    m->vertices.insert(m->vertices.end(), c.begin(), c.end());
+    if (!m->point_ids.empty()) m->point_ids.push_back(-1);
+    for (uint32_t a : loop) m->faces.insert(m->faces.end(), {next[a], a, centre});
+    ++filled;
+  }
+  return filled;
+}
+
+void SmoothTaubin(Mesh* m, int iterations, double lambda, double mu) {
+  if (iterations <= 0) return;
+  const size_t nv = m->vertices.size() / 3;
+  const std::vector<uint32_t> next = BoundaryNext(*m);
+  // Neighbours by edges (each edge once per direction).
+  std::vector<std::vector<uint32_t>> around(nv);
+  for (size_t t = 0; t + 2 < m->faces.size(); t += 3)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = m->faces[t + k], b = m->faces[t + (k + 1) % 3];
+      around[a].push_back(b);
+      around[b].push_back(a);
+    }
+  for (auto& n : around) {
+    std::sort(n.begin(), n.end());
+    n.erase(std::unique(n.begin(), n.end()), n.end());
+  }
+  std::vector<double> delta(3 * nv);
+  auto step = [&](double factor) {
+    for (size_t v = 0; v < nv; ++v) {
+      for (int k = 0; k < 3; ++k) delta[3 * v + k] = 0.0;
+      if (next[v] != kNone || around[v].empty()) continue;  // boundary vertices stay
+      for (uint32_t w : around[v])
+        for (int k = 0; k < 3; ++k) delta[3 * v + k] += m->vertices[3 * w + k];
+      for (int k = 0; k < 3; ++k)
+        delta[3 * v + k] = delta[3 * v + k] / static_cast<double>(around[v].size()) -
+                           m->vertices[3 * v + k];
+    }
+    for (size_t i = 0; i < 3 * nv; ++i) m->vertices[i] += factor * delta[i];
+  };
+  for (int i = 0; i < iterations; ++i) {
+    step(lambda);
+    step(mu);
+  }
+}
+
+}  // namespace imr::engine

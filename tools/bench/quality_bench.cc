@@ -1,0 +1,585 @@
+// imr-bench quality (issue 14): the surface imr makes, input by input, beside other meshers fed
+// the same input in the same run, all evaluated by the same code (host/eval, what `imr evaluate`
+// runs). Per mesher: completeness / precision / F at 0.2 and 0.5 m, truth -> mesh mean and
+// median, mesh -> truth mean, wall time and peak RSS of its process, and whether its mesh is a
+// manifold (closed, or with boundary).
+//
+// Inputs (each skipped with a message when absent):
+//   street   ../shared/data/street-stream: an independent generator's SLAM JSON stream, fed to
+//            imr (slam_json) and to the Piazza mesher as it is; completeness against
+//            gt_points.ply, precision against scene_mesh.ply (the team's measure, data README).
+//            The limit the stream's points allow (../shared/tools/oracle_mesh.py) beside it.
+//   synth    imr-synth's street through the default image job; completeness and precision against
+//            the exact scene (scene.ply, cropped to what the cameras saw), and the road alone.
+//   kitti    the KITTI raw sample (../shared/data) against its Velodyne scans (camera 2).
+//   stream   imr's own synthetic observation stream (the street), against its analytic scene.
+// Peers: the Piazza et al. 2018 mesher (tools/bench/peers/build_piazza.sh) on street directly
+// and on the others through the stream `imr run --export-stream` writes; COLMAP's
+// delaunay_mesher (tools/bench/peers/build_colmap.sh) on imr's final points
+// (`--export-colmap`). Benchmark only, never in CI. Prints Markdown tables with the targets, then
+// one JSON object as the last line.
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "host/eval/evaluate.h"
+#include "host/eval/mesh_io.h"
+#include "host/eval/mesh_stats.h"
+#include "host/synthetic/stream.h"
+#include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/subprocess.h"
+#include "tools/bench/peers/colmap.h"
+#include "tools/bench/peers/piazza.h"
+
+namespace imr::bench {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct QualityArgs {
+  std::vector<std::string> inputs = {"street", "synth", "kitti", "stream"};
+  int synth_frames = 500;      // imr-synth frames (the README's first command: 500)
+  int stream_frames = 500;     // synthetic observation stream frames
+  std::string work;            // scratch folder (kept when given)
+  std::string shared;          // ../shared; default from the source tree
+  std::string piazza, colmap;  // peer binaries (default: their build caches)
+  bool peers = true;
+  std::string before;          // an earlier build's imr (e.g. f69611d's): run on the same input
+  std::string before_label = "f69611d";
+};
+
+// One mesher's result on one input.
+struct Row {
+  std::string mesher;
+  bool ok = false;
+  std::string note;               // why it failed, or how it was fed
+  double seconds = 0.0;           // wall time of its process(es)
+  double rss_mb = 0.0;            // peak resident memory of its process
+  double c2 = 0.0, c5 = 0.0;      // completeness at 0.2 / 0.5 m
+  double p2 = 0.0, p5 = 0.0;      // precision at 0.2 / 0.5 m
+  double t2m_mean = 0.0, t2m_median = 0.0, m2t_mean = 0.0;
+  std::optional<double> road;     // synth: completeness of the road alone at 0.2 m
+  eval::MeshStatistics stats;
+};
+
+double F(double c, double p) { return c + p > 0.0 ? 2.0 * c * p / (c + p) : 0.0; }
+
+std::string ManifoldText(const eval::MeshStatistics& s) {
+  if (!s.manifold)
+    return "no (" + std::to_string(s.nonmanifold_edges) + " edges, " +
+           std::to_string(s.nonmanifold_vertices) + " vertices)";
+  return s.closed ? "yes (closed)" : "yes (" + std::to_string(s.boundary_loops) + " holes)";
+}
+
+// Mesh statistics of a mesh file (manifoldness, holes); false when it cannot be read.
+bool MeshStats(const fs::path& mesh, Row* row) {
+  try {
+    const eval::TriangleMesh m = eval::ReadMesh(mesh);
+    std::vector<double> xyz;
+    std::vector<uint32_t> faces;
+    for (const auto& v : m.vertices) xyz.insert(xyz.end(), v.begin(), v.end());
+    for (const auto& t : m.triangles) faces.insert(faces.end(), t.begin(), t.end());
+    row->stats = eval::ComputeMeshStatistics(xyz, faces);
+    return true;
+  } catch (const std::exception& e) {
+    row->note = std::string("reading the mesh: ") + e.what();
+    return false;
+  }
+}
+
+// `imr evaluate`'s code on a mesh file: completeness and truth -> mesh against `completeness`
+// truth, precision and mesh -> truth against `precision` truth (the same file when equal).
+bool Evaluate(const fs::path& mesh, const eval::EvaluationInputs& completeness,
+              const eval::EvaluationInputs& precision, Row* row) {
+  if (!MeshStats(mesh, row)) return false;
+  eval::EvaluationOptions o;
+  o.taus = {0.2, 0.5};
+  try {
+    eval::EvaluationInputs c = completeness, p = precision;
+    c.mesh = p.mesh = mesh.string();
+    const json a = eval::EvaluateFiles(c, o, eval::ReadKittiSequence);
+    row->c2 = a["completeness"][0];
+    row->c5 = a["completeness"][1];
+    row->t2m_mean = a["truth_to_mesh"]["mean"];
+    row->t2m_median = a["truth_to_mesh"]["median"];
+    // imr-synth's sequences: the road surface alone (what the image front end covers worst).
+    if (a.contains("road_surface") && a["road_surface"]["completeness"].is_array() &&
+        a["road_surface"]["completeness"].size() > 0 && a["road_surface"]["completeness"][0].is_number())
+      row->road = a["road_surface"]["completeness"][0].get<double>();
+    const json b = p.truth == c.truth && p.sequence == c.sequence
+                       ? a
+                       : eval::EvaluateFiles(p, o, eval::ReadKittiSequence);
+    row->p2 = b["precision"][0];
+    row->p5 = b["precision"][1];
+    row->m2t_mean = b["mesh_to_truth"]["mean"];
+    row->ok = true;
+  } catch (const std::exception& e) {
+    row->note = std::string("evaluation: ") + e.what();
+  }
+  return row->ok;
+}
+
+// imr run on a job (this build's imr, or `binary`); the exports the peers need. Fills time and
+// memory.
+bool RunImr(const json& job, const fs::path& work, const std::string& name,
+            const std::string& extra_args, Row* row, const std::string& binary = "") {
+  const fs::path job_file = work / (name + ".json");
+  std::ofstream(job_file) << job.dump(2);
+  const std::string imr = binary.empty() ? (ExeDir() / "imr").string() : binary;
+  const TimedRun r = RunTimed(Quote(imr) + " run -q " +
+                                  Quote(job_file.string()) + " " + extra_args,
+                              work / (name + ".log"));
+  row->seconds = r.seconds;
+  row->rss_mb = r.peak_rss_mb;
+  if (r.status != 0) {
+    row->note = "imr run failed (" + (work / (name + ".log")).string() + ")";
+    return false;
+  }
+  return true;
+}
+
+json Exporter() { return {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}; }
+
+// The same job through an earlier build (--before): its engine section and a nearest policy
+// stage (what that build's weights mode needs), one more row.
+void RunBefore(const QualityArgs& args, json job, const json& engine, const fs::path& work,
+               const std::string& name, const std::string& label,
+               const std::function<void(const fs::path&, Row*)>& evaluate,
+               std::vector<Row>* rows) {
+  if (args.before.empty()) return;
+  Row r;
+  r.mesher = "imr at " + args.before_label + ", " + label;
+  job["engine"] = engine;
+  json pipeline = json::array();
+  for (const json& stage : job["pipeline"]) {
+    if (stage["kind"] == "exporter")
+      pipeline.push_back({{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}});
+    pipeline.push_back(stage);
+  }
+  job["pipeline"] = pipeline;
+  job["output"]["directory"] = (work / name).string();
+  if (RunImr(job, work, name, "", &r, args.before)) evaluate(work / name / "mesh.ply", &r);
+  rows->push_back(r);
+}
+
+// The peers on one input: Piazza on `stream` (a SLAM JSON file), COLMAP on `model`.
+void RunPeers(const QualityArgs& args, const fs::path& work, const fs::path& stream,
+              const fs::path& model, const std::string& fed,
+              const std::function<void(const fs::path&, Row*)>& evaluate,
+              std::vector<Row>* rows) {
+  if (!args.peers) return;
+  Row piazza;
+  piazza.mesher = "Piazza et al. 2018 (KITTI config, moves on)";
+  const std::string binary = FindPiazza(args.piazza);
+  if (binary.empty()) {
+    piazza.note = "not built (tools/bench/peers/build_piazza.sh)";
+  } else if (!fs::exists(stream)) {
+    piazza.note = "no stream to feed it";
+  } else {
+    const PiazzaResult r = RunPiazza(binary, stream.string(), (work / "piazza").string(),
+                                     /*moves_on=*/true);
+    piazza.seconds = r.seconds;
+    piazza.rss_mb = r.peak_rss_mb;
+    if (!r.ok) piazza.note = r.error;
+    else evaluate(r.mesh_path, &piazza), piazza.note = fed;
+  }
+  rows->push_back(piazza);
+
+  Row col;
+  col.mesher = "COLMAP 3.8 delaunay_mesher (batch, final points)";
+  const std::string colmap = FindColmap(args.colmap);
+  if (colmap.empty()) {
+    col.note = "not built (tools/bench/peers/build_colmap.sh)";
+  } else if (!fs::exists(model)) {
+    col.note = "no COLMAP model to feed it";
+  } else {
+    const fs::path mesh = work / "colmap-mesh.ply";
+    const TimedRun r = RunTimed(Quote(colmap) + " delaunay_mesher --input_path " +
+                                    Quote(model.string()) +
+                                    " --input_type sparse --output_path " + Quote(mesh.string()),
+                                work / "colmap.log");
+    col.seconds = r.seconds;
+    col.rss_mb = r.peak_rss_mb;
+    if (r.status != 0 || !fs::exists(mesh)) col.note = "delaunay_mesher failed (colmap.log)";
+    else evaluate(mesh, &col), col.note = "imr's final points (--export-colmap)";
+  }
+  rows->push_back(col);
+}
+
+struct Target {
+  std::string what;
+  double value;
+  bool at_least;  // value is a minimum (else a maximum)
+  double reached;
+};
+
+void Print(const std::string& title, const std::vector<Row>& rows,
+           const std::vector<Target>& targets, json* out) {
+  std::printf("\n### %s\n\n", title.c_str());
+  std::printf("| mesher | wall s | RSS MB | compl. 0.2 | prec. 0.2 | F 0.2 | F 0.5 | truth→mesh "
+              "mean / median (m) | mesh→truth mean (m) | manifold |%s\n",
+              rows.size() && rows[0].road ? " road compl. 0.2 |" : "");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|%s\n",
+              rows.size() && rows[0].road ? "---|" : "");
+  json list = json::array();
+  for (const Row& r : rows) {
+    json j = {{"mesher", r.mesher}, {"ok", r.ok}, {"note", r.note}};
+    if (!r.ok) {
+      std::printf("| %s | %s | | | | | | | | |\n", r.mesher.c_str(),
+                  (r.note.empty() ? std::string("failed") : r.note).c_str());
+      list.push_back(j);
+      continue;
+    }
+    std::printf("| %s | %.1f | %.0f | %.3f | %.3f | %.3f | %.3f | %.3f / %.3f | %.3f | %s |",
+                r.mesher.c_str(), r.seconds, r.rss_mb, r.c2, r.p2, F(r.c2, r.p2), F(r.c5, r.p5),
+                r.t2m_mean, r.t2m_median, r.m2t_mean, ManifoldText(r.stats).c_str());
+    if (r.road) std::printf(" %.3f |", *r.road);
+    std::printf("\n");
+    j.update({{"seconds", r.seconds},
+              {"rss_mb", r.rss_mb},
+              {"completeness", {r.c2, r.c5}},
+              {"precision", {r.p2, r.p5}},
+              {"f", {F(r.c2, r.p2), F(r.c5, r.p5)}},
+              {"truth_to_mesh_mean", r.t2m_mean},
+              {"truth_to_mesh_median", r.t2m_median},
+              {"mesh_to_truth_mean", r.m2t_mean},
+              {"manifold", r.stats.manifold},
+              {"closed", r.stats.closed},
+              {"boundary_loops", r.stats.boundary_loops},
+              {"faces", r.stats.faces}});
+    if (r.road) j["road_completeness"] = *r.road;
+    list.push_back(j);
+  }
+  for (const Row& r : rows)
+    if (!r.ok || r.note.empty()) continue;
+    else std::printf("%s: %s\n", r.mesher.c_str(), r.note.c_str());
+  // imr against each peer: ratios.
+  if (!rows.empty() && rows[0].ok)
+    for (size_t i = 1; i < rows.size(); ++i) {
+      const Row& p = rows[i];
+      if (!p.ok || p.mesher.rfind("limit", 0) == 0) continue;
+      std::printf("imr / %s: completeness ×%.2f, precision ×%.2f, truth→mesh mean ×%.2f, time "
+                  "×%.2f, memory ×%.2f\n",
+                  p.mesher.c_str(), rows[0].c2 / std::max(p.c2, 1e-9),
+                  rows[0].p2 / std::max(p.p2, 1e-9), rows[0].t2m_mean / std::max(p.t2m_mean, 1e-9),
+                  rows[0].seconds / std::max(p.seconds, 1e-9),
+                  rows[0].rss_mb / std::max(p.rss_mb, 1e-9));
+    }
+  json tj = json::array();
+  for (const Target& t : targets) {
+    const bool met = t.at_least ? t.reached >= t.value : t.reached <= t.value;
+    std::printf("target: %s %s %.3g — reached %.3f: %s\n", t.what.c_str(),
+                t.at_least ? ">=" : "<=", t.value, t.reached, met ? "met" : "NOT met");
+    tj.push_back({{"what", t.what}, {"target", t.value}, {"reached", t.reached}, {"met", met}});
+  }
+  (*out)["rows"] = list;
+  (*out)["targets"] = tj;
+}
+
+// --- street: ../shared/data/street-stream --------------------------------------------------------
+json Street(const QualityArgs& args, const fs::path& work) {
+  const fs::path data = fs::path(args.shared) / "data/street-stream";
+  json out = {{"input", "street-stream"}};
+  if (!fs::exists(data / "slam.json")) {
+    std::printf("\n### street-stream: skipped, %s not found\n", (data / "slam.json").c_str());
+    out["skipped"] = "no " + (data / "slam.json").string();
+    return out;
+  }
+  fs::create_directories(work);
+  eval::EvaluationInputs completeness, precision;
+  completeness.truth = (data / "gt_points.ply").string();
+  precision.truth = (data / "scene_mesh.ply").string();
+  auto evaluate = [&](const fs::path& mesh, Row* row) {
+    Evaluate(mesh, completeness, precision, row);
+  };
+  std::vector<Row> rows;
+  Row imr;
+  imr.mesher = "imr (defaults)";
+  const json job = {{"description", "imr-bench quality: street-stream"},
+                    {"sequences", {(data / "slam.json").string()}},
+                    {"input", {{"format", "slam_json"}}},
+                    {"pipeline", {Exporter()}},
+                    {"output", {{"directory", (work / "imr").string()}, {"formats", {"ply"}}}}};
+  if (RunImr(job, work, "imr", "--export-colmap " + Quote((work / "colmap-model").string()), &imr))
+    evaluate(work / "imr/mesh.ply", &imr);
+  rows.push_back(imr);
+  RunBefore(args, job, json::object(), work, "before-defaults", "defaults", evaluate, &rows);
+  RunBefore(args, job, {{"steiner_export", "any_steiner"}}, work, "before-any",
+            "nearest, any_steiner (issue 14's table)", evaluate, &rows);
+
+  // The limit: the stream's points triangulated per true plane (oracle_mesh.py).
+  Row limit;
+  limit.mesher = "limit: the points triangulated per true plane (oracle_mesh.py, final positions)";
+  const fs::path oracle = fs::path(args.shared) / "tools/oracle_mesh.py";
+  if (fs::exists(oracle) && Sh("/usr/bin/python3 -c 'import open3d, scipy' 2>/dev/null") == 0) {
+    const TimedRun r = RunTimed("/usr/bin/python3 " + Quote(oracle.string()) + " " +
+                                    Quote(data.string()) + " " +
+                                    Quote((work / "oracle.ply").string()),
+                                work / "oracle.log");
+    if (r.status == 0) evaluate(work / "oracle.ply", &limit);
+    else limit.note = "oracle_mesh.py failed (oracle.log)";
+    limit.seconds = r.seconds, limit.rss_mb = r.peak_rss_mb;
+  } else {
+    limit.note = "needs " + oracle.string() + " and Debian's python3-open3d, python3-scipy";
+  }
+  rows.push_back(limit);
+  RunPeers(args, work, data / "slam.json", work / "colmap-model", "the stream as it is",
+           evaluate, &rows);
+  const Row& r = rows[0];
+  Print("street-stream (" + data.string() + "), slam_json, every mesher fed the same stream", rows,
+        {{"completeness 0.2 m", 0.80, true, r.c2},
+         {"precision 0.2 m", 0.80, true, r.p2},
+         {"F 0.2 m", 0.80, true, F(r.c2, r.p2)},
+         {"truth→mesh mean (m)", 0.20, false, r.t2m_mean}},
+        &out);
+  return out;
+}
+
+// --- synth: imr-synth's street, the default image job --------------------------------------------
+json Synth(const QualityArgs& args, const fs::path& work) {
+  json out = {{"input", "imr-synth street"}, {"frames", args.synth_frames}};
+  fs::create_directories(work);
+  const fs::path seq = work / "street";
+  if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(seq.string()) +
+         " --frames " + std::to_string(args.synth_frames) + " --no-lidar --force -q >" +
+         Quote((work / "synth.log").string()) + " 2>&1") != 0) {
+    std::printf("\n### imr-synth street: imr-synth failed (%s)\n", (work / "synth.log").c_str());
+    out["skipped"] = "imr-synth failed";
+    return out;
+  }
+  // configs/default.json's settings.
+  const json job = {
+      {"description", "imr-bench quality: imr-synth street, default job"},
+      {"sequences", {seq.string()}},
+      {"input", {{"format", "kitti_odometry"}}},
+      {"pipeline",
+       {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+        {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
+         {"params", {{"max_distance", 30.0}}}},
+        Exporter()}},
+      {"output", {{"directory", (work / "imr").string()}, {"formats", {"ply"}}}}};
+  eval::EvaluationInputs truth;
+  truth.truth = (seq / "ground_truth/scene.ply").string();
+  truth.sequence = seq.string();
+  auto evaluate = [&](const fs::path& mesh, Row* row) {
+    Evaluate(mesh, truth, truth, row);
+  };
+  std::vector<Row> rows;
+  Row imr;
+  imr.mesher = "imr (default image job)";
+  if (RunImr(job, work, "imr",
+             "--export-stream " + Quote((work / "stream.json").string()) + " --export-colmap " +
+                 Quote((work / "colmap-model").string()),
+             &imr))
+    evaluate(work / "imr/mesh.ply", &imr);
+  rows.push_back(imr);
+  RunBefore(args, job, {{"window", 15}, {"steiner_spacing", 5.0}, {"steiner_export", "any_steiner"}},
+            work, "before", "configs/default.json then", evaluate, &rows);
+  RunPeers(args, work, work / "stream.json", work / "colmap-model",
+           "imr's exported stream (--export-stream)", evaluate, &rows);
+  const Row& r = rows[0];
+  Print("imr-synth street, " + std::to_string(args.synth_frames) +
+            " frames, default image job (points from imr's front end for every mesher)",
+        rows,
+        {{"completeness 0.2 m", 0.70, true, r.c2},
+         {"precision 0.2 m", 0.75, true, r.p2},
+         {"road completeness 0.2 m", 0.60, true, r.road.value_or(0.0)}},
+        &out);
+  return out;
+}
+
+// --- kitti: the KITTI raw sample against its Velodyne -------------------------------------------
+json Kitti(const QualityArgs& args, const fs::path& work) {
+  json out = {{"input", "KITTI raw sample"}};
+  const fs::path root = fs::path(args.shared) / "data/kitti-raw-2011_09_26-traffic";
+  const fs::path drive = root / "2011_09_26/2011_09_26_drive_unknown_sync";
+  if (!fs::exists(drive)) {
+    std::printf("\n### KITTI raw sample: skipped, %s not found\n", drive.c_str());
+    out["skipped"] = "no " + drive.string();
+    return out;
+  }
+  fs::create_directories(work);
+  const json job = {
+      {"description", "imr-bench quality: KITTI raw sample"},
+      {"sequences", {drive.string()}},
+      {"input", {{"format", "kitti_raw"}, {"options", {{"camera", 2}}}}},
+      {"pipeline",
+       {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+        {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
+         {"params", {{"max_distance", 30.0}}}},
+        Exporter()}},
+      {"output", {{"directory", (work / "imr").string()}, {"formats", {"ply"}}}}};
+  eval::EvaluationInputs truth;  // the Velodyne scans, cropped to camera 2's view
+  truth.sequence = drive.string();
+  truth.sequence_options.camera = 2;
+  auto evaluate = [&](const fs::path& mesh, Row* row) { Evaluate(mesh, truth, truth, row); };
+  std::vector<Row> rows;
+  Row imr;
+  imr.mesher = "imr (configs/kitti-raw-sample.json settings)";
+  if (RunImr(job, work, "imr",
+             "--export-stream " + Quote((work / "stream.json").string()) + " --export-colmap " +
+                 Quote((work / "colmap-model").string()),
+             &imr))
+    evaluate(work / "imr/mesh.ply", &imr);
+  rows.push_back(imr);
+  RunBefore(args, job, {{"window", 15}, {"steiner_spacing", 5.0}, {"steiner_export", "any_steiner"}},
+            work, "before", "configs/kitti-raw-sample.json then", evaluate, &rows);
+  RunPeers(args, work, work / "stream.json", work / "colmap-model",
+           "imr's exported stream (--export-stream)", evaluate, &rows);
+  // The target: truth -> mesh mean at most half of what imr gave before (the --before row).
+  std::vector<Target> targets;
+  if (rows.size() > 1 && rows[1].ok && !args.before.empty())
+    targets.push_back({"truth→mesh mean (m), half of " + args.before_label + "'s",
+                       rows[1].t2m_mean / 2, false, rows[0].t2m_mean});
+  Print("KITTI raw sample (78 frames, camera 2) against its Velodyne scans", rows, targets, &out);
+  return out;
+}
+
+// --- stream: imr's own synthetic observation stream -----------------------------------------------
+json Stream(const QualityArgs& args, const fs::path& work) {
+  json out = {{"input", "synthetic stream (street)"}, {"frames", args.stream_frames}};
+  fs::create_directories(work);
+  // The stream as the synthetic input format makes it (seed 1), and ground truth sampled
+  // independently on what its cameras saw.
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = args.stream_frames;
+  so.seed = 1;
+  synthetic::SyntheticStream stream(so);
+  const std::vector<synthetic::Vec3> truth =
+      SampleSeenSurfaces(stream, args.stream_frames, 2, 400, 7);
+  auto evaluate = [&](const fs::path& mesh_file, Row* row) {
+    if (!MeshStats(mesh_file, row)) return;
+    const eval::TriangleMesh m = eval::ReadMesh(mesh_file);
+    std::vector<double> xyz;
+    std::vector<uint32_t> faces;
+    for (const auto& v : m.vertices) xyz.insert(xyz.end(), v.begin(), v.end());
+    for (const auto& t : m.triangles) faces.insert(faces.end(), t.begin(), t.end());
+    const SceneAccuracy a2 = EvaluateAgainstScene(stream.scene(), xyz, faces, truth, 0.2);
+    const SceneAccuracy a5 = EvaluateAgainstScene(stream.scene(), xyz, faces, truth, 0.5);
+    row->c2 = a2.completeness, row->c5 = a5.completeness;
+    row->p2 = a2.precision, row->p5 = a5.precision;
+    row->t2m_mean = a2.truth_to_mesh_mean, row->t2m_median = a2.truth_to_mesh_median;
+    row->m2t_mean = a2.mesh_to_scene_mean;
+    row->ok = true;
+  };
+  std::vector<Row> rows;
+  for (const std::string mode : {"exact", "weights"}) {
+    Row r;
+    r.mesher = mode == "exact" ? "imr (defaults)" : "imr, the paper's nearest policy (weights)";
+    json pipeline = json::array();
+    if (mode == "weights")
+      pipeline.push_back({{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}});
+    pipeline.push_back(Exporter());
+    const json job = {
+        {"description", "imr-bench quality: synthetic stream"},
+        {"sequences", {"street"}},
+        {"input", {{"format", "synthetic"},
+                   {"options", {{"frames", args.stream_frames}, {"seed", 1}}}}},
+        {"engine", {{"visibility_mode", mode}}},
+        {"pipeline", pipeline},
+        {"output", {{"directory", (work / mode).string()}, {"formats", {"ply"}}}}};
+    const std::string export_arg =
+        mode == "exact" ? "--export-stream " + Quote((work / "stream.json").string()) +
+                              " --export-colmap " + Quote((work / "colmap-model").string())
+                        : "";
+    if (RunImr(job, work, mode, export_arg, &r)) evaluate(work / mode / "mesh.ply", &r);
+    rows.push_back(r);
+  }
+  RunPeers(args, work, work / "stream.json", work / "colmap-model",
+           "imr's exported stream (--export-stream)", evaluate, &rows);
+  Print("imr's synthetic observation stream, street, " + std::to_string(args.stream_frames) +
+            " frames, against the analytic scene",
+        rows, {}, &out);
+  return out;
+}
+
+}  // namespace
+
+int RunQualityBench(int argc, char** argv) {
+  QualityArgs args;
+  for (int i = 0; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "imr-bench quality: %s needs a value\n", k.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (k == "--inputs") {
+      args.inputs.clear();
+      std::stringstream ss(value());
+      for (std::string s; std::getline(ss, s, ',');) args.inputs.push_back(s);
+    } else if (k == "--frames") {
+      args.synth_frames = args.stream_frames = std::atoi(value().c_str());
+    } else if (k == "--work") {
+      args.work = value();
+    } else if (k == "--shared") {
+      args.shared = value();
+    } else if (k == "--piazza") {
+      args.piazza = value();
+    } else if (k == "--colmap") {
+      args.colmap = value();
+    } else if (k == "--no-peers") {
+      args.peers = false;
+    } else if (k == "--before") {
+      args.before = value();
+    } else if (k == "--before-label") {
+      args.before_label = value();
+    } else {
+      std::fprintf(stderr,
+                   "usage: imr-bench quality [--inputs street,synth,kitti,stream] [--frames N]\n"
+                   "       [--work DIR] [--shared DIR] [--piazza PATH] [--colmap PATH] "
+                   "[--no-peers]\n"
+                   "       [--before IMR --before-label LABEL]   an earlier build's imr, same "
+                   "input\n");
+      return 2;
+    }
+  }
+  if (args.shared.empty())
+    args.shared = std::getenv("IMR_SHARED_DIR") ? std::getenv("IMR_SHARED_DIR") : IMR_SHARED_DIR;
+  const fs::path work = args.work.empty() ? fs::temp_directory_path() /
+                                                ("imr-bench-quality-" + std::to_string(getpid()))
+                                          : fs::path(args.work);
+  fs::create_directories(work);
+  std::printf("imr-bench quality: %s; load average at start %s; work folder %s\n",
+              MachineLine().c_str(), LoadAverage().c_str(), work.c_str());
+  json result = {{"bench", "quality"}, {"machine", MachineLine()},
+                 {"load_average_start", LoadAverage()}, {"inputs", json::array()}};
+  for (const std::string& in : args.inputs) {
+    json r;
+    if (in == "street") r = Street(args, work / "street");
+    else if (in == "synth") r = Synth(args, work / "synth");
+    else if (in == "kitti") r = Kitti(args, work / "kitti");
+    else if (in == "stream") r = Stream(args, work / "stream");
+    else {
+      std::fprintf(stderr, "imr-bench quality: unknown input '%s'\n", in.c_str());
+      return 2;
+    }
+    result["inputs"].push_back(r);
+  }
+  result["load_average_end"] = LoadAverage();
+  std::printf("\nload average at end %s\n", LoadAverage().c_str());
+  if (args.work.empty()) fs::remove_all(work);
+  std::printf("%s\n", result.dump().c_str());
+  return 0;
+}
+
+}  // namespace imr::bench
