@@ -156,6 +156,18 @@ bool RunImr(const json& job, const fs::path& work, const std::string& name,
 
 json Exporter() { return {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}; }
 
+// A job of configs/ as the README runs it, on `sequence`, its mesh as PLY into `output`.
+json ConfigJob(const std::string& config, const fs::path& sequence, const fs::path& output) {
+  const fs::path path = fs::path(IMR_SOURCE_DIR) / "configs" / config;
+  std::ifstream in(path);
+  json job = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (!job.is_object()) throw std::runtime_error(path.string() + ": cannot read the job");
+  job["description"] = "imr-bench quality: " + path.string();
+  job["sequences"] = {sequence.string()};
+  job["output"] = {{"directory", output.string()}, {"stem", "mesh"}, {"formats", {"ply"}}};
+  return job;
+}
+
 // The same job through an earlier build (--before): its engine section and a nearest policy
 // stage (what that build's weights mode needs), one more row.
 void RunBefore(const QualityArgs& args, json job, const json& engine, const fs::path& work,
@@ -166,9 +178,11 @@ void RunBefore(const QualityArgs& args, json job, const json& engine, const fs::
   Row r;
   r.mesher = "imr at " + args.before_label + ", " + label;
   job["engine"] = engine;
+  bool has_policy = false;
+  for (const json& stage : job["pipeline"]) has_policy |= stage["kind"] == "weight_policy";
   json pipeline = json::array();
   for (const json& stage : job["pipeline"]) {
-    if (stage["kind"] == "exporter")
+    if (stage["kind"] == "exporter" && !has_policy)
       pipeline.push_back({{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}});
     pipeline.push_back(stage);
   }
@@ -357,23 +371,14 @@ json Synth(const QualityArgs& args, const fs::path& work) {
   fs::create_directories(work);
   const fs::path seq = work / "street";
   if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(seq.string()) +
-         " --frames " + std::to_string(args.synth_frames) + " --no-lidar --force -q >" +
+         " --frames " + std::to_string(args.synth_frames) + " --color --no-lidar --force -q >" +
          Quote((work / "synth.log").string()) + " 2>&1") != 0) {
     std::printf("\n### imr-synth street: imr-synth failed (%s)\n", (work / "synth.log").c_str());
     out["skipped"] = "imr-synth failed";
     return out;
   }
-  // configs/default.json's settings.
-  const json job = {
-      {"description", "imr-bench quality: imr-synth street, default job"},
-      {"sequences", {seq.string()}},
-      {"input", {{"format", "kitti_odometry"}}},
-      {"pipeline",
-       {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
-        {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
-         {"params", {{"max_distance", 30.0}}}},
-        Exporter()}},
-      {"output", {{"directory", (work / "imr").string()}, {"formats", {"ply"}}}}};
+  // The README's first command: configs/default.json.
+  const json job = ConfigJob("default.json", seq, work / "imr");
   eval::EvaluationInputs truth;
   truth.truth = (seq / "ground_truth/scene.ply").string();
   truth.sequence = seq.string();
@@ -382,14 +387,16 @@ json Synth(const QualityArgs& args, const fs::path& work) {
   };
   std::vector<Row> rows;
   Row imr;
-  imr.mesher = "imr (default image job)";
+  imr.mesher = "imr (configs/default.json)";
   if (RunImr(job, work, "imr",
              "--export-stream " + Quote((work / "stream.json").string()) + " --export-colmap " +
                  Quote((work / "colmap-model").string()),
              &imr))
     evaluate(work / "imr/mesh.ply", &imr);
   rows.push_back(imr);
-  RunBefore(args, job, {{"window", 15}, {"steiner_spacing", 5.0}, {"steiner_export", "any_steiner"}},
+  RunBefore(args, job,
+            {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
+             {"steiner_export", "any_steiner"}},
             work, "before", "configs/default.json then", evaluate, &rows);
   RunPeers(args, work, work / "stream.json", work / "colmap-model",
            "imr's exported stream (--export-stream)", evaluate, &rows);
@@ -415,30 +422,23 @@ json Kitti(const QualityArgs& args, const fs::path& work) {
     return out;
   }
   fs::create_directories(work);
-  const json job = {
-      {"description", "imr-bench quality: KITTI raw sample"},
-      {"sequences", {drive.string()}},
-      {"input", {{"format", "kitti_raw"}, {"options", {{"camera", 2}}}}},
-      {"pipeline",
-       {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
-        {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
-         {"params", {{"max_distance", 30.0}}}},
-        Exporter()}},
-      {"output", {{"directory", (work / "imr").string()}, {"formats", {"ply"}}}}};
+  const json job = ConfigJob("kitti-raw-sample.json", drive, work / "imr");
   eval::EvaluationInputs truth;  // the Velodyne scans, cropped to camera 2's view
   truth.sequence = drive.string();
   truth.sequence_options.camera = 2;
   auto evaluate = [&](const fs::path& mesh, Row* row) { Evaluate(mesh, truth, truth, row); };
   std::vector<Row> rows;
   Row imr;
-  imr.mesher = "imr (configs/kitti-raw-sample.json settings)";
+  imr.mesher = "imr (configs/kitti-raw-sample.json)";
   if (RunImr(job, work, "imr",
              "--export-stream " + Quote((work / "stream.json").string()) + " --export-colmap " +
                  Quote((work / "colmap-model").string()),
              &imr))
     evaluate(work / "imr/mesh.ply", &imr);
   rows.push_back(imr);
-  RunBefore(args, job, {{"window", 15}, {"steiner_spacing", 5.0}, {"steiner_export", "any_steiner"}},
+  RunBefore(args, job,
+            {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
+             {"steiner_export", "any_steiner"}},
             work, "before", "configs/kitti-raw-sample.json then", evaluate, &rows);
   RunPeers(args, work, work / "stream.json", work / "colmap-model",
            "imr's exported stream (--export-stream)", evaluate, &rows);
