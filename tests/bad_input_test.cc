@@ -735,6 +735,7 @@ json WithFailingPolicy(const json& params) {
   p["only_in"] = "street";
   j["pipeline"][0] = {{"kind", "weight_policy"}, {"plugin", "org.imr.test.policy.failing"},
                       {"params", p}};
+  j["engine"]["visibility_mode"] = "weights";  // the mode that calls a policy
   return j;
 }
 

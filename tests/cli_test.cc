@@ -149,7 +149,8 @@ TEST_F(Cli, ValidateReportsEveryProblemWithItsPath) {
       "input.options.seeed: unknown key",
       "outptu: unknown key",
       "engine.window: expected integer >= 1, got 0",
-      "engine.visibility_mode: expected string (one of \"weights\" or \"rays\"), got \"magic\"",
+      "engine.visibility_mode: expected string (one of \"weights\", \"rays\" or \"exact\"), got "
+      "\"magic\"",
       "pipeline[0].params.radius: unknown key (no parameters accepted)",
       "pipeline[2].plugin: unknown plugin id \"org.imr.policy.nearset\" (known weight_policy "
       "plugins: org.imr.policy.mean, org.imr.policy.nearest or org.imr.policy.weighted_mean",
@@ -254,6 +255,7 @@ TEST_F(Cli, APolicyThatFailsLeavesNoPartialOutput) {
     j["pipeline"][0] = {{"kind", "weight_policy"},
                         {"plugin", "org.imr.test.policy.failing"},
                         {"params", json::parse(params)}};
+    j["engine"]["visibility_mode"] = "weights";  // the mode that calls a policy
     j["plugin_paths"] = {IMR_TEST_PLUGIN_DIR};
     auto r = Imr("run -q " + Quote(WriteJob(j).string()));
     EXPECT_EQ(r.status, 1) << params << r.out << r.err;
@@ -269,6 +271,7 @@ TEST_F(Cli, CheckInvariantsStopsAtTheKeyframeAndCell) {
   j["pipeline"][0] = {{"kind", "weight_policy"},
                       {"plugin", "org.imr.test.policy.failing"},
                       {"params", {{"negative", true}}}};
+  j["engine"]["visibility_mode"] = "weights";  // the mode that calls a policy
   j["plugin_paths"] = {IMR_TEST_PLUGIN_DIR};
   const std::string job = Quote(WriteJob(j).string());
   auto r = Imr("run -q --check-invariants " + job);

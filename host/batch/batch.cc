@@ -329,6 +329,7 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     r.exit_code = o.exit_code;
     r.signal = o.signal != 0 ? SignalName(o.signal) : "";
     r.log_tail = o.log_tail;
+    r.warnings = o.warnings;
     r.host = host;
     r.finished_at = UtcNow();
     try {
@@ -470,6 +471,9 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     } else {
       o.status = SequenceStatus::kFailed;
       o.log_tail = r.tail.Lines();
+      if (r.result.is_object() && r.result.contains("warnings") && r.result["warnings"].is_array())
+        for (const json& w : r.result["warnings"])
+          if (w.is_string()) o.warnings.push_back(w.get<std::string>());
       if (WIFEXITED(st)) {
         o.exit_code = WEXITSTATUS(st);
         o.detail = r.result.is_object() && r.result.contains("error")
@@ -642,7 +646,11 @@ int RunOneChild(const ChildArguments& args, MessageChannel& channel,
   };
   const pipeline::SequenceResult r = pipeline::RunOneSequence(v, registry, run_options, *seq);
   if (!r.ok) {
-    channel.Send({{"result", {{"ok", false}, {"error", r.error}, {"cancelled", plugin::CancelRequested()}}}});
+    channel.Send({{"result",
+                   {{"ok", false},
+                    {"error", r.error},
+                    {"warnings", r.warnings},
+                    {"cancelled", plugin::CancelRequested()}}}});
     return 1;
   }
   try {

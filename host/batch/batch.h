@@ -58,6 +58,7 @@ struct SequenceOutcome {
   int signal = 0;      // the signal that ended the child
   uint64_t peak_rss = 0;
   std::vector<std::string> log_tail;
+  std::vector<std::string> warnings;  // failed: warnings given before it failed
 };
 
 struct BatchRunResult {

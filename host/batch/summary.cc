@@ -156,6 +156,7 @@ void WriteStatusRecord(const fs::path& batch_dir, const StatusRecord& r) {
     j["exit_code"] = r.exit_code >= 0 ? json(r.exit_code) : json();
     j["signal"] = r.signal.empty() ? json() : json(r.signal);
     j["log_tail"] = r.log_tail;
+    if (!r.warnings.empty()) j["warnings"] = r.warnings;
   }
   EnsureWritableDirectory(StatusPath(batch_dir, r.sequence).parent_path());
   WriteFileAtomically(StatusPath(batch_dir, r.sequence), DumpJson(j, 2) + "\n");
@@ -217,7 +218,7 @@ json BuildSummary(const fs::path& batch_dir) {
       ++failed;
       row["seconds"] = record.value("seconds", json());
       row["error"] = record.value("error", "failed");
-      for (const char* k : {"exit_code", "signal", "log_tail", "host", "finished_at"})
+      for (const char* k : {"exit_code", "signal", "log_tail", "host", "finished_at", "warnings"})
         if (record.contains(k)) row[k] = record[k];
     } else if (recorded == "interrupted") {
       // Stopped by a signal to the batch (Ctrl-C, SIGTERM, SIGHUP): not a failure of its own.

@@ -60,6 +60,7 @@ struct StatusRecord {
   std::string host;    // where it ran
   std::string finished_at;  // UTC, ISO 8601; empty while running
   std::string started_at;   // UTC, ISO 8601; running only
+  std::vector<std::string> warnings;  // failed: warnings given before it failed
 };
 
 // The file name of a sequence's status record: "<name>.json" for plain short names, else a

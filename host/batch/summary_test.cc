@@ -77,12 +77,13 @@ TEST_F(SummaryTest, OneRowPerSequenceWithStatusFiguresAndCauses) {
   Finish("room", report);
   Finish("moved", report);
   Write(dir_ / "moved" / "mesh.glb", "changed");
-  WriteStatusRecord(dir_, {"street", "ok", 1.3, "", -1, "", {}, "host", "t", ""});
-  WriteStatusRecord(dir_, {"room", "skipped", 0.0, "", -1, "", {}, "host", "t", ""});
-  WriteStatusRecord(dir_, {"moved", "ok", 0.0, "", -1, "", {}, "host", "t", ""});
+  WriteStatusRecord(dir_, {"street", "ok", 1.3, "", -1, "", {}, "host", "t", "", {}});
+  WriteStatusRecord(dir_, {"room", "skipped", 0.0, "", -1, "", {}, "host", "t", "", {}});
+  WriteStatusRecord(dir_, {"moved", "ok", 0.0, "", -1, "", {}, "host", "t", "", {}});
   WriteStatusRecord(dir_, {"pl|ane", "failed", 0.5, "crashed: signal SIGSEGV (Segmentation fault)",
-                           -1, "SIGSEGV", {"[pl|ane] keyframe 3", "about to crash"}, "node7", "t", ""});
-  WriteStatusRecord(dir_, {"killed", "running", 0.0, "", -1, "", {}, "node3", "", "2026-01-02T03:04:05Z"});
+                           -1, "SIGSEGV", {"[pl|ane] keyframe 3", "about to crash"}, "node7", "t", "",
+                           {"most points never entered the mesh"}});
+  WriteStatusRecord(dir_, {"killed", "running", 0.0, "", -1, "", {}, "node3", "", "2026-01-02T03:04:05Z", {}});
 
   const json s = WriteSummary(dir_, "imr report");
   EXPECT_EQ(s["counts"], json({{"sequences", 6}, {"ok", 2}, {"reused", 1}, {"failed", 2},
@@ -102,6 +103,8 @@ TEST_F(SummaryTest, OneRowPerSequenceWithStatusFiguresAndCauses) {
   EXPECT_EQ(crashed["signal"], "SIGSEGV");
   EXPECT_EQ(crashed["host"], "node7");
   EXPECT_EQ(crashed["log_tail"].size(), 2u);
+  // Warnings given before the failure stay with it.
+  EXPECT_EQ(crashed["warnings"], json::array({"most points never entered the mesh"}));
   EXPECT_EQ(s["sequences"][3]["status"], "not run");
   EXPECT_EQ(s["sequences"][4]["status"], "failed");
   EXPECT_EQ(s["sequences"][4]["error"],
@@ -121,6 +124,8 @@ TEST_F(SummaryTest, OneRowPerSequenceWithStatusFiguresAndCauses) {
   EXPECT_NE(md.find("## Failures"), std::string::npos);
   EXPECT_NE(md.find("Ended by SIGSEGV."), std::string::npos);
   EXPECT_NE(md.find("about to crash"), std::string::npos);
+  EXPECT_NE(md.find("## Warnings\n\n### pl\\|ane\n\n- most points never entered the mesh"),
+            std::string::npos) << md;
   // Both files are on disk.
   EXPECT_TRUE(fs::exists(dir_ / "summary.json"));
   EXPECT_TRUE(fs::exists(dir_ / "summary.md"));

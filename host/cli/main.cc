@@ -590,17 +590,18 @@ int CmdPlugins(const std::vector<std::string>& args) {
 
 
 const char* kEvaluateNotes =
-    "MESH: .obj, .ply, .gltf or .glb (what the exporter writes). Ground truth: --truth FILE, a\n"
-    "point cloud (.ply without faces, .xyz/.txt/.asc: x y z per line, more columns ignored) or a\n"
-    "reference mesh (sampled uniformly by area at --truth-density), or --velodyne-seq DIR alone:\n"
-    "the Velodyne scans of a KITTI sequence (odometry: a folder with calib.txt; raw: a drive\n"
-    "folder) placed in its world frame. With --velodyne-seq the ground truth (and the mesh\n"
-    "samples of precision) are cropped to what the cameras saw: inside a camera's frustum and\n"
-    "within --max-ray-length of its centre; without cameras nothing is cropped, and the report\n"
-    "says so. Distances: ground truth -> nearest mesh triangle (the paper's mean; CloudCompare's\n"
-    "cloud-to-mesh distance). Completeness(tau): share of ground-truth points within tau of the\n"
-    "mesh; precision(tau): share of mesh area (--precision-samples samples) within tau of the\n"
-    "ground truth. The JSON keys are documented in host/eval/README.md.\n"
+    "MESH: .obj, .ply, .gltf or .glb (what the exporter writes), or ASCII .off (other meshers).\n"
+    "Ground truth: --truth FILE, a point cloud (.ply without faces, .xyz/.txt/.asc: x y z per\n"
+    "line, more columns ignored) or a reference mesh (sampled uniformly by area at\n"
+    "--truth-density), or --velodyne-seq DIR alone: the Velodyne scans of a KITTI sequence\n"
+    "(odometry: a folder with calib.txt; raw: a drive folder) placed in its world frame. With\n"
+    "--velodyne-seq the ground truth (and the mesh samples of precision) are cropped to what the\n"
+    "cameras saw: inside a camera's frustum and within --max-ray-length of its centre; without\n"
+    "cameras nothing is cropped, and the report says so. Distances: ground truth -> nearest mesh\n"
+    "triangle (the paper's mean; CloudCompare's cloud-to-mesh distance). Completeness(tau): share\n"
+    "of ground-truth points within tau of the mesh; precision(tau): share of mesh area\n"
+    "(--precision-samples samples) within tau of the ground truth. The JSON keys are documented\n"
+    "in host/eval/README.md.\n"
     "Exit status: 0 evaluated; 1 a file is missing or bad, or nothing is left to evaluate;\n"
     "64 bad usage.\n";
 
@@ -622,7 +623,7 @@ int CmdEvaluate(const std::vector<std::string>& args) {
   po::options_description opts("imr evaluate options");
   opts.add_options()("mesh", po::value<std::string>()->required(), "mesh to evaluate")(
       "truth", po::value<std::string>()->value_name("FILE"),
-      "ground truth: point cloud (.ply, .xyz) or reference mesh (.ply, .obj, .gltf, .glb)")(
+      "ground truth: point cloud (.ply, .xyz) or reference mesh (.ply, .obj, .gltf, .glb, .off)")(
       "velodyne-seq", po::value<std::string>()->value_name("DIR"),
       "KITTI sequence: its cameras crop the ground truth; its Velodyne scans are the ground "
       "truth when --truth is not given")(

@@ -403,6 +403,118 @@ TriangleMesh ParseXyz(std::string_view text, const fs::path& path) {
   return m;
 }
 
+// ---------------------------------------------------------------------------------------- OFF
+
+// Object File Format (Geomview): a header keyword, a counts line "vertices faces [edges]", the
+// vertex lines "x y z ...", then the face lines "n i_1 ... i_n ..." (0-based indices; what follows
+// the indices, a colour, is ignored). One record per line (the counts may also follow the keyword
+// on its line); '#' starts a comment anywhere; blank lines are skipped. The C / N / ST prefixes
+// (colours, normals, texture coordinates after x y z) read like plain OFF; 4OFF, nOFF and the
+// binary form are refused.
+TriangleMesh ParseOff(std::string_view text, const fs::path& path) {
+  enum class Part { kHeader, kCounts, kVertices, kFaces, kDone } part = Part::kHeader;
+  int64_t nv = 0, nf = 0;
+  std::size_t last_line = 0;
+  TriangleMesh m;
+  std::vector<std::string_view> tok;
+  std::vector<int64_t> poly;
+  int64_t faces_read = 0;
+  ForEachLine(text, [&](std::size_t n, std::string_view line) {
+    last_line = n;
+    line = line.substr(0, line.find('#'));
+    Tokenize(line, false, &tok);
+    if (tok.empty()) return;
+    const auto where = [&] { return "line " + std::to_string(n) + ": "; };
+    switch (part) {
+      case Part::kHeader: {
+        // [ST][C][N]OFF: texture coordinates, colours, normals follow x y z (ignored here).
+        std::string_view k = tok[0], prefix = k.substr(0, k.size() >= 3 ? k.size() - 3 : 0);
+        if (k.size() < 3 || k.substr(k.size() - 3) != "OFF")
+          Fail(path, where() + "not an OFF file (expected the keyword 'OFF', found '" +
+                         std::string(k) + "')");
+        for (std::string_view p : {"ST", "C", "N"})
+          if (prefix.substr(0, p.size()) == p) prefix.remove_prefix(p.size());
+        if (!prefix.empty())
+          Fail(path, where() + "'" + std::string(k) +
+                         "' is not supported (only 3D OFF: OFF, COFF, NOFF, STOFF and the like)");
+        if (tok.size() > 1 && tok[1] == "BINARY")
+          Fail(path, where() + "binary OFF is not supported (only ASCII)");
+        part = Part::kCounts;
+        if (tok.size() == 1) return;
+        tok.erase(tok.begin());  // the counts on the keyword's line, as some writers do
+        [[fallthrough]];
+      }
+      case Part::kCounts: {
+        int64_t ne = 0;
+        if (tok.size() < 2 || tok.size() > 3 || !ParseInt(tok[0], &nv) || !ParseInt(tok[1], &nf) ||
+            (tok.size() == 3 && !ParseInt(tok[2], &ne)))
+          Fail(path, where() + "expected the counts 'vertices faces [edges]', found '" +
+                         std::string(line) + "'");
+        if (nv < 0 || nf < 0 || ne < 0)
+          Fail(path, where() + "negative count in '" + std::string(line) + "'");
+        if (nv > std::numeric_limits<uint32_t>::max())
+          Fail(path, where() + std::to_string(nv) + " vertices: more than 2^32 - 1");
+        // Reserve no more than the text could hold (a corrupt count must not exhaust memory).
+        m.vertices.reserve(std::min<uint64_t>(nv, text.size() / 6 + 1));
+        m.triangles.reserve(std::min<uint64_t>(nf, text.size() / 8 + 1));
+        part = nv > 0 ? Part::kVertices : nf > 0 ? Part::kFaces : Part::kDone;
+        return;
+      }
+      case Part::kVertices: {
+        Vec3 v;
+        if (tok.size() < 3)
+          Fail(path, where() + "vertex " + std::to_string(m.vertices.size()) + " of " +
+                         std::to_string(nv) + " needs x y z");
+        for (int k = 0; k < 3; ++k)
+          if (!ParseDouble(tok[k], &v[k]))
+            Fail(path, where() + "bad vertex coordinate '" + std::string(tok[k]) + "'");
+        m.vertices.push_back(v);
+        if (static_cast<int64_t>(m.vertices.size()) == nv)
+          part = nf > 0 ? Part::kFaces : Part::kDone;
+        return;
+      }
+      case Part::kFaces: {
+        const std::string face = "face " + std::to_string(faces_read) + " of " + std::to_string(nf);
+        int64_t size = 0;
+        if (!ParseInt(tok[0], &size))
+          Fail(path, where() + face + ": bad vertex count '" + std::string(tok[0]) + "'");
+        if (size < 3)
+          Fail(path, where() + face + ": a face needs at least 3 vertices, has " +
+                         std::to_string(size));
+        if (static_cast<int64_t>(tok.size()) - 1 < size)
+          Fail(path, where() + face + ": says " + std::to_string(size) + " vertices, lists " +
+                         std::to_string(tok.size() - 1));
+        poly.clear();
+        for (int64_t j = 1; j <= size; ++j) {
+          int64_t i = 0;
+          if (!ParseInt(tok[j], &i))
+            Fail(path, where() + face + ": bad vertex index '" + std::string(tok[j]) + "'");
+          if (i < 0 || i >= nv)
+            Fail(path, where() + face + ": vertex index " + std::to_string(i) +
+                           " is out of range (" + std::to_string(nv) + " vertices)");
+          poly.push_back(i);
+        }
+        AddPolygon(poly, &m);
+        if (++faces_read == nf) part = Part::kDone;
+        return;
+      }
+      case Part::kDone:
+        Fail(path, where() + "more lines than the counts say (" + std::to_string(nv) +
+                       " vertices, " + std::to_string(nf) + " faces)");
+    }
+  });
+  const std::string end = " (the file ends at line " + std::to_string(last_line) + ")";
+  if (part == Part::kHeader) Fail(path, "empty: no 'OFF' header");
+  if (part == Part::kCounts) Fail(path, "truncated: no counts line after 'OFF'" + end);
+  if (part == Part::kVertices)
+    Fail(path, "truncated: " + std::to_string(m.vertices.size()) + " of " + std::to_string(nv) +
+                   " vertices" + end);
+  if (part == Part::kFaces)
+    Fail(path, "truncated: " + std::to_string(faces_read) + " of " + std::to_string(nf) +
+                   " faces" + end);
+  return m;
+}
+
 // --------------------------------------------------------------------------------------- glTF
 
 using Mat4 = std::array<double, 16>;  // column-major, as glTF
@@ -719,6 +831,7 @@ std::string GeometryFormat(const fs::path& path) {
   if (ext == ".ply") return "ply";
   if (ext == ".gltf") return "gltf";
   if (ext == ".glb") return "glb";
+  if (ext == ".off") return "off";
   if (ext == ".xyz" || ext == ".txt" || ext == ".asc") return "xyz";
   return "";
 }
@@ -727,11 +840,12 @@ TriangleMesh ReadGeometry(const fs::path& path) {
   const std::string format = GeometryFormat(path);
   if (format.empty())
     Fail(path, "unknown extension '" + path.extension().string() +
-                   "' (expected .obj, .ply, .gltf, .glb, or .xyz/.txt/.asc for points)");
+                   "' (expected .obj, .ply, .gltf, .glb, .off, or .xyz/.txt/.asc for points)");
   const std::string data = ReadBytes(path);
   if (format == "obj") return ParseObj(data, path);
   if (format == "ply") return ParsePly(data, path);
   if (format == "glb") return ParseGlb(data, path);
+  if (format == "off") return ParseOff(data, path);
   if (format == "gltf") return RunGltf(ParseJson(data, path), path, {}, false);
   return ParseXyz(data, path);
 }

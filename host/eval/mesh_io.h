@@ -1,6 +1,7 @@
 // Reading meshes and point clouds for evaluation, natively: the host does not link assimp (only
 // the exporter plugin does), yet must read every format that plugin writes (plugins/
-// exporter_assimp/README.md) plus the usual ground-truth point formats.
+// exporter_assimp/README.md), OFF (what other meshers write, for side-by-side benchmarks) and the
+// usual ground-truth point formats.
 //
 //   .obj          v / f lines (f "i", "i/t", "i//n", "i/t/n", negative = relative); polygons are
 //                 fan-triangulated; everything else (vn, vt, g, usemtl, ...) is ignored.
@@ -15,6 +16,11 @@
 //                 component type (normalised integers as KHR_mesh_quantization), indices of any
 //                 unsigned type or none; buffers from files beside it, base64 data URIs, or the
 //                 GLB BIN chunk. Other attributes (NORMAL, imr's _POINT_ID) are ignored.
+//   .off          ASCII OFF (what the Piazza et al. 2018 mesher writes): an "OFF" line (also COFF,
+//                 NOFF, STOFF...: what follows x y z is ignored), the counts "vertices faces
+//                 [edges]", one vertex per line, one face per line as "n i_1 ... i_n" (0-based;
+//                 trailing colour ignored), polygons fan-triangulated; '#' comments and blank
+//                 lines anywhere. Binary OFF, 4OFF and nOFF are refused.
 //   .xyz .txt .asc  points only: one point per line, x y z then any further columns ignored
 //                 (separated by spaces, tabs or commas); empty lines, '#' and '//' lines skipped.
 //
@@ -38,8 +44,8 @@ struct TriangleMesh {
   std::vector<std::array<uint32_t, 3>> triangles;  // indices into vertices
 };
 
-// "obj", "ply", "gltf", "glb" or "xyz" (also for .txt / .asc) from the extension, case-insensitive;
-// "" when it is none of them.
+// "obj", "ply", "gltf", "glb", "off" or "xyz" (also for .txt / .asc) from the extension,
+// case-insensitive; "" when it is none of them.
 std::string GeometryFormat(const std::filesystem::path& path);
 
 // Vertices and triangles of any format above (a point format gives no triangles). Throws on an

@@ -1,6 +1,7 @@
 // Mesh and point readers on files written by hand: every format and encoding the exporter plugin
-// writes (OBJ, binary PLY, glTF, GLB) and the ground-truth point formats, plus the errors for bad
-// files. The real exporter's files are read in tests/evaluate_test.cc.
+// writes (OBJ, binary PLY, glTF, GLB), OFF (other meshers' output) and the ground-truth point
+// formats, plus the errors for bad files. The real exporter's files are read in
+// tests/evaluate_test.cc.
 #include "host/eval/mesh_io.h"
 
 #include <gtest/gtest.h>
@@ -193,6 +194,86 @@ TEST_F(MeshIo, PointFiles) {
   EXPECT_NE(e.find("unknown extension '.stl'"), std::string::npos) << e;
   e = ErrorOf(dir_ / "missing.ply");
   EXPECT_NE(e.find("missing.ply: no such file"), std::string::npos) << e;
+}
+
+// ASCII OFF as the Piazza et al. 2018 mesher writes it ("OFF", counts with an edge count, float
+// vertices with a trailing blank, "3 i j k"), plus comments, blank lines, CRLF, a quad with a
+// colour after its indices (fan-triangulated) and the counts on the keyword's line.
+TEST_F(MeshIo, OffTriangleQuadCommentsAndBlankLines) {
+  TriangleMesh m = ReadMesh(Write("tri.off", "OFF\n3 1 0\n0 0 0 \n1 0 0 \n0 1 0 \n3 0 1 2\n"));
+  ASSERT_EQ(m.vertices.size(), 3u);
+  ASSERT_EQ(m.triangles.size(), 1u);
+  EXPECT_EQ(m.triangles[0], (std::array<uint32_t, 3>{0, 1, 2}));
+  EXPECT_DOUBLE_EQ(MeshArea(m), 0.5);
+  m = ReadMesh(Write("quad.off",
+                     "# written by hand\nOFF # keyword\r\n\n# counts next\n5 2\r\n"
+                     "0 0 0\n2 0 0\n2 2 0 # a comment after a vertex\n\n0 2 -1.5e0\n"
+                     "9 9 9\n4 0 1 2 3 255 0 0\n"
+                     "# between faces\n3 4 0 1\n"));
+  ASSERT_EQ(m.vertices.size(), 5u);
+  ASSERT_EQ(m.triangles.size(), 3u);
+  EXPECT_EQ(m.triangles[0], (std::array<uint32_t, 3>{0, 1, 2}));
+  EXPECT_EQ(m.triangles[1], (std::array<uint32_t, 3>{0, 2, 3}));
+  EXPECT_EQ(m.triangles[2], (std::array<uint32_t, 3>{4, 0, 1}));
+  ExpectVertex(m, 3, {0, 2, -1.5});
+  m = ReadMesh(Write("COLOURS.OFF",
+                     "COFF 3 1 3\n0 0 0 1 0 0 1\n1 0 0 0 1 0 1\n0 0 1 0 0 1 1\n3 2 1 0\n"));
+  ASSERT_EQ(m.triangles.size(), 1u);
+  EXPECT_EQ(m.triangles[0], (std::array<uint32_t, 3>{2, 1, 0}));
+  EXPECT_EQ(GeometryFormat("m.OFF"), "off");
+}
+
+TEST_F(MeshIo, OffErrorsNameTheFileAndLine) {
+  // A face count larger than the faces present: truncated, with where the file ends.
+  auto e = ErrorOf(Write("short.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"));
+  EXPECT_NE(e.find("short.off: truncated: 1 of 2 faces (the file ends at line 6)"),
+            std::string::npos) << e;
+  // A vertex count larger than the vertex lines: the first face line is read as a vertex...
+  e = ErrorOf(Write("count.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"));
+  EXPECT_NE(e.find("count.off: truncated: 0 of 1 faces"), std::string::npos) << e;
+  // ...and a smaller one makes a vertex line a face, or leaves lines over.
+  e = ErrorOf(Write("fewer.off", "OFF\n2 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"));
+  EXPECT_NE(e.find("fewer.off: line 5: face 0 of 1: a face needs at least 3 vertices, has 0"),
+            std::string::npos) << e;
+  e = ErrorOf(Write("extra.off", "OFF\n3 1\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n"));
+  EXPECT_NE(e.find("extra.off: line 7: more lines than the counts say"), std::string::npos) << e;
+  e = ErrorOf(Write("neg.off", "OFF\n-3 1 0\n"));
+  EXPECT_NE(e.find("neg.off: line 2: negative count"), std::string::npos) << e;
+  e = ErrorOf(Write("nocounts.off", "OFF\n3 x\n"));
+  EXPECT_NE(e.find("nocounts.off: line 2: expected the counts 'vertices faces [edges]'"),
+            std::string::npos) << e;
+  // Truncated in the vertices (a cut file).
+  e = ErrorOf(Write("cut.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n"));
+  EXPECT_NE(e.find("cut.off: truncated: 2 of 3 vertices (the file ends at line 4)"),
+            std::string::npos) << e;
+  e = ErrorOf(Write("headonly.off", "OFF\n"));
+  EXPECT_NE(e.find("headonly.off: truncated: no counts line"), std::string::npos) << e;
+  e = ErrorOf(Write("empty.off", "\n# nothing\n"));
+  EXPECT_NE(e.find("empty.off: empty"), std::string::npos) << e;
+  // Bad contents.
+  e = ErrorOf(Write("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n"));
+  EXPECT_NE(e.find("range.off: line 6: face 0 of 1: vertex index 3 is out of range (3 vertices)"),
+            std::string::npos) << e;
+  e = ErrorOf(Write("few.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n"));
+  EXPECT_NE(e.find("few.off: line 6: face 0 of 1: says 4 vertices, lists 3"), std::string::npos)
+      << e;
+  e = ErrorOf(Write("coord.off", "OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n"));
+  EXPECT_NE(e.find("coord.off: line 4: bad vertex coordinate 'nan'"), std::string::npos) << e;
+  e = ErrorOf(Write("ply.off", "ply\nformat ascii 1.0\n"));
+  EXPECT_NE(e.find("ply.off: line 1: not an OFF file"), std::string::npos) << e;
+  e = ErrorOf(Write("bin.off", "OFF BINARY\n"));
+  EXPECT_NE(e.find("binary OFF is not supported"), std::string::npos) << e;
+  e = ErrorOf(Write("4d.off", "4OFF\n1 0 0\n0 0 0 1\n"));
+  EXPECT_NE(e.find("'4OFF' is not supported"), std::string::npos) << e;
+  // Vertices but no face: geometry, not a mesh.
+  const auto pts = Write("points.off", "OFF\n2 0 0\n0 0 0\n1 1 1\n");
+  EXPECT_EQ(ReadGeometry(pts).vertices.size(), 2u);
+  try {
+    ReadMesh(pts);
+    FAIL() << "no faces is not a mesh";
+  } catch (const std::runtime_error& ex) {
+    EXPECT_NE(std::string(ex.what()).find("no triangles"), std::string::npos) << ex.what();
+  }
 }
 
 std::string Base64(const std::string& in) {

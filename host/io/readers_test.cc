@@ -222,7 +222,13 @@ TEST(Conventions, TheSamePointProjectsToTheSamePixelThroughEveryReader) {
   EXPECT_NO_THROW(Open("colmap", dir / "both"));
 
   Write(dir / "slam.json", SlamScene().dump());
-  auto slam = Open("slam_json", dir / "slam.json");
+  // By default five views make a keyframe: both views in one update, the point with both.
+  auto five = Open("slam_json", dir / "slam.json");
+  auto fu = All(five.get());
+  ASSERT_EQ(fu.size(), 1u);
+  ASSERT_EQ(fu[0].new_points.size(), 1u);
+  EXPECT_EQ(fu[0].new_points[0].camera_ids, (std::vector<uint64_t>{1, 2}));
+  auto slam = Open("slam_json", dir / "slam.json", {{"views_per_keyframe", 1}});
   ExpectScene(slam.get(), "slam_json");
   auto su = All(slam.get());
   ASSERT_EQ(su.size(), 2u);  // one view per keyframe

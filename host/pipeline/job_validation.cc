@@ -191,14 +191,19 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
                                                "' needs exactly one " + kind + " stage, found " +
                                                std::to_string(count[kind])});
   }
-  const bool weights = v->engine_options.visibility_mode == engine::VisibilityMode::kWeights;
-  if (weights && count["weight_policy"] != 1)
+  // weights: one policy; rays: none; exact: none needed, one allowed (jobs written for the
+  // weights mode run unchanged; the run says the policy is not called).
+  const engine::VisibilityMode mode = v->engine_options.visibility_mode;
+  if (mode == engine::VisibilityMode::kWeights && count["weight_policy"] != 1)
     v->problems.push_back({"pipeline", "visibility_mode 'weights' needs exactly one "
                                        "weight_policy stage, found " +
                                            std::to_string(count["weight_policy"])});
-  if (!weights && count["weight_policy"] > 0)
+  if (mode == engine::VisibilityMode::kRays && count["weight_policy"] > 0)
     v->problems.push_back({"pipeline", "visibility_mode 'rays' does not use a weight_policy "
                                        "stage; remove it"});
+  if (mode == engine::VisibilityMode::kExact && count["weight_policy"] > 1)
+    v->problems.push_back({"pipeline", "at most one weight_policy stage, found " +
+                                           std::to_string(count["weight_policy"])});
   if (count["exporter"] == 0)
     v->problems.push_back({"pipeline", "no exporter stage: nothing would be written"});
   for (std::size_t i = 0; i < job.output.formats.size(); ++i) {

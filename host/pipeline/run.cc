@@ -416,6 +416,9 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   }
   std::optional<WatchedPolicy> watched_policy;
   if (policy) watched_policy.emplace(&*policy, &watch, watched[policy_stage]);
+  if (policy && v.engine_options.visibility_mode == engine::VisibilityMode::kExact)
+    LogInfo("[" + seq.name + "] visibility_mode 'exact' keeps exact weights: the weight_policy "
+            "stage (" + job.pipeline[policy_stage].plugin + ") is not called");
   engine::Engine engine(v.engine_options, watched_policy ? &*watched_policy : nullptr);
   if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
   engine::KeyframeUpdate update;
@@ -510,6 +513,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   auto warn = [&](const std::string& w) {
     LogWarning("[" + JsonText(seq.name) + "] " + w);
     warnings.push_back(w);
+    result->warnings.push_back(w);
   };
   std::string scale_hint;
   if (stats.rays_skipped_too_long > stats.rays_cast) {

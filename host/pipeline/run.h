@@ -26,6 +26,8 @@ struct SequenceResult {
   std::vector<std::filesystem::path> extra_files;
   double seconds = 0.0;
   nlohmann::json report;                    // the report written as report.json
+  // Warnings given on the way, kept when the sequence fails after them (the summary lists them).
+  std::vector<std::string> warnings;
 };
 
 struct BatchResult {

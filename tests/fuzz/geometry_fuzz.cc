@@ -1,5 +1,5 @@
 // Evaluation inputs (host/eval): meshes and clouds read natively (mesh_io.h ReadGeometry: PLY,
-// OBJ, glTF, GLB, XYZ) and KITTI Velodyne .bin scans (ground_truth.h ReadVelodyneScan). The
+// OBJ, glTF, GLB, OFF, XYZ) and KITTI Velodyne .bin scans (ground_truth.h ReadVelodyneScan). The
 // first byte picks the format; the rest is the file.
 #include <cstddef>
 #include <cstdint>
@@ -11,8 +11,8 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
-  static const char* const kExt[] = {"ply", "obj", "gltf", "glb", "xyz", "bin"};
-  const std::string ext = kExt[data[0] % 6];
+  static const char* const kExt[] = {"ply", "obj", "gltf", "glb", "xyz", "bin", "off"};
+  const std::string ext = kExt[data[0] % 7];
   const auto file = imr::fuzz::ScratchDir() / ("input." + ext);
   imr::fuzz::WriteFile(file, {reinterpret_cast<const char*>(data + 1), size - 1});
   imr::fuzz::ExpectOnlyDocumentedErrors([&] {

@@ -24,28 +24,13 @@
 #include "host/eval/mesh_stats.h"
 #include "tools/bench/common/bench_util.h"
 #include "tools/bench/common/subprocess.h"
+#include "tools/bench/peers/colmap.h"
 
 namespace imr::bench {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string FindColmap(const std::string& given) {
-  if (!given.empty()) return given;
-  if (const char* e = std::getenv("IMR_COLMAP")) return e;
-  const char* xdg = std::getenv("XDG_CACHE_HOME");
-  const char* home = std::getenv("HOME");
-  const fs::path cache =
-      xdg ? fs::path(xdg) / "imr-peers" : fs::path(home ? home : "/tmp") / ".cache/imr-peers";
-  std::error_code ec;
-  for (const auto& d : fs::directory_iterator(cache, ec)) {
-    const fs::path bin = d.path() / "build/src/exe/colmap";
-    if (d.path().filename().string().rfind("colmap-", 0) == 0 && fs::exists(bin))
-      return bin.string();
-  }
-  return "";
-}
 
 struct MesherResult {
   std::string name;

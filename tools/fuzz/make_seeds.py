@@ -207,6 +207,8 @@ def geometry():
     put("mesh.glb", "geometry", b"\x03" + glb)
     put("cloud.xyz", "geometry", b"\x04# points\n0 0 0\n1,2,3\n// c\n4\t5\t6 7\n")
     put("scan.bin", "geometry", b"\x05" + struct.pack("<8f", 1, 2, 3, 0.5, -4, 5, -1, 0.1))
+    off = "OFF\n# a triangle and a coloured quad\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n4 0 1 2 3 255 0 0\n"
+    put("mesh.off", "geometry", b"\x06" + off.encode())
 
 
 def engine():
