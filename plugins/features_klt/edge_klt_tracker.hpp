@@ -31,7 +31,7 @@ struct TrackerOptions {
   // strongest corner instead, when its minimum eigenvalue (cv::cornerMinEigenVal over
   // corner_block_size pixels) reaches corner_min_eigen.
   bool corner_fallback = true;
-  double corner_min_eigen = 1e-4;
+  double corner_min_eigen = 3e-5;
   int corner_block_size = 5;
   int lk_window = 21;                   // Lucas-Kanade window side, pixels.
   int lk_levels = 3;                    // Pyramid levels above the image (0: no pyramid).

@@ -37,7 +37,7 @@ class EdgeKltFeatures : public imr::sdk::Features {
       "description": "shi_tomasi: neighbourhood of the corner measure, pixels"},
     "corner_fallback": {"type": "boolean", "default": true,
       "description": "edge: a free grid cell without an edge pixel (weak texture such as asphalt) takes its strongest corner instead, if it reaches corner_min_eigen"},
-    "corner_min_eigen": {"type": "number", "default": 1e-4, "minimum": 0.0,
+    "corner_min_eigen": {"type": "number", "default": 3e-5, "minimum": 0.0,
       "description": "corner_fallback: minimum eigenvalue of the gradient matrix over corner_block_size pixels (cv::cornerMinEigenVal, 3x3 Sobel, 8-bit), at least"},
     "corner_block_size": {"type": "integer", "default": 5, "minimum": 2, "maximum": 31,
       "description": "corner_fallback: neighbourhood of the corner measure, pixels"},
