@@ -53,7 +53,7 @@ json Job(const std::string& format, const std::string& sequence, const fs::path&
           {"pipeline",
            {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
             {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
-             {"params", {{"max_distance", 30.0}}}},
+             {"params", {{"max_distance", 30.0}, {"min_keyframes", 1}}}},
             {{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
             {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
           {"output", {{"directory", out.string()}, {"formats", {"ply"}}}}};
