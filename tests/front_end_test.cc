@@ -91,21 +91,23 @@ TEST_F(FrontEnd, SyntheticSequenceBecomesAnAccurateManifoldMesh) {
   EXPECT_GT(report["mesh"]["faces"].get<int>(), 200);
 
   // Close to the true scene: the mesh's area-weighted mean distance to the true surface.
-  // Measured 0.30 m (completeness 0.25 at tau = 0.2 m) at 828x250; 0.5 m leaves room for
+  // Measured 0.24 m, completeness 0.54 at tau = 0.2 m at 828x250 (0.36 without the features'
+  // corner_fallback, which puts points on the weakly textured road); 0.5 m leaves room for
   // platform noise and still catches a wrong pose convention (metres off) or a broken refiner.
   const json& acc = report["accuracy_known_scene"];
   ASSERT_TRUE(acc.is_object()) << report.dump(2);
   EXPECT_LT(acc["mean_mesh_to_scene"].get<double>(), 0.5) << acc.dump(2);
-  EXPECT_GT(acc["completeness"].get<double>(), 0.2) << acc.dump(2);
+  EXPECT_GT(acc["completeness"].get<double>(), 0.5) << acc.dump(2);
 
   // The job's ground truth: the paper's mean distance from truth to mesh, over the truth the
-  // cameras saw (within 30 m, in a frustum); the batch summary lists it.
+  // cameras saw (within 30 m, in a frustum); the batch summary lists it. Measured: mean 0.83 m,
+  // completeness 0.35 at tau = 0.2 m (1.24 m and 0.23 without corner_fallback).
   const json& gt = report["accuracy"];
   ASSERT_TRUE(gt.is_object()) << report.dump(2);
   EXPECT_EQ(gt["reference"], "ground truth (mesh_samples)");
   EXPECT_GT(gt["evaluation"]["crop"]["truth_kept"].get<int>(), 1000) << gt.dump(2);
-  EXPECT_LT(gt["mean_truth_to_mesh"].get<double>(), 2.0) << gt.dump(2);
-  EXPECT_GT(gt["completeness"].get<double>(), 0.1) << gt.dump(2);
+  EXPECT_LT(gt["mean_truth_to_mesh"].get<double>(), 1.0) << gt.dump(2);
+  EXPECT_GT(gt["completeness"].get<double>(), 0.3) << gt.dump(2);
   const std::string summary_md = ReadText(*dir_ / "runs/summary.md");
   char mean[32];
   std::snprintf(mean, sizeof mean, "%.4f", gt["mean_truth_to_mesh"].get<double>());

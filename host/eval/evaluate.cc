@@ -2,6 +2,7 @@
 
 #include "host/eval/distance.h"
 #include "host/eval/parallel.h"
+#include "host/eval/synthetic_truth.h"
 #include "host/util/atomic_file.h"
 
 #include <algorithm>
@@ -26,16 +27,6 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 double Share(std::size_t part, std::size_t whole) {
   return whole == 0 ? std::numeric_limits<double>::quiet_NaN()
                     : static_cast<double>(part) / static_cast<double>(whole);
-}
-
-// Share of `d` within each tau (d <= tau); NaN for no values.
-std::vector<double> SharesWithin(const std::vector<double>& d, const std::vector<double>& taus) {
-  std::vector<double> out;
-  for (double tau : taus)
-    out.push_back(Share(static_cast<std::size_t>(std::count_if(d.begin(), d.end(),
-                                                                [&](double x) { return x <= tau; })),
-                        d.size()));
-  return out;
 }
 
 json StatsJson(const DistanceStats& s) {
@@ -72,6 +63,15 @@ void WritePerPoint(const fs::path& path, const std::vector<double>& d) {
 }
 
 }  // namespace
+
+std::vector<double> SharesWithin(const std::vector<double>& d, const std::vector<double>& taus) {
+  std::vector<double> out;
+  for (double tau : taus)
+    out.push_back(Share(static_cast<std::size_t>(std::count_if(d.begin(), d.end(),
+                                                                [&](double x) { return x <= tau; })),
+                        d.size()));
+  return out;
+}
 
 std::string EvaluationOptions::Problem() const {
   if (taus.empty()) return "no tau given";
@@ -274,10 +274,26 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
                        {"max_ray_length", options.max_ray_length},
                        {"crop", options.crop}};
   if (!in.per_point.empty()) report["per_point"] = in.per_point;
+  double seconds_road = 0.0;
+  if (!seq.synthetic_scene.empty()) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const RoadSurfaceEvaluation road =
+        EvaluateRoadSurface(mesh, ReadSyntheticTruth(seq.synthetic_scene), cameras, options);
+    report["road_surface"] = {
+        {"scene", seq.synthetic_scene},
+        {"samples", road.samples},
+        {"crop", CropJson(road.crop)},
+        {"hidden", road.hidden},
+        {"truth_to_mesh", StatsJson(road.truth_to_mesh)},
+        {"completeness", road.completeness},
+        {"completeness_visible", road.completeness_visible}};
+    seconds_road = Seconds(t0);
+  }
   report["seconds"] = {{"read", seconds_read},
                        {"crop", e.seconds_crop},
                        {"truth_to_mesh", e.seconds_truth_to_mesh},
                        {"mesh_to_truth", e.seconds_mesh_to_truth},
+                       {"road_surface", seconds_road},
                        {"total", Seconds(start)}};
   return report;
 }
@@ -328,6 +344,18 @@ std::string FormatReport(const json& r) {
   o << "\nprecision     ";
   for (const json& x : r["precision"]) o << " " << num(x, "%8.4f");
   o << "\n";
+  if (r.contains("road_surface")) {
+    const json& rs = r["road_surface"];
+    std::snprintf(buf, sizeof buf,
+                  "road surface   %zu of %zu samples kept (%zu hidden from every camera): mean %s\n",
+                  rs["crop"].value("kept", std::size_t{0}), rs.value("samples", std::size_t{0}),
+                  rs.value("hidden", std::size_t{0}), num(rs["truth_to_mesh"]["mean"], "%.6g").c_str());
+    o << buf << "road complete ";
+    for (const json& x : rs["completeness"]) o << " " << num(x, "%8.4f");
+    o << "\n  (not hidden)";
+    for (const json& x : rs["completeness_visible"]) o << " " << num(x, "%8.4f");
+    o << "\n";
+  }
   const json& s = r["seconds"];
   std::snprintf(buf, sizeof buf,
                 "time           %.2f s on %d threads (read %.2f, crop %.2f, truth -> mesh %.2f, "

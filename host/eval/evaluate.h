@@ -55,6 +55,9 @@ struct DistanceStats {
 // v[floor(h)]), h = q (n - 1). All zero for no values.
 DistanceStats Summarize(std::vector<double> values);
 
+// Per tau, the share of `d` within it (d <= tau): completeness or precision. NaN for no values.
+std::vector<double> SharesWithin(const std::vector<double>& d, const std::vector<double>& taus);
+
 struct Evaluation {
   std::size_t mesh_vertices = 0;
   std::size_t mesh_triangles = 0;        // as read
@@ -101,7 +104,8 @@ struct EvaluationInputs {
 };
 
 // Reads the inputs, evaluates, writes the per-point file (atomically) when asked, and returns the
-// report (README.md). Throws std::runtime_error naming the file and the problem on bad input.
+// report (README.md); for a sequence imr-synth made (its ground_truth/scene.json), the report
+// has the road surface's completeness too (synthetic_truth.h). Throws std::runtime_error naming the file and the problem on bad input.
 // `read_sequence` reads inputs.sequence (the CLI passes ReadKittiSequence; tests their own).
 using SequenceReader = io::ImageSequence (*)(const std::string& path,
                                              const io::ImageSequenceOptions& options);

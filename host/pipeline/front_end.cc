@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <iterator>
 #include <stdexcept>
 
@@ -71,55 +70,6 @@ std::string FrontEndOptions::Check() const {
   if (!(truth_range > 0.0)) return "truth_range: expected > 0";
   if (!(tau > 0.0)) return "tau: expected > 0";
   return {};
-}
-
-io::Vec3 SyntheticTruth::ToScene(const io::Vec3& w) const {
-  return io::Mul(io::Transpose(rotation),
-                 {w[0] - translation[0], w[1] - translation[1], w[2] - translation[2]});
-}
-
-SyntheticTruth ReadSyntheticTruth(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open the synthetic scene description");
-  json j;
-  try {
-    in >> j;
-  } catch (const json::exception& e) {
-    throw std::runtime_error(path + ": not valid JSON (" + e.what() + ")");
-  }
-  auto number = [&](const char* key) {
-    if (!j.contains(key) || !j[key].is_number())
-      throw std::runtime_error(path + ": field '" + key + "': expected a number");
-    return j[key].get<double>();
-  };
-  if (!j.contains("scene") || j["scene"] != "street")
-    throw std::runtime_error(path + ": field 'scene': expected \"street\"");
-  SyntheticTruth t;
-  if (!j.contains("seed") || !j["seed"].is_number_unsigned())
-    throw std::runtime_error(path + ": field 'seed': expected a non-negative integer");
-  t.scene = synthetic::Scene::StreetCanyon(number("length"), j["seed"].get<uint64_t>(),
-                                           number("half_width"), number("facade_height"));
-  const json& m = j.contains("world_from_scene") ? j["world_from_scene"] : json();
-  std::vector<double> v;
-  if (m.is_array() && m.size() == 4) {
-    for (const json& row : m)
-      if (row.is_array())
-        for (const json& x : row)
-          if (x.is_number()) v.push_back(x.get<double>());
-  } else if (m.is_array()) {
-    for (const json& x : m)
-      if (x.is_number()) v.push_back(x.get<double>());
-  }
-  if (v.size() != 16)
-    throw std::runtime_error(path + ": field 'world_from_scene': expected a 4x4 matrix "
-                             "(4 rows of 4 numbers, or 16 numbers row-major)");
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) t.rotation[r][c] = v[4 * r + c];
-    t.translation[r] = v[4 * r + 3];
-  }
-  if (const std::string p = io::RotationProblem(t.rotation, 1e-6); !p.empty())
-    throw std::runtime_error(path + ": field 'world_from_scene': rotation part " + p);
-  return t;
 }
 
 ImageFrontEndSource::ImageFrontEndSource(io::ImageSequence sequence,

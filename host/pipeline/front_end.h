@@ -8,10 +8,10 @@
 // frame indices (strictly increasing). Plugin output views are used before the plugin's next call.
 #pragma once
 
+#include "host/eval/synthetic_truth.h"
 #include "host/io/image_sequence.h"
 #include "host/io/keyframe_source.h"
 #include "host/pipeline/stage_watch.h"
-#include "host/synthetic/scene.h"
 
 #include <imr/sdk/host.hpp>
 #include <nlohmann/json.hpp>
@@ -53,16 +53,9 @@ struct FrontEndStats {
   int64_t tracks_surviving_interval = 0;
 };
 
-// A synthetic sequence's ground truth (written by imr-synth as ground_truth/scene.json): the
-// analytic scene and where it sits in the sequence's world frame.
-struct SyntheticTruth {
-  synthetic::Scene scene;
-  io::Mat3 rotation = io::Identity3();  // scene -> world: x_w = R x_s + t
-  io::Vec3 translation{};
-  io::Vec3 ToScene(const io::Vec3& world) const;  // x_s = R^T (x_w - t)
-};
-// Reads scene.json; throws std::runtime_error naming the file and field.
-SyntheticTruth ReadSyntheticTruth(const std::string& path);
+// A synthetic sequence's ground truth (imr-synth's ground_truth/scene.json; host/eval).
+using eval::ReadSyntheticTruth;
+using eval::SyntheticTruth;
 
 // A camera as plugins see it (imr_camera): K from the intrinsics (all zero when unknown or not
 // a pinhole the host can project), R and t, the image size given.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <unordered_map>
 
 namespace imr::synthetic {
@@ -30,6 +31,52 @@ double PointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const 
   const double denom = 1.0 / (va + vb + vc);
   const double v = vb * denom, w = vc * denom;
   return Norm(Sub(p, Add(a, Add(Scale(ab, v), Scale(ac, w)))));
+}
+
+std::vector<Vec3> SampleRoadSurface(const Scene& scene, double density, uint64_t seed) {
+  std::vector<Vec3> out;
+  if (!(density > 0.0)) return out;
+  // Footprints (x, y bounds) of the box tops: a box stands on the ground below its top.
+  struct Footprint {
+    double x0, y0, x1, y1;
+  };
+  std::vector<Footprint> boxes;
+  for (const Rect& r : scene.rects()) {
+    if (r.material != Material::kBoxTop) continue;
+    const double ex = std::abs(r.u[0]) * r.half_u + std::abs(r.v[0]) * r.half_v;
+    const double ey = std::abs(r.u[1]) * r.half_u + std::abs(r.v[1]) * r.half_v;
+    boxes.push_back({r.center[0] - ex, r.center[1] - ey, r.center[0] + ex, r.center[1] + ey});
+  }
+  std::sort(boxes.begin(), boxes.end(),
+            [](const Footprint& a, const Footprint& b) { return a.y0 < b.y0; });
+  double longest = 0.0;  // boxes overlapping y start at most this far before it
+  for (const Footprint& b : boxes) longest = std::max(longest, b.y1 - b.y0);
+  const auto under_a_box = [&](const Vec3& p) {
+    auto it = std::lower_bound(boxes.begin(), boxes.end(), p[1] - longest,
+                               [](const Footprint& b, double y) { return b.y0 < y; });
+    for (; it != boxes.end() && it->y0 <= p[1]; ++it)
+      if (p[0] >= it->x0 && p[0] <= it->x1 && p[1] <= it->y1) return true;
+    return false;
+  };
+  std::mt19937_64 g(seed);
+  // Uniform in [0, 1) from the top 53 bits: fully specified, unlike the library distributions.
+  const auto uniform = [&g] { return static_cast<double>(g() >> 11) * 0x1.0p-53; };
+  const double step = 1.0 / std::sqrt(density);
+  for (const Rect& r : scene.rects()) {
+    if (r.material != Material::kGround) continue;
+    const auto nu = static_cast<int64_t>(std::ceil(2.0 * r.half_u / step));
+    const auto nv = static_cast<int64_t>(std::ceil(2.0 * r.half_v / step));
+    for (int64_t j = 0; j < nv; ++j) {
+      for (int64_t i = 0; i < nu; ++i) {
+        const double s = -r.half_u + (static_cast<double>(i) + uniform()) * step;
+        const double t = -r.half_v + (static_cast<double>(j) + uniform()) * step;
+        if (s > r.half_u || t > r.half_v) continue;  // the last square sticks out
+        const Vec3 p = Add(r.center, Add(Scale(r.u, s), Scale(r.v, t)));
+        if (!under_a_box(p)) out.push_back(p);
+      }
+    }
+  }
+  return out;
 }
 
 MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertices,

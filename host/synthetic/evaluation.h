@@ -26,6 +26,13 @@ MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertice
                           const std::vector<uint32_t>& faces, const std::vector<Vec3>& truth,
                           double tau, double cap = 5.0);
 
+// Points on the scene's road surface: its Material::kGround rects (in the street canyon the
+// carriageway, parking lanes and pavements), less the footprints of the boxes that stand on them
+// (the ground under a parked car is no surface anyone sees). A jittered grid: one point, uniform,
+// in each square of side 1 / sqrt(density) (density: points per unit area), the same for the same
+// seed on any machine. Scene coordinates.
+std::vector<Vec3> SampleRoadSurface(const Scene& scene, double density, uint64_t seed);
+
 // Distance from p to the triangle (a, b, c).
 double PointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 

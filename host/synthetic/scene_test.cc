@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "host/synthetic/evaluation.h"
 
 namespace imr::synthetic {
@@ -49,6 +51,41 @@ TEST(EvaluationTest, PointTriangleDistanceAndMeshAccuracy) {
   EXPECT_NEAR(a.area, 4.0, 1e-9);
   EXPECT_NEAR(a.precision, 1.0, 1e-12);
   EXPECT_NEAR(a.completeness, 2.0 / 3.0, 1e-12);
+}
+
+// A road x in [-4, 4], y in [0, 20] with a box 2 m x 4 m x 1.5 m standing on it at x in [1, 3],
+// y in [10, 14] (its top marked as Scene::StreetCanyon marks box tops).
+TEST(SampleRoadSurfaceTest, GroundOnlyNotUnderBoxesDenseAndDeterministic) {
+  Scene s;
+  s.AddRect({{0, 10, 0}, {1, 0, 0}, {0, 1, 0}, 4, 10, Material::kGround});
+  const Scene open = s;
+  s.AddRect({{2, 12, 1.5}, {1, 0, 0}, {0, 1, 0}, 1, 2, Material::kBoxTop, 0});
+  const std::vector<Vec3> a = SampleRoadSurface(s, 100.0, 7);
+  // 160 m^2 of road less the box's 8 m^2 at 100 per m^2: one point in each 10 cm square, and the
+  // squares tile the road and the footprint exactly.
+  EXPECT_EQ(a.size(), 15200u);
+  for (const Vec3& p : a) {
+    ASSERT_EQ(p[2], 0.0);
+    ASSERT_TRUE(std::abs(p[0]) <= 4.0 && p[1] >= 0.0 && p[1] <= 20.0);
+    ASSERT_FALSE(p[0] >= 1.0 && p[0] <= 3.0 && p[1] >= 10.0 && p[1] <= 14.0) << p[0] << " " << p[1];
+  }
+  std::size_t in_square = 0;  // a 1 m square away from the box
+  for (const Vec3& p : a) in_square += p[0] >= -3 && p[0] < -2 && p[1] >= 5 && p[1] < 6;
+  EXPECT_EQ(in_square, 100u);
+  EXPECT_EQ(SampleRoadSurface(s, 100.0, 7), a);
+  EXPECT_NE(SampleRoadSurface(s, 100.0, 8), a);
+  EXPECT_EQ(SampleRoadSurface(open, 100.0, 7).size(), 16000u);
+  EXPECT_EQ(SampleRoadSurface(s, 25.0, 7).size(), 3800u);
+  EXPECT_TRUE(SampleRoadSurface(Scene::Plane(5.0), 100.0, 7).empty());  // no ground material
+  EXPECT_TRUE(SampleRoadSurface(s, 0.0, 7).empty());
+  // The street: its ground, less every parked box.
+  const Scene street = Scene::StreetCanyon(100, 3);
+  double boxes = 0.0;
+  for (const Rect& r : street.rects())
+    if (r.material == Material::kBoxTop) boxes += 4.0 * r.half_u * r.half_v;
+  const double ground = 16.0 * 180.0;  // x in [-8, 8], y in [-40, 140]
+  EXPECT_NEAR(static_cast<double>(SampleRoadSurface(street, 4.0, 1).size()), 4.0 * (ground - boxes),
+              0.01 * 4.0 * ground);
 }
 
 }  // namespace

@@ -17,6 +17,9 @@ std::string TrackerOptions::Check() const {
   if (!(shi_tomasi_quality > 0.0 && shi_tomasi_quality <= 1.0))
     return "shi_tomasi_quality: expected in (0, 1]";
   if (shi_tomasi_block_size < 2) return "shi_tomasi_block_size: expected >= 2";
+  if (!(corner_min_eigen >= 0.0)) return "corner_min_eigen: expected >= 0";
+  if (corner_block_size < 2 || corner_block_size > 31)
+    return "corner_block_size: expected in [2, 31]";
   if (lk_window < 3) return "lk_window: expected >= 3";
   if (lk_levels < 0 || lk_levels > 10) return "lk_levels: expected in [0, 10]";
   if (lk_max_iterations < 1) return "lk_max_iterations: expected >= 1";
@@ -102,9 +105,10 @@ void EdgeKltTracker::Detect(const cv::Mat& gray) {
   }
 
   std::vector<cv::Point2f> candidates;  // strongest first
-  if (options_.detector == Detector::kEdge)
+  if (options_.detector == Detector::kEdge) {
     DetectEdgePoints(gray, free_mask, &candidates);
-  else
+    if (options_.corner_fallback) DetectFallbackCorners(gray, free_mask, &candidates);
+  } else
     DetectCorners(gray, free_mask, &candidates);
 
   // Greedy, strongest first: keep a candidate only if nothing kept so far is too close (two
@@ -156,6 +160,41 @@ void EdgeKltTracker::DetectEdgePoints(const cv::Mat& gray, const cv::Mat& free_m
   std::sort(order.begin(), order.end(),
             [&](std::size_t a, std::size_t b) { return best_mag2[a] > best_mag2[b]; });
   out->reserve(order.size());
+  for (std::size_t c : order)
+    out->emplace_back(static_cast<float>(best_pt[c].x), static_cast<float>(best_pt[c].y));
+}
+
+void EdgeKltTracker::DetectFallbackCorners(const cv::Mat& gray, const cv::Mat& free_mask,
+                                           std::vector<cv::Point2f>* out) const {
+  const int cs = options_.grid_cell_size;
+  const int ncols = (gray.cols + cs - 1) / cs, nrows = (gray.rows + cs - 1) / cs;
+  const auto cell_of = [&](int x, int y) {
+    return static_cast<std::size_t>(y / cs) * ncols + static_cast<std::size_t>(x / cs);
+  };
+  std::vector<uchar> taken(static_cast<std::size_t>(ncols) * nrows, 0);
+  for (const cv::Point2f& p : *out) taken[cell_of(cvFloor(p.x), cvFloor(p.y))] = 1;
+  cv::Mat eig;
+  cv::cornerMinEigenVal(gray, eig, options_.corner_block_size, 3);
+  const float threshold = static_cast<float>(options_.corner_min_eigen);
+  std::vector<float> best(taken.size(), -1.0f);
+  std::vector<cv::Point> best_pt(taken.size());
+  for (int y = 0; y < gray.rows; ++y) {
+    const float* e = eig.ptr<float>(y);
+    const uchar* f = free_mask.ptr<uchar>(y);
+    for (int x = 0; x < gray.cols; ++x) {
+      if (!f[x] || e[x] < threshold) continue;
+      const std::size_t c = cell_of(x, y);
+      if (!taken[c] && e[x] > best[c]) {
+        best[c] = e[x];
+        best_pt[c] = {x, y};
+      }
+    }
+  }
+  std::vector<std::size_t> order;
+  for (std::size_t c = 0; c < best.size(); ++c)
+    if (best[c] >= 0.0f) order.push_back(c);
+  // After the edge points (they keep priority), strongest corner first.
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return best[a] > best[b]; });
   for (std::size_t c : order)
     out->emplace_back(static_cast<float>(best_pt[c].x), static_cast<float>(best_pt[c].y));
 }

@@ -27,6 +27,12 @@ struct TrackerOptions {
   int border = 8;                       // Pixels at the image border where features are dropped.
   double shi_tomasi_quality = 0.01;     // Relative corner quality (goodFeaturesToTrack).
   int shi_tomasi_block_size = 3;        // Neighbourhood of the corner measure.
+  // Edge detector: a free cell without an edge pixel (weak texture, e.g. asphalt) takes its
+  // strongest corner instead, when its minimum eigenvalue (cv::cornerMinEigenVal over
+  // corner_block_size pixels) reaches corner_min_eigen.
+  bool corner_fallback = true;
+  double corner_min_eigen = 3e-5;
+  int corner_block_size = 5;
   int lk_window = 21;                   // Lucas-Kanade window side, pixels.
   int lk_levels = 3;                    // Pyramid levels above the image (0: no pyramid).
   int lk_max_iterations = 30;           // Per level.
@@ -53,6 +59,9 @@ class EdgeKltTracker {
                         std::vector<cv::Point2f>* out) const;
   void DetectCorners(const cv::Mat& gray, const cv::Mat& free_mask,
                      std::vector<cv::Point2f>* out) const;
+  // Appends the strongest corner of each free cell that holds no point of `out` yet.
+  void DetectFallbackCorners(const cv::Mat& gray, const cv::Mat& free_mask,
+                             std::vector<cv::Point2f>* out) const;
   bool Inside(const cv::Point2f& p) const;
 
   TrackerOptions options_;

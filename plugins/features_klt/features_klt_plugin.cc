@@ -35,6 +35,12 @@ class EdgeKltFeatures : public imr::sdk::Features {
       "description": "shi_tomasi: minimum corner quality relative to the best corner"},
     "shi_tomasi_block_size": {"type": "integer", "default": 3, "minimum": 2, "maximum": 31,
       "description": "shi_tomasi: neighbourhood of the corner measure, pixels"},
+    "corner_fallback": {"type": "boolean", "default": true,
+      "description": "edge: a free grid cell without an edge pixel (weak texture such as asphalt) takes its strongest corner instead, if it reaches corner_min_eigen"},
+    "corner_min_eigen": {"type": "number", "default": 3e-5, "minimum": 0.0,
+      "description": "corner_fallback: minimum eigenvalue of the gradient matrix over corner_block_size pixels (cv::cornerMinEigenVal, 3x3 Sobel, 8-bit), at least"},
+    "corner_block_size": {"type": "integer", "default": 5, "minimum": 2, "maximum": 31,
+      "description": "corner_fallback: neighbourhood of the corner measure, pixels"},
     "lk_window": {"type": "integer", "default": 21, "minimum": 3, "maximum": 201,
       "description": "Lucas-Kanade window side, pixels"},
     "lk_levels": {"type": "integer", "default": 3, "minimum": 0, "maximum": 10,
@@ -74,6 +80,9 @@ class EdgeKltFeatures : public imr::sdk::Features {
     o.border = p.Get<int>("border");
     o.shi_tomasi_quality = p.Get<double>("shi_tomasi_quality");
     o.shi_tomasi_block_size = p.Get<int>("shi_tomasi_block_size");
+    o.corner_fallback = p.Get<bool>("corner_fallback");
+    o.corner_min_eigen = p.Get<double>("corner_min_eigen");
+    o.corner_block_size = p.Get<int>("corner_block_size");
     o.lk_window = p.Get<int>("lk_window");
     o.lk_levels = p.Get<int>("lk_levels");
     o.lk_max_iterations = p.Get<int>("lk_max_iterations");

@@ -211,6 +211,80 @@ TEST_F(FeaturesPlugin, FeaturesSpreadOverTheGrid) {
   }
 }
 
+// Weak texture, like asphalt: a flat region holding a patch of 4 px blocks within +-8 grey levels
+// of the background, so no gradient reaches canny_high and Canny finds no edge there, though the
+// block corners are corners. Without corner_fallback the patch gets no feature; with it, nearly
+// every grid cell of the patch gets one, and the flat rest of the region (no corner at all) none.
+// The patch's tracks follow a known shift like the edge points do.
+TEST_F(FeaturesPlugin, CornerFallbackFillsCellsWithoutEdgesButWithCorners) {
+  cv::Mat canvas = texture_.clone();
+  const cv::Rect flat(700, 100, 500, 300);           // canvas coordinates (100 px margin)
+  const cv::Rect patch(800, 180, 192, 160);          // inside `flat`
+  canvas(flat).setTo(128);
+  cv::RNG rng(5);
+  for (int y = patch.y; y < patch.br().y; y += 4)
+    for (int x = patch.x; x < patch.br().x; x += 4)
+      canvas(cv::Rect(x, y, 4, 4)).setTo(rng.uniform(120, 137));
+  cv::GaussianBlur(canvas(flat), canvas(flat), cv::Size(0, 0), 0.7);
+  const cv::Mat img0 = Shifted(canvas, {0, 0}, 1, 0.5);
+  // Image coordinates of the patch (less its blurred rim) and of the flat region (less its rim,
+  // where it meets the textured rest in Canny edges).
+  const cv::Rect in_patch(patch.x - 100 + 4, patch.y - 100 + 4, patch.width - 8, patch.height - 8);
+  const cv::Rect in_flat(flat.x - 100 + 6, flat.y - 100 + 6, flat.width - 12, flat.height - 12);
+  cv::Mat dx, dy, edges;
+  cv::Sobel(img0, dx, CV_16S, 1, 0, 3);
+  cv::Sobel(img0, dy, CV_16S, 0, 1, 3);
+  cv::Canny(dx, dy, edges, 50, 150, true);
+  ASSERT_EQ(cv::countNonZero(edges(in_flat)), 0)
+      << "the weak texture has Canny edges: the test no longer tests the fallback";
+
+  const auto count = [&](const TrackMap& m, const cv::Rect& r) {
+    std::size_t n = 0;
+    for (const auto& [id, p] : m) n += r.contains(cv::Point(cvFloor(p.x), cvFloor(p.y)));
+    return n;
+  };
+  imr::sdk::Instance off(d_, R"({"corner_fallback": false, "max_features": 5000})", nullptr);
+  const TrackMap m_off = Feed(off, img0, 0, true);
+  EXPECT_GT(m_off.size(), 300u) << "the textured rest of the image lost its edge points";
+  EXPECT_EQ(count(m_off, in_flat), 0u);
+
+  imr::sdk::Instance on(d_, R"({"corner_fallback": true, "max_features": 5000})", nullptr);
+  const TrackMap m_on = Feed(on, img0, 0, true);
+  const std::size_t cells = static_cast<std::size_t>((in_patch.width / 16) * (in_patch.height / 16));
+  std::printf("weak-texture patch: %zu features with corner_fallback (%zu cells), %zu without; "
+              "%zu elsewhere in the flat region\n", count(m_on, in_patch), cells,
+              count(m_off, in_patch), count(m_on, in_flat) - count(m_on, in_patch));
+  EXPECT_GE(count(m_on, in_patch), cells * 8 / 10);
+  // Outside the patch (a cell's margin around it) the flat region gives nothing.
+  const cv::Rect near_patch(in_patch.x - 20, in_patch.y - 20, in_patch.width + 40,
+                            in_patch.height + 40);
+  EXPECT_EQ(count(m_on, in_flat), count(m_on, in_flat & near_patch));
+  // Elsewhere the same edge points as without the fallback.
+  std::size_t same = 0;
+  for (const auto& [id, p] : m_off) {
+    const auto it = m_on.find(id);
+    same += it != m_on.end() && it->second == p;
+  }
+  EXPECT_EQ(same, m_off.size());
+  // A threshold above the patch's corners: nothing there again.
+  imr::sdk::Instance strict(d_, R"({"corner_min_eigen": 1.0, "max_features": 5000})", nullptr);
+  EXPECT_EQ(count(Feed(strict, img0, 0, true), in_flat), 0u);
+
+  // The fallback corners are trackable: frame 1, shifted by (1, 0.5) px.
+  const cv::Point2d step(1.0, 0.5);
+  const TrackMap m1 = Feed(on, Shifted(canvas, step, 2, 0.5), 1, false);
+  std::size_t followed = 0, close = 0;
+  for (const auto& [id, p] : m_on) {
+    if (!in_patch.contains(cv::Point(cvFloor(p.x), cvFloor(p.y)))) continue;
+    const auto it = m1.find(id);
+    if (it == m1.end()) continue;
+    ++followed;
+    close += cv::norm(it->second - p - step) < 0.2;
+  }
+  EXPECT_GE(followed, count(m_on, in_patch) * 8 / 10);
+  EXPECT_GE(close, followed * 9 / 10);
+}
+
 TEST_F(FeaturesPlugin, MaxFeaturesCapsTheTrackCount) {
   imr::sdk::Instance inst(d_, R"({"max_features": 50})", nullptr);
   EXPECT_EQ(Feed(inst, Shifted(texture_, {0, 0}, 1), 0, true).size(), 50u);
@@ -358,6 +432,9 @@ TEST_F(FeaturesPlugin, BadParamsAreInvalidArgumentsNamingTheParam) {
       {R"({"lk_window": "big"})", "params.lk_window"},
       {R"({"fb_max_error": -1})", "params.fb_max_error"},
       {R"({"canny_low": 200, "canny_high": 100})", "params.canny_low"},
+      {R"({"corner_fallback": 1})", "params.corner_fallback"},
+      {R"({"corner_min_eigen": -1})", "params.corner_min_eigen"},
+      {R"({"corner_block_size": 1})", "params.corner_block_size"},
       {R"({"no_such_param": 1})", "params.no_such_param"},
       {R"([1, 2])", "params"},
   };

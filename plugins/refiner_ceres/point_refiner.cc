@@ -12,7 +12,8 @@ namespace imr::ceres_refiner {
 using imr::sdk::InvalidArgument;
 
 std::string RefinerOptions::Check() const {
-  if (min_keyframes < 2) return "min_keyframes: expected >= 2";
+  if (min_keyframes < 1) return "min_keyframes: expected >= 1";
+  if (min_views < 2) return "min_views: expected >= 2";
   if (!(min_parallax_deg >= 0.0 && min_parallax_deg < 180.0))
     return "min_parallax_deg: expected in [0, 180)";
   if (!(huber_px >= 0.0)) return "huber_px: expected >= 0";
@@ -132,6 +133,7 @@ void PointRefiner::ProcessTrack(uint64_t id, Track* track, RefinerUpdate* update
   Eigen::Vector3d X = track->position;
   if (!track->is_reported) {
     if (keyframes < options_.min_keyframes) return;
+    if (static_cast<int>(views.size()) < options_.min_views) return;
     if (ParallaxDeg(views) < options_.min_parallax_deg) return;
     const auto dlt = TriangulateDlt(views);
     if (!dlt) return;
@@ -161,6 +163,7 @@ void PointRefiner::ProcessTrack(uint64_t id, Track* track, RefinerUpdate* update
 
   // Acceptance: consistent, in front of every observing camera, not too far.
   bool accept = ok && keyframes >= options_.min_keyframes &&
+                static_cast<int>(views.size()) >= options_.min_views &&
                 static_cast<double>(views.size()) >=
                     options_.min_inlier_ratio * static_cast<double>(track->observations.size());
   bool inconsistent = !accept;  // reprojection-type failure: the track is an outlier

@@ -22,6 +22,7 @@ namespace imr::ceres_refiner {
 
 struct RefinerOptions {
   int min_keyframes = 2;                // Keyframes that must see a track before it is triangulated.
+  int min_views = 2;                    // Observations (frames) of it, at least.
   double min_parallax_deg = 1.0;        // Largest angle between its rays, degrees, at least.
   double huber_px = 1.0;                // Huber loss scale of the refinement, pixels (0: none).
   int max_iterations = 10;              // Ceres iterations per point and keyframe, at most.

@@ -17,8 +17,10 @@ class CeresRefiner : public imr::sdk::Refiner {
       "Tracks triangulated by DLT once seen from enough parallax, each point refined on its "
       "reprojection error with fixed poses (Ceres, Huber); outliers removed";
   static constexpr const char* kParamsSchema = R"json({
-    "min_keyframes": {"type": "integer", "default": 2, "minimum": 2, "maximum": 1000,
+    "min_keyframes": {"type": "integer", "default": 2, "minimum": 1, "maximum": 1000,
       "description": "keyframes that must observe a track before it is triangulated"},
+    "min_views": {"type": "integer", "default": 2, "minimum": 2, "maximum": 1000,
+      "description": "observations (frames, keyframes or not) a track's point must explain, at least"},
     "min_parallax_deg": {"type": "number", "default": 1.0, "minimum": 0.0, "maximum": 179.0,
       "description": "degrees between a track's rays (first observation to any other), at least, before it is triangulated"},
     "huber_px": {"type": "number", "default": 1.0, "minimum": 0.0,
@@ -64,6 +66,7 @@ class CeresRefiner : public imr::sdk::Refiner {
     const imr::sdk::Params& p = params;  // checked, defaults filled (plugin.hpp)
     RefinerOptions o;
     o.min_keyframes = p.Get<int>("min_keyframes");
+    o.min_views = p.Get<int>("min_views");
     o.min_parallax_deg = p.Get<double>("min_parallax_deg");
     o.huber_px = p.Get<double>("huber_px");
     o.max_iterations = p.Get<int>("max_iterations");

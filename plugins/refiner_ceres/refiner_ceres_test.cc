@@ -305,9 +305,37 @@ TEST_F(RefinerPlugin, BadCamerasAndObservationsAreInvalidArguments) {
   EXPECT_THROW(inst.AddFrame(CameraAt(0), nullptr, 3, true), imr::sdk::PluginCallError);
 }
 
+// A track that starts between keyframes (frames 1 to 9, keyframes every 5) has one keyframe at
+// keyframe 5 (frames 1-5) and at keyframe 10, where it has ended (frames 1-9). min_keyframes 2
+// never triangulates it; min_keyframes 1 does at keyframe 5 from its 5 views; min_views 6 makes
+// it wait for keyframe 10 and its 9 views; min_views 10 refuses it.
+TEST_F(RefinerPlugin, MinKeyframesOneAndMinViewsGateATrackBetweenKeyframes) {
+  const Eigen::Vector3d X(4.0, 1.0, 15.0);
+  const uint64_t id = 5000;
+  const auto inject = [&](uint64_t frame, std::vector<imr_track_observation>* obs) {
+    if (frame < 1 || frame > 9) return;
+    const auto p = Project(X, frame);
+    ASSERT_TRUE(p.has_value()) << frame;
+    obs->push_back({id, p->x(), p->y()});
+  };
+  const auto run = [&](const std::string& params) { return Drive(params, {}, 11, 0.5, 0.0, inject); };
+  EXPECT_EQ(run("{}").ever_new.count(id), 0u);
+  Run r = run(R"({"min_keyframes": 1})");
+  ASSERT_EQ(r.points.count(id), 1u);
+  EXPECT_EQ(r.points[id].first_keyframe, 5);
+  EXPECT_EQ(r.points[id].cameras, (std::vector<uint64_t>{1, 2, 3, 4, 5}));
+  EXPECT_LT((r.points[id].first - X).norm(), 1e-6);
+  r = run(R"({"min_keyframes": 1, "min_views": 6})");
+  ASSERT_EQ(r.points.count(id), 1u);
+  EXPECT_EQ(r.points[id].first_keyframe, 10);
+  EXPECT_EQ(r.points[id].cameras.size(), 9u);
+  EXPECT_EQ(run(R"({"min_keyframes": 1, "min_views": 10})").ever_new.count(id), 0u);
+}
+
 TEST_F(RefinerPlugin, BadParamsAreInvalidArgumentsNamingTheParam) {
   const std::pair<const char*, const char*> cases[] = {
-      {R"({"min_keyframes": 1})", "params.min_keyframes"},
+      {R"({"min_keyframes": 0})", "params.min_keyframes"},
+      {R"({"min_views": 1})", "params.min_views"},
       {R"({"min_parallax_deg": -1})", "params.min_parallax_deg"},
       {R"({"huber_px": "x"})", "params.huber_px"},
       {R"({"min_inlier_ratio": 1.5})", "params.min_inlier_ratio"},

@@ -45,11 +45,15 @@ json Job(const std::string& format, const std::string& sequence, const fs::path&
   return {{"description", "imr-bench pipeline"},
           {"sequences", {sequence}},
           {"input", {{"format", format}, {"options", json::object()}}},
-          {"engine", {{"window", 15}, {"steiner_export", "any_steiner"}}},
+          {"engine",
+           {{"window", 15},
+            {"steiner_spacing", 5.0},
+            {"visibility_mode", "weights"},  // the weight policy below needs it (not the default)
+            {"steiner_export", "any_steiner"}}},
           {"pipeline",
            {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
             {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
-             {"params", {{"max_distance", 30.0}}}},
+             {"params", {{"max_distance", 30.0}, {"min_keyframes", 1}}}},
             {{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
             {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
           {"output", {{"directory", out.string()}, {"formats", {"ply"}}}}};
