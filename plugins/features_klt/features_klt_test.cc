@@ -179,10 +179,9 @@ void ExpectTracksFollowTranslation(const imr::sdk::Instance& inst,
 }
 
 TEST_F(FeaturesPlugin, EdgePointsFollowAKnownSubPixelTranslation) {
+  // The time per frame is printed, not asserted (speed is measured by imr-bench pipeline).
   imr::sdk::Instance inst(d_, "{}", nullptr);
-  double ms = 0;
-  ExpectTracksFollowTranslation(inst, texture_, "edge", &ms);
-  EXPECT_LT(ms, 250.0) << "far slower than expected (about 10-20 ms/frame)";
+  ExpectTracksFollowTranslation(inst, texture_, "edge", nullptr);
 }
 
 TEST_F(FeaturesPlugin, ShiTomasiCornersFollowAKnownSubPixelTranslation) {
