@@ -168,16 +168,21 @@ json ConfigJob(const std::string& config, const fs::path& sequence, const fs::pa
   return job;
 }
 
-// The same job through an earlier build (--before): its engine section and a nearest policy
-// stage (what that build's weights mode needs), one more row.
-void RunBefore(const QualityArgs& args, json job, const json& engine, const fs::path& work,
-               const std::string& name, const std::string& label,
+// The same job through an earlier build (--before): its engine section, its plugins' params as
+// that build's configs had them (before_params, by plugin id: newer params would be refused) and
+// a nearest policy stage (what that build's weights mode needs), one more row.
+void RunBefore(const QualityArgs& args, json job, const json& engine, const json& before_params,
+               const fs::path& work, const std::string& name, const std::string& label,
                const std::function<void(const fs::path&, Row*)>& evaluate,
                std::vector<Row>* rows) {
   if (args.before.empty()) return;
   Row r;
   r.mesher = "imr at " + args.before_label + ", " + label;
   job["engine"] = engine;
+  // Plugin params that build did not know (its plugins had their own defaults then).
+  for (json& stage : job["pipeline"])
+    if (stage.contains("plugin") && before_params.contains(stage["plugin"].get<std::string>()))
+      stage["params"] = before_params[stage["plugin"].get<std::string>()];
   bool has_policy = false;
   for (const json& stage : job["pipeline"]) has_policy |= stage["kind"] == "weight_policy";
   json pipeline = json::array();
@@ -333,8 +338,8 @@ json Street(const QualityArgs& args, const fs::path& work) {
   if (RunImr(job, work, "imr", "--export-colmap " + Quote((work / "colmap-model").string()), &imr))
     evaluate(work / "imr/mesh.ply", &imr);
   rows.push_back(imr);
-  RunBefore(args, job, json::object(), work, "before-defaults", "defaults", evaluate, &rows);
-  RunBefore(args, job, {{"steiner_export", "any_steiner"}}, work, "before-any",
+  RunBefore(args, job, json::object(), json::object(), work, "before-defaults", "defaults", evaluate, &rows);
+  RunBefore(args, job, {{"steiner_export", "any_steiner"}}, json::object(), work, "before-any",
             "nearest, any_steiner (issue 14's table)", evaluate, &rows);
 
   // The limit: the stream's points triangulated per true plane (oracle_mesh.py).
@@ -397,6 +402,7 @@ json Synth(const QualityArgs& args, const fs::path& work) {
   RunBefore(args, job,
             {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
              {"steiner_export", "any_steiner"}},
+            {{"org.imr.refiner.ceres", {{"max_distance", 30.0}}}, {"org.imr.features.edge_klt", json::object()}},
             work, "before", "configs/default.json then", evaluate, &rows);
   RunPeers(args, work, work / "stream.json", work / "colmap-model",
            "imr's exported stream (--export-stream)", evaluate, &rows);
@@ -439,6 +445,7 @@ json Kitti(const QualityArgs& args, const fs::path& work) {
   RunBefore(args, job,
             {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
              {"steiner_export", "any_steiner"}},
+            {{"org.imr.refiner.ceres", json::object()}, {"org.imr.features.edge_klt", json::object()}},
             work, "before", "configs/kitti-raw-sample.json then", evaluate, &rows);
   RunPeers(args, work, work / "stream.json", work / "colmap-model",
            "imr's exported stream (--export-stream)", evaluate, &rows);
