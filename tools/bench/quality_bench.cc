@@ -370,6 +370,31 @@ json Street(const QualityArgs& args, const fs::path& work) {
   return out;
 }
 
+// An image job of configs/ (`config`) through imr, writing the stream and the final points for
+// the peers; the same through the --before build with the settings f69611d's configs had (weights
+// mode, 5 m grid, any_steiner; `before_refiner` the refiner's params then); then the peers.
+std::vector<Row> RunImageJob(const QualityArgs& args, const json& job, const std::string& config,
+                             const json& before_refiner, const fs::path& work,
+                             const std::function<void(const fs::path&, Row*)>& evaluate) {
+  std::vector<Row> rows;
+  Row imr;
+  imr.mesher = "imr (configs/" + config + ")";
+  if (RunImr(job, work, "imr",
+             "--export-stream " + Quote((work / "stream.json").string()) + " --export-colmap " +
+                 Quote((work / "colmap-model").string()),
+             &imr))
+    evaluate(work / "imr/mesh.ply", &imr);
+  rows.push_back(imr);
+  RunBefore(args, job,
+            {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
+             {"steiner_export", "any_steiner"}},
+            {{"org.imr.refiner.ceres", before_refiner}, {"org.imr.features.edge_klt", json::object()}},
+            work, "before", "configs/" + config + " then", evaluate, &rows);
+  RunPeers(args, work, work / "stream.json", work / "colmap-model",
+           "imr's exported stream (--export-stream)", evaluate, &rows);
+  return rows;
+}
+
 // --- synth: imr-synth's street, the default image job --------------------------------------------
 json Synth(const QualityArgs& args, const fs::path& work) {
   json out = {{"input", "imr-synth street"}, {"frames", args.synth_frames}};
@@ -390,22 +415,8 @@ json Synth(const QualityArgs& args, const fs::path& work) {
   auto evaluate = [&](const fs::path& mesh, Row* row) {
     Evaluate(mesh, truth, truth, row);
   };
-  std::vector<Row> rows;
-  Row imr;
-  imr.mesher = "imr (configs/default.json)";
-  if (RunImr(job, work, "imr",
-             "--export-stream " + Quote((work / "stream.json").string()) + " --export-colmap " +
-                 Quote((work / "colmap-model").string()),
-             &imr))
-    evaluate(work / "imr/mesh.ply", &imr);
-  rows.push_back(imr);
-  RunBefore(args, job,
-            {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
-             {"steiner_export", "any_steiner"}},
-            {{"org.imr.refiner.ceres", {{"max_distance", 30.0}}}, {"org.imr.features.edge_klt", json::object()}},
-            work, "before", "configs/default.json then", evaluate, &rows);
-  RunPeers(args, work, work / "stream.json", work / "colmap-model",
-           "imr's exported stream (--export-stream)", evaluate, &rows);
+  const std::vector<Row> rows =
+      RunImageJob(args, job, "default.json", {{"max_distance", 30.0}}, work, evaluate);
   const Row& r = rows[0];
   Print("imr-synth street, " + std::to_string(args.synth_frames) +
             " frames, default image job (points from imr's front end for every mesher)",
@@ -433,22 +444,8 @@ json Kitti(const QualityArgs& args, const fs::path& work) {
   truth.sequence = drive.string();
   truth.sequence_options.camera = 2;
   auto evaluate = [&](const fs::path& mesh, Row* row) { Evaluate(mesh, truth, truth, row); };
-  std::vector<Row> rows;
-  Row imr;
-  imr.mesher = "imr (configs/kitti-raw-sample.json)";
-  if (RunImr(job, work, "imr",
-             "--export-stream " + Quote((work / "stream.json").string()) + " --export-colmap " +
-                 Quote((work / "colmap-model").string()),
-             &imr))
-    evaluate(work / "imr/mesh.ply", &imr);
-  rows.push_back(imr);
-  RunBefore(args, job,
-            {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
-             {"steiner_export", "any_steiner"}},
-            {{"org.imr.refiner.ceres", json::object()}, {"org.imr.features.edge_klt", json::object()}},
-            work, "before", "configs/kitti-raw-sample.json then", evaluate, &rows);
-  RunPeers(args, work, work / "stream.json", work / "colmap-model",
-           "imr's exported stream (--export-stream)", evaluate, &rows);
+  const std::vector<Row> rows =
+      RunImageJob(args, job, "kitti-raw-sample.json", json::object(), work, evaluate);
   // The target: truth -> mesh mean at most half of what imr gave before (the --before row).
   std::vector<Target> targets;
   if (rows.size() > 1 && rows[1].ok && !args.before.empty())
