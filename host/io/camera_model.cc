@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace imr::io {
@@ -130,17 +131,49 @@ void SetFromTranslation(const Mat3& r, const Vec3& t, CameraGeometry* g) {
   g->center = {-c[0], -c[1], -c[2]};
 }
 
+namespace {
+
+// (a, b) = (x/z, y/z) through the lens mapping and the distortion (camera_model.h).
+void Distort(const Intrinsics& k, double a, double b, double* ad, double* bd) {
+  if (k.lens == Lens::kFisheye) {
+    const double r = std::sqrt(a * a + b * b);
+    if (r > std::numeric_limits<double>::epsilon()) {
+      const double s = std::atan(r) / r;
+      a *= s, b *= s;
+    }
+  } else if (k.lens == Lens::kFov) {
+    // COLMAP's FOVCameraModel::Distortion, with its series where omega or r is near 0.
+    const double r2 = a * a + b * b, w2 = k.omega * k.omega;
+    double factor;
+    if (w2 < 1e-4) {
+      factor = w2 * r2 / 3.0 - w2 / 12.0 + 1.0;
+    } else if (r2 < 1e-4) {
+      const double t = std::tan(k.omega / 2.0);
+      factor = -2.0 * t * (4.0 * r2 * t * t - 3.0) / (3.0 * k.omega);
+    } else {
+      const double r = std::sqrt(r2);
+      factor = std::atan(2.0 * r * std::tan(k.omega / 2.0)) / (r * k.omega);
+    }
+    *ad = a * factor, *bd = b * factor;
+    return;
+  }
+  const double r2 = a * a + b * b;
+  const double radial = (1.0 + r2 * (k.k1 + r2 * (k.k2 + r2 * (k.k3 + r2 * k.k4)))) /
+                        (1.0 + r2 * (k.q1 + r2 * (k.q2 + r2 * k.q3)));
+  *ad = a * radial + 2.0 * k.p1 * a * b + k.p2 * (r2 + 2.0 * a * a) + k.s1 * r2;
+  *bd = b * radial + 2.0 * k.p2 * a * b + k.p1 * (r2 + 2.0 * b * b) + k.s2 * r2;
+}
+
+}  // namespace
+
 bool Project(const CameraGeometry& g, const Vec3& x, double* u, double* v) {
   if (!g.has_intrinsics || !g.intrinsics.projectable) return false;
   const Vec3 rx = Mul(g.rotation, x);
   const Vec3 p = {rx[0] + g.translation[0], rx[1] + g.translation[1], rx[2] + g.translation[2]};
   if (!(p[2] > 0.0)) return false;
   const Intrinsics& k = g.intrinsics;
-  const double xn = p[0] / p[2], yn = p[1] / p[2];
-  const double r2 = xn * xn + yn * yn;
-  const double radial = 1.0 + r2 * (k.k1 + r2 * (k.k2 + r2 * k.k3));
-  const double xd = xn * radial + 2.0 * k.p1 * xn * yn + k.p2 * (r2 + 2.0 * xn * xn);
-  const double yd = yn * radial + k.p1 * (r2 + 2.0 * yn * yn) + 2.0 * k.p2 * xn * yn;
+  double xd, yd;
+  Distort(k, p[0] / p[2], p[1] / p[2], &xd, &yd);
   *u = k.fx * xd + k.cx;
   *v = k.fy * yd + k.cy;
   return true;
@@ -194,23 +227,43 @@ bool IntrinsicsFromColmap(const std::string& model, const std::vector<double>& p
              std::to_string(p.size());
     return false;
   }
+  // Parameter lists of COLMAP's sensor/models.h: a single focal length f (fx = fy) or fx, fy;
+  // then cx, cy; then the model's distortion in its own order.
+  const bool one_focal = model == "SIMPLE_PINHOLE" || model == "SIMPLE_RADIAL" ||
+                         model == "RADIAL" || model == "SIMPLE_RADIAL_FISHEYE" ||
+                         model == "RADIAL_FISHEYE";
+  const bool known = one_focal || model == "PINHOLE" || model == "OPENCV" ||
+                     model == "OPENCV_FISHEYE" || model == "FULL_OPENCV" || model == "FOV" ||
+                     model == "THIN_PRISM_FISHEYE";
+  if (!known) return true;  // kept as written, not projectable; the engine needs no intrinsics
   out->projectable = true;
-  if (model == "SIMPLE_PINHOLE") {
-    out->fx = out->fy = p[0], out->cx = p[1], out->cy = p[2];
-  } else if (model == "PINHOLE") {
-    out->fx = p[0], out->fy = p[1], out->cx = p[2], out->cy = p[3];
-  } else if (model == "SIMPLE_RADIAL") {
-    out->fx = out->fy = p[0], out->cx = p[1], out->cy = p[2], out->k1 = p[3];
+  std::size_t i = 0;
+  out->fx = p[i++];
+  out->fy = one_focal ? out->fx : p[i++];
+  out->cx = p[i++];
+  out->cy = p[i++];
+  const double* d = p.data() + i;  // the distortion parameters
+  if (model == "SIMPLE_RADIAL") {
+    out->k1 = d[0];
   } else if (model == "RADIAL") {
-    out->fx = out->fy = p[0], out->cx = p[1], out->cy = p[2], out->k1 = p[3], out->k2 = p[4];
+    out->k1 = d[0], out->k2 = d[1];
   } else if (model == "OPENCV") {
-    out->fx = p[0], out->fy = p[1], out->cx = p[2], out->cy = p[3];
-    out->k1 = p[4], out->k2 = p[5], out->p1 = p[6], out->p2 = p[7];
-  } else if (model == "FULL_OPENCV" && p[9] == 0.0 && p[10] == 0.0 && p[11] == 0.0) {
-    out->fx = p[0], out->fy = p[1], out->cx = p[2], out->cy = p[3];
-    out->k1 = p[4], out->k2 = p[5], out->p1 = p[6], out->p2 = p[7], out->k3 = p[8];
-  } else {
-    out->projectable = false;  // kept as written; the engine needs no intrinsics
+    out->k1 = d[0], out->k2 = d[1], out->p1 = d[2], out->p2 = d[3];
+  } else if (model == "FULL_OPENCV") {
+    out->k1 = d[0], out->k2 = d[1], out->p1 = d[2], out->p2 = d[3], out->k3 = d[4];
+    out->q1 = d[5], out->q2 = d[6], out->q3 = d[7];
+  } else if (model == "FOV") {
+    out->lens = Lens::kFov, out->omega = d[0];
+  } else if (model == "SIMPLE_RADIAL_FISHEYE") {
+    out->lens = Lens::kFisheye, out->k1 = d[0];
+  } else if (model == "RADIAL_FISHEYE") {
+    out->lens = Lens::kFisheye, out->k1 = d[0], out->k2 = d[1];
+  } else if (model == "OPENCV_FISHEYE") {
+    out->lens = Lens::kFisheye, out->k1 = d[0], out->k2 = d[1], out->k3 = d[2], out->k4 = d[3];
+  } else if (model == "THIN_PRISM_FISHEYE") {
+    out->lens = Lens::kFisheye;
+    out->k1 = d[0], out->k2 = d[1], out->p1 = d[2], out->p2 = d[3], out->k3 = d[4], out->k4 = d[5];
+    out->s1 = d[6], out->s2 = d[7];
   }
   return true;
 }
@@ -223,9 +276,27 @@ bool IntrinsicsToColmap(const Intrinsics& in, std::string* model, std::vector<do
   }
   if (!in.projectable) return false;
   const bool tangential = in.p1 != 0.0 || in.p2 != 0.0;
-  if (in.k3 != 0.0) {
+  const bool prism = in.s1 != 0.0 || in.s2 != 0.0;
+  if (in.lens == Lens::kFov) {
+    *model = "FOV";
+    *params = {in.fx, in.fy, in.cx, in.cy, in.omega};
+    return true;
+  }
+  if (in.lens == Lens::kFisheye) {  // e.g. OpenMVG's fisheye
+    if (in.q1 != 0.0 || in.q2 != 0.0 || in.q3 != 0.0) return false;
+    if (tangential || prism) {
+      *model = "THIN_PRISM_FISHEYE";
+      *params = {in.fx, in.fy, in.cx, in.cy, in.k1, in.k2, in.p1, in.p2, in.k3, in.k4, in.s1, in.s2};
+    } else {
+      *model = "OPENCV_FISHEYE";
+      *params = {in.fx, in.fy, in.cx, in.cy, in.k1, in.k2, in.k3, in.k4};
+    }
+    return true;
+  }
+  if (in.k4 != 0.0 || prism) return false;  // no perspective COLMAP model has them
+  if (in.k3 != 0.0 || in.q1 != 0.0 || in.q2 != 0.0 || in.q3 != 0.0) {
     *model = "FULL_OPENCV";
-    *params = {in.fx, in.fy, in.cx, in.cy, in.k1, in.k2, in.p1, in.p2, in.k3, 0.0, 0.0, 0.0};
+    *params = {in.fx, in.fy, in.cx, in.cy, in.k1, in.k2, in.p1, in.p2, in.k3, in.q1, in.q2, in.q3};
   } else if (tangential || in.fx != in.fy) {
     if (!tangential && in.k1 == 0.0 && in.k2 == 0.0) {
       *model = "PINHOLE";

@@ -54,8 +54,22 @@ std::string CoordinateProblem(double x);
 Mat3 QuaternionToRotation(const std::array<double, 4>& q);
 std::array<double, 4> RotationToQuaternion(const Mat3& r);
 
-// Pinhole intrinsics with OpenCV-style distortion, plus the model as the source wrote it (so a
-// COLMAP model written back keeps its camera model and parameters).
+// How a direction (x, y, z) in the camera frame becomes the normalised coordinates (a, b) that
+// the distortion polynomial then bends (COLMAP's sensor/models.h, OpenCV's calib3d):
+//   kPerspective: (a, b) = (x/z, y/z);
+//   kFisheye: equidistant, (a, b) = (x/z, y/z) * theta / r with r = |(x/z, y/z)|, theta = atan(r)
+//     (COLMAP's *FISHEYE models, OpenCV's and OpenMVG's fisheye);
+//   kFov: (a, b) = (x/z, y/z) * atan(2 r tan(omega / 2)) / (omega r) (Devernay and Faugeras;
+//     COLMAP's FOV), no polynomial.
+enum class Lens { kPerspective, kFisheye, kFov };
+
+// Intrinsics with the distortion of every model imr reads, plus the model as the source wrote it
+// (so a COLMAP model written back keeps its camera model and parameters). After the lens
+// mapping, with r2 = a^2 + b^2:
+//   radial = (1 + k1 r2 + k2 r2^2 + k3 r2^3 + k4 r2^4) / (1 + q1 r2 + q2 r2^2 + q3 r2^3)
+//   a_d = a radial + 2 p1 a b + p2 (r2 + 2 a^2) + s1 r2
+//   b_d = b radial + 2 p2 a b + p1 (r2 + 2 b^2) + s2 r2
+//   u = fx a_d + cx, v = fy b_d + cy.
 struct Intrinsics {
   std::string source_model;          // e.g. "pinhole_radial_k3" (OpenMVG), "SIMPLE_RADIAL" (COLMAP)
   std::vector<double> source_params;  // as the source lists them
@@ -63,7 +77,12 @@ struct Intrinsics {
   int height = 0;
   double fx = 0.0, fy = 0.0, cx = 0.0, cy = 0.0;
   double k1 = 0.0, k2 = 0.0, k3 = 0.0, p1 = 0.0, p2 = 0.0;
-  bool projectable = false;  // false: a model imr keeps but cannot project (e.g. fisheye)
+  Lens lens = Lens::kPerspective;
+  double k4 = 0.0;                  // r2^4 (COLMAP's OPENCV_FISHEYE, THIN_PRISM_FISHEYE)
+  double q1 = 0.0, q2 = 0.0, q3 = 0.0;  // rational denominator (FULL_OPENCV's k4, k5, k6)
+  double s1 = 0.0, s2 = 0.0;        // thin prism (THIN_PRISM_FISHEYE's sx1, sy1)
+  double omega = 0.0;               // kFov's field of view parameter
+  bool projectable = false;  // false: a model imr keeps but cannot project (e.g. spherical)
 };
 
 // Everything a reader knows of one camera (view / image / keyframe).
@@ -86,9 +105,11 @@ void SetFromTranslation(const Mat3& r, const Vec3& t, CameraGeometry* g);
 // intrinsics are unknown or not projectable.
 bool Project(const CameraGeometry& g, const Vec3& x, double* u, double* v);
 
-// COLMAP camera models imr can project, by COLMAP's model name and parameter order. Fills
-// `out` from `params`; false (with *error) when the count is wrong. Other models are kept with
-// projectable = false.
+// A COLMAP camera model, by COLMAP's model name and parameter order. Fills `out` from `params`;
+// false (with *error) when the count is wrong. The models COLMAP's reconstruction writes
+// (SIMPLE_PINHOLE ... THIN_PRISM_FISHEYE, ids 0-10) are projectable; others (ids 11 and later,
+// e.g. RAD_TAN_THIN_PRISM_FISHEYE, and unknown names in text files) are kept with
+// projectable = false: the engine needs only the camera centres.
 bool IntrinsicsFromColmap(const std::string& model, const std::vector<double>& params, int width,
                           int height, Intrinsics* out, std::string* error);
 // The simplest COLMAP model that represents `in` exactly (its source model when it came from

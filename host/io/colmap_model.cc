@@ -68,6 +68,9 @@ struct TextFile {
   template <typename T>
   T Parse(std::string_view tok, const char* what) const {
     T v{};
+    // Third-party writers: "+1.5" (printf's %+), "1e-005" and "1.0E+000" (from_chars reads the
+    // exponents as they are).
+    if (tok.size() > 1 && tok[0] == '+' && tok[1] != '-' && tok[1] != '+') tok.remove_prefix(1);
     const char* end = tok.data() + tok.size();
     auto r = std::from_chars(tok.data(), end, v);
     if (r.ec != std::errc() || r.ptr != end)
@@ -278,7 +281,8 @@ ColmapModel ReadColmapText(const fs::path& dir) {
   ReadCamerasText(dir / "cameras.txt", &m);
   ReadImagesText(dir / "images.txt", &m);
   ReadPointsText(dir / "points3D.txt", &m);
-  CheckColmapModel(m, dir.string(), ".txt");
+  m.ext = ".txt";
+  CheckColmapModel(m, dir.string(), m.ext);
   return m;
 }
 
@@ -287,7 +291,8 @@ ColmapModel ReadColmapBinary(const fs::path& dir) {
   ReadCamerasBinary(dir / "cameras.bin", &m);
   ReadImagesBinary(dir / "images.bin", &m);
   ReadPointsBinary(dir / "points3D.bin", &m);
-  CheckColmapModel(m, dir.string(), ".bin");
+  m.ext = ".bin";
+  CheckColmapModel(m, dir.string(), m.ext);
   return m;
 }
 
@@ -358,6 +363,10 @@ void CheckColmapModel(const ColmapModel& m, const std::string& where, const std:
 SfmModel ColmapToSfm(const ColmapModel& m, const std::string& where) {
   SfmModel s;
   s.file = where;
+  s.points_file = where + "/points3D" + m.ext;
+  s.views_file = where + "/images" + m.ext;
+  s.no_points_hint = " (COLMAP writes none when the mapper registered images but triangulated "
+                     "nothing; with known poses, run colmap point_triangulator first)";
   std::unordered_map<uint32_t, const ColmapModel::Camera*> cams;
   for (const auto& c : m.cameras) cams[c.id] = &c;
   std::unordered_map<uint32_t, const ColmapModel::Image*> images;
@@ -391,6 +400,69 @@ SfmModel ColmapToSfm(const ColmapModel& m, const std::string& where) {
   }
   std::sort(s.points.begin(), s.points.end(), [](const SfmPoint& a, const SfmPoint& b) { return a.id < b.id; });
   return s;
+}
+
+namespace {
+
+// Little-endian bytes, as COLMAP writes them on every platform.
+class LittleEndian {
+ public:
+  template <typename T>
+  LittleEndian& Put(T v) {
+    using U = std::conditional_t<sizeof(T) == 8, uint64_t,
+                                 std::conditional_t<sizeof(T) == 4, uint32_t, uint8_t>>;
+    static_assert(sizeof(T) == sizeof(U));
+    U u;
+    std::memcpy(&u, &v, sizeof(T));
+    const uint64_t bits = u;
+    for (std::size_t i = 0; i < sizeof(T); ++i) s_.push_back(static_cast<char>((bits >> (8 * i)) & 0xFF));
+    return *this;
+  }
+  std::string& str() { return s_; }
+
+ private:
+  std::string s_;
+};
+
+}  // namespace
+
+void WriteColmapBinary(const ColmapModel& m, const fs::path& dir) {
+  fs::create_directories(dir);
+  LittleEndian c;
+  c.Put<uint64_t>(m.cameras.size());
+  for (const auto& cam : m.cameras) {
+    const int id = ColmapModelId(cam.model);
+    if (id < 0 || ColmapModelParamCount(cam.model) != static_cast<int>(cam.params.size()))
+      Fail((dir / "cameras.bin").string(), "camera " + std::to_string(cam.id) + ": model " + cam.model +
+                                               " with " + std::to_string(cam.params.size()) +
+                                               " parameters has no COLMAP binary form");
+    c.Put<uint32_t>(cam.id).Put<int32_t>(id).Put<uint64_t>(cam.width).Put<uint64_t>(cam.height);
+    for (double p : cam.params) c.Put(p);
+  }
+  LittleEndian i;
+  i.Put<uint64_t>(m.images.size());
+  for (const auto& im : m.images) {
+    i.Put<uint32_t>(im.id);
+    for (double q : im.qvec) i.Put(q);
+    for (double t : im.tvec) i.Put(t);
+    i.Put<uint32_t>(im.camera_id);
+    i.str() += im.name;
+    i.str().push_back('\0');
+    i.Put<uint64_t>(im.points2d.size());
+    for (const auto& q : im.points2d) i.Put(q.x).Put(q.y).Put<int64_t>(q.point3d_id);
+  }
+  LittleEndian p;
+  p.Put<uint64_t>(m.points.size());
+  for (const auto& pt : m.points) {
+    p.Put<uint64_t>(pt.id);
+    for (double x : pt.xyz) p.Put(x);
+    for (uint8_t x : pt.rgb) p.Put(x);
+    p.Put(pt.error).Put<uint64_t>(pt.track.size());
+    for (const auto& e : pt.track) p.Put<uint32_t>(e.image_id).Put<uint32_t>(e.point2d_idx);
+  }
+  WriteFileAtomically(dir / "cameras.bin", c.str());
+  WriteFileAtomically(dir / "images.bin", i.str());
+  WriteFileAtomically(dir / "points3D.bin", p.str());
 }
 
 void WriteColmapText(const ColmapModel& m, const fs::path& dir) {

@@ -52,10 +52,12 @@ struct ColmapModel {
   std::vector<Camera> cameras;
   std::vector<Image> images;
   std::vector<Point3D> points;
+  std::string ext;  // ".txt" or ".bin": the files it was read from (empty: made in memory)
 };
 
 // Reads the model in `dir`: binary when cameras.bin, images.bin and points3D.bin are all there,
-// else text. Throws std::runtime_error naming the file and the line (text) or byte offset
+// else text. COLMAP >= 3.12 also writes rigs and frames (.bin/.txt) beside them; imr does not
+// read them: images.* still hold every registered image's world -> camera pose, all imr needs. Throws std::runtime_error naming the file and the line (text) or byte offset
 // (binary) and the id: malformed or truncated files, dangling ids (an image's camera, a track's
 // image or 2D point index, a 2D point's 3D point), a quaternion of zero length.
 ColmapModel ReadColmapModel(const std::filesystem::path& dir);
@@ -69,6 +71,11 @@ void CheckColmapModel(const ColmapModel& m, const std::string& where,
 
 // The model in the convention of camera_model.h (observation pixels from the tracks).
 SfmModel ColmapToSfm(const ColmapModel& m, const std::string& where);
+
+// Writes cameras.bin, images.bin and points3D.bin into `dir` (created if needed), each
+// atomically, in COLMAP's layout. Throws naming the path on failure or a camera model that has no
+// COLMAP model id.
+void WriteColmapBinary(const ColmapModel& m, const std::filesystem::path& dir);
 
 // Writes cameras.txt, images.txt and points3D.txt into `dir` (created if needed), each
 // atomically, numbers with round-trip precision. Throws naming the path on failure.

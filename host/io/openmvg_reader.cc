@@ -5,6 +5,9 @@
 #include "host/io/schema.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cstring>
+#include <fstream>
 #include <map>
 #include <unordered_map>
 
@@ -117,8 +120,22 @@ struct Reader {
   SfmModel Finish() {
     SfmModel m;
     m.file = f.file();
-    for (const char* k : {"views", "intrinsics", "extrinsics", "structure"})
+    // SfMInit_ImageListing writes views and intrinsics only (older OpenMVG: empty extrinsics
+    // and structure); a third-party writer may leave out the points.
+    const std::string run_sfm = "run the SfM (openMVG_main_SfM) or, with known poses, "
+                                "openMVG_main_ComputeStructureFromKnownPoses, and give imr the "
+                                "sfm_data.json it writes (convert an sfm_data.bin with "
+                                "openMVG_main_ConvertSfM_DataFormat)";
+    const std::string listing = " (openMVG_main_SfMInit_ImageListing writes views and intrinsics only); ";
+    for (const char* k : {"views", "intrinsics"})
       if (!seen_members.count(k)) f.Fail("(top level)", std::string("missing field \"") + k + "\"");
+    if (!seen_members.count("extrinsics"))
+      f.Fail("(top level)", "missing field \"extrinsics\": the file has no camera poses" + listing + run_sfm);
+    if (!seen_members.count("structure"))
+      f.Fail("(top level)", "missing field \"structure\": the file has no 3D points" + listing + run_sfm);
+    m.points_file = f.file() + ": structure";
+    m.views_file = f.file() + ": extrinsics";
+    m.no_points_hint = " (the array is empty); " + run_sfm;
     std::unordered_map<uint64_t, bool> posed;  // view id -> has a pose
     for (const auto& [id, v] : views) {
       const std::string dp = v.path + ".value.ptr_wrapper.data";
@@ -190,6 +207,9 @@ Intrinsics OpenMvgIntrinsicFromData(const JsonFields& f, const std::string& name
   k.source_model = name;
   if (const json* w = f.Optional(d, "width", dp)) k.width = static_cast<int>(f.Integer(*w, dp + ".width"));
   if (const json* h = f.Optional(d, "height", dp)) k.height = static_cast<int>(f.Integer(*h, dp + ".height"));
+  if (f.Optional(d, "focal_length", dp) == nullptr && f.Optional(d, "prior_focal_length", dp) != nullptr)
+    f.Fail(dp, "missing field \"focal_length\"; the file has \"prior_focal_length\" only, a guess "
+               "before the SfM refined it: not a reconstruction's intrinsics");
   k.fx = k.fy = f.Number(f.Member(d, "focal_length", dp), dp + ".focal_length");
   const std::vector<double> pp = f.Numbers(f.Member(d, "principal_point", dp), dp + ".principal_point");
   if (pp.size() != 2) f.Fail(dp + ".principal_point", "expected 2 numbers");
@@ -197,7 +217,9 @@ Intrinsics OpenMvgIntrinsicFromData(const JsonFields& f, const std::string& name
   k.source_params = {k.fx, k.cx, k.cy};
   auto disto = [&](const char* field, std::size_t n) {
     const std::vector<double> p = f.Numbers(f.Member(d, field, dp), dp + "." + field);
-    if (p.size() != n) f.Fail(dp + "." + field, "expected " + std::to_string(n) + " numbers");
+    if (p.size() != n)
+      f.Fail(dp + "." + field, "the " + name + " model has " + std::to_string(n) +
+                                   " distortion values, got " + std::to_string(p.size()));
     k.source_params.insert(k.source_params.end(), p.begin(), p.end());
     return p;
   };
@@ -211,8 +233,12 @@ Intrinsics OpenMvgIntrinsicFromData(const JsonFields& f, const std::string& name
   } else if (name == "pinhole_brown_t2") {
     const auto p = disto("disto_t2", 5);
     k.k1 = p[0], k.k2 = p[1], k.k3 = p[2], k.p1 = p[3], k.p2 = p[4];
+  } else if (name == "fisheye") {  // OpenCV's equidistant model, as COLMAP's OPENCV_FISHEYE
+    const auto p = disto("disto_fisheye", 4);
+    k.lens = Lens::kFisheye;
+    k.k1 = p[0], k.k2 = p[1], k.k3 = p[2], k.k4 = p[3];
   } else {
-    k.projectable = false;  // fisheye, spherical, ...: kept, not projected
+    k.projectable = false;  // spherical, ...: kept, not projected
   }
   return k;
 }
@@ -220,7 +246,10 @@ Intrinsics OpenMvgIntrinsicFromData(const JsonFields& f, const std::string& name
 void OpenMvgIntrinsicToData(const Intrinsics& k, std::string* name, json* data) {
   *data = {{"width", k.width}, {"height", k.height}, {"focal_length", k.fx},
            {"principal_point", {k.cx, k.cy}}};
-  if (k.p1 != 0.0 || k.p2 != 0.0) {
+  if (k.lens == Lens::kFisheye) {
+    *name = "fisheye";  // what OpenMVG cannot hold (thin prism, tangential) is dropped
+    (*data)["disto_fisheye"] = {k.k1, k.k2, k.k3, k.k4};
+  } else if (k.p1 != 0.0 || k.p2 != 0.0) {
     *name = "pinhole_brown_t2";
     (*data)["disto_t2"] = {k.k1, k.k2, k.k3, k.p1, k.p2};
   } else if (k.k2 != 0.0 || k.k3 != 0.0) {
@@ -234,7 +263,29 @@ void OpenMvgIntrinsicToData(const Intrinsics& k, std::string* name, json* data) 
   }
 }
 
+namespace {
+
+// OpenMVG's binary sfm_data (a cereal portable binary archive; what openMVG_main_SfM writes as
+// sfm_data.bin): refused before parsing, with the command that converts it.
+void RefuseBinary(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  char head[64];
+  in.read(head, sizeof(head));
+  const std::size_t n = static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0));
+  std::size_t i = 0;
+  while (i < n && std::isspace(static_cast<unsigned char>(head[i]))) ++i;
+  const bool has_nul = std::memchr(head, '\0', n) != nullptr;
+  if (has_nul || (file.extension() == ".bin" && i < n && head[i] != '{'))
+    throw std::runtime_error(
+        file.string() + ": an OpenMVG binary sfm_data (cereal archive); imr reads the JSON form: "
+        "convert it with openMVG_main_ConvertSfM_DataFormat -i " + file.string() + " -o " +
+        (file.parent_path() / (file.stem().string() + ".json")).string());
+}
+
+}  // namespace
+
 SfmModel ReadOpenMvg(const std::filesystem::path& file) {
+  RefuseBinary(file);
   Reader r(file);
   r.seen_members = StreamJsonFile(
       file, {"views", "intrinsics", "extrinsics", "structure"},

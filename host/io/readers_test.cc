@@ -61,13 +61,16 @@ json OpenMvgScene() {
       {"key": 2, "value": {"ptr_wrapper": {"id": 2147483650, "data": {"local_path": "", "filename": "b.png",
         "width": 640, "height": 480, "id_view": 2, "id_intrinsic": 0, "id_pose": 2}}}},
       {"key": 3, "value": {"ptr_wrapper": {"id": 2147483651, "data": {"local_path": "", "filename": "c.png",
-        "width": 640, "height": 480, "id_view": 3, "id_intrinsic": 0, "id_pose": 4294967295}}}}],
+        "width": 640, "height": 480, "id_view": 3, "id_intrinsic": 0, "id_pose": 4294967295}}}},
+      {"key": 4, "value": {"ptr_wrapper": {"id": 2147483652, "data": {"local_path": "", "filename": "d.png",
+        "width": 640, "height": 480, "id_view": 4, "id_intrinsic": 0, "id_pose": 4}}}}],
     "intrinsics": [{"key": 0, "value": {"polymorphic_id": 2147483649, "polymorphic_name": "pinhole",
-        "ptr_wrapper": {"id": 2147483652, "data": {"width": 640, "height": 480, "focal_length": 800,
+        "ptr_wrapper": {"id": 2147483653, "data": {"width": 640, "height": 480, "focal_length": 800,
         "principal_point": [320, 240]}}}}],
     "extrinsics": [
       {"key": 1, "value": {"rotation": )") + kR1 + R"(, "center": [1, 2, 3]}},
-      {"key": 2, "value": {"rotation": )" + kR2 + R"(, "center": [3, 2, 3]}}],
+      {"key": 2, "value": {"rotation": )" + kR2 + R"(, "center": [3, 2, 3]}},
+      {"key": 4, "value": {"rotation": )" + kR2 + R"(, "center": [5, 2, 3]}}],
     "structure": [{"key": 7, "value": {"X": [2, 2.5, 7], "observations": [
       {"key": 1, "value": {"id_feat": 0, "x": [420, 40]}},
       {"key": 2, "value": {"id_feat": 0, "x": [120, 340]}},
@@ -188,7 +191,7 @@ TEST(Conventions, TheSamePointProjectsToTheSamePixelThroughEveryReader) {
   ExpectScene(mvg.get(), "openmvg");
   auto mu = All(mvg.get());
   ASSERT_EQ(mu.size(), 1u);
-  ASSERT_EQ(mu[0].cameras.size(), 2u);  // view 3 has no pose: skipped
+  ASSERT_EQ(mu[0].cameras.size(), 3u);  // view 3 has no pose: skipped
   ASSERT_EQ(mu[0].new_points.size(), 1u);
   EXPECT_EQ(mu[0].new_points[0].id, 7u);
   EXPECT_EQ(mu[0].new_points[0].position, kX);
@@ -439,8 +442,8 @@ std::string ErrorOf(const std::string& format, const fs::path& path) {
 #define EXPECT_ERROR(error, ...)                                              \
   do {                                                                         \
     const std::string e_ = (error);                                            \
-    for (const char* part : {__VA_ARGS__})                                     \
-      EXPECT_NE(e_.find(part), std::string::npos) << "'" << part << "' not in: " << e_; \
+    for (const std::string& part : std::initializer_list<std::string>{__VA_ARGS__}) \
+      EXPECT_NE(e_.find(part), std::string::npos) << "'" << part << "' not in: " << e_;  \
   } while (0)
 
 TEST(BadFiles, OpenMvg) {
@@ -541,6 +544,379 @@ TEST(BadFiles, SlamJson) {
   const std::string whole = SlamScene().dump();
   Write(p, whole.substr(0, whole.size() - 40));
   EXPECT_ERROR(ErrorOf("slam_json", p), name.c_str(), "malformed JSON");
+}
+
+// --- COLMAP as found in the wild (issue 16) ------------------------------------------------------
+
+// COLMAP's pixel of the normalised point (x, y) = (X/Z, Y/Z), written out model by model from
+// the formulas of COLMAP's sensor/models.h (an independent check of camera_model.cc's generic
+// form): f or fx fy, cx cy, then each model's distortion.
+std::array<double, 2> ColmapPixel(const std::string& model, const std::vector<double>& p, double x,
+                                  double y) {
+  const auto fisheye = [](double* a, double* b) {  // equidistant: scale to theta = atan(r)
+    const double r = std::hypot(*a, *b);
+    if (r > 0) *a *= std::atan(r) / r, *b *= std::atan(r) / r;
+  };
+  if (model == "SIMPLE_PINHOLE") return {p[0] * x + p[1], p[0] * y + p[2]};
+  if (model == "PINHOLE") return {p[0] * x + p[2], p[1] * y + p[3]};
+  if (model == "SIMPLE_RADIAL") {
+    const double r2 = x * x + y * y;
+    return {p[0] * x * (1 + p[3] * r2) + p[1], p[0] * y * (1 + p[3] * r2) + p[2]};
+  }
+  if (model == "RADIAL") {
+    const double r2 = x * x + y * y, d = 1 + p[3] * r2 + p[4] * r2 * r2;
+    return {p[0] * x * d + p[1], p[0] * y * d + p[2]};
+  }
+  if (model == "OPENCV" || model == "FULL_OPENCV") {
+    const bool full = model == "FULL_OPENCV";
+    const double k1 = p[4], k2 = p[5], p1 = p[6], p2 = p[7];
+    const double r2 = x * x + y * y;
+    double d = 1 + k1 * r2 + k2 * r2 * r2;
+    if (full) d = (d + p[8] * r2 * r2 * r2) / (1 + p[9] * r2 + p[10] * r2 * r2 + p[11] * r2 * r2 * r2);
+    const double xd = x * d + 2 * p1 * x * y + p2 * (r2 + 2 * x * x);
+    const double yd = y * d + 2 * p2 * x * y + p1 * (r2 + 2 * y * y);
+    return {p[0] * xd + p[2], p[1] * yd + p[3]};
+  }
+  if (model == "FOV") {
+    const double r = std::hypot(x, y), w = p[4];
+    const double f = r > 0 ? std::atan(2 * r * std::tan(w / 2)) / (r * w) : 2 * std::tan(w / 2) / w;
+    return {p[0] * x * f + p[2], p[1] * y * f + p[3]};
+  }
+  if (model == "SIMPLE_RADIAL_FISHEYE" || model == "RADIAL_FISHEYE") {
+    fisheye(&x, &y);
+    const double t2 = x * x + y * y;
+    const double d = 1 + p[3] * t2 + (model == "RADIAL_FISHEYE" ? p[4] * t2 * t2 : 0.0);
+    return {p[0] * x * d + p[1], p[0] * y * d + p[2]};
+  }
+  if (model == "OPENCV_FISHEYE") {
+    fisheye(&x, &y);
+    const double t2 = x * x + y * y;
+    const double d = 1 + p[4] * t2 + p[5] * t2 * t2 + p[6] * t2 * t2 * t2 + p[7] * t2 * t2 * t2 * t2;
+    return {p[0] * x * d + p[2], p[1] * y * d + p[3]};
+  }
+  if (model == "THIN_PRISM_FISHEYE") {
+    fisheye(&x, &y);
+    const double k1 = p[4], k2 = p[5], p1 = p[6], p2 = p[7], k3 = p[8], k4 = p[9], sx = p[10], sy = p[11];
+    const double r2 = x * x + y * y;
+    const double radial = k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2 + k4 * r2 * r2 * r2 * r2;
+    const double du = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + sx * r2;
+    const double dv = y * radial + 2 * p2 * x * y + p1 * (r2 + 2 * y * y) + sy * r2;
+    return {p[0] * (x + du) + p[2], p[1] * (y + dv) + p[3]};
+  }
+  ADD_FAILURE() << "no reference for " << model;
+  return {0, 0};
+}
+
+struct CameraCase {
+  const char* model;
+  int id;  // COLMAP's model id (cameras.bin)
+  std::vector<double> params;
+};
+// Every model COLMAP's reconstruction writes, with distortion strong enough to matter.
+const CameraCase kCameraCases[] = {
+    {"SIMPLE_PINHOLE", 0, {800, 320, 240}},
+    {"PINHOLE", 1, {800, 810, 320, 240}},
+    {"SIMPLE_RADIAL", 2, {800, 320, 240, 0.05}},
+    {"RADIAL", 3, {800, 320, 240, 0.05, -0.02}},
+    {"OPENCV", 4, {800, 810, 320, 240, 0.05, -0.02, 0.001, 0.002}},
+    {"OPENCV_FISHEYE", 5, {400, 410, 320, 240, 0.05, -0.02, 0.003, -0.001}},
+    {"FULL_OPENCV", 6, {800, 810, 320, 240, 0.05, -0.02, 0.001, 0.002, 0.01, 0.02, -0.01, 0.005}},
+    {"FOV", 7, {500, 510, 320, 240, 0.9}},
+    {"SIMPLE_RADIAL_FISHEYE", 8, {400, 320, 240, 0.05}},
+    {"RADIAL_FISHEYE", 9, {400, 320, 240, 0.05, -0.02}},
+    {"THIN_PRISM_FISHEYE", 10, {400, 410, 320, 240, 0.05, -0.02, 0.001, 0.002, 0.003, -0.001, 0.0005, -0.0004}},
+};
+
+TEST(ColmapInTheWild, EveryCameraModelIsReadWithItsIntrinsicsAndDistortion) {
+  // Two anchors computed by hand (python, math.atan) for the reference above, at (0.3, -0.2).
+  EXPECT_NEAR(ColmapPixel("OPENCV_FISHEYE", kCameraCases[5].params, 0.3, -0.2)[0], 435.82849932079574, 1e-9);
+  EXPECT_NEAR(ColmapPixel("FOV", kCameraCases[7].params, 0.3, -0.2)[1], 134.63918353525412, 1e-9);
+  TempDir dir;
+  for (const CameraCase& c : kCameraCases) {
+    SCOPED_TRACE(c.model);
+    EXPECT_EQ(ColmapModelId(c.model), c.id);
+    EXPECT_EQ(ColmapModelParamCount(c.model), static_cast<int>(c.params.size()));
+    WriteColmapTextScene(dir / c.model / "text");
+    std::string line = std::string("1 ") + c.model + " 640 480";
+    for (double x : c.params) line += " " + ExactNumber(x);
+    Write(dir / c.model / "text" / "cameras.txt", line + "\n");
+    WriteColmapBinary(ReadColmapText(dir / c.model / "text"), dir / c.model / "bin");
+    // The binary camera holds the model id and the parameters, nothing else (COLMAP's layout).
+    EXPECT_EQ(fs::file_size(dir / c.model / "bin" / "cameras.bin"), 8 + 24 + 8 * c.params.size());
+    for (const char* kind : {"text", "bin"}) {
+      SCOPED_TRACE(kind);
+      auto s = Open("colmap", dir / c.model / kind);
+      const CameraGeometry* g = s->Camera(1);
+      ASSERT_NE(g, nullptr);
+      ASSERT_TRUE(g->has_intrinsics);
+      const Intrinsics& k = g->intrinsics;
+      EXPECT_EQ(k.source_model, c.model);
+      EXPECT_EQ(k.source_params, c.params);
+      EXPECT_EQ(k.width, 640);
+      EXPECT_EQ(k.height, 480);
+      EXPECT_TRUE(k.projectable);
+      EXPECT_EQ(k.cx, 320);
+      EXPECT_EQ(k.cy, 240);
+      // X in camera 1 is (0.5, -1, 4): normalised (0.125, -0.25).
+      const std::array<double, 2> expected = ColmapPixel(c.model, c.params, 0.125, -0.25);
+      double u = 0, v = 0;
+      ASSERT_TRUE(Project(*g, kX, &u, &v));
+      EXPECT_NEAR(u, expected[0], 1e-9);
+      EXPECT_NEAR(v, expected[1], 1e-9);
+      // Off the axis far enough for every term to count, and on it (the fisheye's r = 0 case).
+      CameraGeometry at_origin = *g;
+      at_origin.rotation = Identity3(), at_origin.translation = {0, 0, 0};
+      for (const Vec3& x : {Vec3{0.6, -0.45, 1.0}, Vec3{0, 0, 2}}) {
+        const std::array<double, 2> e = ColmapPixel(c.model, c.params, x[0] / x[2], x[1] / x[2]);
+        ASSERT_TRUE(Project(at_origin, x, &u, &v));
+        EXPECT_NEAR(u, e[0], 1e-9);
+        EXPECT_NEAR(v, e[1], 1e-9);
+      }
+      // Written back (--export-colmap), the same model and parameters.
+      std::string model;
+      std::vector<double> params;
+      ASSERT_TRUE(IntrinsicsToColmap(k, &model, &params));
+      EXPECT_EQ(model, c.model);
+      EXPECT_EQ(params, c.params);
+    }
+  }
+  // A fisheye from OpenMVG (disto_fisheye: OpenCV's k1..k4) projects as COLMAP's OPENCV_FISHEYE
+  // with fx = fy, and is written back as one.
+  JsonFields f("test");
+  CameraGeometry g;
+  g.has_intrinsics = true;
+  g.intrinsics = OpenMvgIntrinsicFromData(
+      f, "fisheye",
+      json::parse(R"({"focal_length": 400, "principal_point": [320, 240], "disto_fisheye": [0.05, -0.02, 0.003, -0.001]})"),
+      "x");
+  double u = 0, v = 0;
+  ASSERT_TRUE(Project(g, {0.6, -0.45, 1.0}, &u, &v));
+  const std::vector<double> as_colmap = {400, 400, 320, 240, 0.05, -0.02, 0.003, -0.001};
+  EXPECT_NEAR(u, ColmapPixel("OPENCV_FISHEYE", as_colmap, 0.6, -0.45)[0], 1e-9);
+  std::string model;
+  std::vector<double> params;
+  ASSERT_TRUE(IntrinsicsToColmap(g.intrinsics, &model, &params));
+  EXPECT_EQ(model, "OPENCV_FISHEYE");
+  EXPECT_EQ(params, as_colmap);
+  // A model of a later COLMAP (id 11) is read and kept, not projected.
+  Intrinsics later;
+  std::string error;
+  ASSERT_TRUE(IntrinsicsFromColmap("RAD_TAN_THIN_PRISM_FISHEYE", std::vector<double>(16, 0.5), 640, 480,
+                                   &later, &error));
+  EXPECT_FALSE(later.projectable);
+}
+
+// The scene of the tests above written as a third-party tool might: no '#' header lines, ids
+// with gaps that do not start at 1, cameras out of order and one unused, two cameras of different
+// sizes, image 10 seeing point 1007 twice, exponents with 3 digits and a '+', CRLF line ends and
+// no newline at the end.
+void WriteQuirkyColmapText(const fs::path& dir) {
+  Write(dir / "cameras.txt",
+        "9 PINHOLE 1280 720 1.6E+003 1600 640 360\r\n"
+        "5 SIMPLE_PINHOLE 100 100 100 50 50\r\n"
+        "3 SIMPLE_PINHOLE 640 480 8.00e+002 3.2E+002 +240\r\n");
+  Write(dir / "images.txt",
+        std::string("10 ") + kQ1 + " -2.0e+000 1.000E+000 -3 3 a.png\r\n"
+        "420 40 1007 10 10 -1 420.0000 40.00000 1007\r\n"
+        "20 1 0 0 0 -3 -2 -3 9 b.png\r\n"
+        "\r\n"
+        "35 1.0E+000 0 0 0.0e-005 -3 -2 -3 3 c.png\r\n"
+        "5 5 -1 120 340 1007");  // no newline at the end
+  Write(dir / "points3D.txt", "1007 2 2.5 7 255 0 0 5e-001 10 0 35 1 10 2");
+}
+
+TEST(ColmapInTheWild, QuirksOfRealModelsAreReadInTextAndBinary) {
+  TempDir dir;
+  WriteQuirkyColmapText(dir / "text");
+  WriteColmapBinary(ReadColmapText(dir / "text"), dir / "bin");
+  for (const char* kind : {"text", "bin"}) {
+    SCOPED_TRACE(kind);
+    const ColmapModel m = ReadColmapModel(dir / kind);
+    ASSERT_EQ(m.cameras.size(), 3u);
+    EXPECT_EQ(m.cameras[0].id, 9u);  // as listed
+    EXPECT_EQ(m.cameras[2].params, (std::vector<double>{800, 320, 240}));
+    ASSERT_EQ(m.images.size(), 3u);
+    EXPECT_EQ(m.images[0].tvec, (Vec3{-2, 1, -3}));
+    EXPECT_EQ(m.images[2].qvec, (std::array<double, 4>{1, 0, 0, 0}));
+    ASSERT_EQ(m.points.size(), 1u);
+    EXPECT_EQ(m.points[0].error, 0.5);
+    ASSERT_EQ(m.points[0].track.size(), 3u);
+    auto s = Open("colmap", dir / kind);
+    const CameraGeometry* a = s->Camera(10);
+    const CameraGeometry* b = s->Camera(20);
+    ASSERT_NE(a, nullptr);
+    ASSERT_NE(b, nullptr);
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(a->center[i], kC1[i], 1e-12);
+    EXPECT_EQ(a->intrinsics.width, 640);
+    EXPECT_EQ(b->intrinsics.width, 1280);  // per-image cameras of different sizes
+    EXPECT_EQ(b->intrinsics.source_model, "PINHOLE");
+    double u = 0, v = 0;
+    ASSERT_TRUE(Project(*a, kX, &u, &v));
+    EXPECT_NEAR(u, kU1, 1e-9);
+    EXPECT_NEAR(v, kV1, 1e-9);
+    const auto updates = All(s.get());
+    ASSERT_EQ(updates.size(), 1u);
+    ASSERT_EQ(updates[0].cameras.size(), 3u);
+    ASSERT_EQ(updates[0].new_points.size(), 1u);
+    EXPECT_EQ(updates[0].new_points[0].id, 1007u);
+    // Seen twice by image 10: one ray from camera 10, not two.
+    EXPECT_EQ(updates[0].new_points[0].camera_ids, (std::vector<uint64_t>{10, 35}));
+  }
+  // The text with COLMAP's own layout gives the same model as the quirky one.
+  const ColmapModel q = ReadColmapText(dir / "text");
+  WriteColmapText(q, dir / "plain");
+  const ColmapModel p = ReadColmapText(dir / "plain");
+  EXPECT_EQ(p.images[0].qvec, q.images[0].qvec);
+  EXPECT_EQ(p.points[0].xyz, q.points[0].xyz);
+}
+
+TEST(ColmapInTheWild, RigsAndFramesOfColmap312AreIgnoredSafely) {
+  // COLMAP >= 3.12 writes rigs and frames beside the three files; images still hold each
+  // registered image's pose (cam_from_world), which is what imr reads.
+  TempDir dir;
+  WriteColmapTextScene(dir / "text");
+  WriteColmapBinary(ReadColmapText(dir / "text"), dir / "bin");
+  fs::copy(dir / "text", dir / "text312", fs::copy_options::recursive);
+  fs::copy(dir / "bin", dir / "bin312", fs::copy_options::recursive);
+  Write(dir / "text312" / "rigs.txt",
+        "# Rig calib list with one line of data per calib:\n"
+        "#   RIG_ID, NUM_SENSORS, REF_SENSOR_TYPE, REF_SENSOR_ID, SENSORS[] as (SENSOR_TYPE, "
+        "SENSOR_ID, HAS_POSE, [QW, QX, QY, QZ, TX, TY, TZ])\n# Number of rigs: 1\n1 1 CAMERA 1\n");
+  Write(dir / "text312" / "frames.txt",
+        "# Frame list with one line of data per frame:\n"
+        "#   FRAME_ID, RIG_ID, RIG_FROM_WORLD[QW, QX, QY, QZ, TX, TY, TZ], NUM_DATA_IDS, DATA_IDS[] "
+        "as (SENSOR_TYPE, SENSOR_ID, DATA_ID)\n# Number of frames: 3\n" +
+            std::string("1 1 ") + kQ1 + " -2 1 -3 1 CAMERA 1 1\n2 1 1 0 0 0 -3 -2 -3 1 CAMERA 1 2\n"
+            "3 1 1 0 0 0 -3 -2 -3 1 CAMERA 1 3\n");
+  // rigs.bin: one rig, one sensor (type 0 = camera, id 1); frames.bin: three frames.
+  Write(dir / "bin312" / "rigs.bin",
+        Bytes().Put<uint64_t>(1).Put<uint32_t>(1).Put<uint32_t>(1).Put<int32_t>(0).Put<uint32_t>(1).str());
+  Bytes frames;
+  frames.Put<uint64_t>(3);
+  for (uint32_t id = 1; id <= 3; ++id) {
+    frames.Put<uint32_t>(id).Put<uint32_t>(1);
+    for (double x : {1.0, 0.0, 0.0, 0.0, -3.0, -2.0, -3.0}) frames.Put(x);
+    frames.Put<uint32_t>(1).Put<int32_t>(0).Put<uint32_t>(1).Put<uint64_t>(id);
+  }
+  Write(dir / "bin312" / "frames.bin", frames.str());
+  for (const char* kind : {"text", "bin"}) {
+    SCOPED_TRACE(kind);
+    auto before = Open("colmap", dir / kind);
+    auto after = Open("colmap", dir / (std::string(kind) + "312"));
+    ExpectScene(after.get(), std::string(kind) + " with rigs and frames");
+    const auto a = All(before.get()), b = All(after.get());
+    ASSERT_EQ(a.size(), b.size());
+    std::string why;
+    EXPECT_TRUE(SameUpdate(a[0], b[0], &why)) << why;
+  }
+}
+
+TEST(ColmapInTheWild, NothingToMeshIsSaidWithTheFileAndWhy) {
+  TempDir dir;
+  WriteColmapTextScene(dir / "none");
+  Write(dir / "none" / "images.txt", "1 1 0 0 0 -2 1 -3 1 a.png\n\n2 1 0 0 0 -3 -2 -3 1 b.png\n\n"
+                                     "3 1 0 0 0 -3 -2 -4 1 c.png\n\n");
+  Write(dir / "none" / "points3D.txt", "# Number of points: 0, mean track length: 0\n");
+  EXPECT_ERROR(ErrorOf("colmap", dir / "none"), (dir / "none" / "points3D.txt").string(),
+               "nothing to mesh: the model has no 3D points", "point_triangulator");
+  WriteColmapBinary(ReadColmapText(dir / "none"), dir / "none-bin");
+  EXPECT_ERROR(ErrorOf("colmap", dir / "none-bin"), (dir / "none-bin" / "points3D.bin").string(),
+               "nothing to mesh: the model has no 3D points");
+
+  WriteColmapTextScene(dir / "two");
+  Write(dir / "two" / "images.txt", std::string(kQ1).insert(0, "1 ") + " -2 1 -3 1 a.png\n420 40 7\n"
+                                    "3 1 0 0 0 -3 -2 -3 1 c.png\n120 340 7\n");
+  Write(dir / "two" / "points3D.txt", "7 2 2.5 7 255 0 0 0.5 1 0 3 0\n");
+  EXPECT_ERROR(ErrorOf("colmap", dir / "two"), (dir / "two" / "images.txt").string(),
+               "nothing to mesh: only 2 posed views", "at least 3");
+
+  // Every point seen by one image only (min_views 2).
+  WriteColmapTextScene(dir / "single");
+  Write(dir / "single" / "points3D.txt", "7 2 2.5 7 255 0 0 0.5 1 0\n");
+  Write(dir / "single" / "images.txt", std::string("1 ") + kQ1 + " -2 1 -3 1 a.png\n420 40 7\n"
+                                       "2 1 0 0 0 -3 -2 -3 1 b.png\n\n3 1 0 0 0 -3 -2 -3 1 c.png\n\n");
+  EXPECT_ERROR(ErrorOf("colmap", dir / "single"), (dir / "single" / "points3D.txt").string(),
+               "nothing to mesh: none of the 1 3D points is seen by 2 posed views");
+}
+
+// --- OpenMVG as found in the wild ----------------------------------------------------------------
+
+TEST(OpenMvgInTheWild, WhatSfMInitImageListingWritesIsRefusedSayingHowToGetTheStructure) {
+  TempDir dir;
+  const fs::path p = dir / "sfm_data.json";
+  json j = OpenMvgScene();
+  j.erase("structure");
+  j.erase("extrinsics");
+  Write(p, j.dump());
+  EXPECT_ERROR(ErrorOf("openmvg", p), p.string(), "missing field \"extrinsics\"",
+               "SfMInit_ImageListing", "openMVG_main_ComputeStructureFromKnownPoses");
+  j = OpenMvgScene();
+  j.erase("structure");
+  Write(p, j.dump());
+  EXPECT_ERROR(ErrorOf("openmvg", p), "missing field \"structure\": the file has no 3D points",
+               "openMVG_main_SfM", "openMVG_main_ComputeStructureFromKnownPoses");
+  j = OpenMvgScene();
+  j["structure"] = json::array();  // older OpenMVG writes the parts it was not asked for empty
+  Write(p, j.dump());
+  EXPECT_ERROR(ErrorOf("openmvg", p), p.string() + ": structure: nothing to mesh",
+               "openMVG_main_ComputeStructureFromKnownPoses");
+  j = OpenMvgScene();
+  j["extrinsics"].erase(2);
+  Write(p, j.dump());
+  EXPECT_ERROR(ErrorOf("openmvg", p), p.string() + ": extrinsics: nothing to mesh: only 2 posed views");
+}
+
+TEST(OpenMvgInTheWild, ABinarySfmDataIsRefusedWithTheCommandThatConvertsIt) {
+  TempDir dir;
+  // cereal's portable binary archive: an endianness byte, then the version string's length.
+  Write(dir / "sfm_data.bin", Bytes().Put<uint8_t>(1).Put<uint64_t>(3).Name("0.3").Put<uint64_t>(0).str());
+  EXPECT_ERROR(ErrorOf("openmvg", dir / "sfm_data.bin"), (dir / "sfm_data.bin").string(),
+               "an OpenMVG binary sfm_data", "openMVG_main_ConvertSfM_DataFormat -i",
+               (dir / "sfm_data.json").string());
+  // The same bytes under another name; and a JSON file named .bin is read as JSON.
+  fs::copy(dir / "sfm_data.bin", dir / "scene.json");
+  EXPECT_ERROR(ErrorOf("openmvg", dir / "scene.json"), "an OpenMVG binary sfm_data");
+  Write(dir / "json.bin", OpenMvgScene().dump());
+  EXPECT_EQ(ErrorOf("openmvg", dir / "json.bin"), "(no error)");
+}
+
+TEST(OpenMvgInTheWild, OddFieldsOfVersions02And03AreReadOrRefusedByField) {
+  TempDir dir;
+  const fs::path p = dir / "sfm_data.json";
+  // Version 0.2, views as view_priors (GPS/pose priors: polymorphic, extra fields), an
+  // intrinsic with prior_focal_length beside focal_length: read, the priors ignored.
+  json j = OpenMvgScene();
+  j["sfm_data_version"] = "0.2";
+  json& view = j["views"][0]["value"];
+  view["polymorphic_id"] = 2147483650u;
+  view["polymorphic_name"] = "view_priors";
+  view["ptr_wrapper"]["data"].update({{"use_pose_center_prior", true}, {"center_weight", {1.0, 1.0, 1.0}},
+                                      {"center", {9.0, 9.0, 9.0}}, {"use_pose_rotation_prior", false},
+                                      {"rotation_weight", 1.0}, {"rotation", json::parse(kR2)}});
+  j["views"][1]["value"]["polymorphic_id"] = 2;  // the type named above, by id
+  j["intrinsics"][0]["value"]["ptr_wrapper"]["data"]["prior_focal_length"] = 750;
+  Write(p, j.dump());
+  auto s = Open("openmvg", p);
+  ExpectScene(s.get(), "0.2 with priors");  // the pose, not the prior's centre (9, 9, 9)
+  EXPECT_EQ(s->Camera(1)->intrinsics.fx, 800);
+
+  // prior_focal_length without focal_length: refused by field.
+  j["intrinsics"][0]["value"]["ptr_wrapper"]["data"].erase("focal_length");
+  Write(p, j.dump());
+  EXPECT_ERROR(ErrorOf("openmvg", p), "intrinsics[0].value.ptr_wrapper.data: missing field \"focal_length\"",
+               "prior_focal_length");
+
+  // Fewer distortion values than the model has: refused naming the field and the count.
+  j = OpenMvgScene();
+  j["intrinsics"][0]["value"]["polymorphic_name"] = "pinhole_radial_k3";
+  j["intrinsics"][0]["value"]["ptr_wrapper"]["data"]["disto_k3"] = {0.1, 0.01};
+  Write(p, j.dump());
+  EXPECT_ERROR(ErrorOf("openmvg", p), "intrinsics[0].value.ptr_wrapper.data.disto_k3",
+               "the pinhole_radial_k3 model has 3 distortion values, got 2");
+  j["intrinsics"][0]["value"]["polymorphic_name"] = "pinhole_brown_t2";
+  j["intrinsics"][0]["value"]["ptr_wrapper"]["data"]["disto_t2"] = {0.1, 0.01, 0, 0.001};
+  Write(p, j.dump());
+  EXPECT_ERROR(ErrorOf("openmvg", p), "disto_t2", "the pinhole_brown_t2 model has 5 distortion values, got 4");
 }
 
 }  // namespace

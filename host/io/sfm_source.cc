@@ -1,6 +1,7 @@
 #include "host/io/sfm_source.h"
 
 #include <algorithm>
+#include <stdexcept>
 #include <unordered_map>
 
 namespace imr::io {
@@ -53,6 +54,17 @@ class SfmSource : public PrecomputedKeyframeSource {
  private:
   void Build() {
     const std::size_t n = model_.views.size();
+    const auto nothing = [](const std::string& where, const std::string& why) {
+      throw std::runtime_error(where + ": nothing to mesh: " + why);
+    };
+    const std::string& points_file = model_.points_file.empty() ? model_.file : model_.points_file;
+    if (model_.points.empty())
+      nothing(points_file, "the model has no 3D points" + model_.no_points_hint);
+    if (n < kMinViewsToMesh)
+      nothing(model_.views_file.empty() ? model_.file : model_.views_file,
+              "only " + std::to_string(n) + " posed view" + (n == 1 ? "" : "s") +
+                  " (images with a pose); a mesh needs rays from at least " +
+                  std::to_string(kMinViewsToMesh) + " (a model of the initial pair only?)");
     std::vector<std::size_t> order(n);
     for (std::size_t i = 0; i < n; ++i) {
       order[i] = i;
@@ -102,6 +114,10 @@ class SfmSource : public PrecomputedKeyframeSource {
       }
       updates_[enter].new_points.push_back(std::move(np));
     }
+    if (skipped == static_cast<int64_t>(model_.points.size()))
+      nothing(points_file, "none of the " + std::to_string(skipped) + " 3D points is seen by " +
+                               std::to_string(opt_.min_views) + " posed views (input option "
+                               "min_views)");
     for (std::size_t k = 0; k < keyframes; ++k) updates_[k].moved_points = std::move(adds[k]);
     summary_ = {{"file", model_.file},
                 {"mode", opt_.replay ? "replay" : "batch"},

@@ -30,6 +30,9 @@ struct SfmPoint {
 // What both readers deliver, in the convention of camera_model.h.
 struct SfmModel {
   std::string file;                  // for messages
+  std::string points_file;           // where the points are, for messages (e.g. .../points3D.bin)
+  std::string views_file;            // where the posed views are, for messages
+  std::string no_points_hint;        // the format's advice when there are no points ("; run ...")
   std::vector<CameraGeometry> views;  // posed views, sorted by id
   std::vector<SfmPoint> points;       // sorted by id
   int64_t views_without_pose = 0;     // views the file lists but did not register (skipped)
@@ -47,6 +50,13 @@ SfmReplayOptions SfmReplayOptionsFromJson(const nlohmann::json& options);
 // Schema rows for those options, shared by the openmvg and colmap formats.
 nlohmann::json SfmReplayOptionsSchema();
 
+// Fewer posed views than this is nothing to mesh: two viewpoints (a model of its initial pair
+// only) carve two fans of rays, not a surface.
+inline constexpr std::size_t kMinViewsToMesh = 3;
+
+// Throws std::runtime_error "<file>: nothing to mesh: <why>" when the model has no points, fewer
+// than kMinViewsToMesh posed views, or no point seen by options.min_views of them; so a sequence
+// fails on reading, with the reason, before anything that could look like a result is written.
 std::unique_ptr<KeyframeSource> MakeSfmSource(SfmModel model, const SfmReplayOptions& options);
 
 }  // namespace imr::io
