@@ -25,6 +25,7 @@
 #include <functional>
 #include <iostream>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "host/io/image_io.h"
@@ -1396,6 +1397,109 @@ TEST_F(BadJob, JobFileWithoutEnd) {
                                    " validate /dev/zero");
   EXPECT_EQ(r.status, kExitUsage) << r.out << r.err.substr(0, 400);
   EXPECT_NE(r.err.find("/dev/zero: more than 64 MiB: not a job file"), std::string::npos) << r.err;
+}
+
+// ---- Issue 16: SfM output as users bring it ----
+
+// The data lines (not '#' comments) of a COLMAP text file.
+std::vector<std::string> DataLines(const fs::path& file, bool keep_blank) {
+  std::istringstream in(ReadText(file));
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);)
+    if ((keep_blank || !line.empty()) && (line.empty() || line[0] != '#')) lines.push_back(line);
+  return lines;
+}
+
+std::vector<std::string> Words(const std::string& line) {
+  std::istringstream in(line);
+  std::vector<std::string> w;
+  for (std::string x; in >> x;) w.push_back(x);
+  return w;
+}
+
+std::string Joined(const std::vector<std::string>& words) {
+  std::string s;
+  for (const auto& x : words) s += (s.empty() ? "" : " ") + x;
+  return s;
+}
+
+TEST_F(BadSfm, ColmapModelWithoutPoints) {
+  // The mapper registered images but triangulated nothing (or only poses were exported): it used
+  // to run the engine and fail with "no surface was reconstructed ... nothing to export", naming
+  // neither the file nor the cause.
+  const fs::path model = CopyModel(Case() / "bad");
+  std::vector<std::string> images = DataLines(model / "images.txt", true);
+  for (std::size_t i = 1; i < images.size(); i += 2) {  // every POINTS2D line: no 3D point
+    std::vector<std::string> w = Words(images[i]);
+    for (std::size_t k = 2; k < w.size(); k += 3) w[k] = "-1";
+    images[i] = Joined(w);
+  }
+  std::string text;
+  for (const auto& l : images) text += l + "\n";
+  WriteText(model / "images.txt", text);
+  WriteText(model / "points3D.txt", "# 3D point list with one line of data per point:\n# Number of points: 0\n");
+  ExpectOnlyTheBadSequenceFails(EngineJob("colmap", {"bad", Fixture("colmap")}), "bad", "colmap",
+                                {(model / "points3D.txt").string(),
+                                 "nothing to mesh: the model has no 3D points"});
+}
+
+TEST_F(BadSfm, ColmapModelOfTwoImages) {
+  // Only COLMAP's initial pair registered: two fans of rays, not a surface (it used to give a
+  // "mesh" of a few dozen triangles and succeed).
+  const fs::path model = CopyModel(Case() / "bad");
+  const std::vector<std::string> images = DataLines(model / "images.txt", true);
+  std::set<std::string> kept;
+  std::string text;
+  for (std::size_t i = 0; i + 1 < images.size() && kept.size() < 2; i += 2) {
+    kept.insert(Words(images[i]).at(0));
+    text += images[i] + "\n" + images[i + 1] + "\n";
+  }
+  WriteText(model / "images.txt", text);
+  text.clear();
+  for (const std::string& line : DataLines(model / "points3D.txt", false)) {
+    const std::vector<std::string> w = Words(line);
+    std::vector<std::string> out(w.begin(), w.begin() + 8);
+    for (std::size_t k = 8; k + 1 < w.size(); k += 2)
+      if (kept.count(w[k])) out.insert(out.end(), {w[k], w[k + 1]});
+    text += Joined(out) + "\n";
+  }
+  WriteText(model / "points3D.txt", text);
+  ExpectOnlyTheBadSequenceFails(EngineJob("colmap", {"bad", Fixture("colmap")}), "bad", "colmap",
+                                {(model / "images.txt").string(), "nothing to mesh: only 2 posed views",
+                                 "at least 3"});
+}
+
+TEST_F(BadSfm, OpenMvgWithoutStructure) {
+  // What openMVG_main_SfMInit_ImageListing writes: views and intrinsics, no poses, no points.
+  json j = ReadJson(Fixture("openmvg/good.json"));
+  j.erase("structure");
+  j.erase("extrinsics");
+  WriteText(Case() / "bad.json", j.dump());
+  ExpectOnlyTheBadSequenceFails(EngineJob("openmvg", {"bad.json", Fixture("openmvg/good.json")}),
+                                "bad.json", "good.json",
+                                {(Case() / "bad.json").string(), "missing field \"extrinsics\"",
+                                 "SfMInit_ImageListing", "openMVG_main_ComputeStructureFromKnownPoses"});
+  // Poses but no structure (a third-party writer): the same advice, for the points.
+  j = ReadJson(Fixture("openmvg/good.json"));
+  j.erase("structure");
+  WriteText(Case() / "bad.json", j.dump());
+  ExpectOnlyTheBadSequenceFails(EngineJob("openmvg", {"bad.json", Fixture("openmvg/good.json")}),
+                                "bad.json", "good.json",
+                                {(Case() / "bad.json").string(),
+                                 "missing field \"structure\": the file has no 3D points",
+                                 "openMVG_main_ComputeStructureFromKnownPoses"});
+}
+
+TEST_F(BadSfm, OpenMvgBinarySfmData) {
+  // openMVG_main_SfM writes sfm_data.bin (cereal's portable binary archive) by default.
+  std::string bytes = "\x01";
+  bytes += std::string("\x03\0\0\0\0\0\0\0", 8) + "0.3" + std::string(16, '\0');
+  WriteText(Case() / "sfm_data.bin", bytes);
+  ExpectOnlyTheBadSequenceFails(EngineJob("openmvg", {"sfm_data.bin", Fixture("openmvg/good.json")}),
+                                "sfm_data.bin", "good.json",
+                                {(Case() / "sfm_data.bin").string(), "an OpenMVG binary sfm_data",
+                                 "openMVG_main_ConvertSfM_DataFormat -i " + (Case() / "sfm_data.bin").string() +
+                                     " -o " + (Case() / "sfm_data.json").string()});
 }
 
 }  // namespace
