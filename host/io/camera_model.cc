@@ -186,13 +186,15 @@ struct ColmapModel {
   const char* name;
   int params;
 };
-// COLMAP's camera models (src/colmap/sensor/models.h), id, name, parameter count.
+// COLMAP's camera models (src/colmap/sensor/models.h), id, name, parameter count: 0-10 since
+// 2.x, 11 since 3.11, 12-15 since 4.0, 16-17 since 4.1 (cameras.bin's layout is unchanged).
 const ColmapModel kColmapModels[] = {
     {0, "SIMPLE_PINHOLE", 3}, {1, "PINHOLE", 4},         {2, "SIMPLE_RADIAL", 4},
     {3, "RADIAL", 5},         {4, "OPENCV", 8},          {5, "OPENCV_FISHEYE", 8},
     {6, "FULL_OPENCV", 12},   {7, "FOV", 5},             {8, "SIMPLE_RADIAL_FISHEYE", 4},
     {9, "RADIAL_FISHEYE", 5}, {10, "THIN_PRISM_FISHEYE", 12},
-    {11, "RAD_TAN_THIN_PRISM_FISHEYE", 16}};
+    {11, "RAD_TAN_THIN_PRISM_FISHEYE", 16}, {12, "SIMPLE_DIVISION", 4}, {13, "DIVISION", 5},
+    {14, "SIMPLE_FISHEYE", 3}, {15, "FISHEYE", 4}, {16, "EUCM", 6}, {17, "EQUIRECTANGULAR", 2}};
 
 }  // namespace
 
@@ -231,10 +233,10 @@ bool IntrinsicsFromColmap(const std::string& model, const std::vector<double>& p
   // then cx, cy; then the model's distortion in its own order.
   const bool one_focal = model == "SIMPLE_PINHOLE" || model == "SIMPLE_RADIAL" ||
                          model == "RADIAL" || model == "SIMPLE_RADIAL_FISHEYE" ||
-                         model == "RADIAL_FISHEYE";
+                         model == "RADIAL_FISHEYE" || model == "SIMPLE_FISHEYE";
   const bool known = one_focal || model == "PINHOLE" || model == "OPENCV" ||
                      model == "OPENCV_FISHEYE" || model == "FULL_OPENCV" || model == "FOV" ||
-                     model == "THIN_PRISM_FISHEYE";
+                     model == "THIN_PRISM_FISHEYE" || model == "FISHEYE";
   if (!known) return true;  // kept as written, not projectable; the engine needs no intrinsics
   out->projectable = true;
   std::size_t i = 0;
@@ -254,6 +256,8 @@ bool IntrinsicsFromColmap(const std::string& model, const std::vector<double>& p
     out->q1 = d[5], out->q2 = d[6], out->q3 = d[7];
   } else if (model == "FOV") {
     out->lens = Lens::kFov, out->omega = d[0];
+  } else if (model == "SIMPLE_FISHEYE" || model == "FISHEYE") {
+    out->lens = Lens::kFisheye;  // equidistant, no distortion
   } else if (model == "SIMPLE_RADIAL_FISHEYE") {
     out->lens = Lens::kFisheye, out->k1 = d[0];
   } else if (model == "RADIAL_FISHEYE") {

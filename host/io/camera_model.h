@@ -106,10 +106,11 @@ void SetFromTranslation(const Mat3& r, const Vec3& t, CameraGeometry* g);
 bool Project(const CameraGeometry& g, const Vec3& x, double* u, double* v);
 
 // A COLMAP camera model, by COLMAP's model name and parameter order. Fills `out` from `params`;
-// false (with *error) when the count is wrong. The models COLMAP's reconstruction writes
-// (SIMPLE_PINHOLE ... THIN_PRISM_FISHEYE, ids 0-10) are projectable; others (ids 11 and later,
-// e.g. RAD_TAN_THIN_PRISM_FISHEYE, and unknown names in text files) are kept with
-// projectable = false: the engine needs only the camera centres.
+// false (with *error) when the count is wrong. The models of COLMAP 2.x-3.12 but one
+// (SIMPLE_PINHOLE ... THIN_PRISM_FISHEYE, ids 0-10) and COLMAP 4's SIMPLE_FISHEYE and FISHEYE
+// are projectable; the others (RAD_TAN_THIN_PRISM_FISHEYE, the division models, EUCM,
+// EQUIRECTANGULAR, unknown names in text files) are kept with projectable = false: the engine
+// needs only the camera centres.
 bool IntrinsicsFromColmap(const std::string& model, const std::vector<double>& params, int width,
                           int height, Intrinsics* out, std::string* error);
 // The simplest COLMAP model that represents `in` exactly (its source model when it came from

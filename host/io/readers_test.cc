@@ -698,12 +698,17 @@ TEST(ColmapInTheWild, EveryCameraModelIsReadWithItsIntrinsicsAndDistortion) {
   ASSERT_TRUE(IntrinsicsToColmap(g.intrinsics, &model, &params));
   EXPECT_EQ(model, "OPENCV_FISHEYE");
   EXPECT_EQ(params, as_colmap);
-  // A model of a later COLMAP (id 11) is read and kept, not projected.
+  // Models of later COLMAPs: read and kept, projected when they are the equidistant fisheye.
   Intrinsics later;
   std::string error;
   ASSERT_TRUE(IntrinsicsFromColmap("RAD_TAN_THIN_PRISM_FISHEYE", std::vector<double>(16, 0.5), 640, 480,
                                    &later, &error));
   EXPECT_FALSE(later.projectable);
+  EXPECT_EQ(ColmapModelId("EQUIRECTANGULAR"), 17);
+  ASSERT_TRUE(IntrinsicsFromColmap("FISHEYE", {400, 410, 320, 240}, 640, 480, &g.intrinsics, &error));
+  ASSERT_TRUE(Project(g, {0.6, -0.45, 1.0}, &u, &v));
+  EXPECT_NEAR(u, ColmapPixel("OPENCV_FISHEYE", {400, 410, 320, 240, 0, 0, 0, 0}, 0.6, -0.45)[0], 1e-9);
+  EXPECT_NEAR(v, ColmapPixel("OPENCV_FISHEYE", {400, 410, 320, 240, 0, 0, 0, 0}, 0.6, -0.45)[1], 1e-9);
 }
 
 // The scene of the tests above written as a third-party tool might: no '#' header lines, ids
