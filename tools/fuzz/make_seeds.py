@@ -41,7 +41,7 @@ def openmvg():
             "id_view": i, "id_intrinsic": 0, "id_pose": pose}}}}
     scene = {
         "sfm_data_version": "0.3", "root_path": "/images",
-        "views": [view(1, 1), view(2, 2), view(3, 4294967295)],
+        "views": [view(1, 1), view(2, 2), view(3, 4294967295), view(4, 4)],
         "intrinsics": [{"key": 0, "value": {"polymorphic_id": 2147483649,
                         "polymorphic_name": "pinhole_radial_k3", "ptr_wrapper": {
                             "id": 2147483652, "data": {"width": 640, "height": 480,
@@ -49,14 +49,17 @@ def openmvg():
                                                        "principal_point": [320, 240],
                                                        "disto_k3": [0.01, 0, 0]}}}}],
         "extrinsics": [{"key": 1, "value": {"rotation": R1, "center": [1, 2, 3]}},
-                       {"key": 2, "value": {"rotation": R2, "center": [3, 2, 3]}}],
+                       {"key": 2, "value": {"rotation": R2, "center": [3, 2, 3]}},
+                       # a third pose: fewer than 3 posed views is "nothing to mesh"
+                       {"key": 4, "value": {"rotation": R2, "center": [5, 2, 3]}}],
         "structure": [{"key": 7, "value": {"X": [2, 2.5, 7], "observations": [
             {"key": 1, "value": {"id_feat": 0, "x": [420, 40]}},
             {"key": 2, "value": {"id_feat": 0, "x": [120, 340]}},
             {"key": 3, "value": {"id_feat": 0, "x": [1, 1]}}]}},
             {"key": 8, "value": {"X": [2.5, 2, 8], "observations": [
                 {"key": 1, "value": {"id_feat": 1, "x": [300, 100]}},
-                {"key": 2, "value": {"id_feat": 1, "x": [200, 300]}}]}}],
+                {"key": 2, "value": {"id_feat": 1, "x": [200, 300]}},
+                {"key": 4, "value": {"id_feat": 0, "x": [100, 300]}}]}}],
         "control_points": []}
     put("scene.json", "openmvg", json.dumps(scene, indent=1))
     scene["intrinsics"][0]["value"]["polymorphic_name"] = "pinhole"
