@@ -165,8 +165,9 @@ class SfmModels : public ::testing::Test {
     EXPECT_EQ(r["mesh"]["faces"], (*base_report_)["mesh"]["faces"]);
   }
 
-  // Each camera model meshes like the base, and reaches --export-colmap unchanged: the same
-  // model and parameters, every 2D point at its projection through that model.
+  // Each camera model meshes like the base, and reaches --export-colmap unchanged (the same
+  // model and parameters, every 2D point at its projection through that model) and
+  // --export-stream (the COLMAP camera beside the OpenMVG intrinsic).
   void CheckCameraModels(bool binary) const;
 
   static ScratchDir* dir_;
@@ -206,7 +207,8 @@ void SfmModels::CheckCameraModels(bool binary) const {
     Save(m, Case() / "models" / c.model, binary);
     written[c.model] = std::move(m);
   }
-  const CommandResult r = Run(ColmapJob({"models/*/"}), "--export-colmap '{output}/colmap'");
+  const CommandResult r = Run(ColmapJob({"models/*/"}),
+                              "--export-colmap '{output}/colmap' --export-stream '{output}/stream.json'");
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   for (const auto& [name, model] : written) {
     SCOPED_TRACE(name);
@@ -230,6 +232,12 @@ void SfmModels::CheckCameraModels(bool binary) const {
         ++compared;
       }
     EXPECT_GT(compared, 500u);
+    // The stream export's OpenMVG intrinsic carries the COLMAP camera whole.
+    const json stream = ReadJson(Case() / "runs" / name / "stream.json");
+    ASSERT_EQ(stream["intrinsics"].size(), 1u);
+    const json& data = stream["intrinsics"][0]["value"]["ptr_wrapper"]["data"];
+    EXPECT_EQ(data.value("colmap_model", ""), name);
+    EXPECT_EQ(data.value("colmap_params", std::vector<double>{}), model.cameras[0].params);
   }
 }
 

@@ -240,12 +240,27 @@ Intrinsics OpenMvgIntrinsicFromData(const JsonFields& f, const std::string& name
   } else {
     k.projectable = false;  // spherical, ...: kept, not projected
   }
+  // imr's own stream export keeps a COLMAP camera as COLMAP wrote it (OpenMVG has no name for
+  // FOV, thin prism, ...): that wins over the OpenMVG fields, which other readers use.
+  if (const json* model = f.Optional(d, "colmap_model", dp)) {
+    const std::string name_c = f.String(*model, dp + ".colmap_model");
+    const std::vector<double> params = f.Numbers(f.Member(d, "colmap_params", dp), dp + ".colmap_params");
+    Intrinsics c;
+    std::string error;
+    if (!IntrinsicsFromColmap(name_c, params, k.width, k.height, &c, &error))
+      f.Fail(dp + ".colmap_params", error);
+    return c;
+  }
   return k;
 }
 
 void OpenMvgIntrinsicToData(const Intrinsics& k, std::string* name, json* data) {
   *data = {{"width", k.width}, {"height", k.height}, {"focal_length", k.fx},
            {"principal_point", {k.cx, k.cy}}};
+  if (ColmapModelId(k.source_model) >= 0) {  // read back exactly (OpenMvgIntrinsicFromData)
+    (*data)["colmap_model"] = k.source_model;
+    (*data)["colmap_params"] = k.source_params;
+  }
   if (k.lens == Lens::kFisheye) {
     *name = "fisheye";  // what OpenMVG cannot hold (thin prism, tangential) is dropped
     (*data)["disto_fisheye"] = {k.k1, k.k2, k.k3, k.k4};

@@ -22,11 +22,14 @@ namespace imr::io {
 SfmModel ReadOpenMvg(const std::filesystem::path& file);
 
 // One OpenMVG intrinsic's "data" object (focal_length, principal_point, disto_*) of the type
-// `name` (also used by SLAM JSON 0.3, which copies OpenMVG's intrinsics).
+// `name` (also used by SLAM JSON 0.3, which copies OpenMVG's intrinsics). With imr's extra
+// fields colmap_model and colmap_params (its stream export), the COLMAP camera they name.
 Intrinsics OpenMvgIntrinsicFromData(const JsonFields& f, const std::string& name,
                                     const nlohmann::json& data, const std::string& path);
-// The OpenMVG type name and "data" fields (focal_length, principal_point, disto_*) that
-// represent `k`; fx is used when fx != fy (OpenMVG has one focal length).
+// The OpenMVG type name and "data" fields (focal_length, principal_point, disto_*) nearest to
+// `k`; fx is used when fx != fy (OpenMVG has one focal length), terms OpenMVG has no model for
+// are dropped (FOV's omega, FULL_OPENCV's rational terms, thin prism). A COLMAP camera is also
+// written whole in colmap_model and colmap_params, which other readers ignore.
 void OpenMvgIntrinsicToData(const Intrinsics& k, std::string* name, nlohmann::json* data);
 
 }  // namespace imr::io

@@ -678,6 +678,19 @@ TEST(ColmapInTheWild, EveryCameraModelIsReadWithItsIntrinsicsAndDistortion) {
       ASSERT_TRUE(IntrinsicsToColmap(k, &model, &params));
       EXPECT_EQ(model, c.model);
       EXPECT_EQ(params, c.params);
+      // Through the stream export's OpenMVG intrinsic (--export-stream) and back: the same.
+      json data;
+      OpenMvgIntrinsicToData(k, &model, &data);
+      const Intrinsics back = OpenMvgIntrinsicFromData(JsonFields("stream"), model, data, "d");
+      EXPECT_EQ(back.source_model, c.model);
+      EXPECT_EQ(back.source_params, c.params);
+      CameraGeometry again = at_origin;
+      again.intrinsics = back;
+      double u2 = 0, v2 = 0;
+      ASSERT_TRUE(Project(again, {0.6, -0.45, 1.0}, &u2, &v2));
+      ASSERT_TRUE(Project(at_origin, {0.6, -0.45, 1.0}, &u, &v));
+      EXPECT_EQ(u2, u);
+      EXPECT_EQ(v2, v);
     }
   }
   // A fisheye from OpenMVG (disto_fisheye: OpenCV's k1..k4) projects as COLMAP's OPENCV_FISHEYE
