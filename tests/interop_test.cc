@@ -198,8 +198,9 @@ TEST_F(Interop, AStreamWithMovingPointsReplaysToTheSameMesh) {
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   const json run = Report("run");
   ASSERT_GT(run["engine"]["points_moved"].get<int>(), 100);
+  // The run was metric (synthetic input): so is its replay (slam_json would measure its scale).
   r = Imr("run -q " + Quote(WriteJob(Job((dir_ / "street-stream.json").string(), "slam_json",
-                                         nullptr, "replay"), "replay.json").string()));
+                                         {{"scale", "metric"}}, "replay"), "replay.json").string()));
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   const json replay = Report("replay");
   EXPECT_EQ(Triangles(ReadPly(dir_ / "replay" / "mesh.ply")), Triangles(ReadPly(dir_ / "run" / "mesh.ply")));
@@ -240,6 +241,68 @@ TEST_F(Interop, ColmapPointColoursColourTheMesh) {
     ASSERT_EQ(m.colors[i], paint(static_cast<uint64_t>(m.point_ids[i]))) << "vertex " << i;
   }
   EXPECT_GT(points, 100);
+}
+
+// Issue 16: a COLMAP model meshes with a job naming only its input and the exporter, at any
+// scale. The same street model in metres and shrunk 1000 times (a tabletop in metres, or the
+// street in km) gives the same mesh, 1000 times smaller: engine.scale "auto" measured the rays and
+// chose lengths 1000 times smaller. With the metric defaults the small model is refused by the
+// warning that names the values auto would choose.
+TEST_F(Interop, AColmapModelOfAnyScaleMeshesWithAOneLineJob) {
+  json j = Job("street", "synthetic", nullptr, "run");
+  j["input"]["options"] = {{"frames", 40}, {"seed", 4}};
+  auto r = Imr("run -q " + Quote(WriteJob(j, "street.json").string()) + " --export-colmap " +
+               Quote((dir_ / "metres").string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  io::ColmapModel model = io::ReadColmapModel(dir_ / "metres");
+  for (auto& p : model.points)
+    for (double& x : p.xyz) x *= 1e-3;
+  for (auto& i : model.images)
+    for (double& x : i.tvec) x *= 1e-3;
+  fs::create_directories(dir_ / "small");
+  io::WriteColmapText(model, dir_ / "small");
+
+  auto one_line = [&](const std::string& model_dir, const std::string& out, const json& engine) {
+    json job = {{"sequences", {(dir_ / model_dir).string()}},
+                {"input", {{"format", "colmap"}}},
+                {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+                {"output", {{"directory", out}, {"formats", {"ply"}}}}};
+    if (!engine.is_null()) job["engine"] = engine;
+    return Imr("run " + Quote(WriteJob(job, out + ".json").string()));
+  };
+  r = one_line("metres", "big", nullptr);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  r = one_line("small", "tiny", nullptr);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const json big = Report("big"), tiny = Report("tiny");
+  for (const json* rep : {&big, &tiny}) {
+    EXPECT_EQ((*rep)["engine_scale"]["mode"], "auto");
+    EXPECT_TRUE((*rep)["mesh"]["manifold"].get<bool>());
+    EXPECT_GT((*rep)["mesh"]["faces"].get<int>(), 500);
+  }
+  const double f_big = big["engine_scale"]["factor"], f_tiny = tiny["engine_scale"]["factor"];
+  EXPECT_NEAR(f_tiny / f_big, 1e-3, 1e-12);
+  EXPECT_NEAR(tiny["engine_scale"]["median_ray"].get<double>() /
+                  big["engine_scale"]["median_ray"].get<double>(), 1e-3, 1e-9);
+  EXPECT_NEAR(tiny["engine_options"]["steiner_spacing"].get<double>(),
+              1e-3 * big["engine_options"]["steiner_spacing"].get<double>(), 1e-12);
+  EXPECT_EQ(tiny["mesh"]["faces"], big["mesh"]["faces"]);
+  EXPECT_EQ(tiny["engine"]["points_inserted"], big["engine"]["points_inserted"]);
+
+  // Explicit options win, and the report says which the job gave.
+  r = one_line("small", "given", {{"steiner_spacing", 0.004}});
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const json given = Report("given");
+  EXPECT_EQ(given["engine_options"]["steiner_spacing"], 0.004);
+  EXPECT_EQ(given["engine_scale"]["given_by_the_job"], json::array({"steiner_spacing"}));
+  EXPECT_FALSE(given["engine_scale"]["set"].contains("steiner_spacing"));
+
+  // Metric on the small model: the warning says what auto would choose.
+  r = one_line("small", "metric", {{"scale", "metric"}});
+  const std::string err = r.err;
+  EXPECT_NE(err.find("the scene is far smaller than the engine's metric defaults assume"),
+            std::string::npos) << err;
+  EXPECT_NE(err.find("engine.scale \"auto\""), std::string::npos) << err;
 }
 
 TEST_F(Interop, ExportPathsMustSeparateSequences) {

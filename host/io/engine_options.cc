@@ -7,7 +7,7 @@ const json& EngineOptionsSchema() {
   static const json schema = [] {
     const engine::EngineOptions d;
     json s;
-    s["steiner_spacing"] = {{"type", "number"}, {"default", d.steiner_spacing}, {"minimum", 0.01},
+    s["steiner_spacing"] = {{"type", "number"}, {"default", d.steiner_spacing}, {"minimum", 1e-9},
                             {"description", "Steiner grid step, metres (paper: 5)"}};
     s["steiner_margin"] = {{"type", "number"}, {"default", d.steiner_margin}, {"minimum", 0.0},
                            {"description", "grid covers each camera +- (max_ray_length + margin)"}};
@@ -21,8 +21,16 @@ const json& EngineOptionsSchema() {
                            {"description", "T_w: a cell is free space when its weight exceeds it"}};
     s["window"] = {{"type", "integer"}, {"default", d.window}, {"minimum", 1},
                    {"description", "W: a move re-casts the rays of the last W cameras"}};
-    s["max_ray_length"] = {{"type", "number"}, {"default", d.max_ray_length}, {"minimum", 0.01},
+    s["max_ray_length"] = {{"type", "number"}, {"default", d.max_ray_length}, {"minimum", 1e-9},
                            {"description", "rays longer than this (metres) are not cast"}};
+    s["scale"] = {{"type", "string"},
+                  {"enum", {"auto", "metric"}},
+                  {"description", "lengths in scene units (steiner_spacing, steiner_margin, "
+                                  "max_ray_length, shrink_radius, regrow_radius, "
+                                  "fill_holes_perimeter): auto scales those the job does not set "
+                                  "by the median ray of the first keyframes / 25; metric keeps "
+                                  "the defaults (a street in metres). Default: auto for colmap, "
+                                  "openmvg, slam_json and middlebury, metric for the others"}};
     s["long_rays"] = {{"type", "string"},
                       {"default", engine::ToString(d.long_rays)},
                       {"enum", {engine::ToString(engine::LongRays::kSkip),

@@ -4,6 +4,7 @@
 #include "host/eval/ground_truth.h"
 #include "host/eval/mesh_stats.h"
 #include "host/io/engine_options.h"
+#include "host/pipeline/scale.h"
 #include "host/pipeline/front_end.h"
 #include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
@@ -21,6 +22,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <deque>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -419,10 +421,51 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   if (policy && v.engine_options.visibility_mode == engine::VisibilityMode::kExact)
     LogInfo("[" + seq.name + "] visibility_mode 'exact' keeps exact weights: the weight_policy "
             "stage (" + job.pipeline[policy_stage].plugin + ") is not called");
-  engine::Engine engine(v.engine_options, watched_policy ? &*watched_policy : nullptr);
+  // The scene's scale (scale.h): in auto mode the first keyframes are read, measured and kept
+  // for the engine, which starts with the lengths they give.
+  const ScaleMode scale_mode = ScaleModeOf(job.engine, job.input.format);
+  std::set<std::string> explicit_keys;
+  if (job.engine.is_object())
+    for (const auto& item : job.engine.items()) explicit_keys.insert(item.key());
+  ScaleProbe probe;
+  ScaleEstimate scale;
+  engine::EngineOptions engine_options = v.engine_options;
+  std::deque<std::pair<engine::KeyframeUpdate, io::KeyframeInfo>> early;
+  if (scale_mode == ScaleMode::kAuto) {
+    while (!probe.Enough()) {
+      if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
+      engine::KeyframeUpdate u;
+      io::KeyframeInfo i;
+      if (!source->Next(&u, &i)) break;
+      probe.Add(u);
+      early.emplace_back(std::move(u), i);
+    }
+    scale = probe.Estimate();
+    if (scale.rays == 0) {
+      LogWarning("[" + JsonText(seq.name) + "] engine.scale auto: no ray to measure in the first " +
+                 std::to_string(scale.keyframes) + " keyframes; the metric defaults are kept");
+    } else {
+      engine_options = ScaledOptions(v.engine_options, scale, explicit_keys);
+      std::string error;
+      if (!engine_options.Check(&error))
+        throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale.median_ray) +
+                                 ") gives unusable options: " + error +
+                                 "; set the engine's lengths in the job, or engine.scale \"metric\"");
+      LogInfo("[" + JsonText(seq.name) + "] " + ScaleLogLine(scale, engine_options, explicit_keys));
+    }
+  }
+  engine::Engine engine(engine_options, watched_policy ? &*watched_policy : nullptr);
   if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
   engine::KeyframeUpdate update;
   io::KeyframeInfo kf;
+  // The keyframes read to decide the scale first, then the rest.
+  auto next = [&](engine::KeyframeUpdate* u, io::KeyframeInfo* i) {
+    if (early.empty()) return source->Next(u, i);
+    *u = std::move(early.front().first);
+    *i = early.front().second;
+    early.pop_front();
+    return true;
+  };
   io::CanonicalOrder canonical;
   ExportContext export_context;
   export_context.source = source.get();
@@ -437,8 +480,9 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   json snapshots = json::array();
   const int total_keyframes = source->KeyframeCount();
   const std::string of_total = total_keyframes > 0 ? "/" + std::to_string(total_keyframes) : "";
-  while (source->Next(&update, &kf)) {
+  while (next(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
+    if (scale_mode == ScaleMode::kMetric && !probe.Enough()) probe.Add(update);
     canonical.Apply(&update);
     watch.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
     const auto engine_start = std::chrono::steady_clock::now();
@@ -520,9 +564,22 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     scale_hint = std::to_string(stats.rays_skipped_too_long) + " of " +
                  std::to_string(stats.rays_skipped_too_long + stats.rays_cast) +
                  " rays were longer than engine.max_ray_length (" +
-                 std::to_string(v.engine_options.max_ray_length) +
+                 std::to_string(engine_options.max_ray_length) +
                  "): set max_ray_length and steiner_spacing to the scene's scale";
     warn(scale_hint);
+  }
+  // A metric job on a scene of another size: say so, with the values auto would choose.
+  if (scale_mode == ScaleMode::kMetric) {
+    const ScaleEstimate e = probe.Estimate();
+    if (e.rays > 0 && (e.factor < 0.25 || e.factor > 4.0)) {
+      const engine::EngineOptions proposed = ScaledOptions(engine_options, e, explicit_keys);
+      std::string hint = ScaleLogLine(e, proposed, explicit_keys);
+      hint.replace(0, std::string("engine.scale auto: ").size(), "");
+      scale_hint = std::string("the scene is ") + (e.factor < 1.0 ? "far smaller" : "far larger") +
+                   " than the engine's metric defaults assume: " + hint +
+                   " would fit; set engine.scale \"auto\" (or these options) in the job";
+      warn(scale_hint);
+    }
   }
   if (const std::string w = RefusedPointsWarning(stats, mesh); !w.empty()) warn(w);
   if (mesh.faces.empty())
@@ -579,7 +636,8 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   report["input"] = {{"format", job.input.format}, {"options", v.input_options}};
   if (format->sequences_are_paths) report["input"]["checksums"] = InputChecksums(seq.source, front_end);
   if (const json summary = source->Summary(); !summary.is_null()) report["input"]["summary"] = summary;
-  report["engine_options"] = io::EngineOptionsToJson(v.engine_options);
+  report["engine_options"] = io::EngineOptionsToJson(engine_options);
+  report["engine_scale"] = ScaleJson(scale_mode, scale, engine_options, explicit_keys);
   report["plugins"] = plugins_json;
   report["engine"] = StatsJson(engine.Stats());
   report["engine"]["keyframe_seconds"] = engine.Stats().keyframe_seconds;

@@ -338,6 +338,14 @@ json Street(const QualityArgs& args, const fs::path& work) {
   if (RunImr(job, work, "imr", "--export-colmap " + Quote((work / "colmap-model").string()), &imr))
     evaluate(work / "imr/mesh.ply", &imr);
   rows.push_back(imr);
+  // engine.scale: auto (the default for slam_json) must be no worse than the metric defaults here.
+  Row metric;
+  metric.mesher = "imr, engine.scale metric";
+  json metric_job = job;
+  metric_job["engine"] = {{"scale", "metric"}};
+  metric_job["output"]["directory"] = (work / "imr-metric").string();
+  if (RunImr(metric_job, work, "imr-metric", "", &metric)) evaluate(work / "imr-metric/mesh.ply", &metric);
+  rows.push_back(metric);
   RunBefore(args, job, json::object(), json::object(), work, "before-defaults", "defaults", evaluate, &rows);
   RunBefore(args, job, {{"steiner_export", "any_steiner"}}, json::object(), work, "before-any",
             "nearest, any_steiner (issue 14's table)", evaluate, &rows);
@@ -365,7 +373,9 @@ json Street(const QualityArgs& args, const fs::path& work) {
         {{"completeness 0.2 m", 0.80, true, r.c2},
          {"precision 0.2 m", 0.80, true, r.p2},
          {"F 0.2 m", 0.80, true, F(r.c2, r.p2)},
-         {"truth→mesh mean (m)", 0.20, false, r.t2m_mean}},
+         {"truth→mesh mean (m)", 0.20, false, r.t2m_mean},
+         {"F 0.2 m, engine.scale auto against metric (issue 16: no worse)", F(metric.c2, metric.p2),
+          true, F(r.c2, r.p2)}},
         &out);
   return out;
 }

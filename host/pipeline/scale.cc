@@ -1,0 +1,150 @@
+#include "host/pipeline/scale.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+namespace imr::pipeline {
+namespace {
+
+using nlohmann::json;
+
+// Every length of EngineOptions, by its job key.
+const std::vector<std::pair<std::string, double engine::EngineOptions::*>>& LengthFields() {
+  static const std::vector<std::pair<std::string, double engine::EngineOptions::*>> fields = {
+      {"steiner_spacing", &engine::EngineOptions::steiner_spacing},
+      {"steiner_margin", &engine::EngineOptions::steiner_margin},
+      {"max_ray_length", &engine::EngineOptions::max_ray_length},
+      {"shrink_radius", &engine::EngineOptions::shrink_radius},
+      {"regrow_radius", &engine::EngineOptions::regrow_radius},
+      {"fill_holes_perimeter", &engine::EngineOptions::fill_holes_perimeter},
+  };
+  return fields;
+}
+
+// The q-quantile by nearest rank of an unsorted copy.
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+std::string Number(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", x);
+  return buf;
+}
+
+}  // namespace
+
+double RoundTo125(double x) {
+  if (!(x > 0.0) || !std::isfinite(x)) return 1.0;
+  const double decade = std::pow(10.0, std::floor(std::log10(x)));
+  double best = decade, best_distance = std::abs(std::log(x / decade));
+  for (double m : {2.0, 5.0, 10.0}) {
+    const double d = std::abs(std::log(x / (m * decade)));
+    if (d < best_distance) best = m * decade, best_distance = d;
+  }
+  return best;
+}
+
+const std::vector<std::string>& ScaledOptionNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const auto& [name, field] : LengthFields()) n.push_back(name);
+    return n;
+  }();
+  return names;
+}
+
+ScaleMode ScaleModeOf(const json& engine_json, const std::string& input_format) {
+  if (engine_json.is_object() && engine_json.contains("scale") && engine_json["scale"].is_string())
+    return engine_json["scale"] == "auto" ? ScaleMode::kAuto : ScaleMode::kMetric;
+  for (const char* f : {"colmap", "openmvg", "slam_json", "middlebury"})
+    if (input_format == f) return ScaleMode::kAuto;
+  return ScaleMode::kMetric;
+}
+
+void ScaleProbe::Add(const engine::KeyframeUpdate& update) {
+  ++keyframes_;
+  for (const engine::Camera& c : update.cameras) centers_[c.id] = c.center;
+  const auto measure = [&](const engine::Vec3& x, const std::vector<uint64_t>& camera_ids) {
+    for (uint64_t id : camera_ids) {
+      const auto it = centers_.find(id);
+      if (it == centers_.end()) continue;
+      const engine::Vec3& c = it->second;
+      const double d = std::hypot(x[0] - c[0], x[1] - c[1], x[2] - c[2]);
+      if (std::isfinite(d) && d > 0.0) lengths_.push_back(d);
+    }
+  };
+  for (const engine::NewPoint& p : update.new_points) measure(p.position, p.camera_ids);
+  // A moved point's new cameras: its later, usually closer views (a point enters far ahead of a
+  // camera moving forward; its first rays alone would overstate the scale).
+  for (const engine::MovedPoint& p : update.moved_points) measure(p.position, p.camera_ids);
+}
+
+bool ScaleProbe::Enough() const {
+  return keyframes_ >= kMinKeyframes && static_cast<int64_t>(lengths_.size()) >= kMinRays;
+}
+
+ScaleEstimate ScaleProbe::Estimate() const {
+  ScaleEstimate e;
+  e.keyframes = keyframes_;
+  e.rays = static_cast<int64_t>(lengths_.size());
+  if (lengths_.empty()) return e;
+  e.median_ray = Quantile(lengths_, 0.5);
+  e.p95_ray = Quantile(lengths_, 0.95);
+  e.ratio = e.median_ray / kReferenceMedianRay;
+  e.factor = RoundTo125(e.ratio);
+  return e;
+}
+
+engine::EngineOptions ScaledOptions(const engine::EngineOptions& base, const ScaleEstimate& estimate,
+                                    const std::set<std::string>& explicit_keys) {
+  const engine::EngineOptions metric;
+  engine::EngineOptions o = base;
+  for (const auto& [name, field] : LengthFields())
+    if (!explicit_keys.count(name)) o.*field = metric.*field * estimate.factor;
+  return o;
+}
+
+json ScaleJson(ScaleMode mode, const ScaleEstimate& estimate, const engine::EngineOptions& chosen,
+               const std::set<std::string>& explicit_keys) {
+  json j = {{"mode", mode == ScaleMode::kAuto ? "auto" : "metric"}};
+  if (mode == ScaleMode::kMetric) return j;
+  j["from"] = {{"keyframes", estimate.keyframes}, {"rays", estimate.rays}};
+  j["median_ray"] = estimate.median_ray;
+  j["p95_ray"] = estimate.p95_ray;
+  j["reference_median_ray"] = kReferenceMedianRay;
+  j["ratio"] = estimate.ratio;
+  j["factor"] = estimate.factor;
+  json set = json::object(), kept = json::array();
+  for (const auto& [name, field] : LengthFields()) {
+    if (explicit_keys.count(name)) kept.push_back(name);
+    else set[name] = chosen.*field;
+  }
+  j["set"] = set;
+  j["given_by_the_job"] = kept;
+  return j;
+}
+
+std::string ScaleLogLine(const ScaleEstimate& estimate, const engine::EngineOptions& chosen,
+                         const std::set<std::string>& explicit_keys) {
+  std::string s = "engine.scale auto: median ray " + Number(estimate.median_ray) + " (" +
+                  std::to_string(estimate.rays) + " rays of the first " +
+                  std::to_string(estimate.keyframes) + " keyframes; the metric defaults assume " +
+                  Number(kReferenceMedianRay) + "): ratio " + Number(estimate.ratio) + ", scale " +
+                  Number(estimate.factor) + ",";
+  bool any = false;
+  for (const auto& [name, field] : LengthFields()) {
+    if (explicit_keys.count(name)) continue;
+    s += std::string(any ? "," : "") + " " + name + " " + Number(chosen.*field);
+    any = true;
+  }
+  if (!any) s += " every length given by the job";
+  return s;
+}
+
+}  // namespace imr::pipeline
