@@ -1502,5 +1502,33 @@ TEST_F(BadSfm, OpenMvgBinarySfmData) {
                                      " -o " + (Case() / "sfm_data.json").string()});
 }
 
+TEST_F(BadSfm, OpenMvgOddFieldsOfVersions02And03) {
+  // Found in the wild: version 0.2, views with pose priors (view_priors), prior_focal_length
+  // beside focal_length: not an error, read past. Fewer distortion values than the model has:
+  // refused naming the field and the count (it said "expected 3 numbers").
+  json j = ReadJson(Fixture("openmvg/good.json"));
+  j["sfm_data_version"] = "0.2";
+  json& view = j["views"][0]["value"];
+  view["polymorphic_id"] = 2147483650u;
+  view["polymorphic_name"] = "view_priors";
+  view["ptr_wrapper"]["data"].update({{"use_pose_center_prior", true}, {"center_weight", {1.0, 1.0, 1.0}},
+                                      {"center", {9.0, 9.0, 9.0}}, {"use_pose_rotation_prior", false},
+                                      {"rotation_weight", 1.0}, {"rotation", {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}}});
+  json& data = j["intrinsics"][0]["value"]["ptr_wrapper"]["data"];
+  data["prior_focal_length"] = 480;
+  WriteText(Case() / "priors.json", j.dump());
+  const json job = EngineJob("openmvg", {"priors.json", Fixture("openmvg/good.json")});
+  CheckEverySequenceOk(Run(job), Case() / "runs", job, {"priors.json", "good.json"});
+
+  j["intrinsics"][0]["value"]["polymorphic_name"] = "pinhole_radial_k3";
+  data["disto_k3"] = {0.01, 0.0};
+  WriteText(Case() / "bad.json", j.dump());
+  ExpectOnlyTheBadSequenceFails(EngineJob("openmvg", {"bad.json", Fixture("openmvg/good.json")}),
+                                "bad.json", "good.json",
+                                {(Case() / "bad.json").string(),
+                                 "intrinsics[0].value.ptr_wrapper.data.disto_k3",
+                                 "the pinhole_radial_k3 model has 3 distortion values, got 2"});
+}
+
 }  // namespace
 }  // namespace imr::testing
