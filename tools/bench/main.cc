@@ -12,6 +12,7 @@ int RunScalingBench(int argc, char** argv);
 int RunEvaluateBench(int argc, char** argv);
 int RunPeersBench(int argc, char** argv);
 int RunQualityBench(int argc, char** argv);
+int RunSpeedBench(int argc, char** argv);
 #endif
 #ifdef IMR_BENCH_TEXTURE
 int RunTextureBench(int argc, char** argv);
@@ -37,6 +38,9 @@ void Usage() {
                "  quality [--inputs street,synth,kitti,stream] [--frames N] [--before IMR] ...\n"
                "         surface quality per input (completeness, precision, F, distances,\n"
                "         manifold, time, memory) beside the Piazza mesher and COLMAP\n"
+               "  speed [--views-per-keyframe N] [--work DIR]\n"
+               "         the engine on the street stream with every view a keyframe, one core\n"
+               "         and two (issue 18's targets), with the time per phase\n"
                "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
                "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n"
                "  texture [--sequence DIR --mesh FILE] [--frames N] [--repeat N] [--atlas-size PX]\n"
@@ -59,6 +63,7 @@ int main(int argc, char** argv) {
   if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
   if (sub == "peers") return imr::bench::RunPeersBench(argc - 2, argv + 2);
   if (sub == "quality") return imr::bench::RunQualityBench(argc - 2, argv + 2);
+  if (sub == "speed") return imr::bench::RunSpeedBench(argc - 2, argv + 2);
 #endif
 #ifdef IMR_BENCH_TEXTURE
   if (sub == "texture") return imr::bench::RunTextureBench(argc - 2, argv + 2);

@@ -1,0 +1,153 @@
+// imr-bench speed (issue 18): the engine on ../shared/data/street-stream with every view a
+// keyframe (slam_json views_per_keyframe 1: each track's estimate moves at each of its views),
+// the quality issue's default settings, pinned to one core (taskset) and on two. Engine time only
+// (report.json's engine.seconds): frames per second = views / engine seconds; the phases beside
+// it (where the time goes). The nearest policy (weights mode) runs beside the default for
+// reference. Prints the targets, then one JSON object as the last line.
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/subprocess.h"
+
+namespace imr::bench {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct SpeedRow {
+  std::string label;
+  std::string cores;  // taskset -c list
+  bool ok = false;
+  double wall = 0.0, engine = 0.0, fps = 0.0, rss_mb = 0.0;
+  json phases;  // engine.seconds of report.json
+  std::string note;
+};
+
+}  // namespace
+
+int RunSpeedBench(int argc, char** argv) {
+  std::string shared, work_arg;
+  int views_per_keyframe = 1;
+  for (int i = 0; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (i + 1 < argc && k == "--shared") shared = argv[++i];
+    else if (i + 1 < argc && k == "--work") work_arg = argv[++i];
+    else if (i + 1 < argc && k == "--views-per-keyframe") views_per_keyframe = std::atoi(argv[++i]);
+    else {
+      std::fprintf(stderr, "usage: imr-bench speed [--shared DIR] [--work DIR] [--views-per-keyframe N]\n");
+      return 2;
+    }
+  }
+  if (shared.empty())
+    shared = std::getenv("IMR_SHARED_DIR") ? std::getenv("IMR_SHARED_DIR") : IMR_SHARED_DIR;
+  const fs::path stream = fs::path(shared) / "data/street-stream/slam.json";
+  std::printf("imr-bench speed: %s; load average at start %s\n", MachineLine().c_str(),
+              LoadAverage().c_str());
+  if (!fs::exists(stream)) {
+    std::printf("skipped: %s not found\n", stream.c_str());
+    return 0;
+  }
+  json views = json::parse(std::ifstream(stream), nullptr, false);
+  const std::size_t n_views = views.is_object() && views.contains("views") ? views["views"].size() : 0;
+  const fs::path work = work_arg.empty() ? fs::temp_directory_path() / ("imr-bench-speed-" +
+                                                                        std::to_string(getpid()))
+                                         : fs::path(work_arg);
+  fs::create_directories(work);
+
+  std::vector<SpeedRow> rows;
+  for (const auto& [label, mode, cores] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"exact (default), one core", "exact", "0"},
+           {"exact (default), two cores", "exact", "0,1"},
+           {"nearest (weights mode), one core", "weights", "0"}}) {
+    SpeedRow r;
+    r.label = label;
+    r.cores = cores;
+    json pipeline = json::array();
+    if (mode == "weights")
+      pipeline.push_back({{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}});
+    pipeline.push_back({{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}});
+    const std::string name = mode + "-" + (cores == "0" ? "1" : "2");
+    const json job = {
+        {"description", "imr-bench speed"},
+        {"sequences", {stream.string()}},
+        {"input", {{"format", "slam_json"}, {"options", {{"views_per_keyframe", views_per_keyframe}}}}},
+        {"engine", {{"visibility_mode", mode}}},
+        {"pipeline", pipeline},
+        {"output", {{"directory", (work / name).string()}, {"formats", {"ply"}}}}};
+    const fs::path job_file = work / (name + ".json");
+    std::ofstream(job_file) << job.dump(2);
+    const TimedRun t = RunTimed("taskset -c " + cores + " " + Quote((ExeDir() / "imr").string()) +
+                                    " run -q --force " + Quote(job_file.string()),
+                                work / (name + ".log"));
+    r.wall = t.seconds;
+    r.rss_mb = t.peak_rss_mb;
+    if (t.status != 0) {
+      r.note = "imr run failed (" + (work / (name + ".log")).string() + ")";
+    } else {
+      const json rep = json::parse(std::ifstream(work / name / "report.json"), nullptr, false);
+      if (rep.is_object() && rep.contains("engine")) {
+        r.phases = rep["engine"]["seconds"];
+        r.engine = r.phases.value("total", 0.0);
+        r.fps = r.engine > 0.0 ? static_cast<double>(n_views) / r.engine : 0.0;
+        r.ok = true;
+      } else {
+        r.note = "no report.json";
+      }
+    }
+    rows.push_back(r);
+  }
+
+  std::printf("\nstreet stream, %zu views, views_per_keyframe %d (a keyframe every %d view(s); "
+              "every tracked point moves at each)\n\n",
+              n_views, views_per_keyframe, views_per_keyframe);
+  std::printf("| run | wall s | engine s | frames/s (engine) | RSS MB | cast | move | insert | "
+              "shrink | grow | steiner |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+  json out_rows = json::array();
+  for (const SpeedRow& r : rows) {
+    if (!r.ok) {
+      std::printf("| %s | %s | | | | | | | | | |\n", r.label.c_str(), r.note.c_str());
+      out_rows.push_back({{"run", r.label}, {"ok", false}, {"note", r.note}});
+      continue;
+    }
+    auto ph = [&](const char* k) { return r.phases.value(k, 0.0); };
+    std::printf("| %s | %.1f | %.1f | %.1f | %.0f | %.1f (%.0f %%) | %.1f (%.0f %%) | %.1f | %.1f | "
+                "%.1f | %.1f |\n",
+                r.label.c_str(), r.wall, r.engine, r.fps, r.rss_mb, ph("cast"),
+                100.0 * ph("cast") / r.engine, ph("move"), 100.0 * ph("move") / r.engine,
+                ph("insert"), ph("shrink"), ph("grow"), ph("steiner"));
+    out_rows.push_back({{"run", r.label}, {"ok", true}, {"cores", r.cores}, {"wall_s", r.wall},
+                        {"engine_s", r.engine}, {"fps", r.fps}, {"rss_mb", r.rss_mb},
+                        {"phases", r.phases}});
+  }
+  const double one = rows[0].ok ? rows[0].fps : 0.0, two = rows[1].ok ? rows[1].fps : 0.0;
+  std::printf("\ntarget: one core >= 10 frames/s — reached %.1f: %s\n", one,
+              one >= 10.0 ? "met" : "NOT met");
+  std::printf("target: two cores >= 1.8x one core — reached %.2fx: %s (the engine runs on one "
+              "thread today)\n",
+              one > 0.0 ? two / one : 0.0, one > 0.0 && two / one >= 1.8 ? "met" : "NOT met");
+  std::printf("load average at end %s\n", LoadAverage().c_str());
+  if (work_arg.empty()) fs::remove_all(work);
+  const json result = {{"bench", "speed"},
+                       {"machine", MachineLine()},
+                       {"views", n_views},
+                       {"views_per_keyframe", views_per_keyframe},
+                       {"rows", out_rows},
+                       {"one_core_fps", one},
+                       {"two_core_speedup", one > 0.0 ? two / one : 0.0}};
+  std::printf("%s\n", result.dump().c_str());
+  return 0;
+}
+
+}  // namespace imr::bench
