@@ -86,7 +86,8 @@ void ScaleProbe::Add(const engine::KeyframeUpdate& update) {
 }
 
 bool ScaleProbe::Enough() const {
-  return keyframes_ >= kMinKeyframes && static_cast<int64_t>(lengths_.size()) >= kMinRays;
+  return (keyframes_ >= kMinKeyframes && static_cast<int64_t>(lengths_.size()) >= kMinRays) ||
+         keyframes_ >= kMaxKeyframes;
 }
 
 ScaleEstimate ScaleProbe::Estimate() const {

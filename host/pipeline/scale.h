@@ -53,12 +53,14 @@ double RoundTo125(double x);
 class ScaleProbe {
  public:
   void Add(const engine::KeyframeUpdate& update);
-  // At least kMinKeyframes keyframes and kMinRays rays (or one batch update with kMinRays).
+  // At least kMinKeyframes keyframes and kMinRays rays, or kMaxKeyframes keyframes whatever
+  // their rays (a sparse sequence does not hold the engine back for long).
   bool Enough() const;
   ScaleEstimate Estimate() const;
 
   static constexpr int kMinKeyframes = 5;
   static constexpr int64_t kMinRays = 2000;
+  static constexpr int kMaxKeyframes = 50;
 
  private:
   std::unordered_map<uint64_t, engine::Vec3> centers_;

@@ -54,8 +54,11 @@ TEST(ScaleTest, ProbeMeasuresTheFirstKeyframesRays) {
   EXPECT_DOUBLE_EQ(e.factor, 0.02);  // 0.02 = 0.5 / 25 exactly
   // Few rays: not enough whatever the keyframes.
   ScaleProbe sparse;
-  for (uint64_t k = 0; k < 50; ++k) sparse.Add(Keyframe(k, 10, 1.0));
+  for (uint64_t k = 0; k < 49; ++k) sparse.Add(Keyframe(k, 10, 1.0));
   EXPECT_FALSE(sparse.Enough());
+  sparse.Add(Keyframe(49, 10, 1.0));
+  EXPECT_TRUE(sparse.Enough());  // 50 keyframes decide, however few their rays
+  EXPECT_EQ(sparse.Estimate().rays, 500);
 }
 
 TEST(ScaleTest, FactorsAreRoundedToOneTwoFive) {
