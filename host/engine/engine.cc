@@ -914,8 +914,19 @@ struct Engine::Impl {
         dt.incident_cells(v, std::back_inserter(inc));
         e.insert(inc.begin(), inc.end());
       }
-    // Peel E from O, lowest weight first (the inverse of grow): a cell refused now is retried
-    // when one of its facet neighbours leaves O.
+    const bool ok = PeelFromO(
+        e, [&](Cell_handle n) { return e.count(n) > 0; }, [&] { return !meets_o(); }) ||
+                    !meets_o();
+    stats.time.shrink += Seconds(t0, Clock::now());
+    return ok;
+  }
+
+  // Peels the cells of `region` from O, lowest weight first (the inverse of grow), keeping dO
+  // manifold: a cell refused now is retried when one of its facet neighbours leaves O (those in
+  // the region, `in_region`), up to shrink_passes tries per cell. Stops early, returning true,
+  // once `done()` holds after a cell left O; false when the queue or the budget ran out.
+  template <typename Cells, typename InRegion, typename Done>
+  bool PeelFromO(const Cells& region, InRegion in_region, Done done) {
     struct Item {
       int64_t weight;
       uint64_t order;
@@ -924,8 +935,9 @@ struct Engine::Impl {
         return weight != o.weight ? weight > o.weight : order > o.order;
       }
     };
+    // Canonical order (CellKey), so equal weights peel the same way whatever the container.
     std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> start;
-    for (Cell_handle c : e)
+    for (Cell_handle c : region)
       if (c->info().in_o) start.push_back({CellKey(c), c});
     std::sort(start.begin(), start.end(),
               [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -933,7 +945,6 @@ struct Engine::Impl {
     uint64_t order = 0;
     for (const auto& s : start) q.push({s.second->info().weight, order++, s.second});
     int64_t budget = static_cast<int64_t>(start.size()) * 4 * opt.shrink_passes + 16;
-    bool ok = false;
     while (!q.empty() && budget-- > 0) {
       Cell_handle c = q.top().cell;
       q.pop();
@@ -944,16 +955,11 @@ struct Engine::Impl {
       for (int i = 0; i < 4; ++i) {
         Cell_handle n = c->neighbor(i);
         MarkDirty(n);
-        if (n->info().in_o && e.count(n)) q.push({n->info().weight, order++, n});
+        if (n->info().in_o && in_region(n)) q.push({n->info().weight, order++, n});
       }
-      if (!meets_o()) {
-        ok = true;
-        break;
-      }
+      if (done()) return true;
     }
-    if (!ok) ok = !meets_o();
-    stats.time.shrink += Seconds(t0, Clock::now());
-    return ok;
+    return false;
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -1550,36 +1556,8 @@ struct Engine::Impl {
         for (int i = 0; i < 4; ++i) todo.push_back(c->neighbor(i));
       }
     }
-    struct Item {
-      int64_t weight;
-      uint64_t order;
-      Cell_handle cell;
-      bool operator<(const Item& o) const {
-        return weight != o.weight ? weight > o.weight : order > o.order;
-      }
-    };
-    std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> start;
-    for (Cell_handle c : region)
-      if (c->info().in_o) start.push_back({CellKey(c), c});
-    std::sort(start.begin(), start.end(),
-              [](const auto& a, const auto& b) { return a.first < b.first; });
-    std::priority_queue<Item> q;
-    uint64_t order = 0;
-    for (const auto& s : start) q.push({s.second->info().weight, order++, s.second});
-    int64_t budget = static_cast<int64_t>(start.size()) * 4 * opt.shrink_passes + 16;
-    while (!q.empty() && budget-- > 0) {
-      Cell_handle c = q.top().cell;
-      q.pop();
-      if (!c->info().in_o || !ToggleKeepsManifold(c)) continue;
-      SetInO(c, false);
-      ++stats.cells_shrunk;
-      MarkDirty(c);
-      for (int i = 0; i < 4; ++i) {
-        Cell_handle n = c->neighbor(i);
-        MarkDirty(n);
-        if (n->info().in_o && n->info().stamp == seen) q.push({n->info().weight, order++, n});
-      }
-    }
+    PeelFromO(
+        region, [&](Cell_handle n) { return n->info().stamp == seen; }, [] { return false; });
     stats.time.shrink += Seconds(t0, Clock::now());
   }
 
