@@ -23,8 +23,8 @@ const std::vector<std::pair<std::string, double engine::EngineOptions::*>>& Leng
   return fields;
 }
 
-// The q-quantile by nearest rank of an unsorted copy.
-double Quantile(std::vector<double> v, double q) {
+// The q-quantile by nearest rank; reorders v.
+double Quantile(std::vector<double>& v, double q) {
   if (v.empty()) return 0.0;
   const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
@@ -95,8 +95,9 @@ ScaleEstimate ScaleProbe::Estimate() const {
   e.keyframes = keyframes_;
   e.rays = static_cast<int64_t>(lengths_.size());
   if (lengths_.empty()) return e;
-  e.median_ray = Quantile(lengths_, 0.5);
-  e.p95_ray = Quantile(lengths_, 0.95);
+  std::vector<double> lengths = lengths_;  // one copy for both quantiles
+  e.median_ray = Quantile(lengths, 0.5);
+  e.p95_ray = Quantile(lengths, 0.95);
   e.ratio = e.median_ray / kReferenceMedianRay;
   e.factor = RoundTo125(e.ratio);
   return e;

@@ -87,20 +87,26 @@ std::string ManifoldText(const eval::MeshStatistics& s) {
   return s.closed ? "yes (closed)" : "yes (" + std::to_string(s.boundary_loops) + " holes)";
 }
 
-// Mesh statistics of a mesh file (manifoldness, holes); false when it cannot be read.
-bool MeshStats(const fs::path& mesh, Row* row) {
+// A mesh file as packed coordinates and indices, with its statistics (manifoldness, holes) in
+// *row; false (and row->note) when it cannot be read.
+bool ReadPacked(const fs::path& mesh, Row* row, std::vector<double>* xyz,
+                std::vector<uint32_t>* faces) {
   try {
     const eval::TriangleMesh m = eval::ReadMesh(mesh);
-    std::vector<double> xyz;
-    std::vector<uint32_t> faces;
-    for (const auto& v : m.vertices) xyz.insert(xyz.end(), v.begin(), v.end());
-    for (const auto& t : m.triangles) faces.insert(faces.end(), t.begin(), t.end());
-    row->stats = eval::ComputeMeshStatistics(xyz, faces);
+    for (const auto& v : m.vertices) xyz->insert(xyz->end(), v.begin(), v.end());
+    for (const auto& t : m.triangles) faces->insert(faces->end(), t.begin(), t.end());
+    row->stats = eval::ComputeMeshStatistics(*xyz, *faces);
     return true;
   } catch (const std::exception& e) {
     row->note = std::string("reading the mesh: ") + e.what();
     return false;
   }
+}
+
+bool MeshStats(const fs::path& mesh, Row* row) {
+  std::vector<double> xyz;
+  std::vector<uint32_t> faces;
+  return ReadPacked(mesh, row, &xyz, &faces);
 }
 
 // `imr evaluate`'s code on a mesh file: completeness and truth -> mesh against `completeness`
@@ -479,12 +485,9 @@ json Stream(const QualityArgs& args, const fs::path& work) {
   const std::vector<synthetic::Vec3> truth =
       SampleSeenSurfaces(stream, args.stream_frames, 2, 400, 7);
   auto evaluate = [&](const fs::path& mesh_file, Row* row) {
-    if (!MeshStats(mesh_file, row)) return;
-    const eval::TriangleMesh m = eval::ReadMesh(mesh_file);
     std::vector<double> xyz;
     std::vector<uint32_t> faces;
-    for (const auto& v : m.vertices) xyz.insert(xyz.end(), v.begin(), v.end());
-    for (const auto& t : m.triangles) faces.insert(faces.end(), t.begin(), t.end());
+    if (!ReadPacked(mesh_file, row, &xyz, &faces)) return;
     const SceneAccuracy a2 = EvaluateAgainstScene(stream.scene(), xyz, faces, truth, 0.2);
     const SceneAccuracy a5 = EvaluateAgainstScene(stream.scene(), xyz, faces, truth, 0.5);
     row->c2 = a2.completeness, row->c5 = a5.completeness;
