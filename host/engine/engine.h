@@ -111,6 +111,9 @@ struct EngineOptions {
   double weight_unit = 1e-6;          // Weights are int64 multiples of this (exact backward cast).
   int max_cells_per_ray = 200000;     // Safety bound on one traversal (never an endless walk).
   bool check_after_update = false;    // Run the full dO check after every update (slow; tests).
+  int num_threads = 0;                // Threads casting rays (kExact): 0 = every core of the
+                                      // process's affinity mask. The mesh is the same for any
+                                      // number (results are applied in one fixed order).
 
   // True when every field is usable; otherwise false and *error says which field and why.
   bool Check(std::string* error) const;

@@ -78,6 +78,7 @@ bool EngineOptions::Check(std::string* error) const {
       std::abs(free_threshold / weight_unit) > 1e15)
     e << "free_threshold / weight_unit too large for int64 weights; ";
   if (max_cells_per_ray < 1) e << "max_cells_per_ray must be >= 1; ";
+  if (num_threads < 0 || num_threads > 1024) e << "num_threads must be in [0, 1024] (0: all cores); ";
   const std::string s = e.str();
   if (error) *error = s.empty() ? std::string() : s.substr(0, s.size() - 2);
   return s.empty();

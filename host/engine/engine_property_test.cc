@@ -57,7 +57,7 @@ TEST_P(InvariantTest, ManifoldAfterEveryKeyframe) {
     // Exact mode: every cell holds exactly the rays that cross it, as re-casting every ray on
     // today's triangulation would give, after every keyframe.
     std::string rays;
-    if (mode == "exact") rays = internal::EngineInternals::CheckRaySets(engine);
+    if (mode.rfind("exact", 0) == 0) rays = internal::EngineInternals::CheckRaySets(engine);
     EXPECT_EQ(rays, "") << "keyframe " << kf.index;
     return r.ok && closed.ok && open.ok && rays.empty();
   });
@@ -73,7 +73,7 @@ TEST_P(InvariantTest, ManifoldAfterEveryKeyframe) {
 
 INSTANTIATE_TEST_SUITE_P(
     Modes, InvariantTest,
-    ::testing::Combine(::testing::Values("exact", "nearest", "mean", "weighted_mean", "rays5",
+    ::testing::Combine(::testing::Values("exact", "exact_4threads", "nearest", "mean", "weighted_mean", "rays5",
                                          "rays1"),
                        ::testing::Values(SceneKind::kStreet, SceneKind::kRoom),
                        ::testing::Values(uint64_t{1}, uint64_t{7})),
@@ -82,6 +82,38 @@ INSTANTIATE_TEST_SUITE_P(
       return std::get<0>(p) + "_" + synthetic::ToString(std::get<1>(p)) + "_" +
              std::to_string(std::get<2>(p));
     });
+
+// ---------------------------------------------------------------------------------------------
+// Exact mode casts a keyframe's rays on several threads; the mesh and every cell's weight are the
+// same for any number of threads (the walks only read; their results apply in one fixed order).
+TEST(ThreadsTest, SameMeshAndWeightsForOneTwoAndFourThreads) {
+  for (SceneKind scene : {SceneKind::kStreet, SceneKind::kRoom, SceneKind::kPlane}) {
+    synthetic::StreamOptions so = SmallStream(scene, 5);
+    so.frames = 60;  // 12 keyframes, with moves at each
+    Mesh first_mesh;
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> first_weights;
+    for (int threads : {1, 2, 4}) {
+      synthetic::SyntheticStream stream(so);
+      EngineOptions eo;
+      eo.num_threads = threads;
+      Engine engine(eo, nullptr);
+      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok());
+      EXPECT_GT(engine.Stats().points_moved, 50);
+      const Mesh mesh = engine.ExtractMesh();
+      const auto weights = engine.CellWeights();
+      ASSERT_FALSE(mesh.faces.empty());
+      if (threads == 1) {
+        first_mesh = mesh;
+        first_weights = weights;
+        continue;
+      }
+      const std::string what = synthetic::ToString(scene) + ", " + std::to_string(threads) + " threads";
+      EXPECT_EQ(mesh.vertices, first_mesh.vertices) << what;
+      EXPECT_EQ(mesh.faces, first_mesh.faces) << what;
+      EXPECT_EQ(weights, first_weights) << what;
+    }
+  }
+}
 
 // ---------------------------------------------------------------------------------------------
 // Casting rays forward and then backward restores every cell weight bit for bit, including with

@@ -16,8 +16,9 @@ namespace imr::engine::testing {
 // weighted_mean (weights mode with that policy), rays5, rays1 (the baseline with K = 5 or K = 1).
 inline bool ConfigureMode(const std::string& mode, EngineOptions* options,
                           std::unique_ptr<WeightTransferPolicy>* policy) {
-  if (mode == "exact") {
+  if (mode == "exact" || mode == "exact_4threads") {
     options->visibility_mode = VisibilityMode::kExact;
+    options->num_threads = mode == "exact" ? 1 : 4;
     policy->reset();
     return true;
   }
