@@ -1488,7 +1488,36 @@ struct Engine::Impl {
     }
   }
 
-  // kExact move: the vertex removed and re-inserted at the new position. Its rays are not
+  // Whether moving v to p keeps the triangulation Delaunay with the same cells: its star stays
+  // positively oriented and every facet of the star stays locally Delaunay (CGAL's perturbed
+  // in-sphere test, as its insertions decide ties). Not for a star on the hull.
+  bool DelaunayAfterMove(Vertex_handle v, const Point& p, const std::vector<Cell_handle>& star) {
+    for (Cell_handle c : star)
+      if (dt.is_infinite(c)) return false;
+    const Point old = v->point();
+    v->set_point(p);
+    bool ok = true;
+    for (size_t s = 0; s < star.size() && ok; ++s) {
+      const Cell_handle c = star[s];
+      ok = CGAL::orientation(c->vertex(0)->point(), c->vertex(1)->point(), c->vertex(2)->point(),
+                             c->vertex(3)->point()) == CGAL::POSITIVE;
+    }
+    for (size_t s = 0; s < star.size() && ok; ++s) {
+      const Cell_handle c = star[s];
+      const int iv = c->index(v);
+      for (int j = 0; j < 4 && ok; ++j) {
+        const Cell_handle n = c->neighbor(j);
+        if (j != iv && &*n < &*c) continue;  // a facet between two star cells: tested once
+        ok = !dt.is_infinite(n) &&
+             dt.side_of_sphere(n, c->vertex(j)->point(), true) == CGAL::ON_UNBOUNDED_SIDE;
+      }
+    }
+    v->set_point(old);
+    return ok;
+  }
+
+  // kExact move: in place when the cells stay (DelaunayAfterMove), else the vertex removed and
+  // re-inserted at the new position. Its rays are not
   // touched here: ApplyUpdate un-casts the window's rays of every moving point before the moves
   // and casts them again after (ExactBatch), so the holes of the moves carry fewer rays.
   void ExactMovePoint(uint32_t pt, const MovedPoint& m) {
@@ -1503,6 +1532,26 @@ struct Engine::Impl {
     AddCameras(rec, m.camera_ids, nullptr);
     if (p_new == p_old) return;
     std::vector<Cell_handle> d;
+    dt.incident_cells(rec.vertex, std::back_inserter(d));
+    if (DelaunayAfterMove(rec.vertex, p_new, d)) {
+      // The same cells, reshaped: only the star's rays are walked again.
+      if (!Shrink(d, {p_old, p_new})) {
+        ++stats.moves_skipped;
+        return;
+      }
+      Removed removed;
+      CollectRemoved(d, &removed);
+      for (Cell_handle c : d) {
+        c->info().weight = 0;
+        c->info().rays.clear();
+      }
+      rec.vertex->set_point(p_new);
+      AssignNewCells(d, removed, false);
+      ++stats.points_moved;
+      ++stats.moves_in_place;
+      return;
+    }
+    d.clear();
     dt.incident_cells(rec.vertex, std::back_inserter(d));
     Dt::Locate_type lt;
     int li, lj;

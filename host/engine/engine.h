@@ -188,6 +188,8 @@ struct EngineStats {
   int64_t points_dropped = 0;         // New point dropped (conflict zone met O after shrink).
   int64_t points_duplicate = 0;       // New point onto an existing vertex: not inserted.
   int64_t moves_duplicate = 0;        // Move onto an existing vertex: refused (moves_skipped).
+  int64_t moves_in_place = 0;         // kExact moves that kept the cells (the vertex stayed inside
+                                      // its star and no facet flipped): no re-insertion.
   int64_t points_reentered = 0;       // Points refused at insertion that entered at a later move.
   int64_t points_removed = 0;
   int64_t steiner_points = 0;

@@ -9,6 +9,9 @@
 #                                              tests/fuzz/corpus/NAME + tests/fuzz/regressions/NAME
 #                                              (exit 77, skipped, when BIN/SKIPPED)
 #   subbuild.sh sanitize-test SRC BIN TEST     run one of those tests (its ctest name) there
+#   subbuild.sh tsan-build    SRC BIN          a g++ ThreadSanitizer build (BIN/tsan) of the tests
+#                                              of the threaded code: the thread pool, the engine
+#   subbuild.sh tsan-test     SRC BIN REGEX    run the ctest tests matching REGEX there
 # The sub-build uses ccache (the top-level CMakeLists sets it as launcher) and -j2
 # (IMR_SUBBUILD_JOBS); it lives under the main build folder.
 set -euo pipefail
@@ -75,13 +78,27 @@ case $mode in
     # and add no code path the invariant tests miss; IMR_SANITIZE_FULL=1 runs them too.
     exclude=()
     if [ "$test" = engine/engine_property_test ] && [ -z "${IMR_SANITIZE_FULL:-}" ]; then
-      exclude=(-E 'GeometryTest\.(ClosedRoomSeenFromInside|EfficientPolicyComparableToBaseline|ExactModeOnBothScenes)')
+      # ThreadsTest (one-two-four-thread runs) too: the ThreadSanitizer run covers the threads.
+      exclude=(-E 'GeometryTest\.(ClosedRoomSeenFromInside|EfficientPolicyComparableToBaseline|ExactModeOnBothScenes)|ThreadsTest\.')
     fi
     ctest --test-dir "$bin" -R "^${test}\\." "${exclude[@]}" --output-on-failure --no-tests=error \
       -j "$jobs"
     ;;
+  tsan-build)
+    # g++'s ThreadSanitizer (libtsan, part of gcc): the engine casts rays on a thread pool.
+    mkdir -p "$bin/tsan"
+    time cmake -S "$src" -B "$bin/tsan" "${common[@]}" -DCMAKE_C_COMPILER=gcc \
+      -DCMAKE_CXX_COMPILER=g++ -DIMR_SANITIZE=thread >"$bin/tsan-configure.log" 2>&1 ||
+      { cat "$bin/tsan-configure.log"; exit 1; }
+    time cmake --build "$bin/tsan" --target util_thread_pool_test engine_engine_property_test -j "$jobs"
+    ;;
+  tsan-test)
+    regex=$4
+    export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
+    ctest --test-dir "$bin/tsan" -R "$regex" --output-on-failure --no-tests=error -j "$jobs"
+    ;;
   *)
-    echo "usage: $0 build|smoke|sanitize-test SRC BIN [NAME SECONDS | TEST]" >&2
+    echo "usage: $0 build|smoke|sanitize-test|tsan-build|tsan-test SRC BIN [NAME SECONDS | TEST | REGEX]" >&2
     exit 2
     ;;
 esac
