@@ -79,6 +79,9 @@ struct CellInfo {
   bool in_o = false;      // Member of O (outside, the manifold part of free space).
   bool fresh = false;     // kExact: made by the triangulation change being processed.
   uint32_t slot = 0;      // kExact: index of the cell among those being made (scratch).
+  uint32_t region = 0;    // Member of the region being peeled (Shrink's E, PeelAround's)
+                          // when equal to Impl::region_mark; apart from `stamp`, which the
+                          // manifold test uses while the region is peeled.
   std::vector<RayEntry> rays;  // kRays: at most K rays that raised this cell's weight; kExact:
                                // every ray that crosses it (and stale entries, see RayEntry).
 };
@@ -237,6 +240,7 @@ struct Engine::Impl {
   Vertex_handle last_vertex;  // Locate hint.
 
   uint64_t stamp = 0;
+  uint32_t region_mark = 0;
   // Cells whose state changed this keyframe (became free, created, shrunk): growing seeds.
   std::unordered_set<Cell_handle> dirty;
   int64_t cells_in_o = 0;
@@ -1071,30 +1075,48 @@ struct Engine::Impl {
     const auto t0 = Clock::now();
     // E: D, plus the cells around every vertex of D (all of them when the vertex lies within
     // shrink_radius of an affected point, else only the cells of D's facet neighbours).
-    std::unordered_set<Cell_handle> e;
+    // E as a list, its members marked with a stamp (no hash set: this runs at every move).
+    const uint32_t in_e = NewRegion();
+    std::vector<Cell_handle> e;
+    auto add = [&](Cell_handle c) {
+      if (c->info().region == in_e) return;
+      c->info().region = in_e;
+      e.push_back(c);
+    };
+    std::vector<Vertex_handle> verts;
     for (Cell_handle c : d) {
-      e.insert(c);
-      for (int i = 0; i < 4; ++i) e.insert(c->neighbor(i));
-    }
-    const double r2 = opt.shrink_radius * opt.shrink_radius;
-    std::unordered_set<Vertex_handle> vseen;
-    std::vector<Cell_handle> inc;
-    for (Cell_handle c : d)
+      add(c);
       for (int i = 0; i < 4; ++i) {
-        Vertex_handle v = c->vertex(i);
-        if (dt.is_infinite(v) || !vseen.insert(v).second) continue;
-        bool near = false;
-        for (const Point& p : centres) near = near || CGAL::squared_distance(v->point(), p) <= r2;
-        if (!near) continue;
-        inc.clear();
-        dt.incident_cells(v, std::back_inserter(inc));
-        e.insert(inc.begin(), inc.end());
+        add(c->neighbor(i));
+        if (!dt.is_infinite(c->vertex(i))) verts.push_back(c->vertex(i));
       }
+    }
+    std::sort(verts.begin(), verts.end());
+    verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+    const double r2 = opt.shrink_radius * opt.shrink_radius;
+    std::vector<Cell_handle> inc;
+    for (Vertex_handle v : verts) {
+      bool near = false;
+      for (const Point& p : centres) near = near || CGAL::squared_distance(v->point(), p) <= r2;
+      if (!near) continue;
+      inc.clear();
+      dt.incident_cells(v, std::back_inserter(inc));
+      for (Cell_handle c : inc) add(c);
+    }
     const bool ok = PeelFromO(
-        e, [&](Cell_handle n) { return e.count(n) > 0; }, [&] { return !meets_o(); }) ||
+        e, [&](Cell_handle n) { return n->info().region == in_e; }, [&] { return !meets_o(); }) ||
                     !meets_o();
     stats.time.shrink += Seconds(t0, Clock::now());
     return ok;
+  }
+
+  // A fresh region mark (all cells' marks reset when the counter wraps).
+  uint32_t NewRegion() {
+    if (++region_mark == 0) {
+      for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) c->info().region = 0;
+      region_mark = 1;
+    }
+    return region_mark;
   }
 
   // Peels the cells of `region` from O, lowest weight first (the inverse of grow), keeping dO
@@ -1738,8 +1760,7 @@ struct Engine::Impl {
   void PeelAround(const std::vector<Vertex_handle>& centres, double radius) {
     const auto t0 = Clock::now();
     const double r2 = radius * radius;
-    ++stamp;
-    const uint64_t seen = stamp;
+    const uint32_t seen = NewRegion();
     std::vector<Cell_handle> region, todo, inc;
     for (Vertex_handle v : centres) {
       const Point& p = v->point();
@@ -1749,19 +1770,19 @@ struct Engine::Impl {
       while (!todo.empty()) {
         const Cell_handle c = todo.back();
         todo.pop_back();
-        if (c->info().stamp == seen || dt.is_infinite(c)) continue;
+        if (c->info().region == seen || dt.is_infinite(c)) continue;
         bool near = false;
         for (int i = 0; i < 4 && !near; ++i)
           near = !dt.is_infinite(c->vertex(i)) &&
                  CGAL::squared_distance(c->vertex(i)->point(), p) <= r2;
         if (!near) continue;
-        c->info().stamp = seen;
+        c->info().region = seen;
         region.push_back(c);
         for (int i = 0; i < 4; ++i) todo.push_back(c->neighbor(i));
       }
     }
     PeelFromO(
-        region, [&](Cell_handle n) { return n->info().stamp == seen; }, [] { return false; });
+        region, [&](Cell_handle n) { return n->info().region == seen; }, [] { return false; });
     stats.time.shrink += Seconds(t0, Clock::now());
   }
 
