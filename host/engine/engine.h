@@ -110,7 +110,8 @@ struct EngineOptions {
                                       // is retried when a neighbour leaves O).
   double weight_unit = 1e-6;          // Weights are int64 multiples of this (exact backward cast).
   int max_cells_per_ray = 200000;     // Safety bound on one traversal (never an endless walk).
-  bool check_after_update = false;    // Run the full dO check after every update (slow; tests).
+  bool check_invariants = false;      // Run the full dO check after every update (slow; tests;
+                                      // the job key of the same name).
 
   // True when every field is usable; otherwise false and *error says which field and why.
   bool Check(std::string* error) const;

@@ -79,7 +79,7 @@ const json& EngineOptionsSchema() {
                           {"description", "enclosing set E: cells within this distance, metres"}};
     s["shrink_passes"] = {{"type", "integer"}, {"default", d.shrink_passes}, {"minimum", 1},
                           {"description", "passes of shrink over E"}};
-    s["check_invariants"] = {{"type", "boolean"}, {"default", d.check_after_update},
+    s["check_invariants"] = {{"type", "boolean"}, {"default", d.check_invariants},
                              {"description", "full manifold check after every keyframe (slow)"}};
     s["regrow_radius"] = {{"type", "number"}, {"default", d.regrow_radius}, {"minimum", 0.0},
                           {"description", "after each keyframe, O is labelled again in weight "
@@ -118,7 +118,7 @@ bool EngineOptionsFromJson(const json& j, engine::EngineOptions* o, std::vector<
   o->steiner_jitter = v["steiner_jitter"];
   o->shrink_radius = v["shrink_radius"];
   o->shrink_passes = v["shrink_passes"];
-  o->check_after_update = v["check_invariants"];
+  o->check_invariants = v["check_invariants"];
   o->regrow_radius = v["regrow_radius"];
   o->exact_min_rays = v["exact_min_rays"];
   std::string error;
@@ -152,7 +152,7 @@ json EngineOptionsToJson(const engine::EngineOptions& o) {
           {"shrink_passes", o.shrink_passes},
           {"regrow_radius", o.regrow_radius},
           {"exact_min_rays", o.exact_min_rays},
-          {"check_invariants", o.check_after_update}};
+          {"check_invariants", o.check_invariants}};
 }
 
 }  // namespace imr::io
