@@ -687,7 +687,7 @@ int CmdEvaluate(const std::vector<std::string>& args) {
   o.precision_samples = vm["precision-samples"].as<std::size_t>();
   o.seed = vm["seed"].as<uint64_t>();
   o.threads = vm["threads"].as<int>();
-  if (const std::string p = o.Problem(); !p.empty()) return usage(p);
+  if (const std::string p = o.Check(); !p.empty()) return usage(p);
 
   // Output folders first: a missing one should not cost a whole evaluation.
   const std::string out = vm.count("out") ? vm["out"].as<std::string>() : "";

@@ -113,8 +113,15 @@ struct EngineOptions {
   bool check_invariants = false;      // Run the full dO check after every update (slow; tests;
                                       // the job key of the same name).
 
-  // True when every field is usable; otherwise false and *error says which field and why.
-  bool Check(std::string* error) const;
+  // Empty when every field is usable; otherwise which field and why (the validator shape of
+  // every options struct of imr).
+  std::string Check() const;
+  // The former shape, kept only until engine.cc and engine_test.cc call Check() (issue 19).
+  bool Check(std::string* error) const {
+    std::string e = Check();
+    if (error) *error = e;
+    return e.empty();
+  }
 };
 
 struct Camera {
