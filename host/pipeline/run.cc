@@ -705,23 +705,6 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
 
 }  // namespace
 
-std::vector<std::string> RunOptionsToArgs(const RunOptions& o) {
-  std::vector<std::string> args;
-  const std::pair<const char*, const std::string*> paths[] = {
-      {"--export-stream", &o.export_stream}, {"--export-colmap", &o.export_colmap},
-      {"--trace", &o.trace}};
-  for (const auto& [flag, value] : paths)
-    if (!value->empty()) args.insert(args.end(), {flag, *value});
-  if (o.check_invariants_every > 0)
-    args.insert(args.end(), {"--check-invariants-every", std::to_string(o.check_invariants_every)});
-  if (o.stage_timeout > 0.0) {
-    char seconds[32];
-    std::snprintf(seconds, sizeof(seconds), "%.17g", o.stage_timeout);
-    args.insert(args.end(), {"--stage-timeout", seconds});
-  }
-  return args;
-}
-
 std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob& v) {
   std::vector<std::string> problems;
   if (const std::string e = CheckStageTimeout(o.stage_timeout); !e.empty())

@@ -71,10 +71,6 @@ struct RunOptions {
   std::function<void(const std::string&)> on_stage_timeout;
 };
 
-// The options above (all but the callbacks) as `imr run` flags, for child processes and Slurm
-// scripts.
-std::vector<std::string> RunOptionsToArgs(const RunOptions& options);
-
 // Problems with `options` for this job, e.g. a fixed export path for a job with several
 // sequences (they would overwrite each other). Empty when usable.
 std::vector<std::string> CheckRunOptions(const RunOptions& options, const ValidatedJob& job);
