@@ -6,6 +6,7 @@
 #include "host/batch/slurm.h"
 #include "host/batch/summary.h"
 #include "host/cli/command.h"
+#include "host/io/input_formats.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
 #include "host/util/exit_status.h"
@@ -17,6 +18,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 
 namespace imr::cli {
@@ -181,6 +183,123 @@ int CmdRun(const std::vector<std::string>& args) {
   else
     std::printf("\n");
   return imr::ExitStatusForFailures(failed);
+}
+
+const char* kMeshNotes =
+    "One mesh from one sequence, without writing a job: imr mesh builds the job (the input, the\n"
+    "image front end when the format has images, the engine with its defaults, the assimp\n"
+    "exporter), writes it to WORK/job.json and runs it as `imr run WORK/job.json` would (a child\n"
+    "process, resume, the report in WORK/mesh/report.json), then copies the mesh (and its\n"
+    "companion files: an OBJ's .mtl, a glTF's .bin) to --out. The format of the mesh comes from\n"
+    "--out's extension: .ply, .obj, .gltf or .glb. --set changes any value of the built job\n"
+    "(--set engine.steiner_spacing=0.1, --set input.options.views_per_keyframe=4); `imr options`\n"
+    "lists them. Any other option is handed to imr run (--force, --check-invariants, ...).\n"
+    "Example (COLMAP): imr mesh --input sparse/0 --format colmap --out mesh.ply\n"
+    "Exit status: 0 written; 1 the run failed (its report and log say why); 64 bad usage.\n";
+
+int CmdMesh(const std::vector<std::string>& args) {
+  po::options_description opts("imr mesh options");
+  opts.add_options()("input,i", po::value<std::string>()->value_name("PATH"),
+                     "the sequence: a folder or file (e.g. a COLMAP sparse/0), or a synthetic "
+                     "scene's name")(
+      "format,f", po::value<std::string>()->value_name("FORMAT"),
+      "its input format, as a job's input.format (`imr options --only input` lists them)")(
+      "out,o", po::value<std::string>()->value_name("FILE"), "the mesh: .ply, .obj, .gltf or .glb")(
+      "work", po::value<std::string>()->value_name("DIR"),
+      "where the job and its run go (default: beside --out, named after it, ending in .imr)");
+  AddJobOverrideFlag(opts);
+  opts.add_options()("help,h", "show this help")("quiet,q", "only errors")("verbose,v",
+                                                                           "debug output");
+  po::variables_map vm;
+  std::vector<std::string> forwarded;  // options of imr run
+  const std::string synopsis =
+      std::string("imr mesh --input PATH --format FORMAT --out MESH.ply [--set KEY=VALUE]...\n"
+                  "         [--work DIR] [imr run options]\n\n") +
+      kMeshNotes;
+  auto usage = [](const std::string& what) {
+    std::cerr << "imr mesh: " << what << " (imr mesh --help)\n";
+    return kExitUsage;
+  };
+  try {
+    const po::parsed_options parsed =
+        po::command_line_parser(args).options(opts).allow_unregistered().run();
+    po::store(parsed, vm);
+    forwarded = po::collect_unrecognized(parsed.options, po::include_positional);
+    if (vm.count("help")) {
+      std::cout << "Usage: " << synopsis << "\n" << opts << "\n";
+      return kExitOk;
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    return usage(e.what());
+  }
+  for (const char* required : {"input", "format", "out"})
+    if (!vm.count(required)) return usage(std::string("needs --") + required);
+  const std::string input = vm["input"].as<std::string>();
+  const std::string format = vm["format"].as<std::string>();
+  const io::InputFormat* f = io::FindInputFormat(format);
+  if (f == nullptr) {
+    std::vector<std::string> names;
+    for (const io::InputFormat& x : io::InputFormats()) names.push_back(x.name);
+    return usage("--format: expected " + io::JoinAlternatives(names) + ", got '" + format + "'");
+  }
+  const fs::path out = fs::absolute(vm["out"].as<std::string>()).lexically_normal();
+  std::string ext = out.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".ply" && ext != ".obj" && ext != ".gltf" && ext != ".glb")
+    return usage("--out: expected a file ending in .ply, .obj, .gltf or .glb, got '" +
+                 out.filename().string() + "'");
+  const fs::path work = vm.count("work") ? fs::absolute(vm["work"].as<std::string>())
+                                         : out.parent_path() / (out.stem().string() + ".imr");
+
+  // The job imr run would be given. Paths are absolute: the job file lives in WORK.
+  nlohmann::json job = {
+      {"description", "built by imr mesh: " + input + " (" + format + ") -> " + out.string()},
+      {"sequences", {f->sequences_are_paths ? fs::absolute(input).lexically_normal().string() : input}},
+      {"input", {{"format", format}}},
+      {"pipeline", nlohmann::json::array()},
+      {"output", {{"directory", "mesh"}, {"stem", out.stem().string()}, {"formats", {ext.substr(1)}}}}};
+  if (f->needs_front_end) {
+    job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
+    job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
+  }
+  job["pipeline"].push_back({{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}});
+  const fs::path job_file = work / "job.json";
+  try {
+    EnsureWritableDirectory(work);
+    WriteFileAtomically(job_file, job.dump(2) + "\n");
+  } catch (const std::exception& e) {
+    std::cerr << "imr mesh: " << work.string() << ": cannot write the job (" << e.what() << ")\n";
+    return kExitCantCreate;
+  }
+
+  std::vector<std::string> run_args = {job_file.string()};
+  for (const std::string& o : JobOverrides(vm)) run_args.insert(run_args.end(), {"--set", o});
+  if (vm.count("quiet")) run_args.push_back("-q");
+  if (vm.count("verbose")) run_args.push_back("-v");
+  run_args.insert(run_args.end(), forwarded.begin(), forwarded.end());
+  if (const int status = CmdRun(run_args); status != kExitOk) return status;
+
+  // The run's output folder holds the mesh and its companions; report.json lists them.
+  const fs::path folder = work / "mesh";
+  std::ifstream in(folder / "report.json", std::ios::binary);
+  const nlohmann::json report = nlohmann::json::parse(in);
+  std::vector<std::string> copied;
+  for (const auto& name : report["files"]) {
+    const std::string n = name.get<std::string>();
+    if (n == "report.json") continue;
+    const fs::path tmp = out.parent_path() / ("." + n + ".partial");
+    fs::copy_file(folder / n, tmp, fs::copy_options::overwrite_existing);
+    fs::rename(tmp, out.parent_path() / n);
+    copied.push_back(n);
+  }
+  std::string companions;
+  for (const std::string& n : copied)
+    if (n != out.filename().string()) companions += (companions.empty() ? " (with " : ", ") + n;
+  if (!companions.empty()) companions += ")";
+  std::printf("mesh: %s%s\nthe run (job.json, mesh/report.json): %s\n", out.string().c_str(),
+              companions.c_str(), work.string().c_str());
+  return kExitOk;
 }
 
 const char* kSubmitNotes =
@@ -407,6 +526,10 @@ std::vector<Command> BatchCommands() {
        "--max-rss SIZE, --export-stream FILE, --export-colmap DIR:\n"
        "see `imr run --help`)",
        &CmdRun},
+      {"mesh", "mesh --input PATH",
+       "one mesh from one sequence, no job file: --format F (a job's input\n"
+       "format) --out MESH.ply|.obj|.gltf|.glb; runs as imr run does",
+       &CmdMesh},
       {"submit", "submit JOB.json",
        "run a job on a Slurm cluster: an array of --tasks N tasks, then a job\n"
        "that writes the batch summary (see `imr submit --help`)",

@@ -632,6 +632,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   json report;
   report["imr_version"] = Version();
   report["job"] = fs::absolute(job.file).lexically_normal().string();
+  if (!job.overrides.empty()) report["overrides"] = job.overrides;  // imr run --set
   report["sequence"] = {{"name", seq.name}, {"source", seq.source}};
   report["input"] = {{"format", job.input.format}, {"options", v.input_options}};
   if (format->sequences_are_paths) report["input"]["checksums"] = InputChecksums(seq.source, front_end);
