@@ -64,6 +64,18 @@ bool ParseSize(const po::variables_map& vm, const char* cmd, uint64_t* bytes) {
   return true;
 }
 
+// Loads the job with its --set overrides and checks the run's and the batch's options against
+// it; prints every problem and returns false when it cannot run.
+bool LoadRunnableJob(const char* cmd, const fs::path& job, const po::variables_map& vm,
+                     const pipeline::RunOptions& run_options, const batch::BatchOptions& batch,
+                     plugin::PluginRegistry* registry, pipeline::ValidatedJob* v) {
+  if (!LoadJob(job, JobOverrides(vm), registry, v)) return false;
+  auto problems = pipeline::CheckRunOptions(run_options, *v);
+  for (auto& p : batch::CheckBatch(*v, batch)) problems.push_back(p);
+  for (const auto& p : problems) std::cerr << "imr " << cmd << ": " << p << "\n";
+  return problems.empty();
+}
+
 int CmdRun(const std::vector<std::string>& args) {
   po::options_description opts("imr run options");
   opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)");
@@ -123,13 +135,7 @@ int CmdRun(const std::vector<std::string>& args) {
 
   imr::plugin::PluginRegistry registry;
   imr::pipeline::ValidatedJob v;
-  if (!LoadJob(job, JobOverrides(vm), &registry, &v)) return kExitUsage;
-  auto problems = imr::pipeline::CheckRunOptions(run_options, v);
-  for (auto& p : imr::batch::CheckBatch(v, batch)) problems.push_back(p);
-  if (!problems.empty()) {
-    for (const auto& p : problems) std::cerr << "imr run: " << p << "\n";
-    return kExitUsage;
-  }
+  if (!LoadRunnableJob("run", job, vm, run_options, batch, &registry, &v)) return kExitUsage;
   // The batch folder, and this run's hold on it: an environment problem, not a failure.
   const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
   std::shared_ptr<imr::batch::BatchLock> lock;
@@ -369,15 +375,10 @@ int CmdSubmit(const std::vector<std::string>& args) {
   const fs::path job = vm["job"].as<std::string>();
   imr::plugin::PluginRegistry registry;
   imr::pipeline::ValidatedJob v;
-  if (!LoadJob(job, JobOverrides(vm), &registry, &v)) return kExitUsage;
   imr::batch::BatchOptions batch_check;
   batch_check.executable = o.executable;
-  auto problems = imr::pipeline::CheckRunOptions(run_options, v);
-  for (auto& p : imr::batch::CheckBatch(v, batch_check)) problems.push_back(p);
-  if (!problems.empty()) {
-    for (const auto& p : problems) std::cerr << "imr submit: " << p << "\n";
+  if (!LoadRunnableJob("submit", job, vm, run_options, batch_check, &registry, &v))
     return kExitUsage;
-  }
   const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
   try {
     imr::EnsureWritableDirectory(batch_dir / imr::batch::kBatchSubdir);
