@@ -53,7 +53,8 @@ TEST_F(Cli, VersionAndHelp) {
   EXPECT_NE(r.out.find("imr "), std::string::npos);
   EXPECT_NE(r.out.find("plugin ABI 1."), std::string::npos) << r.out;
   for (const char* cmd : {"run --help", "validate --help", "plugins --help", "report --help",
-                          "evaluate --help", "render --help", "submit --help", "--help"}) {
+                          "evaluate --help", "render --help", "submit --help", "mesh --help",
+                          "options --help", "--help"}) {
     auto h = Imr(cmd);
     EXPECT_EQ(h.status, 0) << cmd;
     EXPECT_NE(h.out.find("Usage"), std::string::npos) << cmd << ": " << h.out;
@@ -63,7 +64,46 @@ TEST_F(Cli, VersionAndHelp) {
   EXPECT_NE(bad.err.find("unknown command 'frobnicate'"), std::string::npos);
   auto noarg = Imr("run");
   EXPECT_EQ(noarg.status, 64);
-  EXPECT_NE(noarg.err.find("job"), std::string::npos) << noarg.err;
+  EXPECT_NE(noarg.err.find("imr run: needs a job file: imr run JOB.json"), std::string::npos)
+      << noarg.err;
+  EXPECT_EQ(noarg.err.find("the option '--job' is required"), std::string::npos) << noarg.err;
+}
+
+// The children's flags are read strictly: a garbled value names its flag, nothing becomes 0.
+TEST_F(Cli, TheChildCommandRefusesGarbledValues) {
+  for (const auto& [flag, value] : {std::pair{"--stage-timeout", "abc"},
+                                    {"--check-invariants-every", "2x"},
+                                    {"--check-invariants-every", "0"},
+                                    {"--parent-pid", "12a"}}) {
+    auto r = Imr(std::string("__run-sequence --job j.json --sequence s ") + flag + " " + value);
+    EXPECT_EQ(r.status, 64) << flag << " " << value;
+    EXPECT_NE(r.err.find(std::string(flag) + ": expected"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(std::string("'") + value + "'"), std::string::npos) << r.err;
+  }
+}
+
+TEST_F(Cli, OptionsListsEngineInputEvaluationAndPluginOptions) {
+  auto r = Imr("options");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* text :
+       {"steiner_spacing  number >= 1e-09, default 5.0, unit: m", "check_invariants  boolean",
+        "input format colmap", "views_per_keyframe", "input format kitti_odometry", "evaluation",
+        "plugin org.imr.policy.nearest (weight_policy)", "plugin org.imr.exporter.assimp"})
+    EXPECT_NE(r.out.find(text), std::string::npos) << text << " missing from\n" << r.out;
+  auto engine = Imr("options --only engine");
+  ASSERT_EQ(engine.status, 0);
+  EXPECT_EQ(engine.out.find("input format"), std::string::npos);
+  EXPECT_NE(engine.out.find("window  integer >= 1, default 15, unit: cameras"), std::string::npos);
+  EXPECT_EQ(Imr("options --only nothing").status, 64);
+}
+
+TEST_F(Cli, PluginsVerboseListsEachPluginsParams) {
+  auto r = Imr("plugins -v -p " + Quote(IMR_EXAMPLE_PLUGIN_DIR));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto at = r.out.find("org.imr.example.policy.max");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("radius  number >= 0.0, default 1.0", at), std::string::npos) << r.out;
+  EXPECT_EQ(Imr("plugins").out.find("radius  number"), std::string::npos);
 }
 
 TEST_F(Cli, PluginsListsTheBuiltInPlugins) {
@@ -115,6 +155,78 @@ TEST_F(Cli, ImrPluginPathIsSearched) {
   auto r = RunShell("IMR_PLUGIN_PATH=" + Quote(IMR_EXAMPLE_PLUGIN_DIR) + " " + kImr + " plugins");
   ASSERT_EQ(r.status, 0);
   EXPECT_NE(r.out.find("org.imr.example.policy.max"), std::string::npos) << r.out;
+}
+
+// --set: any job key, the value as JSON else a string; in report.json and in the resume hash.
+TEST_F(Cli, SetOverridesTheJobAndAChangedSetRedoesTheSequence) {
+  const std::string job = Quote(WriteJob(SmallJob()).string());
+  auto r = Imr("run -q " + job + " --set engine.steiner_spacing=2 --set output.stem=m");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const fs::path report = dir_ / "runs/street/report.json";
+  json rep = json::parse(ReadText(report));
+  EXPECT_EQ(rep["engine_options"]["steiner_spacing"], 2.0);
+  EXPECT_EQ(rep["overrides"], json({"engine.steiner_spacing=2", "output.stem=m"}));
+  EXPECT_TRUE(fs::exists(dir_ / "runs/street/m.ply"));
+  // The same overrides: up to date. Another value: run again, and recorded.
+  r = Imr("run " + job + " --set engine.steiner_spacing=2 --set output.stem=m");
+  EXPECT_NE(r.out.find("skipped street"), std::string::npos) << r.out;
+  r = Imr("run " + job + " --set engine.steiner_spacing=3 --set output.stem=m");
+  EXPECT_NE(r.out.find("ok      street"), std::string::npos) << r.out;
+  EXPECT_EQ(json::parse(ReadText(report))["engine_options"]["steiner_spacing"], 3.0);
+  // Without --set the job's own values again, and no overrides in the report.
+  r = Imr("run -q " + job);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_FALSE(json::parse(ReadText(report)).contains("overrides"));
+  // Into arrays, and a string where the value is not JSON.
+  r = Imr("validate " + job + " --set pipeline[0].plugin=org.imr.policy.mean --set "
+          "'output.formats=[\"ply\"]'");
+  EXPECT_EQ(r.status, 0) << r.err;
+  // Mistakes are named like the job's own.
+  r = Imr("validate " + job + " --set engine.stiener_spacing=2 --set pipeline[7].params.x=1 "
+          "--set novalue --set engine.window=zero");
+  EXPECT_EQ(r.status, 64);
+  for (const char* text : {"engine.stiener_spacing: unknown key",
+                           "--set pipeline[7].params.x=1: pipeline has 2 entries, no [7]",
+                           "--set novalue: expected KEY=VALUE",
+                           "engine.window: expected integer >= 1, got \"zero\""})
+    EXPECT_NE(r.err.find(text), std::string::npos) << text << " missing from\n" << r.err;
+}
+
+// imr mesh: the job built from the command line, run as imr run runs it.
+TEST_F(Cli, MeshBuildsTheJobAndWritesTheMeshWhereAsked) {
+  const fs::path out = dir_ / "out/street.ply";
+  fs::create_directories(out.parent_path());
+  auto r = Imr("mesh -q --input street --format synthetic --out " + Quote(out.string()) +
+               " --set input.options.frames=40 --set input.options.seed=3");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  ASSERT_TRUE(fs::exists(out));
+  EXPECT_EQ(ReadText(out).rfind("ply\n", 0), 0u);
+  const fs::path work = dir_ / "out/street.imr";
+  const json job = json::parse(ReadText(work / "job.json"));
+  EXPECT_EQ(job["input"]["format"], "synthetic");
+  EXPECT_EQ(job["output"]["formats"], json({"ply"}));
+  const json report = json::parse(ReadText(work / "mesh/report.json"));
+  EXPECT_EQ(report["input"]["options"]["frames"], 40);
+  EXPECT_GT(report["mesh"]["faces"].get<int>(), 0);
+  // The mesh is the run's, byte for byte.
+  EXPECT_EQ(ReadText(out), ReadText(work / "mesh/street.ply"));
+  // A finished run is not redone; options of imr run pass through (--force redoes it).
+  const std::string again = "mesh --input street --format synthetic --out " + Quote(out.string()) +
+                            " --set input.options.frames=40 --set input.options.seed=3";
+  r = Imr(again);
+  EXPECT_NE(r.out.find("skipped street"), std::string::npos) << r.out;
+  r = Imr(again + " --force --check-invariants");
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("ok      street"), std::string::npos) << r.out;
+  // Bad usage: what was expected.
+  auto bad = Imr("mesh --input street --format synthetic --out m.stl");
+  EXPECT_EQ(bad.status, 64);
+  EXPECT_NE(bad.err.find("--out: expected a file ending in .ply, .obj, .gltf or .glb"), std::string::npos);
+  bad = Imr("mesh --input sparse/0 --format colmop --out m.ply");
+  EXPECT_EQ(bad.status, 64);
+  EXPECT_NE(bad.err.find("--format: expected synthetic, openmvg, colmap"), std::string::npos) << bad.err;
+  bad = Imr("mesh --format colmap --out m.ply");
+  EXPECT_NE(bad.err.find("needs --input"), std::string::npos) << bad.err;
 }
 
 TEST_F(Cli, ValidateAcceptsAGoodJob) {

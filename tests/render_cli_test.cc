@@ -1,4 +1,4 @@
-// `imr render` end to end (RenderMain, what main.cc hooks as `imr render`): a hand-made
+// `imr render` end to end (the imr executable): a hand-made
 // Middlebury sequence and mesh (a vertex lands on its hand-projected pixel in the written PNG,
 // over the frame's image; wireframe; the top-down view with the path), usage errors, and the
 // whole camera convention on imr-synth's street: its ground-truth mesh drawn into a frame's
@@ -7,7 +7,6 @@
 #include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
 #include "host/render/rasterizer.h"
-#include "host/render/render_cli.h"
 #include "test_util.h"
 
 #include <gtest/gtest.h>
@@ -31,19 +30,12 @@ struct Result {
   std::string out, err;
 };
 
-// RenderMain on these arguments, with its output captured.
+// `imr render` on these arguments, with its output captured.
 Result Render(const std::vector<std::string>& args) {
-  std::vector<std::string> all = {"render"};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& a : all) argv.push_back(a.data());
-  ::testing::internal::CaptureStdout();
-  ::testing::internal::CaptureStderr();
-  Result r;
-  r.status = RenderMain(static_cast<int>(argv.size()), argv.data());
-  r.out = ::testing::internal::GetCapturedStdout();
-  r.err = ::testing::internal::GetCapturedStderr();
-  return r;
+  std::string command = std::string(IMR_EXE) + " render";
+  for (const std::string& a : args) command += " " + imr::testing::Quote(a);
+  const imr::testing::CommandResult c = RunShell(command);
+  return {c.status, c.out, c.err};
 }
 
 std::array<uint8_t, 3> Bgr(const io::Image& im, int x, int y) {

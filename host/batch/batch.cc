@@ -2,6 +2,7 @@
 
 #include "host/batch/child.h"
 #include "host/batch/manifest.h"
+#include "host/batch/run_flags.h"
 #include "host/batch/summary.h"
 #include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
@@ -9,6 +10,7 @@
 #include "host/util/file_lock.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
+#include "host/util/thread_pool.h"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -381,7 +383,12 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
                                      "--job", fs::absolute(v.job.file).string(),
                                      "--sequence", seq.name,
                                      "--parent-pid", std::to_string(::getpid())};
-    for (std::string& a : pipeline::RunOptionsToArgs(run_options)) argv.push_back(std::move(a));
+    for (std::string& a : JobOverrideArgs(v.job.overrides)) argv.push_back(std::move(a));
+    // J sequences at once share the cores: each engine gets cores / J threads (not J x cores).
+    pipeline::RunOptions child_options = run_options;
+    if (child_options.threads <= 0 && options.jobs > 1)
+      child_options.threads = std::max(1, util::AvailableCores() / options.jobs);
+    for (std::string& a : RunOptionsToArgs(child_options)) argv.push_back(std::move(a));
     if (options.verbose) argv.push_back("-v");
     auto r = std::make_unique<Running>();
     r->index = index;
@@ -596,7 +603,7 @@ int RunOneChild(const ChildArguments& args, MessageChannel& channel,
   // The batch already logged the plugin scan's warnings; once is enough.
   SetLogLevel(LogLevel::kError);
   plugin::PluginRegistry registry;
-  const pipeline::ValidatedJob v = pipeline::LoadAndValidateJob(args.job, &registry);
+  const pipeline::ValidatedJob v = pipeline::LoadAndValidateJob(args.job, &registry, args.overrides);
   SetLogLevel(args.verbose ? LogLevel::kDebug : LogLevel::kInfo);
   if (!v.ok()) return fail(args.job.string() + " is no longer valid: " + v.problems[0].ToString());
   const auto seq = std::find_if(v.sequences.begin(), v.sequences.end(),

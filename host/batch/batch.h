@@ -106,6 +106,7 @@ struct ChildArguments {
   std::filesystem::path job;
   std::string sequence;
   pipeline::RunOptions run_options;  // exports
+  std::vector<std::string> overrides;  // the job's --set KEY=VALUE, applied when loading it
   bool verbose = false;
   // The batch process: the child dies with it (PR_SET_PDEATHSIG), so killing a batch kills
   // its sequences too. 0: not checked.

@@ -33,7 +33,7 @@ json JobIdentity(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& 
   if (!options.trace.empty())
     exports["trace"] = fs::absolute(pipeline::ExpandExportPath(options.trace, v, seq.name)).string();
   // nlohmann's objects keep keys sorted, so dump() is canonical.
-  return {{"imr", pipeline::Version()},
+  json identity = {{"imr", pipeline::Version()},
           {"sequence", {{"name", seq.name}, {"source", seq.source}}},
           {"input", {{"format", job.input.format}, {"options", v.input_options}}},
           {"engine", io::EngineOptionsToJson(v.engine_options)},
@@ -43,6 +43,11 @@ json JobIdentity(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& 
                       {"snapshot_every", job.output.snapshot_every}}},
           {"evaluation", v.evaluation},
           {"exports", exports}};
+  // --set overrides change the fields above already; naming them also makes a changed --set
+  // (even one that restates the job's value) redo the sequence. Absent without overrides, so
+  // runs without --set keep their hashes.
+  if (!job.overrides.empty()) identity["overrides"] = job.overrides;
+  return identity;
 }
 
 std::string HashIdentity(const json& identity) { return Sha256Hex(DumpJson(identity)); }

@@ -2,6 +2,7 @@
 
 #include "host/batch/batch.h"
 #include "host/batch/child.h"
+#include "host/batch/run_flags.h"
 #include "host/batch/summary.h"
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
@@ -93,7 +94,8 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
     run.push_back(std::to_string(o.max_rss));
   }
   if (o.force) run.push_back("--force");
-  for (std::string& a : pipeline::RunOptionsToArgs(run_options)) run.push_back(std::move(a));
+  for (std::string& a : JobOverrideArgs(v.job.overrides)) run.push_back(std::move(a));
+  for (std::string& a : RunOptionsToArgs(run_options)) run.push_back(std::move(a));
 
   auto common = [&](std::ostringstream& s) {
     if (!o.partition.empty()) s << "#SBATCH --partition=" << SbatchValue(o.partition) << "\n";

@@ -1947,7 +1947,7 @@ struct Engine::Impl {
     stats.vertices = static_cast<int64_t>(dt.number_of_vertices());
     stats.cells = static_cast<int64_t>(dt.tds().number_of_cells());
     stats.cells_in_o = cells_in_o;
-    if (opt.check_after_update) {
+    if (opt.check_invariants) {
       ManifoldCheckResult r = CheckInvariants();
       if (!r.ok) return Status::Error("invariant broken after update: " + r.message);
     }

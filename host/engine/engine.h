@@ -110,13 +110,21 @@ struct EngineOptions {
                                       // is retried when a neighbour leaves O).
   double weight_unit = 1e-6;          // Weights are int64 multiples of this (exact backward cast).
   int max_cells_per_ray = 200000;     // Safety bound on one traversal (never an endless walk).
-  bool check_after_update = false;    // Run the full dO check after every update (slow; tests).
+  bool check_invariants = false;      // Run the full dO check after every update (slow; tests;
+                                      // the job key of the same name).
   int num_threads = 0;                // Threads casting rays (kExact): 0 = every core of the
                                       // process's affinity mask. The mesh is the same for any
                                       // number (results are applied in one fixed order).
 
-  // True when every field is usable; otherwise false and *error says which field and why.
-  bool Check(std::string* error) const;
+  // Empty when every field is usable; otherwise which field and why (the validator shape of
+  // every options struct of imr).
+  std::string Check() const;
+  // The former shape, kept only until engine.cc and engine_test.cc call Check() (issue 19).
+  bool Check(std::string* error) const {
+    std::string e = Check();
+    if (error) *error = e;
+    return e.empty();
+  }
 };
 
 struct Camera {

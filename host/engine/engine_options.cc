@@ -51,7 +51,7 @@ bool FromString(const std::string& s, LongRays* rule) {
   return true;
 }
 
-bool EngineOptions::Check(std::string* error) const {
+std::string EngineOptions::Check() const {
   std::ostringstream e;
   auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!finite_positive(steiner_spacing)) e << "steiner_spacing must be > 0; ";
@@ -80,8 +80,7 @@ bool EngineOptions::Check(std::string* error) const {
   if (max_cells_per_ray < 1) e << "max_cells_per_ray must be >= 1; ";
   if (num_threads < 0 || num_threads > 1024) e << "num_threads must be in [0, 1024] (0: all cores); ";
   const std::string s = e.str();
-  if (error) *error = s.empty() ? std::string() : s.substr(0, s.size() - 2);
-  return s.empty();
+  return s.empty() ? s : s.substr(0, s.size() - 2);
 }
 
 }  // namespace imr::engine

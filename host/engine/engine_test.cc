@@ -413,7 +413,7 @@ TEST(EngineTest, PlaneSceneStream) {
   synthetic::SyntheticStream stream(so);
   testing::ArrayPolicy nearest(testing::PolicyKind::kNearest);
   EngineOptions eo;
-  eo.check_after_update = true;  // ApplyUpdate fails if dO breaks.
+  eo.check_invariants = true;   // ApplyUpdate fails if dO breaks.
   Engine engine(eo, &nearest);
   const Status s = testing::RunStream(&stream, &engine);
   ASSERT_TRUE(s.ok()) << s.message();

@@ -73,7 +73,7 @@ std::vector<double> SharesWithin(const std::vector<double>& d, const std::vector
   return out;
 }
 
-std::string EvaluationOptions::Problem() const {
+std::string EvaluationOptions::Check() const {
   if (taus.empty()) return "no tau given";
   for (double t : taus)
     if (!(t > 0.0) || !std::isfinite(t)) return "tau " + std::to_string(t) + " is not a positive number";
@@ -113,7 +113,7 @@ DistanceStats Summarize(std::vector<double> v) {
 Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
                     const std::vector<io::CameraGeometry>& cameras,
                     const EvaluationOptions& options, bool per_point) {
-  const std::string problem = options.Problem();
+  const std::string problem = options.Check();
   if (!problem.empty()) throw std::invalid_argument(problem);
   Evaluation e;
   e.threads = ResolveThreads(options.threads);
@@ -193,7 +193,7 @@ Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
 
 json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
                    SequenceReader read_sequence) {
-  const std::string problem = options.Problem();
+  const std::string problem = options.Check();
   if (!problem.empty()) throw std::invalid_argument(problem);
   if (in.truth.empty() && in.sequence.empty())
     throw std::invalid_argument("no ground truth: give a truth file or a sequence with Velodyne scans");

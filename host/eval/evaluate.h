@@ -38,7 +38,7 @@ struct EvaluationOptions {
   int threads = 0;
 
   // Empty when valid; otherwise what is wrong, e.g. "tau 0 is not positive".
-  std::string Problem() const;
+  std::string Check() const;
 };
 
 struct DistanceStats {

@@ -332,14 +332,14 @@ TEST_F(EvaluateFilesTest, VelodyneTruthCroppedReportAndPerPoint) {
 
 TEST(OptionsTest, Problems) {
   EvaluationOptions o;
-  EXPECT_EQ(o.Problem(), "");
+  EXPECT_EQ(o.Check(), "");
   o.taus = {0.1, -1};
-  EXPECT_NE(o.Problem().find("tau"), std::string::npos);
+  EXPECT_NE(o.Check().find("tau"), std::string::npos);
   o.taus = {};
-  EXPECT_NE(o.Problem(), "");
+  EXPECT_NE(o.Check(), "");
   o = {};
   o.precision_samples = 0;
-  EXPECT_NE(o.Problem(), "");
+  EXPECT_NE(o.Check(), "");
 }
 
 }  // namespace

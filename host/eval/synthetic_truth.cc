@@ -72,7 +72,7 @@ SyntheticTruth ReadSyntheticTruth(const std::string& path) {
 RoadSurfaceEvaluation EvaluateRoadSurface(const TriangleMesh& mesh, const SyntheticTruth& truth,
                                           const std::vector<io::CameraGeometry>& cameras,
                                           const EvaluationOptions& options) {
-  if (const std::string problem = options.Problem(); !problem.empty())
+  if (const std::string problem = options.Check(); !problem.empty())
     throw std::invalid_argument(problem);
   RoadSurfaceEvaluation e;
   e.taus = options.taus;

@@ -325,7 +325,71 @@ std::vector<Problem> CheckOutputTemplate(const std::string& tmpl, const std::str
   return problems;
 }
 
-JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
+void ApplyJobOverrides(const std::vector<std::string>& overrides, json* job,
+                       std::vector<Problem>* problems) {
+  for (const std::string& o : overrides) {
+    const std::string where = "--set " + o;
+    const auto eq = o.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      problems->push_back({where, "expected KEY=VALUE, e.g. engine.steiner_spacing=2"});
+      continue;
+    }
+    // "a.b[2].c" -> a, b, 2, c; an empty key ("a..b", ".a", "a[]") is an error.
+    std::vector<std::string> keys;
+    std::string key;
+    bool ok = true;
+    char previous = '.';
+    for (char c : o.substr(0, eq)) {
+      if (c == '.' || c == '[' || c == ']') {
+        if (key.empty() && !(previous == ']' && c != ']')) ok = false;
+        if (!key.empty()) keys.push_back(key);
+        key.clear();
+      } else {
+        key += c;
+      }
+      previous = c;
+    }
+    if (!key.empty()) keys.push_back(key);
+    else if (previous != ']') ok = false;
+    if (!ok || keys.empty()) {
+      problems->push_back({where, "expected a key path like engine.steiner_spacing or "
+                                  "pipeline[1].params.max_distance"});
+      continue;
+    }
+    const std::string text = o.substr(eq + 1);
+    json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (value.is_discarded()) value = text;
+    json* at = job;
+    std::string path;
+    for (std::size_t i = 0; i < keys.size() && at != nullptr; ++i) {
+      const std::string& k = keys[i];
+      const bool last = i + 1 == keys.size();
+      if (at->is_array()) {
+        std::size_t index = 0;
+        if (k.find_first_not_of("0123456789") != std::string::npos || k.size() > 9 ||
+            (index = std::stoul(k)) >= at->size()) {
+          problems->push_back({where, (path.empty() ? "the job" : path) + " has " +
+                                          std::to_string(at->size()) + " entries, no [" + k + "]"});
+          at = nullptr;
+          break;
+        }
+        path += "[" + k + "]";
+        at = &(*at)[index];
+      } else if (at->is_object() || at->is_null()) {
+        path += (path.empty() ? "" : ".") + k;
+        at = &(*at)[k];
+      } else {
+        problems->push_back({where, path + " is " + Describe(*at) + ", not an object or array"});
+        at = nullptr;
+        break;
+      }
+      if (last) *at = value;
+    }
+  }
+}
+
+JobParseResult ParseJobText(const std::string& text, const fs::path& file,
+                            const std::vector<std::string>& overrides) {
   JobParseResult result;
   JobSpec& job = result.job;
   job.file = file;
@@ -374,6 +438,8 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
     return result;
   }
   for (Problem& p : DuplicateKeys(text)) problems.push_back(std::move(p));
+  ApplyJobOverrides(overrides, &root, &problems);
+  job.overrides = overrides;
 
   ObjectReader r(root, "", &problems);
   if (auto d = r.String("description", false)) job.description = *d;
@@ -433,7 +499,7 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file) {
   return result;
 }
 
-JobParseResult ParseJobFile(const fs::path& file) {
+JobParseResult ParseJobFile(const fs::path& file, const std::vector<std::string>& overrides) {
   std::error_code ec;
   if (!fs::exists(file, ec)) {
     JobParseResult r;
@@ -469,7 +535,7 @@ JobParseResult ParseJobFile(const fs::path& file) {
                                   " MiB: not a job file (a job file is a few kB of JSON)"});
     return r;
   }
-  return ParseJobText(text, file);
+  return ParseJobText(text, file, overrides);
 }
 
 }  // namespace imr::io

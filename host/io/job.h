@@ -63,6 +63,9 @@ struct JobSpec {
   // a point cloud / reference mesh file, "tau", "max_ray_length", "scan_step", "crop"}; null when
   // the job has none. Checked against pipeline::EvaluationSchema() by validation.
   nlohmann::json evaluation;
+  // The job's values overridden on the command line (imr run --set KEY=VALUE), as given and in
+  // order; already applied to the fields above. Recorded in each report and in the resume hash.
+  std::vector<std::string> overrides;
 
   std::string Name() const { return file.stem().string(); }
   std::filesystem::path Resolve(const std::string& p) const;
@@ -85,11 +88,21 @@ struct JobParseResult {
   bool ok() const { return problems.empty(); }
 };
 
-// Reads and structurally checks a job file. Never throws for bad input: an unreadable file or
-// malformed JSON (with line and column) is reported as a problem.
-JobParseResult ParseJobFile(const std::filesystem::path& file);
+// Reads and structurally checks a job file, with `overrides` applied to its JSON first. Never
+// throws for bad input: an unreadable file, malformed JSON (with line and column) or an override
+// that does not apply is reported as a problem.
+JobParseResult ParseJobFile(const std::filesystem::path& file,
+                            const std::vector<std::string>& overrides = {});
 // The same from text (for tests); `file` names the source in messages and anchors relative paths.
-JobParseResult ParseJobText(const std::string& text, const std::filesystem::path& file);
+JobParseResult ParseJobText(const std::string& text, const std::filesystem::path& file,
+                            const std::vector<std::string>& overrides = {});
+
+// Applies overrides "KEY=VALUE" to a job's JSON: KEY is a path of object keys and array indices
+// ("engine.steiner_spacing", "pipeline[1].params.max_distance", "pipeline.1.params"); missing
+// objects on the way are created; VALUE is read as JSON, else taken as a string ("2" is a
+// number, "[\"ply\"]" an array, "street" a string). Problems name the override ("--set ...").
+void ApplyJobOverrides(const std::vector<std::string>& overrides, nlohmann::json* job,
+                       std::vector<Problem>* problems);
 
 // Known stage kinds, in pipeline order.
 const std::vector<std::string>& StageKinds();

@@ -2,6 +2,8 @@
 
 #include "host/io/engine_options.h"
 
+#include <imr/sdk/plugin.hpp>
+
 #include <gtest/gtest.h>
 
 namespace imr::io {
@@ -177,6 +179,26 @@ TEST(Schema, RejectsMalformedSchemas) {
   EXPECT_FALSE(CheckSchema(nlohmann::json::parse(R"({"a": {"type": "integer", "default": "1"}})"), "s").empty());
   EXPECT_FALSE(CheckSchema(nlohmann::json::parse(R"({"a": {"type": "integer", "dflt": 1}})"), "s").empty());
   EXPECT_FALSE(CheckSchema(nlohmann::json::array(), "s").empty());
+}
+
+// The host and the SDK's plugin wrapper share one validator: the same values pass and fail.
+TEST(Schema, TheHostAndThePluginWrapperAgree) {
+  const auto schema = nlohmann::json::parse(
+      R"({"n": {"type": "integer", "minimum": 1, "default": 3}, "x": {"type": "number"}})");
+  for (const char* params : {R"({"n": 5000000000})", R"({"n": -5000000000})", R"({"n": 0})",
+                             R"({"n": 2.5})", R"({"m": 1})", R"({"x": "a"})", R"({"n": 7})"}) {
+    SCOPED_TRACE(params);
+    std::vector<Problem> host;
+    ValidateAgainstSchema(schema, nlohmann::json::parse(params), "params", &host);
+    std::string wrapper;
+    try {
+      sdk::detail::CheckedAgainstSchema(schema.dump().c_str(), sdk::Params(nlohmann::json::parse(params)));
+    } catch (const sdk::InvalidArgument& e) {
+      wrapper = e.what();
+    }
+    EXPECT_EQ(wrapper, host.empty() ? "" : host[0].ToString());
+  }
+  EXPECT_EQ(sdk::detail::CheckedAgainstSchema(schema.dump().c_str(), sdk::Params()).Get<int>("n"), 3);
 }
 
 TEST(EngineOptionsJson, DefaultsRoundTripAndErrorsNameTheField) {

@@ -1,8 +1,11 @@
 // A small schema language for flat option objects: plugin params (the descriptor's
 // params_schema), input-format options and engine options all use it, so `imr validate` reports
-// every problem the same way: "<json path>: expected <what>, got <value>".
+// every problem the same way: "<json path>: expected <what>, got <value>". The language and its
+// validator are the SDK's (imr/sdk/params_schema.hpp), so the host and the plugin wrapper accept
+// the same values; this file adds JSON paths.
 //
-//   {"window": {"type": "integer", "default": 15, "minimum": 1, "description": "..."},
+//   {"window": {"type": "integer", "default": 15, "minimum": 1, "unit": "cameras",
+//               "description": "..."},
 //    "mode":   {"type": "string", "enum": ["weights", "rays"], "default": "weights"},
 //    "names":  {"type": "string_array", "default": []}}
 //
@@ -36,6 +39,12 @@ nlohmann::json WithDefaults(const nlohmann::json& schema, const nlohmann::json& 
 
 // Short human form of a JSON value for messages: strings quoted, long values cut.
 std::string Describe(const nlohmann::json& value);
+
+// A listing of every key of `schema`: what it accepts (type, bounds, enum), its default, unit and
+// description. Markdown: one table row per key (the README's tables are this output); text: a
+// block per key for a terminal, each line after the first indented by `indent`.
+std::string SchemaMarkdown(const nlohmann::json& schema);
+std::string SchemaText(const nlohmann::json& schema, const std::string& indent = "  ");
 
 // "a, b or c" for listing alternatives in messages.
 std::string JoinAlternatives(const std::vector<std::string>& items);

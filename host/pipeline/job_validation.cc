@@ -218,9 +218,10 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
 
 }  // namespace
 
-ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry* registry) {
+ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry* registry,
+                                const std::vector<std::string>& overrides) {
   ValidatedJob v;
-  io::JobParseResult parsed = io::ParseJobFile(job_file);
+  io::JobParseResult parsed = io::ParseJobFile(job_file, overrides);
   v.job = std::move(parsed.job);
   v.problems = std::move(parsed.problems);
   if (v.job.input.format.empty() && v.job.sequences.empty() && !v.problems.empty() &&

@@ -34,8 +34,10 @@ struct ValidatedJob {
 nlohmann::json EvaluationSchema();
 
 // Loads the plugins the job can see (its plugin_paths, then the default search path) into
-// `registry` and validates the job against them.
+// `registry` and validates the job, with `overrides` applied (io::ApplyJobOverrides), against
+// them.
 ValidatedJob LoadAndValidateJob(const std::filesystem::path& job_file,
-                                plugin::PluginRegistry* registry);
+                                plugin::PluginRegistry* registry,
+                                const std::vector<std::string>& overrides = {});
 
 }  // namespace imr::pipeline

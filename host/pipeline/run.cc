@@ -455,6 +455,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
       LogInfo("[" + JsonText(seq.name) + "] " + ScaleLogLine(scale, engine_options, explicit_keys));
     }
   }
+  if (options.threads > 0) engine_options.num_threads = options.threads;
   engine::Engine engine(engine_options, watched_policy ? &*watched_policy : nullptr);
   if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
   engine::KeyframeUpdate update;
@@ -633,6 +634,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   json report;
   report["imr_version"] = Version();
   report["job"] = fs::absolute(job.file).lexically_normal().string();
+  if (!job.overrides.empty()) report["overrides"] = job.overrides;  // imr run --set
   report["sequence"] = {{"name", seq.name}, {"source", seq.source}};
   report["input"] = {{"format", job.input.format}, {"options", v.input_options}};
   if (format->sequences_are_paths) report["input"]["checksums"] = InputChecksums(seq.source, front_end);
@@ -705,23 +707,6 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
 }
 
 }  // namespace
-
-std::vector<std::string> RunOptionsToArgs(const RunOptions& o) {
-  std::vector<std::string> args;
-  const std::pair<const char*, const std::string*> paths[] = {
-      {"--export-stream", &o.export_stream}, {"--export-colmap", &o.export_colmap},
-      {"--trace", &o.trace}};
-  for (const auto& [flag, value] : paths)
-    if (!value->empty()) args.insert(args.end(), {flag, *value});
-  if (o.check_invariants_every > 0)
-    args.insert(args.end(), {"--check-invariants-every", std::to_string(o.check_invariants_every)});
-  if (o.stage_timeout > 0.0) {
-    char seconds[32];
-    std::snprintf(seconds, sizeof(seconds), "%.17g", o.stage_timeout);
-    args.insert(args.end(), {"--stage-timeout", seconds});
-  }
-  return args;
-}
 
 std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob& v) {
   std::vector<std::string> problems;

@@ -64,16 +64,15 @@ struct RunOptions {
   // --stage-timeout: seconds a call into a plugin may take when its stage sets no
   // timeout_seconds; past it the sequence fails (host/pipeline/stage_watch.h). 0: no limit.
   double stage_timeout = 0.0;
+  // --threads: threads of the engine's ray casting, overriding the job's engine.threads. 0: the
+  // job's value (its default: every core of the affinity mask). The mesh does not depend on it.
+  int threads = 0;
   // Called after every keyframe (from the running thread); empty: not called.
   std::function<void(const SequenceProgress&)> progress;
   // Called on the watchdog thread when a stage times out, with the message; must end the
   // process (the plugin call cannot be unwound). Empty: log it and exit with status 124.
   std::function<void(const std::string&)> on_stage_timeout;
 };
-
-// The options above (all but the callbacks) as `imr run` flags, for child processes and Slurm
-// scripts.
-std::vector<std::string> RunOptionsToArgs(const RunOptions& options);
 
 // Problems with `options` for this job, e.g. a fixed export path for a job with several
 // sequences (they would overwrite each other). Empty when usable.

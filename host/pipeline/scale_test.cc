@@ -89,8 +89,7 @@ TEST(ScaleTest, EveryLengthTheJobDoesNotSetIsScaled) {
   EXPECT_DOUBLE_EQ(o.regrow_radius, 0.1 * metric.regrow_radius);
   EXPECT_DOUBLE_EQ(o.fill_holes_perimeter, 0.1 * metric.fill_holes_perimeter);
   EXPECT_EQ(o.window, 9);
-  std::string error;
-  EXPECT_TRUE(o.Check(&error)) << error;
+  EXPECT_EQ(o.Check(), "");
   EXPECT_EQ(ScaledOptionNames().size(), 6u);
 
   const json j = ScaleJson(ScaleMode::kAuto, e, o, {"steiner_spacing"});

@@ -151,8 +151,7 @@ int RunEngineBench(int argc, char** argv) {
       return 2;
     }
   }
-  std::string option_error;
-  if (!g_base_options.Check(&option_error)) {
+  if (const std::string option_error = g_base_options.Check(); !option_error.empty()) {
     std::fprintf(stderr, "imr-bench engine: %s\n", option_error.c_str());
     return 2;
   }

@@ -1,7 +1,10 @@
-// imr-bench: argv dispatch to subcommands. Later issues add pipeline, paper, ...
+// imr-bench: a table of subcommands, each a benchmark in its own file. `imr-bench --help` lists
+// them; `imr-bench SUB --help` prints that subcommand's line and exits 0 (the subcommands parse
+// their own options and refuse the ones they do not know).
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace imr::bench {
 int RunEngineBench(int argc, char** argv);
@@ -17,58 +20,87 @@ int RunSpeedBench(int argc, char** argv);
 #ifdef IMR_BENCH_TEXTURE
 int RunTextureBench(int argc, char** argv);
 #endif
-}
+}  // namespace imr::bench
 
 namespace {
-void Usage() {
-  std::fprintf(stderr,
-               "usage: imr-bench <subcommand> [options]\n"
-               "subcommands:\n"
-               "  engine [--frames N] [--seed S] [--quick] [--modes a,b,...]\n"
-               "         reconstruction engine on the synthetic street stream\n"
-               "  pipeline [--frames N] [--width W --height H] [--cores C] [--kitti DIR]\n"
-               "         the whole image pipeline (imr run) on one core: synthetic + KITTI\n"
-               "  paper [--quick] [--modes ...] [--no-images] [--out DIR] ...\n"
-               "         the paper's comparison: accuracy and per-move overhead per policy\n"
-               "  scaling [--frames 250,500,1000,2000] [--out DIR] ...\n"
-               "         keyframe time, total time and memory against sequence length\n"
-               "  peers [--frames N] [--colmap PATH]\n"
-               "         imr vs COLMAP's delaunay_mesher on identical input (needs\n"
-               "         tools/bench/peers/build_colmap.sh)\n"
-               "  quality [--inputs street,synth,kitti,stream] [--frames N] [--before IMR] ...\n"
-               "         surface quality per input (completeness, precision, F, distances,\n"
-               "         manifold, time, memory) beside the Piazza mesher and COLMAP\n"
-               "  speed [--views-per-keyframe N] [--work DIR]\n"
-               "         the engine on the street stream with every view a keyframe, one core\n"
-               "         and two (issue 18's targets), with the time per phase\n"
-               "  evaluate [--points N] [--triangles N] [--threads N] [--quick]\n"
-               "         imr evaluate's distances: 1 M points against a 500 k-triangle mesh\n"
-               "  texture [--sequence DIR --mesh FILE] [--frames N] [--repeat N] [--atlas-size PX]\n"
-               "         colouring and texturing a mesh from its keyframe images: time per\n"
-               "         keyframe and per atlas megapixel, atlas size, added memory\n");
+
+struct Subcommand {
+  const char* name;
+  const char* options;      // the synopsis after the name
+  const char* description;  // what it measures ('\n' between lines)
+  int (*run)(int argc, char** argv);
+};
+
+const std::vector<Subcommand>& Subcommands() {
+  using namespace imr::bench;
+  static const std::vector<Subcommand> table = {
+      {"engine", "[--frames N] [--seed S] [--quick] [--modes a,b,...]",
+       "reconstruction engine on the synthetic street stream", &RunEngineBench},
+      {"pipeline", "[--frames N] [--width W --height H] [--cores C] [--kitti DIR]",
+       "the whole image pipeline (imr run) on one core: synthetic + KITTI", &RunPipelineBench},
+      {"paper", "[--quick] [--modes ...] [--no-images] [--out DIR] ...",
+       "the paper's comparison: accuracy and per-move overhead per policy", &RunPaperBench},
+      {"scaling", "[--frames 250,500,1000,2000] [--out DIR] ...",
+       "keyframe time, total time and memory against sequence length", &RunScalingBench},
+#ifdef IMR_BENCH_EVALUATE
+      {"peers", "[--frames N] [--colmap PATH]",
+       "imr vs COLMAP's delaunay_mesher on identical input (needs\n"
+       "tools/bench/peers/build_colmap.sh)",
+       &RunPeersBench},
+      {"quality", "[--inputs street,synth,kitti,stream] [--frames N] [--before IMR] ...",
+       "surface quality per input (completeness, precision, F, distances,\n"
+       "manifold, time, memory) beside the Piazza mesher and COLMAP",
+       &RunQualityBench},
+      {"speed", "[--views-per-keyframe N] [--work DIR]",
+       "the engine on the street stream with every view a keyframe, one core\n"
+       "and two (issue 18's targets), with the time per phase",
+       &RunSpeedBench},
+      {"evaluate", "[--points N] [--triangles N] [--threads N] [--quick]",
+       "imr evaluate's distances: 1 M points against a 500 k-triangle mesh", &RunEvaluateBench},
+#endif
+#ifdef IMR_BENCH_TEXTURE
+      {"texture", "[--sequence DIR --mesh FILE] [--frames N] [--repeat N] [--atlas-size PX]",
+       "colouring and texturing a mesh from its keyframe images: time per\n"
+       "keyframe and per atlas megapixel, atlas size, added memory",
+       &RunTextureBench},
+#endif
+  };
+  return table;
 }
+
+// "  name options" (after `prefix`), then the description indented.
+void PrintSubcommand(std::FILE* out, const char* prefix, const Subcommand& s) {
+  std::fprintf(out, "%s%s %s\n         ", prefix, s.name, s.options);
+  for (const char* c = s.description; *c; ++c)
+    std::fputs(*c == '\n' ? "\n         " : std::string(1, *c).c_str(), out);
+  std::fputc('\n', out);
+}
+
+void Usage(std::FILE* out) {
+  std::fprintf(out, "usage: imr-bench <subcommand> [options]\nsubcommands:\n");
+  for (const Subcommand& s : Subcommands()) PrintSubcommand(out, "  ", s);
+}
+
+bool IsHelp(const char* arg) { return !std::strcmp(arg, "--help") || !std::strcmp(arg, "-h"); }
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
-    Usage();
+  if (argc < 2 || IsHelp(argv[1])) {
+    Usage(argc < 2 ? stderr : stdout);
     return argc < 2 ? 2 : 0;
   }
-  const std::string sub = argv[1];
-  if (sub == "engine") return imr::bench::RunEngineBench(argc - 2, argv + 2);
-  if (sub == "pipeline") return imr::bench::RunPipelineBench(argc - 2, argv + 2);
-  if (sub == "paper") return imr::bench::RunPaperBench(argc - 2, argv + 2);
-  if (sub == "scaling") return imr::bench::RunScalingBench(argc - 2, argv + 2);
-#ifdef IMR_BENCH_EVALUATE
-  if (sub == "evaluate") return imr::bench::RunEvaluateBench(argc - 2, argv + 2);
-  if (sub == "peers") return imr::bench::RunPeersBench(argc - 2, argv + 2);
-  if (sub == "quality") return imr::bench::RunQualityBench(argc - 2, argv + 2);
-  if (sub == "speed") return imr::bench::RunSpeedBench(argc - 2, argv + 2);
-#endif
-#ifdef IMR_BENCH_TEXTURE
-  if (sub == "texture") return imr::bench::RunTextureBench(argc - 2, argv + 2);
-#endif
-  std::fprintf(stderr, "imr-bench: unknown subcommand '%s'\n", sub.c_str());
-  Usage();
+  for (const Subcommand& s : Subcommands()) {
+    if (argv[1] != std::string(s.name)) continue;
+    for (int i = 2; i < argc; ++i)
+      if (IsHelp(argv[i])) {
+        PrintSubcommand(stdout, "usage: imr-bench ", s);
+        std::printf("every option: tools/bench/%s_bench.cc\n", s.name);
+        return 0;
+      }
+    return s.run(argc - 2, argv + 2);
+  }
+  std::fprintf(stderr, "imr-bench: unknown subcommand '%s'\n", argv[1]);
+  Usage(stderr);
   return 2;
 }

@@ -22,6 +22,7 @@
 // other std::exception for failures; the host receives a status and the message.
 #pragma once
 
+#include <imr/sdk/params_schema.hpp>
 #include <imr/sdk/plugin.h>
 
 #include <cmath>
@@ -317,53 +318,19 @@ imr_status Guard(imr_error* error, F&& body) noexcept {
   }
 }
 
-// Checks `params` against a schema in the language of plugin.h (the host validates jobs too; this
-// covers hosts and tests that do not) and returns them with the schema's defaults filled in.
-// Throws InvalidArgument naming the first unknown, mistyped or out-of-range parameter.
+// Checks `params` against a schema in the language of plugin.h with the host's own validator
+// (params_schema.hpp: the host validates jobs too; this covers hosts and tests that do not) and
+// returns them with the schema's defaults filled in. Throws InvalidArgument naming the first
+// unknown, mistyped or out-of-range parameter.
 inline Params CheckedAgainstSchema(const char* schema_text, const Params& params) {
   const nlohmann::json schema = nlohmann::json::parse(
       schema_text && *schema_text ? schema_text : "{}", nullptr, /*allow_exceptions=*/false);
   if (!schema.is_object()) throw std::runtime_error("plugin bug: kParamsSchema is not a JSON object");
-  nlohmann::json out = params.Json();
-  for (const auto& [name, v] : out.items()) {
-    auto it = schema.find(name);
-    if (it == schema.end()) {
-      std::string known;
-      for (const auto& [k, _] : schema.items()) known += (known.empty() ? "" : ", ") + k;
-      throw InvalidArgument("params." + name + ": unknown parameter" +
-                            (known.empty() ? std::string(" (none accepted)") : " (known: " + known + ")"));
-    }
-    const nlohmann::json& spec = *it;
-    const std::string type = spec.value("type", "");
-    const auto fail = [&](const std::string& why) {
-      throw InvalidArgument("params." + name + ": " + why + " (got " + v.dump() + ")");
-    };
-    if (type == "integer" && !v.is_number_integer()) fail("expected an integer");
-    if (type == "number" && (!v.is_number() || !std::isfinite(v.get<double>())))
-      fail("expected a finite number");
-    if (type == "boolean" && !v.is_boolean()) fail("expected true or false");
-    if (type == "string" && !v.is_string()) fail("expected a string");
-    if (type == "string_array") {
-      bool ok = v.is_array();
-      for (const auto& e : v) ok = ok && e.is_string();
-      if (!ok) fail("expected an array of strings");
-    }
-    if (v.is_number()) {
-      const double x = v.get<double>();
-      if (spec.contains("minimum") && x < spec["minimum"].get<double>())
-        fail("below the minimum " + spec["minimum"].dump());
-      if (spec.contains("maximum") && x > spec["maximum"].get<double>())
-        fail("above the maximum " + spec["maximum"].dump());
-    }
-    if (spec.contains("enum")) {
-      bool found = false;
-      for (const auto& e : spec["enum"]) found = found || e == v;
-      if (!found) fail("expected one of " + spec["enum"].dump());
-    }
-  }
-  for (const auto& [name, spec] : schema.items())
-    if (!out.contains(name) && spec.is_object() && spec.contains("default")) out[name] = spec["default"];
-  return Params(std::move(out));
+  const std::vector<ParamProblem> problems = ValidateParams(schema, params.Json());
+  if (!problems.empty())
+    throw InvalidArgument("params" + (problems[0].name.empty() ? "" : "." + problems[0].name) +
+                          ": " + problems[0].message);
+  return Params(WithSchemaDefaults(schema, params.Json()));
 }
 
 template <typename T>

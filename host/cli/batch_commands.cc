@@ -1,0 +1,546 @@
+// Commands that run jobs: run (each sequence in a child process: batch), submit (a Slurm array),
+// report (a batch folder's summary and viewer page), and the children's hidden command.
+#include "host/batch/batch.h"
+#include "host/batch/child.h"
+#include "host/batch/run_flags.h"
+#include "host/batch/slurm.h"
+#include "host/batch/summary.h"
+#include "host/cli/command.h"
+#include "host/io/input_formats.h"
+#include "host/report/viewer_page.h"
+#include "host/util/atomic_file.h"
+#include "host/util/exit_status.h"
+#include "host/util/json_text.h"
+#include "host/util/log.h"
+#include "host/util/strict_number.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+
+namespace imr::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char* kRunNotes =
+    "Export paths are templates: {sequence} (the sequence's name), {job} (the job file's stem)\n"
+    "and {output} (the sequence's output folder, from the job). Relative paths are relative to\n"
+    "the current folder. A job with several sequences needs {sequence} or {output} in them.\n"
+    "  --export-stream '{output}/stream.json'   the updates that reached the engine, as SLAM\n"
+    "      JSON 0.3 (with imr's keyframe extensions); a job with \"input\": {\"format\":\n"
+    "      \"slam_json\"} on that file reproduces the same mesh, and other meshers can read it.\n"
+    "  --export-colmap '{output}/colmap'        the final points and the cameras that see them,\n"
+    "      as a COLMAP text model (cameras.txt, images.txt, points3D.txt).\n"
+    "Exports are written (atomically) only for sequences that succeed, before the mesh and\n"
+    "report.json; the report lists them under \"exports\".\n"
+    "\n"
+    "Batches: each sequence runs in its own process (a crash fails that sequence only); when it\n"
+    "succeeds, manifest.json (its files with SHA-256, and the job's hash) is written last, and a\n"
+    "re-run skips it while the job and the files still match (--force: redo all). The batch\n"
+    "folder (the part of output.directory before {sequence}) gets summary.json and summary.md.\n"
+    "--shard I/N runs the I-th of N balanced, deterministic shares (inside a Slurm array task\n"
+    "the share comes from SLURM_ARRAY_TASK_ID/COUNT/MIN); a shard writes no summary: run\n"
+    "`imr report RUN_DIR` when all are done. Progress: a bar on a terminal, else a line every\n"
+    "few seconds; -q: none.\n"
+    "Ctrl-C, SIGTERM and SIGHUP stop the run: no sequence starts, the running ones get SIGTERM\n"
+    "(SIGKILL 10 s later) and count as interrupted, and the summary is written.\n"
+    "Exit status: 0 every sequence ok or up to date; else the number of sequences that failed,\n"
+    "were interrupted or did not run (1..63; 63 means 63 or more); 64 bad usage or job; 73 the\n"
+    "batch folder cannot be created; 75 another imr run holds it (each case: nothing ran).\n";
+
+bool ParseSize(const po::variables_map& vm, const char* cmd, uint64_t* bytes) {
+  if (!vm.count("max-rss")) return true;
+  const auto b = imr::batch::ParseBytes(vm["max-rss"].as<std::string>());
+  if (!b) {
+    std::cerr << "imr " << cmd << ": --max-rss: expected a size like 512M or 4G, got '"
+              << vm["max-rss"].as<std::string>() << "'\n";
+    return false;
+  }
+  *bytes = *b;
+  return true;
+}
+
+// Loads the job with its --set overrides and checks the run's and the batch's options against
+// it; prints every problem and returns false when it cannot run.
+bool LoadRunnableJob(const char* cmd, const fs::path& job, const po::variables_map& vm,
+                     const pipeline::RunOptions& run_options, const batch::BatchOptions& batch,
+                     plugin::PluginRegistry* registry, pipeline::ValidatedJob* v) {
+  if (!LoadJob(job, JobOverrides(vm), registry, v)) return false;
+  auto problems = pipeline::CheckRunOptions(run_options, *v);
+  for (auto& p : batch::CheckBatch(*v, batch)) problems.push_back(p);
+  for (const auto& p : problems) std::cerr << "imr " << cmd << ": " << p << "\n";
+  return problems.empty();
+}
+
+int CmdRun(const std::vector<std::string>& args) {
+  po::options_description opts("imr run options");
+  opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)");
+  AddJobOverrideFlag(opts);
+  AddRunOptionFlags(opts);
+  opts.add_options()(
+      "shard", po::value<std::string>()->value_name("I/N"),
+      "run only the I-th of N shares of the sequences (default: from a Slurm array task)")(
+      "jobs,j", po::value<int>()->default_value(1)->value_name("J"), "sequences run at once")(
+      "force", "redo every sequence, even those whose manifest matches")(
+      "max-rss", po::value<std::string>()->value_name("SIZE"),
+      "kill a sequence whose process uses more resident memory (e.g. 4G)")(
+      "sequences-from", po::value<std::string>()->value_name("FILE"),
+      "only the sequences named in FILE, one per line (imr submit's frozen list)");
+  po::positional_options_description pos;
+  pos.add("job", 1);
+  po::variables_map vm;
+  int status = kExitOk;
+  const std::string synopsis =
+      std::string("imr run JOB.json [--set KEY=VALUE]... [--shard I/N] [--jobs J] [--force]\n"
+                  "       [--max-rss SIZE] [--export-stream FILE] [--export-colmap DIR] [--trace FILE]\n"
+                  "       [--check-invariants | --check-invariants-every N] [-q|-v]\n\n") +
+      kRunNotes;
+  if (!ParseCommand("run", synopsis, opts, pos, args, &vm, &status,
+                    {{"job", "needs a job file: imr run JOB.json (see configs/ for examples)"}}))
+    return status;
+  const fs::path job = vm["job"].as<std::string>();
+  imr::pipeline::RunOptions run_options;
+  if (!ReadRunOptions(vm, "run", &run_options)) return kExitUsage;
+
+  imr::batch::BatchOptions batch;
+  batch.jobs = vm["jobs"].as<int>();
+  batch.force = vm.count("force") > 0;
+  batch.verbose = vm.count("verbose") > 0;
+  batch.executable = SelfPath();
+  if (!ParseSize(vm, "run", &batch.max_rss)) return kExitUsage;
+  if (vm.count("sequences-from")) batch.sequences_from = vm["sequences-from"].as<std::string>();
+  std::string error;
+  if (vm.count("shard")) {
+    auto shard = imr::batch::ParseShard(vm["shard"].as<std::string>(), &error);
+    if (!shard) {
+      std::cerr << "imr run: --shard: " << error << "\n";
+      return kExitUsage;
+    }
+    batch.shard = *shard;
+    batch.shard_origin = "--shard";
+  } else if (auto shard = imr::batch::ShardFromSlurm(&std::getenv, &error)) {
+    batch.shard = *shard;
+    batch.shard_origin = std::string("Slurm array task ") + std::getenv("SLURM_ARRAY_TASK_ID");
+  } else if (!error.empty()) {
+    std::cerr << "imr run: " << error << "\n";
+    return kExitUsage;
+  }
+  batch.progress = vm.count("quiet") ? imr::batch::ProgressMode::kNone
+                   : ::isatty(STDERR_FILENO) ? imr::batch::ProgressMode::kBar
+                                             : imr::batch::ProgressMode::kLines;
+
+  imr::plugin::PluginRegistry registry;
+  imr::pipeline::ValidatedJob v;
+  if (!LoadRunnableJob("run", job, vm, run_options, batch, &registry, &v)) return kExitUsage;
+  // The batch folder, and this run's hold on it: an environment problem, not a failure.
+  const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  std::shared_ptr<imr::batch::BatchLock> lock;
+  try {
+    lock = imr::batch::LockBatchFolder(batch_dir, batch.shard);
+  } catch (const imr::batch::BatchFolderBusy& e) {
+    std::cerr << "imr run: " << e.what() << "\n";
+    return imr::kExitTempFail;
+  } catch (const std::exception& e) {
+    std::cerr << "imr run: " << batch_dir.string() << ": cannot create the batch folder ("
+              << e.what() << ")\n";
+    return imr::kExitCantCreate;
+  }
+  HandleStopSignals();
+  const auto result = imr::batch::RunBatch(v, registry, run_options, batch);
+  // One line per sequence on stdout: where the results are, or why there are none.
+  using imr::batch::SequenceStatus;
+  for (const auto& s : result.outcomes) {
+    const char* name = s.name.c_str();
+    switch (s.status) {
+      case SequenceStatus::kOk:
+        std::printf("ok      %-20s %7.2f s  %s\n", name, s.seconds, s.output_directory.string().c_str());
+        break;
+      case SequenceStatus::kSkipped:
+        std::printf("skipped %-20s up to date  %s\n", name, s.output_directory.string().c_str());
+        break;
+      case SequenceStatus::kFailed:
+        std::printf("FAILED  %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
+        break;
+      case SequenceStatus::kInterrupted:
+        std::printf("stopped %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
+        break;
+      case SequenceStatus::kNotRun:
+        std::printf("not run %-20s %s\n", name, s.detail.c_str());
+        break;
+    }
+  }
+  const int failed = result.Count(SequenceStatus::kFailed) +
+                     result.Count(SequenceStatus::kInterrupted) +
+                     result.Count(SequenceStatus::kNotRun);
+  std::printf("%zu sequence%s, %d failed", result.outcomes.size(),
+              result.outcomes.size() == 1 ? "" : "s", result.Count(SequenceStatus::kFailed));
+  if (const int n = result.Count(SequenceStatus::kInterrupted)) std::printf(", %d interrupted", n);
+  if (const int n = result.Count(SequenceStatus::kSkipped)) std::printf(", %d skipped (up to date)", n);
+  if (const int n = result.Count(SequenceStatus::kNotRun)) std::printf(", %d not run", n);
+  if (batch.shard.active())
+    std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
+                batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
+  else if (result.summary_written)
+    std::printf("\nsummary: %s\n", (result.batch_directory / "summary.md").string().c_str());
+  else
+    std::printf("\n");
+  return imr::ExitStatusForFailures(failed);
+}
+
+const char* kMeshNotes =
+    "One mesh from one sequence, without writing a job: imr mesh builds the job (the input, the\n"
+    "image front end when the format has images, the engine with its defaults, the assimp\n"
+    "exporter), writes it to WORK/job.json and runs it as `imr run WORK/job.json` would (a child\n"
+    "process, resume, the report in WORK/mesh/report.json), then copies the mesh (and its\n"
+    "companion files: an OBJ's .mtl, a glTF's .bin) to --out. The format of the mesh comes from\n"
+    "--out's extension: .ply, .obj, .gltf or .glb. --set changes any value of the built job\n"
+    "(--set engine.steiner_spacing=0.1, --set input.options.views_per_keyframe=4); `imr options`\n"
+    "lists them. Any other option is handed to imr run (--force, --check-invariants, ...).\n"
+    "Example (COLMAP): imr mesh --input sparse/0 --format colmap --out mesh.ply\n"
+    "Exit status: 0 written; 1 the run failed (its report and log say why); 64 bad usage.\n";
+
+int CmdMesh(const std::vector<std::string>& args) {
+  po::options_description opts("imr mesh options");
+  opts.add_options()("input,i", po::value<std::string>()->value_name("PATH"),
+                     "the sequence: a folder or file (e.g. a COLMAP sparse/0), or a synthetic "
+                     "scene's name")(
+      "format,f", po::value<std::string>()->value_name("FORMAT"),
+      "its input format, as a job's input.format (`imr options --only input` lists them)")(
+      "out,o", po::value<std::string>()->value_name("FILE"), "the mesh: .ply, .obj, .gltf or .glb")(
+      "work", po::value<std::string>()->value_name("DIR"),
+      "where the job and its run go (default: beside --out, named after it, ending in .imr)");
+  AddJobOverrideFlag(opts);
+  opts.add_options()("help,h", "show this help")("quiet,q", "only errors")("verbose,v",
+                                                                           "debug output");
+  po::variables_map vm;
+  std::vector<std::string> forwarded;  // options of imr run
+  const std::string synopsis =
+      std::string("imr mesh --input PATH --format FORMAT --out MESH.ply [--set KEY=VALUE]...\n"
+                  "         [--work DIR] [imr run options]\n\n") +
+      kMeshNotes;
+  auto usage = [](const std::string& what) {
+    std::cerr << "imr mesh: " << what << " (imr mesh --help)\n";
+    return kExitUsage;
+  };
+  try {
+    const po::parsed_options parsed =
+        po::command_line_parser(args).options(opts).allow_unregistered().run();
+    po::store(parsed, vm);
+    forwarded = po::collect_unrecognized(parsed.options, po::include_positional);
+    if (vm.count("help")) {
+      std::cout << "Usage: " << synopsis << "\n" << opts << "\n";
+      return kExitOk;
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    return usage(e.what());
+  }
+  for (const char* required : {"input", "format", "out"})
+    if (!vm.count(required)) return usage(std::string("needs --") + required);
+  const std::string input = vm["input"].as<std::string>();
+  const std::string format = vm["format"].as<std::string>();
+  const io::InputFormat* f = io::FindInputFormat(format);
+  if (f == nullptr) {
+    std::vector<std::string> names;
+    for (const io::InputFormat& x : io::InputFormats()) names.push_back(x.name);
+    return usage("--format: expected " + io::JoinAlternatives(names) + ", got '" + format + "'");
+  }
+  const fs::path out = fs::absolute(vm["out"].as<std::string>()).lexically_normal();
+  std::string ext = out.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".ply" && ext != ".obj" && ext != ".gltf" && ext != ".glb")
+    return usage("--out: expected a file ending in .ply, .obj, .gltf or .glb, got '" +
+                 out.filename().string() + "'");
+  const fs::path work = vm.count("work") ? fs::absolute(vm["work"].as<std::string>())
+                                         : out.parent_path() / (out.stem().string() + ".imr");
+
+  // The job imr run would be given. Paths are absolute: the job file lives in WORK.
+  nlohmann::json job = {
+      {"description", "built by imr mesh: " + input + " (" + format + ") -> " + out.string()},
+      {"sequences", {f->sequences_are_paths ? fs::absolute(input).lexically_normal().string() : input}},
+      {"input", {{"format", format}}},
+      {"pipeline", nlohmann::json::array()},
+      {"output", {{"directory", "mesh"}, {"stem", out.stem().string()}, {"formats", {ext.substr(1)}}}}};
+  if (f->needs_front_end) {
+    job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
+    job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
+  }
+  job["pipeline"].push_back({{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}});
+  const fs::path job_file = work / "job.json";
+  try {
+    EnsureWritableDirectory(work);
+    WriteFileAtomically(job_file, job.dump(2) + "\n");
+  } catch (const std::exception& e) {
+    std::cerr << "imr mesh: " << work.string() << ": cannot write the job (" << e.what() << ")\n";
+    return kExitCantCreate;
+  }
+
+  std::vector<std::string> run_args = {job_file.string()};
+  for (const std::string& o : JobOverrides(vm)) run_args.insert(run_args.end(), {"--set", o});
+  if (vm.count("quiet")) run_args.push_back("-q");
+  if (vm.count("verbose")) run_args.push_back("-v");
+  run_args.insert(run_args.end(), forwarded.begin(), forwarded.end());
+  if (const int status = CmdRun(run_args); status != kExitOk) return status;
+
+  // The run's output folder holds the mesh and its companions; report.json lists them.
+  const fs::path folder = work / "mesh";
+  std::ifstream in(folder / "report.json", std::ios::binary);
+  const nlohmann::json report = nlohmann::json::parse(in);
+  std::vector<std::string> copied;
+  for (const auto& name : report["files"]) {
+    const std::string n = name.get<std::string>();
+    if (n == "report.json") continue;
+    const fs::path tmp = out.parent_path() / ("." + n + ".partial");
+    fs::copy_file(folder / n, tmp, fs::copy_options::overwrite_existing);
+    fs::rename(tmp, out.parent_path() / n);
+    copied.push_back(n);
+  }
+  std::string companions;
+  for (const std::string& n : copied)
+    if (n != out.filename().string()) companions += (companions.empty() ? " (with " : ", ") + n;
+  if (!companions.empty()) companions += ")";
+  std::printf("mesh: %s%s\nthe run (job.json, mesh/report.json): %s\n", out.string().c_str(),
+              companions.c_str(), work.string().c_str());
+  return kExitOk;
+}
+
+const char* kSubmitNotes =
+    "Writes two sbatch scripts into RUN_DIR/imr-batch/slurm/ (RUN_DIR: the part of the job's\n"
+    "output.directory before {sequence}) and submits them: an array of --tasks tasks, each\n"
+    "running `imr run` on its share of the sequences (its shard comes from the array task id),\n"
+    "and a reduce job that runs `imr report RUN_DIR` after every task has ended\n"
+    "(--dependency=afterany), writing RUN_DIR/summary.md and summary.json. The sequence list is\n"
+    "frozen in RUN_DIR/imr-batch/sequences.txt. Task logs: RUN_DIR/imr-batch/slurm/logs/.\n"
+    "Submitting again (or `sbatch` on the array script) redoes only unfinished sequences.\n"
+    "--dry-run writes the scripts and prints the sbatch commands without submitting.\n"
+    "Exit status: 0 submitted; 1 sbatch failed (its message is shown); 64 bad usage or job; 73\n"
+    "the batch folder cannot be created.\n";
+
+int CmdSubmit(const std::vector<std::string>& args) {
+  imr::batch::SubmitOptions d;
+  po::options_description opts("imr submit options");
+  opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)")(
+      "tasks,n", po::value<int>()->required()->value_name("N"), "array tasks")(
+      "partition,p", po::value<std::string>()->value_name("P"), "Slurm partition")(
+      "time,t", po::value<std::string>()->value_name("T"), "time limit per task (e.g. 2:00:00)")(
+      "mem", po::value<std::string>()->value_name("M"), "memory per task (e.g. 8G)")(
+      "cpus-per-task,c", po::value<int>()->default_value(d.cpus_per_task), "CPUs per task")(
+      "jobs,j", po::value<int>()->value_name("J"),
+      "sequences at once in a task (default: --cpus-per-task)")(
+      "account,A", po::value<std::string>(), "Slurm account")(
+      "qos", po::value<std::string>(), "Slurm quality of service")(
+      "sbatch-arg", po::value<std::vector<std::string>>()->value_name("ARG"),
+      "another sbatch option for the array, e.g. --sbatch-arg=--constraint=avx2 (repeatable)")(
+      "max-rss", po::value<std::string>()->value_name("SIZE"),
+      "imr run --max-rss for the tasks: kill a sequence over this resident memory")(
+      "force", "redo every sequence, even finished ones")(
+      "dry-run", "write the scripts and print the sbatch commands; submit nothing");
+  AddJobOverrideFlag(opts);
+  AddRunOptionFlags(opts);
+  po::positional_options_description pos;
+  pos.add("job", 1);
+  po::variables_map vm;
+  int status = kExitOk;
+  const std::string synopsis =
+      std::string("imr submit JOB.json --tasks N [--partition P] [--time T] [--mem M]\n"
+                  "       [--cpus-per-task C] [--jobs J] [--max-rss SIZE] [--force] [--dry-run]\n\n") +
+      kSubmitNotes;
+  if (!ParseCommand("submit", synopsis, opts, pos, args, &vm, &status,
+                    {{"job", "needs a job file: imr submit JOB.json --tasks N"}}))
+    return status;
+  imr::batch::SubmitOptions o;
+  o.tasks = vm["tasks"].as<int>();
+  o.cpus_per_task = vm["cpus-per-task"].as<int>();
+  if (vm.count("jobs")) o.jobs = vm["jobs"].as<int>();
+  if (vm.count("partition")) o.partition = vm["partition"].as<std::string>();
+  if (vm.count("time")) o.time = vm["time"].as<std::string>();
+  if (vm.count("mem")) o.mem = vm["mem"].as<std::string>();
+  if (vm.count("account")) o.account = vm["account"].as<std::string>();
+  if (vm.count("qos")) o.qos = vm["qos"].as<std::string>();
+  if (vm.count("sbatch-arg")) o.sbatch_args = vm["sbatch-arg"].as<std::vector<std::string>>();
+  o.force = vm.count("force") > 0;
+  o.dry_run = vm.count("dry-run") > 0;
+  o.executable = SelfPath();
+  if (!ParseSize(vm, "submit", &o.max_rss)) return kExitUsage;
+  if (std::string e = o.Check(); !e.empty()) {
+    std::cerr << "imr submit: " << e << "\n";
+    return kExitUsage;
+  }
+  imr::pipeline::RunOptions run_options;
+  if (!ReadRunOptions(vm, "submit", &run_options)) return kExitUsage;
+  const fs::path job = vm["job"].as<std::string>();
+  imr::plugin::PluginRegistry registry;
+  imr::pipeline::ValidatedJob v;
+  imr::batch::BatchOptions batch_check;
+  batch_check.executable = o.executable;
+  if (!LoadRunnableJob("submit", job, vm, run_options, batch_check, &registry, &v))
+    return kExitUsage;
+  const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  try {
+    imr::EnsureWritableDirectory(batch_dir / imr::batch::kBatchSubdir);
+  } catch (const std::exception& e) {
+    std::cerr << "imr submit: " << batch_dir.string() << ": cannot create the batch folder ("
+              << e.what() << ")\n";
+    return imr::kExitCantCreate;
+  }
+  const auto r = imr::batch::Submit(v, registry, run_options, o);
+  auto join = [](const std::vector<std::string>& words) {
+    std::string s;
+    for (const auto& w : words) s += (s.empty() ? "" : " ") + imr::batch::ShellQuote(w);
+    return s;
+  };
+  std::printf("batch folder: %s\n", r.batch_directory.string().c_str());
+  std::printf("array script: %s (%d task%s over %zu sequences)\n", r.array_script.string().c_str(),
+              r.tasks, r.tasks == 1 ? "" : "s", v.sequences.size());
+  std::printf("reduce script: %s (imr report %s)\n", r.reduce_script.string().c_str(),
+              r.batch_directory.string().c_str());
+  if (o.dry_run) {
+    std::printf("dry run, nothing submitted; to submit:\n  %s\n  %s\n", join(r.array_command).c_str(),
+                join(r.reduce_command).c_str());
+  } else {
+    std::printf("submitted array job %s and reduce job %s (runs after the array ends)\n",
+                r.array_job_id.c_str(), r.reduce_job_id.c_str());
+    std::printf("logs: %s\n", r.log_directory.string().c_str());
+    std::printf("summary (when job %s has run): %s\n", r.reduce_job_id.c_str(),
+                (r.batch_directory / "summary.md").string().c_str());
+  }
+  return kExitOk;
+}
+
+int CmdReport(const std::vector<std::string>& args) {
+  po::options_description opts("imr report options");
+  opts.add_options()("dir", po::value<std::string>()->required(),
+                     "batch folder (RUN_DIR), or the job file whose batch folder it is");
+  po::positional_options_description pos;
+  pos.add("dir", 1);
+  po::variables_map vm;
+  int status = kExitOk;
+  const std::string synopsis =
+      "imr report RUN_DIR|JOB.json [-q]\n\n"
+      "Merges the per-sequence results of a batch folder (the part of the job's\n"
+      "output.directory before {sequence}) into RUN_DIR/summary.json and summary.md: every\n"
+      "sequence's status (its manifest and files are checked), frames, time, mesh size,\n"
+      "accuracy, and for failures the cause and last log lines. Needs no plugins.\n"
+      "Also writes RUN_DIR/index.html: the table, the PNGs in RUN_DIR and RUN_DIR/plots (e.g.\n"
+      "from tools/plots/imr_plots.py RUN_DIR/summary.json --out RUN_DIR/plots), and each mesh\n"
+      "viewable in 3D in a browser, offline (<model-viewer> is copied beside the page).\n"
+      "A sequence whose process was killed (a time limit, SIGKILL) shows as interrupted.\n"
+      "Exit status: 0 every sequence ok; else the number that failed, were interrupted or did not\n"
+      "run (1..63; 63 means 63 or more); 64 not a batch folder or bad usage.";
+  if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
+  fs::path dir = vm["dir"].as<std::string>();
+  std::error_code ec;
+  if (fs::is_regular_file(dir, ec)) {
+    auto parsed = imr::io::ParseJobFile(dir);
+    if (!parsed.ok()) {
+      PrintProblems(dir, parsed.problems);
+      return kExitUsage;
+    }
+    dir = imr::batch::BatchDirectory(parsed.job);
+  }
+  nlohmann::json summary;
+  try {
+    summary = imr::batch::WriteSummary(dir, "imr report");
+  } catch (const std::exception& e) {
+    std::cerr << "imr report: " << e.what() << "\n";
+    return kExitUsage;
+  }
+  // The page is a view of the summary: if it cannot be written, the summary still stands.
+  try {
+    const auto page = imr::report::WriteBatchPage(dir, summary);
+    for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
+    std::printf("viewer page: %s (%d mesh%s in 3D)\n", page.page.string().c_str(),
+                page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es");
+  } catch (const std::exception& e) {
+    imr::LogWarning(std::string("viewer page not written: ") + e.what());
+  }
+  for (const auto& r : summary["sequences"]) {
+    const std::string st = r["status"].get<std::string>();
+    const std::string label = st == "ok" ? "ok" : st == "failed" ? "FAILED" : st;
+    // The output folder as the summary stores it: relative to the batch folder, as bytes.
+    const std::string where = r["error"].is_string()
+                                  ? r["error"].get<std::string>()
+                                  : (dir / imr::GetBytes(r, "output")).lexically_normal().string();
+    std::printf("%-7s %-20s %s\n", label.c_str(), r["name"].get<std::string>().c_str(), where.c_str());
+  }
+  const auto& c = summary["counts"];
+  std::printf("%d sequences: %d ok, %d failed, %d interrupted, %d not run\nsummary: %s\n",
+              c["sequences"].get<int>(), c["ok"].get<int>(), c["failed"].get<int>(),
+              c["interrupted"].get<int>(), c["not_run"].get<int>(),
+              (dir / "summary.md").string().c_str());
+  return imr::ExitStatusForFailures(c["failed"].get<int>() + c["interrupted"].get<int>() +
+                                           c["not_run"].get<int>());
+}
+
+// The hidden per-sequence command of `imr run`'s child processes. Every value is parsed strictly:
+// a garbled one is an error naming the flag (exit 64), never a silent 0.
+int CmdRunSequence(const std::vector<std::string>& args) {
+  batch::ChildArguments a;
+  auto fail = [](const std::string& what) {
+    std::cerr << "imr " << batch::kChildCommand << ": " << what
+              << " (an internal command of imr run)\n";
+    return kExitUsage;
+  };
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& k = args[i];
+    if (k == "-v") {
+      a.verbose = true;
+      continue;
+    }
+    const batch::RunFlag* flag = k.rfind("--", 0) == 0 ? batch::FindRunFlag(k.substr(2)) : nullptr;
+    const bool takes_value = flag == nullptr || !flag->value_name.empty();
+    if (takes_value && i + 1 >= args.size()) return fail(k + ": expected a value");
+    const std::string value = takes_value ? args[++i] : "";
+    if (flag != nullptr) {
+      if (const std::string e = flag->parse(value, &a.run_options); !e.empty())
+        return fail(k + ": " + e);
+    } else if (k == "--job") {
+      a.job = value;
+    } else if (k == "--sequence") {
+      a.sequence = value;
+    } else if (k == "--set") {
+      a.overrides.push_back(value);
+    } else if (k == "--parent-pid") {
+      if (!ParseWholeInteger(value, &a.parent_pid) || a.parent_pid < 1)
+        return fail("--parent-pid: expected a process id, got '" + value + "'");
+    } else {
+      return fail("unexpected argument '" + k + "'");
+    }
+  }
+  if (a.job.empty() || a.sequence.empty()) return fail("needs --job and --sequence");
+  HandleStopSignals();
+  return batch::RunSequenceChild(a);
+}
+
+}  // namespace
+
+std::vector<Command> BatchCommands() {
+  return {
+      {"run", "run JOB.json",
+       "run a job: every sequence (each in its own process), written to the\n"
+       "job's output folders, with a batch summary; finished sequences are\n"
+       "skipped on a re-run (--set KEY=VALUE, --shard I/N, --jobs J, --force,\n"
+       "--max-rss SIZE, --export-stream FILE, --export-colmap DIR:\n"
+       "see `imr run --help`)",
+       &CmdRun},
+      {"mesh", "mesh --input PATH",
+       "one mesh from one sequence, no job file: --format F (a job's input\n"
+       "format) --out MESH.ply|.obj|.gltf|.glb; runs as imr run does",
+       &CmdMesh},
+      {"submit", "submit JOB.json",
+       "run a job on a Slurm cluster: an array of --tasks N tasks, then a job\n"
+       "that writes the batch summary (see `imr submit --help`)",
+       &CmdSubmit},
+      {"report", "report RUN_DIR",
+       "merge the sequences' reports of a batch folder into summary.json/.md\n"
+       "and a viewer page (index.html: the table, plots, each mesh in 3D)",
+       &CmdReport},
+      {batch::kChildCommand, "", "", &CmdRunSequence, /*hidden=*/true},
+  };
+}
+
+}  // namespace imr::cli
