@@ -357,8 +357,17 @@ void ApplyJobOverrides(const std::vector<std::string>& overrides, json* job,
       continue;
     }
     const std::string text = o.substr(eq + 1);
-    json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
-    if (value.is_discarded()) value = text;
+    if (TooDeepAt(text, kMaxJsonDepth) != std::string::npos) {
+      problems->push_back({where, "arrays and objects nested deeper than " +
+                                      std::to_string(kMaxJsonDepth) + " levels"});
+      continue;
+    }
+    json value = text;  // what is not JSON is a string
+    try {
+      json parsed = json::parse(text, nullptr, /*allow_exceptions=*/false);
+      if (!parsed.is_discarded()) value = std::move(parsed);
+    } catch (const json::exception&) {  // e.g. 1e999, too large for a double: a string
+    }
     json* at = job;
     std::string path;
     for (std::size_t i = 0; i < keys.size() && at != nullptr; ++i) {

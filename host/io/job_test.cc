@@ -181,6 +181,35 @@ TEST(Schema, RejectsMalformedSchemas) {
   EXPECT_FALSE(CheckSchema(nlohmann::json::array(), "s").empty());
 }
 
+TEST(JobOverrides, PathsValuesAndMistakes) {
+  nlohmann::json job = nlohmann::json::parse(
+      R"({"engine": {"window": 15}, "pipeline": [{"plugin": "a"}, {"plugin": "b"}]})");
+  std::vector<Problem> p;
+  ApplyJobOverrides({"engine.window=9", "pipeline[1].params.max_distance=20.5",
+                     "pipeline.0.plugin=c", "input.options.frames=40", "output.stem=m",
+                     "output.formats=[\"ply\"]", "description=1e999"},
+                    &job, &p);
+  EXPECT_TRUE(p.empty()) << Dump(p);
+  EXPECT_EQ(job["engine"]["window"], 9);
+  EXPECT_EQ(job["pipeline"][1]["params"]["max_distance"], 20.5);
+  EXPECT_EQ(job["pipeline"][0]["plugin"], "c");
+  EXPECT_EQ(job["input"]["options"]["frames"], 40);
+  EXPECT_EQ(job["output"]["stem"], "m");  // not JSON: a string
+  EXPECT_EQ(job["output"]["formats"], nlohmann::json({"ply"}));
+  EXPECT_EQ(job["description"], "1e999");
+  const nlohmann::json before = job;
+  ApplyJobOverrides({"window", "=1", "engine..window=1", "pipeline[2].plugin=x",
+                     "pipeline[x].plugin=y", "engine.window.deeper=1",
+                     "engine.w=" + std::string(200, '[') + std::string(200, ']')},
+                    &job, &p);
+  EXPECT_EQ(p.size(), 7u) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "--set window: expected KEY=VALUE, e.g. engine.steiner_spacing=2"));
+  EXPECT_TRUE(HasProblem(p, "--set pipeline[2].plugin=x: pipeline has 2 entries, no [2]")) << Dump(p);
+  EXPECT_TRUE(HasProblem(p, "--set engine.window.deeper=1: engine.window is 9, not an object or array"))
+      << Dump(p);
+  EXPECT_EQ(job, before);
+}
+
 // The host and the SDK's plugin wrapper share one validator: the same values pass and fail.
 TEST(Schema, TheHostAndThePluginWrapperAgree) {
   const auto schema = nlohmann::json::parse(
