@@ -349,7 +349,61 @@ TEST_F(AssimpExporter, ObjIsOneFileWithoutPointIds) {
   Export(Cube(), "obj");
   std::vector<std::string> files;
   for (const auto& e : fs::directory_iterator(dir_)) files.push_back(e.path().filename().string());
-  EXPECT_EQ(files, std::vector<std::string>{"mesh.obj"});  // "objnomtl": no .mtl beside it
+  EXPECT_EQ(files, std::vector<std::string>{"mesh.obj"});  // no .mtl beside it
+}
+
+// Two tetrahedra touching at one point, as the engine leaves a pinched vertex: split into two
+// vertices at the same position, one per fan (vertices 0 and 4).
+TestMesh PinchedTetrahedra() {
+  TestMesh m = Tetrahedron();
+  m.vertices.insert(m.vertices.end(), {0, 0, 0, -1, 0, 0, 0, -1, 0, 0, 0, -1});
+  m.faces.insert(m.faces.end(), {4, 6, 5, 4, 5, 7, 4, 7, 6, 5, 6, 7});
+  for (double& x : m.vertices) x += 4.1e5 + 0.123456789;  // beyond float's centimetres
+  m.ids.insert(m.ids.end(), {0, 8, 9, 10});
+  return m;
+}
+
+// An OBJ read as MeshLab or CGAL read it: the `v` lines in order, faces by their position index.
+struct ObjByIndex {
+  std::vector<std::array<double, 3>> v;
+  std::vector<std::array<uint32_t, 3>> f;
+};
+
+ObjByIndex ReadObjByIndex(const fs::path& file) {
+  ObjByIndex out;
+  const std::vector<uint8_t> bytes = Slurp(file);
+  std::istringstream in(std::string(bytes.begin(), bytes.end()));
+  for (std::string line; std::getline(in, line);) {
+    std::istringstream l(line);
+    std::string key;
+    l >> key;
+    if (key == "v") {
+      std::array<double, 3> p{};
+      l >> p[0] >> p[1] >> p[2];
+      out.v.push_back(p);
+    } else if (key == "f") {
+      std::array<uint32_t, 3> t{};
+      for (uint32_t& i : t) {
+        std::string corner;
+        l >> corner;
+        i = static_cast<uint32_t>(std::stoul(corner.substr(0, corner.find('/')))) - 1;
+      }
+      out.f.push_back(t);
+    }
+  }
+  return out;
+}
+
+TEST_F(AssimpExporter, ObjKeepsSplitVerticesAndDoublePositions) {
+  const TestMesh m = PinchedTetrahedra();
+  const ObjByIndex obj = ReadObjByIndex(Export(m, "obj"));
+  // One `v` per mesh vertex, in order, in double: the pinched point stays two vertices.
+  ASSERT_EQ(obj.v.size(), m.vertices.size() / 3);
+  for (std::size_t i = 0; i < obj.v.size(); ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(obj.v[i][k], m.vertices[3 * i + k]) << i << " " << k;
+  ASSERT_EQ(obj.f.size(), m.faces.size() / 3);
+  for (std::size_t f = 0; f < obj.f.size(); ++f)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(obj.f[f][k], m.faces[3 * f + k]) << f << " " << k;
 }
 
 TEST_F(AssimpExporter, PlyKeepsPointIdsIncludingSteinerAndLargeIds) {
