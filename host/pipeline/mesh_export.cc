@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <optional>
 
 namespace imr::pipeline {
@@ -28,6 +29,22 @@ void ExportContext::Add(const engine::KeyframeUpdate& update, const io::Keyframe
   }
   for (const engine::Camera& c : update.cameras)
     if (seen_.insert(c.id).second) keyframes.push_back(camera_of(c));
+}
+
+std::array<double, 3> ExportOrigin(const engine::Mesh& mesh) {
+  constexpr double kOriginFreeRange = 1e4;
+  std::array<double, 3> lo{}, hi{}, origin{};
+  bool small = true;
+  for (std::size_t i = 0; i + 2 < mesh.vertices.size(); i += 3)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const double x = mesh.vertices[i + k];
+      small = small && std::fabs(x) <= kOriginFreeRange;
+      lo[k] = i == 0 ? x : std::min(lo[k], x);
+      hi[k] = i == 0 ? x : std::max(hi[k], x);
+    }
+  if (small) return origin;
+  for (std::size_t k = 0; k < 3; ++k) origin[k] = std::round((lo[k] + hi[k]) / 2.0 / 1000.0) * 1000.0;
+  return origin;
 }
 
 ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& context,

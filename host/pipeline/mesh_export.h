@@ -12,6 +12,7 @@
 
 #include <imr/sdk/plugin.h>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <set>
@@ -45,6 +46,12 @@ struct ExportImageStats {
   plugin::KeyframeImageStoreStats store;
   int keyframes = 0;
 };
+
+// The local origin org.imr.exporter.assimp writes PLY and glTF/GLB vertices relative to (float32
+// loses centimetres on geo-referenced coordinates): 0 when every coordinate is within 1e4, else
+// the bounding box's centre rounded to a whole kilometre. The same rule as the plugin's
+// ExportOrigin (plugins/exporter_assimp/point_id_channel.hpp); report.json records it.
+std::array<double, 3> ExportOrigin(const engine::Mesh& mesh);
 
 // Writes `mesh` into `directory` as stem.<format> for every format, each through the first
 // exporter stage that writes it, with the keyframes of `context` (their images decoded on demand

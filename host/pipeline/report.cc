@@ -184,6 +184,9 @@ json BuildReport(const ReportInputs& in) {
                     {"manifold", in.mesh_check.ok},
                     {"boundary_closed_manifold", in.boundary_check.ok},
                     {"boundary_triangles", in.boundary_check.boundary_triangles}};
+  // PLY and glTF/GLB vertices are relative to it (0 near the origin): mesh_export.h.
+  const std::array<double, 3> origin = ExportOrigin(mesh);
+  report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
   // Topology of what was written: components, Euler characteristic, genus, boundary loops.
   report["mesh"]["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
   if (!in.accuracy.is_null()) report["accuracy"] = in.accuracy;

@@ -43,7 +43,10 @@ namespace fs = std::filesystem;
 using imr::exporter_assimp::AtlasPage;
 using imr::exporter_assimp::ColorAndTexture;
 using imr::exporter_assimp::ConvertGltfPointIds;
+using imr::exporter_assimp::AddPlyOrigin;
 using imr::exporter_assimp::EditGltf;
+using imr::exporter_assimp::ExportOrigin;
+using imr::exporter_assimp::SetGltfOrigin;
 using imr::exporter_assimp::GltfDocument;
 using imr::exporter_assimp::MtlText;
 using imr::exporter_assimp::ObjGroup;
@@ -214,7 +217,8 @@ struct Part {
 
 aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& normals,
                   const Part& part, const Appearance& look, bool with_point_ids,
-                  const std::string& name, unsigned material) {
+                  const std::string& name, unsigned material,
+                  const std::array<double, 3>& origin) {
   const TexturedMesh* tex = part.page >= 0 ? look.texture : nullptr;
   std::unordered_map<uint64_t, uint32_t> index;
   std::vector<uint32_t> source;  // input vertex of each output vertex
@@ -244,9 +248,9 @@ aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& nor
   m->mNormals = new aiVector3D[nv];
   for (unsigned i = 0; i < nv; ++i) {
     const std::size_t s = source[i];
-    m->mVertices[i] = aiVector3D(static_cast<ai_real>(mesh.vertices[3 * s]),
-                                 static_cast<ai_real>(mesh.vertices[3 * s + 1]),
-                                 static_cast<ai_real>(mesh.vertices[3 * s + 2]));
+    m->mVertices[i] = aiVector3D(static_cast<ai_real>(mesh.vertices[3 * s] - origin[0]),
+                                 static_cast<ai_real>(mesh.vertices[3 * s + 1] - origin[1]),
+                                 static_cast<ai_real>(mesh.vertices[3 * s + 2] - origin[2]));
     const double* n = &normals[3 * s];
     m->mNormals[i] = n[0] == 0 && n[1] == 0 && n[2] == 0
                          ? aiVector3D(0, 0, 1)
@@ -367,7 +371,8 @@ ObjMesh ObjOf(const imr::sdk::MeshView& mesh, const std::vector<double>& normals
 // A complete scene: one root node holding one mesh per atlas page (with its textured material)
 // and one for the faces without texture (vertex colours, or the plain grey material).
 std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::string& name,
-                                    bool with_point_ids, const Appearance& look) {
+                                    bool with_point_ids, const Appearance& look,
+                                    const std::array<double, 3>& origin) {
   auto scene = std::make_unique<aiScene>();
   const std::vector<double> normals = VertexNormals(mesh);
   const std::vector<Part> parts = Parts(mesh, look);
@@ -379,7 +384,7 @@ std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::s
     materials.push_back(Material(MaterialName(part), textured || look.vertex_rgb != nullptr,
                                  textured ? look.page_paths[static_cast<std::size_t>(part.page)] : ""));
     const std::string mesh_name = PartName(name, part, parts.size());
-    meshes.push_back(BuildPart(mesh, normals, part, look, with_point_ids, mesh_name, material));
+    meshes.push_back(BuildPart(mesh, normals, part, look, with_point_ids, mesh_name, material, origin));
   }
   scene->mNumMaterials = static_cast<unsigned>(materials.size());
   scene->mMaterials = new aiMaterial*[materials.size()];
@@ -524,7 +529,10 @@ class AssimpExporter : public imr::sdk::Exporter {
                   (look.texture ? ", " + std::to_string(tm->pages.size()) + " atlas page(s)" : ""));
       return;
     }
-    std::unique_ptr<aiScene> scene = BuildScene(mesh, stem, write_ids, look);
+    // Vertices relative to a local origin (0 near the origin: point_id_channel.hpp).
+    const std::array<double, 3> origin = ExportOrigin(mesh.vertices.data(), mesh.vertex_count());
+    const bool shifted = origin != std::array<double, 3>{};
+    std::unique_ptr<aiScene> scene = BuildScene(mesh, stem, write_ids, look, origin);
     if (look.texture != nullptr && std::string(f.name) == "glb") {
       scene->mNumTextures = static_cast<unsigned>(tm->pages.size());
       scene->mTextures = new aiTexture*[scene->mNumTextures];
@@ -557,9 +565,11 @@ class AssimpExporter : public imr::sdk::Exporter {
                          UprightRotation(request.keyframes, rotation);
     if (std::string(f.name) == "ply") {
       if (write_ids || look.vertex_rgb != nullptr) RewritePly(path, write_ids);
-    } else if (write_ids || upright) {
+      if (shifted) AddPlyOrigin(path, origin);
+    } else if (write_ids || upright || shifted) {
       EditGltf(path, std::string(f.name) == "glb", [&](GltfDocument& g) {
         if (write_ids) ConvertGltfPointIds(g);
+        if (shifted) SetGltfOrigin(g, origin);
         if (upright) {
           // A viewer's natural start: from the first keyframe, toward one a few keyframes on.
           const auto& k = request.keyframes;
@@ -574,7 +584,10 @@ class AssimpExporter : public imr::sdk::Exporter {
                 " vertices, " + std::to_string(mesh.face_count()) + " triangles" +
                 (write_ids ? ", point ids" : "") + (look.vertex_rgb ? ", vertex colours" : "") +
                 (look.texture ? ", " + std::to_string(tm->pages.size()) + " atlas page(s)" : "") +
-                (upright ? ", upright" : ""));
+                (upright ? ", upright" : "") +
+                (shifted ? ", relative to the origin " + std::to_string(origin[0]) + " " +
+                               std::to_string(origin[1]) + " " + std::to_string(origin[2])
+                         : ""));
   }
 
  private:

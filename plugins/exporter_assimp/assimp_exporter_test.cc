@@ -406,6 +406,72 @@ TEST_F(AssimpExporter, ObjKeepsSplitVerticesAndDoublePositions) {
     for (int k = 0; k < 3; ++k) EXPECT_EQ(obj.f[f][k], m.faces[3 * f + k]) << f << " " << k;
 }
 
+// Vertex positions as written, in the sequence's coordinates: PLY's float x y z plus its
+// "comment imr_origin", glTF's POSITION plus the root node's translation.
+std::vector<std::array<double, 3>> WrittenPositions(const fs::path& file) {
+  std::vector<std::array<double, 3>> out;
+  std::array<double, 3> origin{};
+  if (file.extension() == ".ply") {
+    const std::vector<uint8_t> bytes = Slurp(file);
+    const std::string text(bytes.begin(), bytes.end());
+    const std::size_t body = text.find("end_header\n") + 11;
+    std::istringstream header(text.substr(0, body));
+    std::size_t count = 0, stride = 0;
+    std::string element;
+    for (std::string line; std::getline(header, line);) {
+      std::istringstream w(line);
+      std::string key, a, b;
+      w >> key >> a >> b;
+      if (key == "comment" && a == "imr_origin") {
+        origin[0] = std::stod(b);
+        w >> origin[1] >> origin[2];
+      }
+      if (key == "element") element = a, count = element == "vertex" ? std::stoul(b) : count;
+      if (key == "property" && element == "vertex") stride += a == "uchar" ? 1 : 4;
+    }
+    for (std::size_t i = 0; i < count; ++i) {
+      std::array<double, 3> p{};
+      for (int k = 0; k < 3; ++k) p[k] = origin[k] + LoadLE<float>(&bytes[body + i * stride + 4 * k]);
+      out.push_back(p);
+    }
+    return out;
+  }
+  const Gltf g = LoadGltf(file);
+  const json& root = g.doc["nodes"][g.doc["scenes"][0]["nodes"][0].get<std::size_t>()];
+  if (root.contains("translation"))
+    for (int k = 0; k < 3; ++k) origin[k] = root["translation"][k].get<double>();
+  const std::vector<double> v = AccessorValues(
+      g, g.doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"].get<std::size_t>());
+  for (std::size_t i = 0; i + 2 < v.size(); i += 3)
+    out.push_back({origin[0] + v[i], origin[1] + v[i + 1], origin[2] + v[i + 2]});
+  return out;
+}
+
+// Geo-referenced coordinates (UTM-sized: 5e5 east, 5e6 north) keep their centimetres in every
+// format: float32 alone keeps 3 cm at 5e5 and 50 cm at 5e6.
+TEST_F(AssimpExporter, FarFromTheOriginPositionsKeepCentimetres) {
+  for (const double offset : {5e5, 5e6}) {
+    TestMesh m = Grid(12);
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) m.vertices[i] += offset + 0.123456 * (i % 3);
+    for (const char* format : {"ply", "gltf", "glb"}) {
+      SCOPED_TRACE(std::string(format) + " at " + std::to_string(offset));
+      const std::vector<std::array<double, 3>> written = WrittenPositions(Export(m, format));
+      ASSERT_EQ(written.size(), m.vertices.size() / 3);
+      for (const auto& p : written) {  // each written vertex is an input vertex, within 1 cm
+        double best = 1e30;
+        for (std::size_t i = 0; i < m.vertices.size() / 3; ++i)
+          best = std::min(best, std::hypot(p[0] - m.vertices[3 * i], p[1] - m.vertices[3 * i + 1],
+                                           p[2] - m.vertices[3 * i + 2]));
+        EXPECT_LT(best, 0.01);
+      }
+    }
+  }
+  // Near the origin nothing changes: no origin comment, no translation.
+  const std::vector<uint8_t> ply = Slurp(Export(Cube(), "ply"));
+  EXPECT_EQ(std::string(ply.begin(), ply.end()).find("imr_origin"), std::string::npos);
+  EXPECT_FALSE(LoadGltf(Export(Cube(), "gltf")).doc["nodes"][0].contains("translation"));
+}
+
 TEST_F(AssimpExporter, PlyKeepsPointIdsIncludingSteinerAndLargeIds) {
   TestMesh big = Tetrahedron();
   big.ids = {-1, 2147483647, 16777217, 123456789};  // beyond glTF's float range, fine in PLY
