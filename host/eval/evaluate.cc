@@ -348,11 +348,13 @@ std::string FormatReport(const json& r) {
   };
   stats("truth -> mesh", r["truth_to_mesh"], "points");
   stats("mesh -> truth", r["mesh_to_truth"], "samples");
-  o << "tau           ";
+  // Completeness: share of the (cropped) ground truth within tau of the mesh (truth -> mesh);
+  // precision: share of the mesh samples within tau of the ground truth (mesh -> truth).
+  o << "tau                                 ";
   for (const json& x : r["tau"]) o << " " << num(x, "%8g");
-  o << "\ncompleteness  ";
+  o << "\ncompleteness (truth -> mesh <= tau) ";
   for (const json& x : r["completeness"]) o << " " << num(x, "%8.4f");
-  o << "\nprecision     ";
+  o << "\nprecision    (mesh -> truth <= tau) ";
   for (const json& x : r["precision"]) o << " " << num(x, "%8.4f");
   o << "\n";
   if (r.contains("road_surface")) {
