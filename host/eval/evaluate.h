@@ -1,4 +1,4 @@
-// Accuracy of a mesh against ground truth (DESIGN §8; `imr evaluate`): the paper's measure, the
+// Accuracy of a mesh against ground truth (`imr evaluate`; host/eval/README.md): the paper's measure, the
 // mean distance from every ground-truth point to the nearest mesh triangle (CloudCompare's
 // cloud-to-mesh distance), with median, RMS, 90th percentile and maximum; completeness and
 // precision at several thresholds; ground truth cropped to the region the cameras saw.
