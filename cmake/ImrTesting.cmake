@@ -5,6 +5,7 @@ function(imr_add_test)
   string(REPLACE "/" "_" exe "${T_NAME}")
   add_executable(${exe} ${T_SOURCES})
   target_link_libraries(${exe} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main imr_warnings)
+  target_include_directories(${exe} PRIVATE ${CMAKE_SOURCE_DIR})  # host/io/testing/temp_dir.h
   set_target_properties(${exe} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
   set(props ENVIRONMENT "IMR_SHARED_DIR=${IMR_SHARED_DIR}")
   if(T_LABELS)

@@ -105,7 +105,7 @@ TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
     EXPECT_LT(s["accuracy"]["mean_truth_to_mesh"].get<double>(), 0.5);  // from the report
   }
   const std::string md = ReadText(dir_ / "runs" / "summary.md");
-  EXPECT_NE(md.find("3 sequences: 3 ok, 0 failed, 0 not run."), std::string::npos) << md;
+  EXPECT_NE(md.find("3 sequences: 3 ok, 0 failed."), std::string::npos) << md;
   EXPECT_NE(md.find("| street | ok | 12 |"), std::string::npos) << md;
 
   // Nothing changed: nothing is redone.
@@ -175,7 +175,7 @@ TEST_F(Batch, TwoShardsCoverEverySequenceExactlyOnce) {
 
   auto rep = Imr("report " + Quote((dir_ / "runs").string()));
   EXPECT_EQ(rep.status, 0) << rep.out << rep.err;
-  EXPECT_NE(rep.out.find("3 sequences: 3 ok, 0 failed, 0 interrupted, 0 not run"), std::string::npos) << rep.out;
+  EXPECT_NE(rep.out.find("3 sequences: 3 ok (3 from an earlier run), 0 failed\n"), std::string::npos) << rep.out;
   EXPECT_EQ(ReadJson(dir_ / "runs" / "summary.json")["written_by"], "imr report");
 }
 
@@ -316,7 +316,7 @@ TEST_F(Batch, SubmitDryRunWritesReadableScripts) {
   // Before any task ran, the report says nothing ran.
   auto rep = Imr("report " + Quote(job.string()));
   EXPECT_EQ(rep.status, 3) << rep.out << rep.err;
-  EXPECT_NE(rep.out.find("3 sequences: 0 ok, 0 failed, 0 interrupted, 3 not run"), std::string::npos) << rep.out;
+  EXPECT_NE(rep.out.find("3 sequences: 0 ok, 0 failed, 3 not run"), std::string::npos) << rep.out;
 }
 
 TEST_F(Batch, BadOptionsAreUsageErrors) {

@@ -6,13 +6,16 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
+#include "host/eval/mesh_io.h"
 #include "host/io/colmap_model.h"
 #include "test_util.h"
 
@@ -303,6 +306,75 @@ TEST_F(Interop, AColmapModelOfAnyScaleMeshesWithAOneLineJob) {
   EXPECT_NE(err.find("the scene is far smaller than the engine's metric defaults assume"),
             std::string::npos) << err;
   EXPECT_NE(err.find("engine.scale \"auto\""), std::string::npos) << err;
+}
+
+// Issue 19: geo-referenced coordinates (UTM-sized: 5e5 east, 5e6 north) keep their centimetres
+// in every format. The same street model placed far from the origin: the OBJ (double text) and
+// the PLY and glTF (float32 relative to the origin report.json records) agree within 1 cm.
+TEST_F(Interop, AModelFarFromTheOriginKeepsCentimetresInEveryFormat) {
+  json j = Job("street", "synthetic", nullptr, "run");
+  j["input"]["options"] = {{"frames", 20}, {"seed", 6}};
+  auto r = Imr("run -q " + Quote(WriteJob(j, "street.json").string()) + " --export-colmap " +
+               Quote((dir_ / "near").string()));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_EQ(Report("run")["mesh"]["export_origin"], json::array({0.0, 0.0, 0.0}));
+  for (const double offset : {5e5, 5e6}) {
+    SCOPED_TRACE(offset);
+    io::ColmapModel model = io::ReadColmapModel(dir_ / "near");
+    for (auto& p : model.points)
+      for (double& x : p.xyz) x += offset;
+    for (auto& i : model.images) {  // t = -R c: the centre moves by offset too
+      const io::Mat3 rot = io::QuaternionToRotation(i.qvec);
+      for (int row = 0; row < 3; ++row)
+        for (int k = 0; k < 3; ++k) i.tvec[row] -= rot[row][k] * offset;
+    }
+    const std::string name = "far" + std::to_string(static_cast<int>(offset));
+    fs::create_directories(dir_ / (name + "-model"));
+    io::WriteColmapText(model, dir_ / (name + "-model"));
+    json job = {{"sequences", {(dir_ / (name + "-model")).string()}},
+                {"input", {{"format", "colmap"}}},
+                {"engine", {{"scale", "metric"}}},
+                {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+                {"output", {{"directory", name}, {"formats", {"obj", "ply", "gltf"}}}}};
+    r = Imr("run -q " + Quote(WriteJob(job, name + ".json").string()));
+    ASSERT_EQ(r.status, 0) << r.out << r.err;
+    const json origin = Report(name)["mesh"]["export_origin"];
+    ASSERT_TRUE(origin.is_array());
+    EXPECT_GT(origin[0].get<double>(), offset - 1e3);
+    std::map<int64_t, eval::Vec3> truth;  // the model's points, in double
+    for (const auto& p : model.points) truth[static_cast<int64_t>(p.id)] = {p.xyz[0], p.xyz[1], p.xyz[2]};
+    std::vector<eval::Vec3> obj = eval::ReadMesh(dir_ / name / "mesh.obj").vertices;
+    std::sort(obj.begin(), obj.end());
+    // Distance from v to the nearest OBJ vertex (sorted by x: the candidates within `within`).
+    auto to_obj = [&](const eval::Vec3& v, double within) {
+      double best = 1e30;
+      for (auto it = std::lower_bound(obj.begin(), obj.end(), eval::Vec3{v[0] - within, -1e30, -1e30});
+           it != obj.end() && (*it)[0] <= v[0] + within; ++it)
+        best = std::min(best, std::hypot(v[0] - (*it)[0], v[1] - (*it)[1], v[2] - (*it)[2]));
+      return best;
+    };
+    // PLY (origin added back by imr's reader): each data point's vertex within 1 cm of the point;
+    // the OBJ holds the point exactly.
+    const eval::TriangleMesh ply = eval::ReadMesh(dir_ / name / "mesh.ply");
+    const std::vector<int32_t> ids = ReadPly(dir_ / name / "mesh.ply").point_ids;
+    ASSERT_EQ(ids.size(), ply.vertices.size());
+    int points = 0;
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      if (ids[i] < 0) continue;
+      const eval::Vec3& p = truth.at(ids[i]);
+      const eval::Vec3& v = ply.vertices[i];
+      ASSERT_LT(std::hypot(v[0] - p[0], v[1] - p[1], v[2] - p[2]), 0.01) << "PLY vertex " << i;
+      ASSERT_EQ(to_obj(p, 1e-9), 0.0) << "point " << ids[i] << " is not exact in the OBJ";
+      ++points;
+    }
+    EXPECT_GT(points, 100);
+    // glTF (the node's translation added back): every vertex within 1 cm of an OBJ vertex.
+    const eval::TriangleMesh gltf = eval::ReadMesh(dir_ / name / "mesh.gltf");
+    ASSERT_GT(gltf.vertices.size(), 100u);
+    int far = 0;
+    for (const eval::Vec3& v : gltf.vertices) far += to_obj(v, 0.01) < 0.01 ? 0 : 1;
+    EXPECT_EQ(far, 0) << "glTF vertices more than 1 cm from the OBJ's";
+  }
 }
 
 TEST_F(Interop, ExportPathsMustSeparateSequences) {

@@ -25,18 +25,6 @@ CommandResult RunShell(const std::string& command) {
   return r;
 }
 
-ScratchDir::ScratchDir(const std::string& tag) {
-  std::random_device rd;
-  path_ = fs::temp_directory_path() /
-          ("imr-test-" + tag + "-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
-  fs::create_directories(path_);
-}
-
-ScratchDir::~ScratchDir() {
-  std::error_code ec;
-  fs::remove_all(path_, ec);
-}
-
 void WriteText(const fs::path& path, const std::string& text) {
   fs::create_directories(path.parent_path());
   std::ofstream f(path, std::ios::binary);

@@ -2,6 +2,8 @@
 // make scratch folders.
 #pragma once
 
+#include "host/io/testing/temp_dir.h"
+
 #include <filesystem>
 #include <string>
 
@@ -16,16 +18,11 @@ struct CommandResult {
 // Runs `command` with /bin/sh; stdout and stderr are captured separately.
 CommandResult RunShell(const std::string& command);
 
-// A fresh, empty folder under the system temp folder, removed by the destructor.
-class ScratchDir {
+// A fresh, empty folder under the system temp folder, removed by the destructor: the tests'
+// one scratch folder (host/io/testing/temp_dir.h), named imr-test-<tag>-XXXXXX.
+class ScratchDir : public io::testing::TempDir {
  public:
-  explicit ScratchDir(const std::string& tag);
-  ~ScratchDir();
-  const std::filesystem::path& path() const { return path_; }
-  std::filesystem::path operator/(const std::string& p) const { return path_ / p; }
-
- private:
-  std::filesystem::path path_;
+  explicit ScratchDir(const std::string& tag) : TempDir("imr-test-" + tag) {}
 };
 
 void WriteText(const std::filesystem::path& path, const std::string& text);

@@ -586,8 +586,9 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
   }
   if (!options.shard.active()) {
     try {
-      WriteSummary(batch_dir, "imr run");
+      const nlohmann::json summary = WriteSummary(batch_dir, "imr run");
       result.summary_written = true;
+      if (options.viewer_page) result.viewer_page = WriteViewerPage(batch_dir, summary);
     } catch (const std::exception& e) {
       LogError(std::string("cannot write the batch summary: ") + e.what());
     }

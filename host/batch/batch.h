@@ -39,6 +39,9 @@ struct BatchOptions {
   bool verbose = false;
   // The imr executable the children run (this one: /proc/self/exe).
   std::string executable;
+  // After the summary, the viewer page RUN_DIR/index.html (host/report; `imr run --no-viewer`:
+  // not written). A re-run writes it again.
+  bool viewer_page = true;
 
   // Empty when usable, otherwise what is wrong (naming the option).
   std::string Check() const;
@@ -65,6 +68,7 @@ struct BatchRunResult {
   std::filesystem::path batch_directory;
   std::vector<SequenceOutcome> outcomes;  // this run's sequences, in the job's order
   bool summary_written = false;           // not for a shard: `imr report` merges them
+  std::filesystem::path viewer_page;      // index.html when written, else empty
   int Count(SequenceStatus s) const;
 };
 

@@ -1,8 +1,10 @@
 #include "host/batch/summary.h"
 
 #include "host/batch/manifest.h"
+#include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
+#include "host/util/log.h"
 #include "host/util/sha256.h"
 
 #include <unistd.h>
@@ -85,6 +87,29 @@ std::string StatusFileName(const std::string& sequence) {
   std::string prefix;
   for (char c : sequence.substr(0, 48)) prefix += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
   return prefix + "-" + Sha256Hex(sequence).substr(0, 16) + ".json";
+}
+
+std::string CountsSentence(const json& c) {
+  const int n = c.at("sequences").get<int>();
+  std::string s = std::to_string(n) + (n == 1 ? " sequence: " : " sequences: ") +
+                  std::to_string(c.at("ok").get<int>()) + " ok";
+  if (const int r = c.value("reused", 0); r > 0)
+    s += " (" + std::to_string(r) + " from an earlier run)";
+  s += ", " + std::to_string(c.at("failed").get<int>()) + " failed";
+  if (const int i = c.value("interrupted", 0); i > 0) s += ", " + std::to_string(i) + " interrupted";
+  if (const int r = c.value("not_run", 0); r > 0) s += ", " + std::to_string(r) + " not run";
+  return s;
+}
+
+std::filesystem::path WriteViewerPage(const std::filesystem::path& batch_dir, const json& summary) {
+  try {
+    const report::ViewerPageResult page = report::WriteBatchPage(batch_dir, summary);
+    for (const std::string& note : page.notes) LogWarning("viewer page: " + note);
+    return page.page;
+  } catch (const std::exception& e) {
+    LogWarning(std::string("viewer page not written: ") + e.what());
+    return {};
+  }
 }
 
 std::string UtcNow() {
@@ -266,13 +291,13 @@ std::string SummaryMarkdown(const json& s) {
     md << ", written by `" << s["written_by"].get<std::string>() << "` at "
        << s.value("written_at", "");
   md << ".\n\n";
-  md << c.at("sequences").get<int>() << " sequences: " << c.at("ok").get<int>() << " ok";
-  if (c.at("reused").get<int>() > 0) md << " (" << c.at("reused").get<int>() << " from an earlier run)";
-  md << ", " << c.at("failed").get<int>() << " failed, ";
-  if (c.value("interrupted", 0) > 0) md << c["interrupted"].get<int>() << " interrupted, ";
-  md << c.at("not_run").get<int>() << " not run.\n\n";
+  md << CountsSentence(c) << ".\n\n";
+  md << "Accuracy: the mean distance truth → mesh (from each ground-truth point to the nearest "
+        "triangle; scene units) and the completeness at τ (share of the ground truth within τ "
+        "of the mesh), the ground truth cropped to what the cameras saw; each report.json's "
+        "`accuracy` gives τ and the crop.\n\n";
   md << "| sequence | status | frames | keyframes | time (s) | triangles | mesh files | "
-        "accuracy (mean, truth → mesh) | completeness | error |\n";
+        "mean distance truth → mesh | completeness at τ | error |\n";
   md << "|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n";
   for (const json& r : s.at("sequences")) {
     std::string status = r.value("status", "");

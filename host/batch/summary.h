@@ -79,6 +79,16 @@ std::string SummaryMarkdown(const nlohmann::json& summary);
 // Builds and writes summary.json and summary.md (atomically); returns the summary.
 nlohmann::json WriteSummary(const std::filesystem::path& batch_dir, const std::string& written_by);
 
+// "3 sequences: 2 ok, 1 failed" from the summary's "counts" ("1 sequence"; interrupted, not run
+// and reuse only when there are any), for summary.md and `imr report`.
+std::string CountsSentence(const nlohmann::json& counts);
+
+// The viewer page of the batch folder from its summary (host/report/viewer_page.h), its notes
+// logged as warnings; the page's path, or empty (with a warning) when it cannot be written: the
+// summary still stands.
+std::filesystem::path WriteViewerPage(const std::filesystem::path& batch_dir,
+                                      const nlohmann::json& summary);
+
 std::string UtcNow();  // "2026-11-21T22:03:34Z"
 
 }  // namespace imr::batch

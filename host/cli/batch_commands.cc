@@ -41,7 +41,8 @@ const char* kRunNotes =
     "Batches: each sequence runs in its own process (a crash fails that sequence only); when it\n"
     "succeeds, manifest.json (its files with SHA-256, and the job's hash) is written last, and a\n"
     "re-run skips it while the job and the files still match (--force: redo all). The batch\n"
-    "folder (the part of output.directory before {sequence}) gets summary.json and summary.md.\n"
+    "folder (the part of output.directory before {sequence}) gets summary.json and summary.md,\n"
+    "and the viewer page index.html (--no-viewer: not written), refreshed by every run.\n"
     "--shard I/N runs the I-th of N balanced, deterministic shares (inside a Slurm array task\n"
     "the share comes from SLURM_ARRAY_TASK_ID/COUNT/MIN); a shard writes no summary: run\n"
     "`imr report RUN_DIR` when all are done. Progress: a bar on a terminal, else a line every\n"
@@ -89,7 +90,8 @@ int CmdRun(const std::vector<std::string>& args) {
       "max-rss", po::value<std::string>()->value_name("SIZE"),
       "kill a sequence whose process uses more resident memory (e.g. 4G)")(
       "sequences-from", po::value<std::string>()->value_name("FILE"),
-      "only the sequences named in FILE, one per line (imr submit's frozen list)");
+      "only the sequences named in FILE, one per line (imr submit's frozen list)")(
+      "no-viewer", "do not write the viewer page (RUN_DIR/index.html) after the summary");
   po::positional_options_description pos;
   pos.add("job", 1);
   po::variables_map vm;
@@ -111,6 +113,7 @@ int CmdRun(const std::vector<std::string>& args) {
   batch.force = vm.count("force") > 0;
   batch.verbose = vm.count("verbose") > 0;
   batch.executable = SelfPath();
+  batch.viewer_page = vm.count("no-viewer") == 0;
   if (!ParseSize(vm, "run", &batch.max_rss)) return kExitUsage;
   if (vm.count("sequences-from")) batch.sequences_from = vm["sequences-from"].as<std::string>();
   std::string error;
@@ -185,7 +188,9 @@ int CmdRun(const std::vector<std::string>& args) {
     std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
                 batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
   else if (result.summary_written)
-    std::printf("\nsummary: %s\n", (result.batch_directory / "summary.md").string().c_str());
+    std::printf("\nsummary: %s%s%s\n", (result.batch_directory / "summary.md").string().c_str(),
+                result.viewer_page.empty() ? "" : "\nviewer page: ",
+                result.viewer_page.string().c_str());
   else
     std::printf("\n");
   return imr::ExitStatusForFailures(failed);
@@ -468,9 +473,7 @@ int CmdReport(const std::vector<std::string>& args) {
     std::printf("%-7s %-20s %s\n", label.c_str(), r["name"].get<std::string>().c_str(), where.c_str());
   }
   const auto& c = summary["counts"];
-  std::printf("%d sequences: %d ok, %d failed, %d interrupted, %d not run\nsummary: %s\n",
-              c["sequences"].get<int>(), c["ok"].get<int>(), c["failed"].get<int>(),
-              c["interrupted"].get<int>(), c["not_run"].get<int>(),
+  std::printf("%s\nsummary: %s\n", imr::batch::CountsSentence(c).c_str(),
               (dir / "summary.md").string().c_str());
   return imr::ExitStatusForFailures(c["failed"].get<int>() + c["interrupted"].get<int>() +
                                            c["not_run"].get<int>());

@@ -4,11 +4,19 @@
 #include "host/util/exit_status.h"
 
 #include <charconv>
+#include <cstdio>
 #include <iostream>
 #include <sstream>
 
 namespace imr::cli {
 namespace {
+
+// A default as --help shows it: 0.6, not 0.59999999999999998.
+std::string ShortNumber(double x) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", x);
+  return b;
+}
 
 namespace fs = std::filesystem;
 
@@ -64,7 +72,7 @@ int CmdRender(const std::vector<std::string>& args) {
       "frame", po::value<int>()->value_name("N"), "the frame to draw into (0-based, after --frames)")(
       "top-down", "draw the whole mesh from above, with the camera path")(
       "mode", po::value<std::string>()->default_value("shaded"), "shaded, wireframe or both")(
-      "opacity", po::value<double>()->default_value(d.opacity),
+      "opacity", po::value<double>()->default_value(d.opacity, ShortNumber(d.opacity)),
       "mesh over the image: 0 = image only, 1 = mesh hides the image")(
       "no-image", "draw on black instead of the frame's image")(
       "keyframe-every", po::value<int>()->default_value(io::ImageSequenceOptions{}.keyframe_every),

@@ -1,5 +1,5 @@
 // The reconstruction engine: incremental 2-manifold reconstruction with moving points
-// (Romanoni & Matteucci, sections 2-3; DESIGN §3). A Delaunay triangulation of the points and a
+// (Romanoni & Matteucci, sections 2-3). A Delaunay triangulation of the points and a
 // Steiner grid, tetrahedra weighted by viewing rays, and the manifold set O of outside tetrahedra
 // whose boundary dO is the surface. Per keyframe it takes new, moved and removed points and keeps
 // dO a 2-manifold. Knows nothing of files, JSON or plugins; CGAL stays behind the pimpl.
@@ -90,7 +90,7 @@ struct EngineOptions {
   int smoothing_iterations = 0;       // Export: Taubin lambda|mu smoothing steps (boundary
                                       // vertices fixed; topology unchanged); 0: none.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
-                                      // point) get weights through the policy (DESIGN §3 step 3)
+                                      // point) get weights through the policy (keyframe update, step 3: insert)
                                       // when true; else they start at 0 and the point's own rays,
                                       // cast right after, weight them. Moves always use the
                                       // policy. See the note in engine.cc on why false is default.

@@ -191,6 +191,49 @@ Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
   return e;
 }
 
+Truth LoadTruth(const std::string& path, const io::ImageSequence* sequence, int scan_step,
+                const EvaluationOptions& options) {
+  Truth truth;
+  json& t = truth.description;
+  if (!path.empty()) {
+    TriangleMesh g = ReadGeometry(path);
+    t = {{"path", path}, {"format", GeometryFormat(path)}};
+    if (g.triangles.empty()) {
+      t["source"] = "point_cloud";
+      truth.points = std::move(g.vertices);
+    } else {
+      const double area = MeshArea(g);
+      const double count = std::round(area * options.truth_density);
+      if (count > 2e8)
+        throw std::runtime_error(path + ": a reference mesh of area " + std::to_string(area) +
+                                 " at density " + std::to_string(options.truth_density) +
+                                 " gives more than 2e8 samples; lower the truth density");
+      truth.points = SampleSurface(g, static_cast<std::size_t>(count), options.seed ^ 0x5eedu);
+      t["source"] = "mesh_samples";
+      t["reference_triangles"] = g.triangles.size();
+      t["reference_area"] = area;
+      t["density"] = options.truth_density;
+      t["seed"] = options.seed;
+    }
+  } else {
+    if (sequence == nullptr)
+      throw std::runtime_error("Velodyne ground truth: no sequence with Velodyne scans given");
+    VelodyneTruth v = LoadVelodyneTruth(*sequence, scan_step);
+    truth.points = std::move(v.points);
+    t = {{"source", "velodyne"},
+         {"path", sequence->root},
+         {"layout", sequence->layout},
+         {"scans", v.scans},
+         {"scan_step", scan_step},
+         {"frames_without_scan", v.frames_without_scan}};
+  }
+  t["points"] = truth.points.size();
+  if (truth.points.empty())
+    throw std::runtime_error((path.empty() && sequence != nullptr ? sequence->root : path) +
+                             ": no ground-truth point");
+  return truth;
+}
+
 json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
                    SequenceReader read_sequence) {
   const std::string problem = options.Check();
@@ -212,43 +255,11 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
     cameras = Cameras(seq);
   }
 
-  std::vector<Vec3> truth;
-  json& t = report["truth"];
-  if (!in.truth.empty()) {
-    TriangleMesh g = ReadGeometry(in.truth);
-    t = {{"path", in.truth}, {"format", GeometryFormat(in.truth)}};
-    if (g.triangles.empty()) {
-      t["source"] = "point_cloud";
-      truth = std::move(g.vertices);
-    } else {
-      const double area = MeshArea(g);
-      const double count = std::round(area * options.truth_density);
-      if (count > 2e8)
-        throw std::runtime_error(in.truth + ": a reference mesh of area " + std::to_string(area) +
-                                 " at density " + std::to_string(options.truth_density) +
-                                 " gives more than 2e8 samples; lower the truth density");
-      truth = SampleSurface(g, static_cast<std::size_t>(count), options.seed ^ 0x5eedu);
-      t["source"] = "mesh_samples";
-      t["reference_triangles"] = g.triangles.size();
-      t["reference_area"] = area;
-      t["density"] = options.truth_density;
-      t["seed"] = options.seed;
-    }
-  } else {
-    VelodyneTruth v = LoadVelodyneTruth(seq, in.scan_step);
-    truth = std::move(v.points);
-    t = {{"source", "velodyne"},
-         {"path", in.sequence},
-         {"layout", seq.layout},
-         {"scans", v.scans},
-         {"scan_step", in.scan_step},
-         {"frames_without_scan", v.frames_without_scan}};
-  }
-  t["points"] = truth.size();
-  if (truth.empty()) throw std::runtime_error((in.truth.empty() ? in.sequence : in.truth) + ": no ground-truth point");
+  Truth truth = LoadTruth(in.truth, in.sequence.empty() ? nullptr : &seq, in.scan_step, options);
+  report["truth"] = std::move(truth.description);
   const double seconds_read = Seconds(start);
 
-  const Evaluation e = Evaluate(mesh, truth, cameras, options, !in.per_point.empty());
+  const Evaluation e = Evaluate(mesh, truth.points, cameras, options, !in.per_point.empty());
   if (!in.per_point.empty()) WritePerPoint(in.per_point, e.per_point);
 
   report["mesh"]["vertices"] = e.mesh_vertices;
@@ -337,11 +348,13 @@ std::string FormatReport(const json& r) {
   };
   stats("truth -> mesh", r["truth_to_mesh"], "points");
   stats("mesh -> truth", r["mesh_to_truth"], "samples");
-  o << "tau           ";
+  // Completeness: share of the (cropped) ground truth within tau of the mesh (truth -> mesh);
+  // precision: share of the mesh samples within tau of the ground truth (mesh -> truth).
+  o << "tau                                 ";
   for (const json& x : r["tau"]) o << " " << num(x, "%8g");
-  o << "\ncompleteness  ";
+  o << "\ncompleteness (truth -> mesh <= tau) ";
   for (const json& x : r["completeness"]) o << " " << num(x, "%8.4f");
-  o << "\nprecision     ";
+  o << "\nprecision    (mesh -> truth <= tau) ";
   for (const json& x : r["precision"]) o << " " << num(x, "%8.4f");
   o << "\n";
   if (r.contains("road_surface")) {

@@ -1,4 +1,4 @@
-// Accuracy of a mesh against ground truth (DESIGN §8; `imr evaluate`): the paper's measure, the
+// Accuracy of a mesh against ground truth (`imr evaluate`; host/eval/README.md): the paper's measure, the
 // mean distance from every ground-truth point to the nearest mesh triangle (CloudCompare's
 // cloud-to-mesh distance), with median, RMS, 90th percentile and maximum; completeness and
 // precision at several thresholds; ground truth cropped to the region the cameras saw.
@@ -88,6 +88,21 @@ struct Evaluation {
 Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
                     const std::vector<io::CameraGeometry>& cameras,
                     const EvaluationOptions& options, bool per_point = false);
+
+// Ground truth as evaluated: its points and what a report says of them (its "truth": source,
+// path, points, ...).
+struct Truth {
+  std::vector<Vec3> points;
+  nlohmann::json description;
+};
+
+// Reads the ground truth `imr evaluate` and a job's "evaluation" name: `path` is a point cloud
+// (.ply without faces, .xyz/.txt/.asc) or a reference mesh (.ply, .obj, .gltf, .glb with faces;
+// sampled by area at options.truth_density, seeded by options.seed); "" means the Velodyne scans
+// of `sequence` (every scan_step-th frame's). Throws std::runtime_error naming the file on bad
+// input, on a reference mesh that would give more than 2e8 samples, and when no point is found.
+Truth LoadTruth(const std::string& path, const io::ImageSequence* sequence, int scan_step,
+                const EvaluationOptions& options);
 
 // What `imr evaluate` reads.
 struct EvaluationInputs {

@@ -3,6 +3,7 @@
 // transform, and the file-level report with a fake image sequence.
 #include "host/eval/distance.h"
 #include "host/eval/evaluate.h"
+#include "host/io/testing/temp_dir.h"
 
 #include <gtest/gtest.h>
 
@@ -204,13 +205,8 @@ TEST(VelodyneTest, TransformToWorld) {
 
 class ScratchTest : public ::testing::Test {
  protected:
-  ScratchTest() {
-    dir_ = fs::temp_directory_path() /
-           ("imr-eval-" + std::to_string(::getpid()) + "-" + std::to_string(std::random_device{}()));
-    fs::create_directories(dir_);
-  }
-  ~ScratchTest() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  io::testing::TempDir scratch_{"imr-eval"};
+  const fs::path dir_ = scratch_.path();
 };
 
 void WriteScan(const fs::path& p, const std::vector<std::array<float, 4>>& pts) {

@@ -1,4 +1,4 @@
-// Ground truth for evaluation (DESIGN §8): points on a reference mesh, KITTI Velodyne scans placed
+// Ground truth for evaluation (host/eval/README.md): points on a reference mesh, KITTI Velodyne scans placed
 // in the sequence's world frame, and the crop to the region the cameras saw.
 #pragma once
 
@@ -50,7 +50,7 @@ struct CropCounts {
 bool InFrustum(const io::CameraGeometry& g, const Vec3& x);
 
 // Keeps (keep[i] = 1) the points inside the frustum of some camera AND within max_ray_length of
-// that same camera's centre: the region the cameras saw (DESIGN §8). max_ray_length <= 0: no range
+// that same camera's centre: the region the cameras saw (the paper evaluated only there). max_ray_length <= 0: no range
 // limit. Every camera needs projectable intrinsics with width and height > 0 (throws
 // std::invalid_argument naming the first that has not). Cameras are binned on a grid of cell
 // max_ray_length, so a point is tested only against the cameras near it.

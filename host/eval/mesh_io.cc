@@ -269,11 +269,18 @@ TriangleMesh ParsePly(std::string_view data, const fs::path& path) {
   bool have_format = false, ended = false;
   std::vector<PlyElement> elements;
   std::vector<std::string_view> tok;
+  Vec3 origin = {0.0, 0.0, 0.0};
   int header_line = 1;
   while (next_line(&line)) {
     ++header_line;
     Tokenize(line, false, &tok);
     const auto where = [&] { return "header line " + std::to_string(header_line) + ": "; };
+    // imr's exporter writes vertices relative to "comment imr_origin X Y Z" (far from 0).
+    if (tok.size() >= 5 && tok[0] == "comment" && tok[1] == "imr_origin") {
+      for (int k = 0; k < 3; ++k)
+        if (!ParseDouble(tok[2 + k], &origin[k])) Fail(path, where() + "bad imr_origin");
+      continue;
+    }
     if (tok.empty() || tok[0] == "comment" || tok[0] == "obj_info") continue;
     if (tok[0] == "end_header") {
       ended = true;
@@ -373,7 +380,7 @@ TriangleMesh ParsePly(std::string_view data, const fs::path& path) {
         if (keep) AddPolygon(poly, &m);
       }
       if (is_vertex) {
-        const Vec3 v = {values[ix], values[iy], values[iz]};
+        const Vec3 v = {values[ix] + origin[0], values[iy] + origin[1], values[iz] + origin[2]};
         if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
           Fail(path, what() + ": coordinate is not finite");
         m.vertices.push_back(v);

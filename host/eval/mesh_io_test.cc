@@ -106,6 +106,21 @@ TEST_F(MeshIo, PlyAsciiSkipsOtherPropertiesAndElements) {
   EXPECT_EQ(m.triangles[1], (std::array<uint32_t, 3>{0, 2, 3}));
 }
 
+// imr's exporter writes far-away vertices relative to "comment imr_origin X Y Z".
+TEST_F(MeshIo, PlyImrOriginIsAddedBack) {
+  const auto p = Write("far.ply",
+                       "ply\nformat ascii 1.0\ncomment imr_origin 500000 5000000 -1000 (add it)\n"
+                       "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                       "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                       "0.125 0.5 1\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const TriangleMesh m = ReadMesh(p);
+  ExpectVertex(m, 0, {500000.125, 5000000.5, -999});
+  EXPECT_NE(ErrorOf(Write("bad.ply", "ply\nformat ascii 1.0\ncomment imr_origin 1 x 3 y\n"
+                                     "element vertex 0\nproperty float x\nproperty float y\n"
+                                     "property float z\nend_header\n")).find("bad imr_origin"),
+            std::string::npos);
+}
+
 // Binary PLY as imr's exporter writes it (float xyz, normals, int point_id, uchar/int
 // vertex_index), and in big-endian with double coordinates and uint indices.
 std::string BinaryPly(bool big_endian) {

@@ -2,6 +2,7 @@
 // completeness on hand-built scenes whose answer is known: a road 8 m x 20 m with one parked box,
 // meshes that cover all of it, half of it, or float above it, seen by one camera.
 #include "host/eval/synthetic_truth.h"
+#include "host/io/testing/temp_dir.h"
 
 #include <gtest/gtest.h>
 
@@ -129,13 +130,8 @@ TEST(RoadSurfaceTest, CroppedLikeImrEvaluateAndHiddenSamplesCounted) {
 
 class ScratchTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char tmpl[] = "/tmp/imr_synthetic_truth_XXXXXX";
-    ASSERT_NE(mkdtemp(tmpl), nullptr);
-    dir_ = tmpl;
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  io::testing::TempDir scratch_{"imr-synthetic-truth"};
+  const fs::path dir_ = scratch_.path();
 };
 
 using ReadSyntheticTruthTest = ScratchTest;

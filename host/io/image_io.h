@@ -1,4 +1,4 @@
-// Decoding one image file into plain 8-bit pixels for the front end (DESIGN §2). OpenCV's
+// Decoding one image file into plain 8-bit pixels for the image front end (host/pipeline/front_end.h). OpenCV's
 // imgcodecs does the decoding inside image_io.cc only: no OpenCV type crosses this header, so the
 // rest of the host never compiles against OpenCV.
 #pragma once

@@ -1,6 +1,6 @@
 // Where the engine's per-keyframe updates come from. Each input format opens a KeyframeSource
 // for one sequence: the synthetic stream, SfM/SLAM exports (OpenMVG, COLMAP, SLAM JSON) and
-// (later) the image front end.
+// the image front end (host/pipeline/front_end.h, over the features and refiner plugins).
 // The pipeline only pulls updates from it, so a new format needs no pipeline change.
 #pragma once
 

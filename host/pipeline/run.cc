@@ -1,31 +1,28 @@
+// The run of one sequence as a controller (COLMAP's controllers/incremental_pipeline: Run() and
+// its callbacks). SequenceRun::Run reads as the steps, in order, and the steps follow it in this
+// file: instantiate the stages, open the source, decide the scale and start the engine, the
+// keyframe loop (the engine, then the observers of keyframe_observers.h), finish (checks,
+// warnings, exports, evaluation, the mesh through mesh_export.h, the report of report.h).
 #include "host/pipeline/run.h"
 
-#include "host/eval/evaluate.h"
-#include "host/eval/ground_truth.h"
-#include "host/eval/mesh_stats.h"
-#include "host/io/engine_options.h"
-#include "host/pipeline/scale.h"
-#include "host/pipeline/front_end.h"
-#include "host/pipeline/stage_watch.h"
-#include "host/plugin/host_services.h"
-#include "host/plugin/keyframe_images.h"
-#include "host/plugin/policy_adapter.h"
 #include "host/io/input_formats.h"
 #include "host/io/slam_json.h"
+#include "host/pipeline/front_end.h"
+#include "host/pipeline/keyframe_observers.h"
+#include "host/pipeline/mesh_export.h"
+#include "host/pipeline/report.h"
+#include "host/pipeline/scale.h"
+#include "host/pipeline/stage_watch.h"
+#include "host/plugin/host_services.h"
+#include "host/plugin/policy_adapter.h"
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
-#include "host/util/sha256.h"
 #include "host/util/log.h"
 
-#include <unistd.h>
-
-#include <algorithm>
-#include <array>
 #include <chrono>
 #include <deque>
-#include <cmath>
-#include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 
@@ -35,675 +32,408 @@ using nlohmann::json;
 
 const char* Version() { return IMR_VERSION; }
 
-int BatchResult::failed() const {
-  int n = 0;
-  for (const auto& s : sequences) n += s.ok ? 0 : 1;
-  return n;
+namespace {
+
+class SequenceRun {
+ public:
+  SequenceRun(const ValidatedJob& v, const plugin::PluginRegistry& registry,
+              const RunOptions& options, const SequenceRef& seq, SequenceResult* result)
+      : v_(v), job_(v.job), registry_(registry), options_(options), seq_(seq), result_(result),
+        watch_(options.on_stage_timeout) {
+    result_->output_directory = job_.OutputDirectory(seq.name);
+  }
+
+  // Throws, naming the keyframe, file or stage, when the sequence fails.
+  void Run() {
+    InstantiateStages();
+    OpenSource();
+    StartEngine();
+    AddObservers();
+    ProcessKeyframes();
+    Finish();
+  }
+
+ private:
+  void InstantiateStages();
+  void OpenSource();
+  void StartEngine();
+  void AddObservers();
+  void ProcessKeyframes();
+  bool NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info);
+  void Finish();
+  engine::Mesh CheckedMesh();
+  void WarnAbout(const engine::Mesh& mesh);
+  void Warn(const std::string& warning);
+  void WriteStreamExports();
+  void EvaluateMesh(const engine::Mesh& mesh);
+  void WriteMeshAndReport(const engine::Mesh& mesh);
+
+  const ValidatedJob& v_;
+  const io::JobSpec& job_;
+  const plugin::PluginRegistry& registry_;
+  const RunOptions& options_;
+  const SequenceRef& seq_;
+  SequenceResult* result_;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+
+  // The stages: one policy (weights mode), the exporters, the image front end's two plugins.
+  std::optional<plugin::PluginWeightPolicy> policy_;
+  Exporters exporters_;
+  std::optional<plugin::LoadedInstance> features_, refiner_;
+  // Every call into a plugin is watched against its stage's timeout: a hung plugin fails the
+  // sequence (stage_watch.h). Declared before the source, the policy adapter and the engine,
+  // which call plugins through it.
+  StageWatch watch_;
+  std::vector<WatchedStage> watched_;  // per stage of the job
+  std::size_t policy_stage_ = 0, features_stage_ = 0, refiner_stage_ = 0;
+
+  // The source.
+  const io::InputFormat* format_ = nullptr;
+  std::unique_ptr<io::KeyframeSource> source_;
+  const ImageFrontEndSource* front_end_ = nullptr;  // image inputs: the source itself
+  std::optional<WatchedPolicy> watched_policy_;
+
+  // The scene's scale (scale.h) and the engine.
+  ScaleMode scale_mode_ = ScaleMode::kMetric;
+  std::set<std::string> explicit_keys_;  // engine options the job sets
+  ScaleProbe probe_;
+  ScaleEstimate scale_;
+  engine::EngineOptions engine_options_;
+  // Keyframes read to decide the scale (auto mode), given to the engine before the rest.
+  std::deque<std::pair<engine::KeyframeUpdate, io::KeyframeInfo>> early_;
+  std::optional<engine::Engine> engine_;
+
+  // The keyframe loop.
+  io::CanonicalOrder canonical_;
+  ExportContext export_context_;
+  std::vector<std::unique_ptr<KeyframeObserver>> observers_;  // called in this order
+  StreamRecording* recording_ = nullptr;  // the observers the report reads; null: not asked
+  InvariantCheck* checks_ = nullptr;
+  TraceWriter* trace_ = nullptr;
+  Snapshots* snapshots_ = nullptr;
+  int keyframes_ = 0;
+  double engine_seconds_ = 0.0;
+
+  // Gathered by Finish for the report.
+  ReportInputs report_;
+};
+
+}  // namespace
+
+SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
+                              const RunOptions& options, const SequenceRef& seq) {
+  SequenceResult r;
+  r.name = seq.name;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    SequenceRun(v, registry, options, seq, &r).Run();
+  } catch (const std::exception& e) {
+    r.ok = false;
+    r.error = e.what();
+    r.seconds = Seconds(start);
+    LogError("sequence " + seq.name + " failed: " + r.error);
+  }
+  return r;
 }
 
 namespace {
 
-double Seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-json PluginJson(const plugin::PluginInfo& info, const json& params) {
-  return {{"id", info.id()},     {"version", info.version()}, {"kind", info.kind()},
-          {"abi", info.abi()},   {"file", info.file.string()}, {"params", params}};
-}
-
-json StatsJson(const engine::EngineStats& s) {
-  const auto& t = s.time;
-  // Every counter engine::EngineStats keeps (REPORT.md lists them).
-  return {{"seconds", {{"steiner", t.steiner}, {"shrink", t.shrink}, {"move", t.move},
-                       {"insert", t.insert}, {"cast", t.cast}, {"scan", t.scan},
-                       {"grow", t.grow}, {"extract", t.extract}, {"total", t.total}}},
-          {"keyframes", s.updates},
-          {"rays_cast", s.rays_cast},
-          {"rays_cast_backward", s.rays_cast_backward},
-          {"rays_skipped_too_long", s.rays_skipped_too_long},
-          {"rays_truncated_to_camera", s.rays_truncated_to_camera},
-          {"rays_truncated", s.rays_truncated},
-          {"rays_rewalked", s.rays_rewalked},
-          {"rays_rewalked_exact", s.rays_rewalked_exact},
-          {"cells_rewalked", s.cells_rewalked},
-          {"ray_mismatches", s.ray_mismatches},
-          {"cells_traversed", s.cells_traversed},
-          {"cells_weighted", s.cells_weighted},
-          {"points_inserted", s.points_inserted},
-          {"points_moved", s.points_moved},
-          {"moves_skipped", s.moves_skipped},
-          {"points_dropped", s.points_dropped},
-          {"points_duplicate", s.points_duplicate},
-          {"moves_duplicate", s.moves_duplicate},
-          {"moves_in_place", s.moves_in_place},
-          {"points_reentered", s.points_reentered},
-          {"points_removed", s.points_removed},
-          {"steiner_points", s.steiner_points},
-          {"steiner_dropped", s.steiner_dropped},
-          {"cells_grown", s.cells_grown},
-          {"cells_shrunk", s.cells_shrunk},
-          {"policy_calls", s.policy_calls},
-          {"rays_scan_cells", s.rays_scan_cells},
-          {"vertices", s.vertices},
-          {"cells", s.cells},
-          {"cells_in_o", s.cells_in_o}};
-}
-
-// When most points never entered the triangulation (all at one position, at a camera, or cut
-// off by the reconstructed volume), the mesh rests on a few points and is mostly the Steiner
-// grid's: "ok" alone would hide it. Empty when a half or less was refused (points refused at
-// first and entered later, as they moved, count as entered).
-std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mesh& mesh) {
-  const int64_t entered = s.points_inserted + s.points_reentered;
-  const int64_t refused = s.points_dropped + s.points_duplicate - s.points_reentered;
-  if (refused <= 0 || 2 * refused <= entered + refused) return {};
-  std::size_t steiner_only = 0;
-  if (mesh.point_ids.size() * 3 == mesh.vertices.size())
-    for (std::size_t f = 0; f + 2 < mesh.faces.size(); f += 3)
-      if (mesh.point_ids[mesh.faces[f]] < 0 && mesh.point_ids[mesh.faces[f + 1]] < 0 &&
-          mesh.point_ids[mesh.faces[f + 2]] < 0)
-        ++steiner_only;
-  return "most points never entered the mesh: " + std::to_string(s.points_duplicate) +
-         " new points were at the position of a point already in it and " +
-         std::to_string(s.points_dropped) +
-         " were dropped (their conflict zone met the reconstructed volume); " +
-         std::to_string(s.points_reentered) + " of them entered later, as they moved, against " +
-         std::to_string(s.points_inserted) + " inserted at once; " + std::to_string(steiner_only) +
-         " of the mesh's " + std::to_string(mesh.faces.size() / 3) +
-         " triangles touch no data point (Steiner grid only). Are the points' positions right?";
-}
-
-using Exporters = std::vector<std::pair<const io::StageSpec*, plugin::LoadedInstance>>;
-
-// This process's resident memory (bytes), from /proc/self/statm; 0 when unreadable.
-uint64_t ResidentBytes() {
-  std::ifstream statm("/proc/self/statm");
-  uint64_t pages_total = 0, pages_resident = 0;
-  if (!(statm >> pages_total >> pages_resident)) return 0;
-  return pages_resident * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
-}
-
-// The --trace file: one JSON line per keyframe, flushed as it goes (a long run can be watched),
-// under <path>.partial until the sequence ends, then renamed: a killed run never leaves a trace
-// that looks complete.
-class TraceFile {
- public:
-  explicit TraceFile(fs::path path) : path_(std::move(path)), partial_(path_) {
-    partial_ += ".partial";
-    if (path_.has_parent_path()) fs::create_directories(path_.parent_path());
-    out_.open(partial_, std::ios::trunc);
-    if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
-  }
-  ~TraceFile() { Finish(); }
-  void Write(const json& line) {
-    out_ << DumpJson(line) << '\n';
-    out_.flush();
-    if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
-  }
-  const fs::path& Finish() {
-    if (out_.is_open()) {
-      out_.close();
-      std::error_code ec;
-      fs::rename(partial_, path_, ec);
-      if (ec) LogWarning(path_.string() + ": cannot finish the trace: " + ec.message());
-    }
-    return path_;
-  }
-
- private:
-  fs::path path_, partial_;
-  std::ofstream out_;
-};
-
-// What an export carries beside the mesh (SDK 1.1): the keyframes so far, their image files
-// (inputs with images) and the source, which may know the points' colours.
-struct ExportContext {
-  std::vector<imr_camera> keyframes;
-  std::vector<std::string> image_paths;  // one per keyframe, or empty: no images
-  const io::KeyframeSource* source = nullptr;
-
-  // Records the cameras of a keyframe update: the keyframe's own camera for image inputs (the
-  // update also carries the frames between keyframes), every new camera for the others.
-  void Add(const engine::KeyframeUpdate& update, const io::KeyframeInfo& kf,
-           const ImageFrontEndSource* front_end) {
-    auto camera_of = [&](const engine::Camera& c) {
-      if (const io::CameraGeometry* g = source->Camera(c.id); g != nullptr)
-        return ToPluginCamera(*g, g->intrinsics.width, g->intrinsics.height);
-      io::CameraGeometry g;  // only the centre and rotation the engine got
-      g.id = c.id;
-      for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 3; ++k) g.rotation[r][k] = c.rotation[3 * r + k];
-      io::SetFromCenter(g.rotation, c.center, &g);
-      return ToPluginCamera(g, 0, 0);
-    };
-    if (front_end != nullptr) {
-      for (const engine::Camera& c : update.cameras) {
-        if (c.id != static_cast<uint64_t>(kf.frame)) continue;
-        keyframes.push_back(camera_of(c));
-        image_paths.push_back(front_end->sequence().frames.at(c.id).image_path);
-      }
-      return;
-    }
-    for (const engine::Camera& c : update.cameras)
-      if (seen_.insert(c.id).second) keyframes.push_back(camera_of(c));
-  }
-
- private:
-  std::set<uint64_t> seen_;
-};
-
-// How the keyframe images were served to one export (all formats of one mesh).
-struct ExportImageStats {
-  plugin::KeyframeImageStoreStats store;
-  int keyframes = 0;
-};
-
-// Writes `mesh` into `directory` as stem.<format> for every format, each through the first
-// exporter stage that writes it, with the keyframes of `context` (their images decoded on demand
-// for this export only, within a bounded cache).
-ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& context,
-                            const std::vector<std::string>& formats, const Exporters& exporters,
-                            const fs::path& directory, const std::string& stem, StageWatch& watch,
-                            double stage_timeout) {
-  imr_mesh_view view{};
-  view.struct_size = sizeof(view);
-  view.vertices = mesh.vertices.data();
-  view.vertex_count = mesh.vertices.size() / 3;
-  view.faces = mesh.faces.data();
-  view.face_count = mesh.faces.size() / 3;
-  view.point_ids = mesh.point_ids.data();
-  // The points' own colours, when the input gives any (grey where it gives none).
-  std::vector<uint8_t> colors;
-  if (context.source != nullptr && context.image_paths.empty()) {
-    bool any = false;
-    colors.assign(mesh.vertices.size(), 128);
-    std::array<uint8_t, 3> rgb{};
-    for (std::size_t i = 0; i < mesh.point_ids.size(); ++i)
-      if (mesh.point_ids[i] >= 0 &&
-          context.source->PointColor(static_cast<uint64_t>(mesh.point_ids[i]), &rgb)) {
-        std::copy(rgb.begin(), rgb.end(), colors.begin() + static_cast<std::ptrdiff_t>(3 * i));
-        any = true;
-      }
-    if (!any) colors.clear();
-  }
-  view.vertex_colors = colors.empty() ? nullptr : colors.data();
-  std::optional<plugin::KeyframeImageStore> images;
-  if (!context.image_paths.empty()) images.emplace(context.image_paths);
-  const plugin::ScopedKeyframeImages scope(images ? &*images : nullptr);
-  std::set<std::string> written;
-  const std::string dir = directory.string();
-  for (const std::string& mesh_format : formats) {
-    for (const auto& [stage, inst] : exporters) {
-      const std::string list = std::string(",") + inst.instance.descriptor()->exporter->formats + ",";
-      if (list.find("," + mesh_format + ",") == std::string::npos || written.count(mesh_format))
-        continue;
-      imr_export_request req{};
-      req.mesh = &view;
-      req.directory = dir.c_str();
-      req.stem = stem.c_str();
-      req.format = mesh_format.c_str();
-      req.keyframes = context.keyframes.empty() ? nullptr : context.keyframes.data();
-      req.keyframe_count = context.keyframes.size();
-      req.keyframe_images = images ? 1 : 0;
-      const WatchedStage watched = WatchedStageOf(*stage, stage_timeout);
-      const StageWatch::Call call = watch.Enter(watched);
-      inst.instance.ExportMesh(&req);
-      written.insert(mesh_format);
-      if (images) images->ReleaseAll();  // holds end with the call (plugin.h)
-    }
-  }
-  ExportImageStats stats;
-  stats.keyframes = static_cast<int>(context.keyframes.size());
-  if (images) stats.store = images->stats();
-  return stats;
-}
-
-// What the sequence was made from, by content: SHA-256 of each file of the source (a file, or the
-// files directly in its folder: calibration, poses, times) and, for image sequences, one digest
-// over every image in frame order (the hash of their hashes), so a report says which bytes it
-// describes.
-json InputChecksums(const std::string& source, const ImageFrontEndSource* front_end) {
-  json files = json::object();
-  std::error_code ec;
-  const fs::path root = front_end != nullptr ? fs::path(front_end->sequence().root) : fs::path(source);
-  if (fs::is_regular_file(root, ec)) {
-    files[root.filename().string()] = Sha256File(root);
-  } else if (fs::is_directory(root, ec)) {
-    std::vector<fs::path> list;
-    for (const auto& e : fs::directory_iterator(root, ec))
-      if (e.is_regular_file()) list.push_back(e.path());
-    std::sort(list.begin(), list.end());
-    for (const auto& f : list) files[f.filename().string()] = Sha256File(f);
-  }
-  json j = {{"algorithm", "sha256"}, {"files", files}};
-  if (front_end != nullptr) {
-    Sha256 all;
-    const auto& frames = front_end->sequence().frames;
-    for (const io::ImageFrame& f : frames) all.Update(Sha256File(f.image_path));
-    j["images"] = {{"count", frames.size()}, {"sha256_of_sha256s", all.HexDigest()}};
-  }
-  return j;
-}
-
-// Accuracy against the ground truth the job names (its "evaluation" section), as the report's
-// "accuracy": the paper's mean distance from ground truth to the mesh, completeness and precision
-// at the job's tau, and host/eval's full report under "evaluation".
-json EvaluateAgainstTruth(const json& options, const engine::Mesh& mesh,
-                          const ImageFrontEndSource* front_end) {
-  eval::TriangleMesh m;
-  for (std::size_t i = 0; i + 2 < mesh.vertices.size(); i += 3)
-    m.vertices.push_back({mesh.vertices[i], mesh.vertices[i + 1], mesh.vertices[i + 2]});
-  for (std::size_t i = 0; i + 2 < mesh.faces.size(); i += 3)
-    m.triangles.push_back({mesh.faces[i], mesh.faces[i + 1], mesh.faces[i + 2]});
-  eval::EvaluationOptions o;
-  const double tau = options.at("tau").get<double>();
-  if (std::find(o.taus.begin(), o.taus.end(), tau) == o.taus.end()) o.taus.push_back(tau);
-  std::sort(o.taus.begin(), o.taus.end());
-  o.max_ray_length = options.at("max_ray_length").get<double>();
-  o.crop = options.at("crop").get<bool>();
-  o.precision_samples = 200000;  // per sequence in a batch: enough for 3 digits
-  const std::string truth_name = options.at("truth").get<std::string>();
-  std::vector<eval::Vec3> truth;
-  json t;
-  if (truth_name == "velodyne") {
-    if (front_end == nullptr || !front_end->sequence().has_lidar)
-      throw std::runtime_error("evaluation.truth \"velodyne\": the sequence has no Velodyne scans");
-    eval::VelodyneTruth vt =
-        eval::LoadVelodyneTruth(front_end->sequence(), options.at("scan_step").get<int>());
-    truth = std::move(vt.points);
-    t = {{"source", "velodyne"}, {"scans", vt.scans}, {"scan_step", options.at("scan_step")}};
-  } else {
-    eval::TriangleMesh g = eval::ReadGeometry(truth_name);
-    t = {{"path", truth_name}};
-    if (g.triangles.empty()) {
-      truth = std::move(g.vertices);
-      t["source"] = "point_cloud";
-    } else {
-      const double count = std::round(eval::MeshArea(g) * o.truth_density);
-      if (count > 2e8) throw std::runtime_error(truth_name + ": reference mesh too large to sample");
-      truth = eval::SampleSurface(g, static_cast<std::size_t>(count), o.seed ^ 0x5eedu);
-      t["source"] = "mesh_samples";
-    }
-  }
-  t["points"] = truth.size();
-  std::vector<io::CameraGeometry> cameras;
-  if (front_end != nullptr)
-    for (const io::ImageFrame& f : front_end->sequence().frames) cameras.push_back(f.camera);
-  const eval::Evaluation e = eval::Evaluate(m, truth, cameras, o);
-  const std::size_t k = static_cast<std::size_t>(
-      std::find(e.taus.begin(), e.taus.end(), tau) - e.taus.begin());
-  auto stats = [](const eval::DistanceStats& d) {
-    return json{{"count", d.count}, {"mean", d.mean}, {"median", d.median},
-                {"rms", d.rms}, {"p90", d.p90}, {"max", d.max}};
-  };
-  return {{"reference", "ground truth (" + t.value("source", std::string()) + ")"},
-          {"mean_truth_to_mesh", e.truth_to_mesh.mean},
-          {"median_truth_to_mesh", e.truth_to_mesh.median},
-          {"tau", tau},
-          {"completeness", k < e.completeness.size() ? e.completeness[k] : 0.0},
-          {"precision", k < e.precision.size() ? e.precision[k] : 0.0},
-          {"evaluation",
-           {{"truth", t},
-            {"crop", {{"applied", e.cropped}, {"rule", e.crop_note},
-                      {"truth_kept", e.truth_crop.kept}, {"truth_input", e.truth_crop.input}}},
-            {"truth_to_mesh", stats(e.truth_to_mesh)},
-            {"mesh_to_truth", stats(e.mesh_to_truth)},
-            {"taus", e.taus},
-            {"completeness", e.completeness},
-            {"precision", e.precision},
-            {"seconds", e.seconds_crop + e.seconds_truth_to_mesh + e.seconds_mesh_to_truth}}}};
-}
-
-void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
-                 const RunOptions& options, const SequenceRef& seq, SequenceResult* result) {
-  const auto start = std::chrono::steady_clock::now();
-  const io::JobSpec& job = v.job;
-  result->output_directory = job.OutputDirectory(seq.name);
-
-  // Plugins: one policy (weights mode) and the exporters.
-  std::optional<plugin::PluginWeightPolicy> policy;
-  Exporters exporters;
-  std::optional<plugin::LoadedInstance> features, refiner;
-  // Every call into a plugin is watched against its stage's timeout: a hung plugin fails the
-  // sequence (host/pipeline/stage_watch.h). Declared before the source, the policy adapter and
-  // the engine, which call plugins through it.
-  StageWatch watch(options.on_stage_timeout);
-  std::vector<WatchedStage> watched;
-  for (const io::StageSpec& stage : job.pipeline)
-    watched.push_back(WatchedStageOf(stage, options.stage_timeout));
-  std::size_t policy_stage = 0, features_stage = 0, refiner_stage = 0;
-  json plugins_json = json::array();
-  watch.SetPosition("creating the plugin instances");
-  for (std::size_t i = 0; i < job.pipeline.size(); ++i) {
-    const io::StageSpec& stage = job.pipeline[i];
-    const plugin::PluginInfo* info = registry.Find(stage.plugin);
-    plugins_json.push_back(PluginJson(*info, v.stage_params[i]));
+// Creates one instance per stage of the job, each creation watched against its stage's timeout.
+void SequenceRun::InstantiateStages() {
+  for (const io::StageSpec& stage : job_.pipeline)
+    watched_.push_back(WatchedStageOf(stage, options_.stage_timeout));
+  report_.plugins = json::array();
+  watch_.SetPosition("creating the plugin instances");
+  for (std::size_t i = 0; i < job_.pipeline.size(); ++i) {
+    const io::StageSpec& stage = job_.pipeline[i];
+    const plugin::PluginInfo* info = registry_.Find(stage.plugin);
+    report_.plugins.push_back(PluginJson(*info, v_.stage_params[i]));
     auto instance = [&] {
-      const StageWatch::Call call = watch.Enter(watched[i]);
+      const StageWatch::Call call = watch_.Enter(watched_[i]);
       try {
-        return plugin::CreateInstance(*info, v.stage_params[i]);
+        return plugin::CreateInstance(*info, v_.stage_params[i]);
       } catch (const std::exception& e) {  // name the stage: its params are in the job there
         throw std::runtime_error(stage.json_path + " (" + stage.kind + "): " + e.what());
       }
     }();
     if (stage.kind == "weight_policy") {
-      policy.emplace(std::move(instance), info->id());
-      policy_stage = i;
+      policy_.emplace(std::move(instance), info->id());
+      policy_stage_ = i;
     } else if (stage.kind == "exporter") {
-      exporters.emplace_back(&stage, std::move(instance));
+      exporters_.emplace_back(&stage, std::move(instance));
     } else if (stage.kind == "features") {
-      features.emplace(std::move(instance));
-      features_stage = i;
+      features_.emplace(std::move(instance));
+      features_stage_ = i;
     } else if (stage.kind == "refiner") {
-      refiner.emplace(std::move(instance));
-      refiner_stage = i;
+      refiner_.emplace(std::move(instance));
+      refiner_stage_ = i;
     }
   }
+}
 
-  // Input -> engine, keyframe by keyframe.
-  const io::InputFormat* format = io::FindInputFormat(job.input.format);
-  std::unique_ptr<io::KeyframeSource> source;
-  const ImageFrontEndSource* front_end = nullptr;
-  if (format->needs_front_end) {
-    // Images: the features and refiner plugins make the points (validation checked both exist).
+// The input format's reader, or for images the front end around the features and refiner
+// plugins (validation checked both exist); the policy, watched.
+void SequenceRun::OpenSource() {
+  format_ = io::FindInputFormat(job_.input.format);
+  if (format_->needs_front_end) {
     FrontEndOptions fo;
-    fo.keyframe_every = io::ImageSequenceOptionsFromJson(v.input_options).keyframe_every;
-    auto fe = std::make_unique<ImageFrontEndSource>(format->open_images(seq.source, v.input_options),
-                                                    features->instance, refiner->instance, fo);
-    fe->Watch(&watch, &watched[features_stage], &watched[refiner_stage]);
-    front_end = fe.get();
-    source = std::move(fe);
+    fo.keyframe_every = io::ImageSequenceOptionsFromJson(v_.input_options).keyframe_every;
+    auto fe = std::make_unique<ImageFrontEndSource>(
+        format_->open_images(seq_.source, v_.input_options), features_->instance,
+        refiner_->instance, fo);
+    fe->Watch(&watch_, &watched_[features_stage_], &watched_[refiner_stage_]);
+    front_end_ = fe.get();
+    source_ = std::move(fe);
   } else {
-    source = format->open(seq.source, v.input_options);
+    source_ = format_->open(seq_.source, v_.input_options);
   }
-  std::optional<WatchedPolicy> watched_policy;
-  if (policy) watched_policy.emplace(&*policy, &watch, watched[policy_stage]);
-  if (policy && v.engine_options.visibility_mode == engine::VisibilityMode::kExact)
-    LogInfo("[" + seq.name + "] visibility_mode 'exact' keeps exact weights: the weight_policy "
-            "stage (" + job.pipeline[policy_stage].plugin + ") is not called");
-  // The scene's scale (scale.h): in auto mode the first keyframes are read, measured and kept
-  // for the engine, which starts with the lengths they give.
-  const ScaleMode scale_mode = ScaleModeOf(job.engine, job.input.format);
-  std::set<std::string> explicit_keys;
-  if (job.engine.is_object())
-    for (const auto& item : job.engine.items()) explicit_keys.insert(item.key());
-  ScaleProbe probe;
-  ScaleEstimate scale;
-  engine::EngineOptions engine_options = v.engine_options;
-  std::deque<std::pair<engine::KeyframeUpdate, io::KeyframeInfo>> early;
-  if (scale_mode == ScaleMode::kAuto) {
-    while (!probe.Enough()) {
+  export_context_.source = source_.get();
+  if (policy_) watched_policy_.emplace(&*policy_, &watch_, watched_[policy_stage_]);
+  if (policy_ && v_.engine_options.visibility_mode == engine::VisibilityMode::kExact)
+    LogInfo("[" + seq_.name + "] visibility_mode 'exact' keeps exact weights: the weight_policy "
+            "stage (" + job_.pipeline[policy_stage_].plugin + ") is not called");
+}
+
+// The scene's scale (scale.h): in auto mode the first keyframes are read, measured and kept
+// for the engine, which starts with the lengths they give.
+void SequenceRun::StartEngine() {
+  scale_mode_ = ScaleModeOf(job_.engine, job_.input.format);
+  if (job_.engine.is_object())
+    for (const auto& item : job_.engine.items()) explicit_keys_.insert(item.key());
+  engine_options_ = v_.engine_options;
+  if (scale_mode_ == ScaleMode::kAuto) {
+    while (!probe_.Enough()) {
       if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
       engine::KeyframeUpdate u;
       io::KeyframeInfo i;
-      if (!source->Next(&u, &i)) break;
-      probe.Add(u);
-      early.emplace_back(std::move(u), i);
+      if (!source_->Next(&u, &i)) break;
+      probe_.Add(u);
+      early_.emplace_back(std::move(u), i);
     }
-    scale = probe.Estimate();
-    if (scale.rays == 0) {
-      LogWarning("[" + JsonText(seq.name) + "] engine.scale auto: no ray to measure in the first " +
-                 std::to_string(scale.keyframes) + " keyframes; the metric defaults are kept");
+    scale_ = probe_.Estimate();
+    if (scale_.rays == 0) {
+      LogWarning("[" + JsonText(seq_.name) + "] engine.scale auto: no ray to measure in the first " +
+                 std::to_string(scale_.keyframes) + " keyframes; the metric defaults are kept");
     } else {
-      engine_options = ScaledOptions(v.engine_options, scale, explicit_keys);
+      engine_options_ = ScaledOptions(v_.engine_options, scale_, explicit_keys_);
       std::string error;
-      if (!engine_options.Check(&error))
-        throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale.median_ray) +
+      if (!engine_options_.Check(&error))
+        throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale_.median_ray) +
                                  ") gives unusable options: " + error +
                                  "; set the engine's lengths in the job, or engine.scale \"metric\"");
-      LogInfo("[" + JsonText(seq.name) + "] " + ScaleLogLine(scale, engine_options, explicit_keys));
+      LogInfo("[" + JsonText(seq_.name) + "] " + ScaleLogLine(scale_, engine_options_, explicit_keys_));
     }
   }
-  if (options.threads > 0) engine_options.num_threads = options.threads;
-  engine::Engine engine(engine_options, watched_policy ? &*watched_policy : nullptr);
-  if (!engine.init_status().ok()) throw std::runtime_error("engine: " + engine.init_status().message());
+  if (options_.threads > 0) engine_options_.num_threads = options_.threads;  // --threads
+  engine_.emplace(engine_options_, watched_policy_ ? &*watched_policy_ : nullptr);
+  if (!engine_->init_status().ok())
+    throw std::runtime_error("engine: " + engine_->init_status().message());
+}
+
+// What runs after every keyframe, in this order (the trace writes the check's time).
+void SequenceRun::AddObservers() {
+  if (!options_.export_stream.empty() || !options_.export_colmap.empty()) {
+    auto o = std::make_unique<StreamRecording>(
+        source_.get(), std::string("imr ") + Version() + ", job " + job_.Name() + ", sequence " +
+                           seq_.name);
+    recording_ = o.get();
+    observers_.push_back(std::move(o));
+  }
+  if (options_.check_invariants_every > 0) {
+    auto o = std::make_unique<InvariantCheck>(*engine_, options_.check_invariants_every);
+    checks_ = o.get();
+    observers_.push_back(std::move(o));
+  }
+  if (!options_.trace.empty()) {
+    auto o = std::make_unique<TraceWriter>(ExpandExportPath(options_.trace, v_, seq_.name), *engine_);
+    trace_ = o.get();
+    observers_.push_back(std::move(o));
+  }
+  if (job_.output.snapshot_every > 0) {
+    auto o = std::make_unique<Snapshots>(
+        *engine_, job_.output.snapshot_every,
+        Snapshots::Target{&export_context_, &job_.output.formats, &exporters_,
+                          result_->output_directory, job_.output.stem, &watch_,
+                          options_.stage_timeout, &result_->extra_files});
+    snapshots_ = o.get();
+    observers_.push_back(std::move(o));
+  }
+  observers_.push_back(
+      std::make_unique<Progress>(seq_.name, source_->KeyframeCount(), options_.progress));
+}
+
+// Input -> engine, keyframe by keyframe, each update in canonical order (run.h).
+void SequenceRun::ProcessKeyframes() {
   engine::KeyframeUpdate update;
   io::KeyframeInfo kf;
-  // The keyframes read to decide the scale first, then the rest.
-  auto next = [&](engine::KeyframeUpdate* u, io::KeyframeInfo* i) {
-    if (early.empty()) return source->Next(u, i);
-    *u = std::move(early.front().first);
-    *i = early.front().second;
-    early.pop_front();
-    return true;
-  };
-  io::CanonicalOrder canonical;
-  ExportContext export_context;
-  export_context.source = source.get();
-  std::optional<io::StreamRecorder> recorder;
-  if (!options.export_stream.empty() || !options.export_colmap.empty())
-    recorder.emplace(source.get(), std::string("imr ") + Version() + ", job " + job.Name() +
-                                       ", sequence " + seq.name);
-  std::optional<TraceFile> trace;
-  if (!options.trace.empty()) trace.emplace(ExpandExportPath(options.trace, v, seq.name));
-  int keyframes = 0, checks = 0;
-  double engine_seconds = 0.0, snapshot_seconds = 0.0, check_seconds = 0.0;
-  json snapshots = json::array();
-  const int total_keyframes = source->KeyframeCount();
-  const std::string of_total = total_keyframes > 0 ? "/" + std::to_string(total_keyframes) : "";
-  while (next(&update, &kf)) {
+  while (NextKeyframe(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
-    if (scale_mode == ScaleMode::kMetric && !probe.Enough()) probe.Add(update);
-    canonical.Apply(&update);
-    watch.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
+    if (scale_mode_ == ScaleMode::kMetric && !probe_.Enough()) probe_.Add(update);
+    canonical_.Apply(&update);
+    watch_.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
     const auto engine_start = std::chrono::steady_clock::now();
-    engine::Status st = engine.ApplyUpdate(update);
-    const double keyframe_seconds = Seconds(engine_start);
-    engine_seconds += keyframe_seconds;
+    const engine::Status st = engine_->ApplyUpdate(update);
+    KeyframeEvent event{update, kf};
+    event.engine_seconds = Seconds(engine_start);
+    engine_seconds_ += event.engine_seconds;
     if (!st.ok())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
                                std::to_string(kf.frame) + "): " + st.message());
-    if (policy && policy->failed())
+    if (policy_ && policy_->failed())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + ": weight policy " +
-                               policy->error());
-    if (recorder) recorder->Record(update, kf);
-    export_context.Add(update, kf, front_end);
-    ++keyframes;
-    double this_check = -1.0;
-    if (options.check_invariants_every > 0 && keyframes % options.check_invariants_every == 0) {
-      const auto check_start = std::chrono::steady_clock::now();
-      const engine::ManifoldCheckResult r = engine.CheckInvariants();
-      this_check = Seconds(check_start);
-      check_seconds += this_check;
-      ++checks;
-      if (!r.ok)
-        throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
-                                 std::to_string(kf.frame) + "): invariant check failed: " +
-                                 r.message);
-    }
-    if (trace) {
-      const engine::EngineStats& es = engine.Stats();
-      json line = {{"keyframe", keyframes},       {"frame", kf.frame},
-                   {"points", engine.NumPoints()}, {"vertices", es.vertices},
-                   {"cells", es.cells},            {"cells_in_o", es.cells_in_o},
-                   {"rss_bytes", ResidentBytes()}, {"engine_seconds", keyframe_seconds}};
-      if (this_check >= 0.0) line["check_seconds"] = this_check;
-      trace->Write(line);
-    }
-    if (job.output.snapshot_every > 0 && keyframes % job.output.snapshot_every == 0) {
-      // Each snapshot is committed at once (whole files), so a running job can be watched.
-      const auto snap_start = std::chrono::steady_clock::now();
-      const engine::Mesh snap = engine.ExtractMesh();
-      if (!snap.faces.empty()) {
-        char stem[64];
-        std::snprintf(stem, sizeof(stem), "_kf%06d", keyframes);
-        StagingDirectory dir(result->output_directory / "snapshots");
-        watch.SetPosition("snapshot after keyframe " + std::to_string(kf.index));
-        ExportMesh(snap, export_context, job.output.formats, exporters, dir.path(),
-                   job.output.stem + stem, watch, options.stage_timeout);
-        for (auto& f : dir.Commit()) result->extra_files.push_back(std::move(f));
-        snapshots.push_back({{"keyframe", keyframes}, {"frame", kf.frame},
-                             {"stem", "snapshots/" + job.output.stem + stem},
-                             {"faces", snap.faces.size() / 3}});
-      }
-      snapshot_seconds += Seconds(snap_start);
-    }
-    if (options.progress) options.progress({keyframes, total_keyframes, kf.frame});
-    if (keyframes % 20 == 0 || keyframes == total_keyframes)
-      LogInfo("[" + seq.name + "] keyframe " + std::to_string(keyframes) + of_total);
+                               policy_->error());
+    export_context_.Add(update, kf, front_end_);
+    event.keyframes = ++keyframes_;
+    for (const auto& observer : observers_) observer->OnKeyframe(event);
   }
-  const engine::Mesh mesh = engine.ExtractMesh();
-  const engine::ManifoldCheckResult boundary_check = engine.CheckInvariants();
-  const engine::ManifoldCheckResult mesh_check = engine::CheckMesh(mesh, /*closed=*/false);
-  if (!boundary_check.ok)
-    throw std::runtime_error("invariant check failed after the last keyframe (" +
-                             std::to_string(keyframes) + "): " + boundary_check.message);
-  if (!mesh_check.ok) throw std::runtime_error("exported mesh check failed: " + mesh_check.message);
+}
 
+// The keyframes read to decide the scale first, then the rest.
+bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info) {
+  if (early_.empty()) return source_->Next(update, info);
+  *update = std::move(early_.front().first);
+  *info = early_.front().second;
+  early_.pop_front();
+  return true;
+}
+
+// The last mesh, checked and with its warnings; then exports first (each whole or absent), the
+// evaluation, the mesh and the report.
+void SequenceRun::Finish() {
+  const engine::Mesh mesh = CheckedMesh();
+  WarnAbout(mesh);
+  WriteStreamExports();
+  EvaluateMesh(mesh);
+  WriteMeshAndReport(mesh);
+}
+
+// The mesh after the last keyframe; throws when dO or the mesh is not what it must be.
+engine::Mesh SequenceRun::CheckedMesh() {
+  engine::Mesh mesh = engine_->ExtractMesh();
+  report_.boundary_check = engine_->CheckInvariants();
+  report_.mesh_check = engine::CheckMesh(mesh, /*closed=*/false);
+  if (!report_.boundary_check.ok)
+    throw std::runtime_error("invariant check failed after the last keyframe (" +
+                             std::to_string(keyframes_) + "): " + report_.boundary_check.message);
+  if (!report_.mesh_check.ok)
+    throw std::runtime_error("exported mesh check failed: " + report_.mesh_check.message);
+  return mesh;
+}
+
+// Warnings: on stderr and in report.json (the summary lists them).
+void SequenceRun::Warn(const std::string& warning) {
+  LogWarning("[" + JsonText(seq_.name) + "] " + warning);
+  result_->warnings.push_back(warning);
+}
+
+// What looks wrong though a mesh was made; no surface at all fails the sequence.
+void SequenceRun::WarnAbout(const engine::Mesh& mesh) {
   // Rays longer than max_ray_length are not cast: most of them skipped usually means the
   // scene is not in metres (or is much larger or smaller than the defaults assume).
-  const engine::EngineStats& stats = engine.Stats();
-  // Warnings: on stderr and in report.json (the summary lists them).
-  json warnings = json::array();
-  auto warn = [&](const std::string& w) {
-    LogWarning("[" + JsonText(seq.name) + "] " + w);
-    warnings.push_back(w);
-    result->warnings.push_back(w);
-  };
+  const engine::EngineStats& stats = engine_->Stats();
   std::string scale_hint;
   if (stats.rays_skipped_too_long > stats.rays_cast) {
     scale_hint = std::to_string(stats.rays_skipped_too_long) + " of " +
                  std::to_string(stats.rays_skipped_too_long + stats.rays_cast) +
                  " rays were longer than engine.max_ray_length (" +
-                 std::to_string(engine_options.max_ray_length) +
+                 std::to_string(engine_options_.max_ray_length) +
                  "): set max_ray_length and steiner_spacing to the scene's scale";
-    warn(scale_hint);
+    Warn(scale_hint);
   }
   // A metric job on a scene of another size: say so, with the values auto would choose.
-  if (scale_mode == ScaleMode::kMetric) {
-    const ScaleEstimate e = probe.Estimate();
+  if (scale_mode_ == ScaleMode::kMetric) {
+    const ScaleEstimate e = probe_.Estimate();
     if (e.rays > 0 && (e.factor < 0.25 || e.factor > 4.0)) {
-      const engine::EngineOptions proposed = ScaledOptions(engine_options, e, explicit_keys);
-      std::string hint = ScaleLogLine(e, proposed, explicit_keys);
+      const engine::EngineOptions proposed = ScaledOptions(engine_options_, e, explicit_keys_);
+      std::string hint = ScaleLogLine(e, proposed, explicit_keys_);
       hint.replace(0, std::string("engine.scale auto: ").size(), "");
       scale_hint = std::string("the scene is ") + (e.factor < 1.0 ? "far smaller" : "far larger") +
                    " than the engine's metric defaults assume: " + hint +
                    " would fit; set engine.scale \"auto\" (or these options) in the job";
-      warn(scale_hint);
+      Warn(scale_hint);
     }
   }
-  if (const std::string w = RefusedPointsWarning(stats, mesh); !w.empty()) warn(w);
+  if (const std::string w = RefusedPointsWarning(stats, mesh); !w.empty()) Warn(w);
   if (mesh.faces.empty())
     throw std::runtime_error("no surface was reconstructed (0 triangles after " +
-                             std::to_string(keyframes) + " keyframes): nothing to export" +
+                             std::to_string(keyframes_) + " keyframes): nothing to export" +
                              (scale_hint.empty() ? "" : "; " + scale_hint));
-
-  // Exports first (each whole or absent), then the mesh, then the report.
-  json exports = json::object();
-  if (recorder && recorder->unrepresentable() > 0)
-    warn(std::to_string(recorder->unrepresentable()) +
+  if (recording_ != nullptr && recording_->recorder().unrepresentable() > 0)
+    Warn(std::to_string(recording_->recorder().unrepresentable()) +
          " points entered the engine with no camera: the exported stream cannot hold them, so "
          "its replay will differ");
-  if (!options.export_stream.empty()) {
-    const fs::path p = ExpandExportPath(options.export_stream, v, seq.name);
+}
+
+// --export-stream and --export-colmap, from the recorded updates.
+void SequenceRun::WriteStreamExports() {
+  if (!options_.export_stream.empty()) {
+    const fs::path p = ExpandExportPath(options_.export_stream, v_, seq_.name);
     if (p.has_parent_path()) fs::create_directories(p.parent_path());
-    WriteFileAtomically(p, recorder->SlamJson());
-    exports["stream"] = fs::absolute(p).string();
-    result->extra_files.push_back(p);
+    WriteFileAtomically(p, recording_->recorder().SlamJson());
+    report_.exports["stream"] = fs::absolute(p).string();
+    result_->extra_files.push_back(p);
   }
-  if (!options.export_colmap.empty()) {
-    const fs::path p = ExpandExportPath(options.export_colmap, v, seq.name);
+  if (!options_.export_colmap.empty()) {
+    const fs::path p = ExpandExportPath(options_.export_colmap, v_, seq_.name);
     StagingDirectory colmap(p);
-    io::WriteColmapText(recorder->Colmap(), colmap.path());
-    for (auto& f : colmap.Commit()) result->extra_files.push_back(std::move(f));
-    exports["colmap"] = fs::absolute(p).string();
+    io::WriteColmapText(recording_->recorder().Colmap(), colmap.path());
+    for (auto& f : colmap.Commit()) result_->extra_files.push_back(std::move(f));
+    report_.exports["colmap"] = fs::absolute(p).string();
   }
+}
 
-  nlohmann::json accuracy = source->Evaluate(mesh);
-  nlohmann::json known_scene;
-  double evaluation_seconds = 0.0;
-  if (!v.evaluation.is_null()) {
-    // The job's ground truth wins the "accuracy" key (the summary's column); a known synthetic
-    // scene's figures stay beside it.
-    const auto eval_start = std::chrono::steady_clock::now();
-    known_scene = std::move(accuracy);
-    accuracy = EvaluateAgainstTruth(v.evaluation, mesh, front_end);
-    evaluation_seconds = Seconds(eval_start);
-  }
+// The source's own figures (a known synthetic scene) and, with the job's "evaluation", the
+// figures against its ground truth, which win the "accuracy" key (the summary's column).
+void SequenceRun::EvaluateMesh(const engine::Mesh& mesh) {
+  report_.accuracy = source_->Evaluate(mesh);
+  if (v_.evaluation.is_null()) return;
+  const auto start = std::chrono::steady_clock::now();
+  report_.accuracy_known_scene = std::move(report_.accuracy);
+  report_.accuracy = EvaluateAgainstTruth(v_.evaluation, mesh, front_end_);
+  report_.evaluation_seconds = Seconds(start);
+}
 
+// The mesh in every format and report.json, staged together and moved into the output folder,
+// the glTF and report.json last: when the report cannot be written (a full disk) no mesh of the
+// failed run is left under a final name either.
+void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh) {
   const auto export_start = std::chrono::steady_clock::now();
-  StagingDirectory staging(result->output_directory);
-  watch.SetPosition("writing the mesh after the last keyframe");
-  const ExportImageStats export_images =
-      ExportMesh(mesh, export_context, job.output.formats, exporters, staging.path(),
-                 job.output.stem, watch, options.stage_timeout);
-  const std::vector<std::string> commit_last = {job.output.stem + ".gltf", "report.json"};
-  const double export_seconds = Seconds(export_start);
+  StagingDirectory staging(result_->output_directory);
+  watch_.SetPosition("writing the mesh after the last keyframe");
+  report_.export_images = ExportMesh(mesh, export_context_, job_.output.formats, exporters_,
+                                     staging.path(), job_.output.stem, watch_,
+                                     options_.stage_timeout);
+  report_.export_seconds = Seconds(export_start);
+  const std::vector<std::string> commit_last = {job_.output.stem + ".gltf", "report.json"};
 
-  json report;
-  report["imr_version"] = Version();
-  report["job"] = fs::absolute(job.file).lexically_normal().string();
-  if (!job.overrides.empty()) report["overrides"] = job.overrides;  // imr run --set
-  report["sequence"] = {{"name", seq.name}, {"source", seq.source}};
-  report["input"] = {{"format", job.input.format}, {"options", v.input_options}};
-  if (format->sequences_are_paths) report["input"]["checksums"] = InputChecksums(seq.source, front_end);
-  if (const json summary = source->Summary(); !summary.is_null()) report["input"]["summary"] = summary;
-  report["engine_options"] = io::EngineOptionsToJson(engine_options);
-  report["engine_scale"] = ScaleJson(scale_mode, scale, engine_options, explicit_keys);
-  report["plugins"] = plugins_json;
-  report["engine"] = StatsJson(engine.Stats());
-  report["engine"]["keyframe_seconds"] = engine.Stats().keyframe_seconds;
-  // Time of the move phase per moved point. The paper's per-move overhead, (T_mov - T_nonmov) /
-  // N_mov, needs a second run with frozen points: imr-bench paper measures it.
-  report["engine"]["move_seconds_per_moved_point"] =
-      engine.Stats().points_moved > 0
-          ? engine.Stats().time.move / static_cast<double>(engine.Stats().points_moved)
-          : 0.0;
-  report["mesh"] = {{"vertices", mesh.vertices.size() / 3},
-                    {"faces", mesh.faces.size() / 3},
-                    {"manifold", mesh_check.ok},
-                    {"boundary_closed_manifold", boundary_check.ok},
-                    {"boundary_triangles", boundary_check.boundary_triangles}};
-  // Topology of what was written: components, Euler characteristic, genus, boundary loops.
-  report["mesh"]["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
-  if (!accuracy.is_null()) report["accuracy"] = accuracy;
-  if (!known_scene.is_null()) report["accuracy_known_scene"] = known_scene;
-  // Wall time per stage of the chain (reader -> features -> refiner -> engine -> exporter).
-  json stages = json::object();
-  if (front_end != nullptr) {
-    const FrontEndStats& fs_ = front_end->stats();
-    stages["read_images"] = fs_.read_seconds;
-    stages["features"] = fs_.features_seconds;
-    stages["refiner"] = fs_.refiner_seconds;
+  report_.job = &v_;
+  report_.sequence = &seq_;
+  report_.format = format_;
+  report_.source = source_.get();
+  report_.front_end = front_end_;
+  report_.engine_options = engine_options_;
+  report_.scale_mode = scale_mode_;
+  report_.scale = scale_;
+  report_.explicit_keys = explicit_keys_;
+  report_.stats = &engine_->Stats();
+  report_.mesh = &mesh;
+  report_.engine_seconds = engine_seconds_;
+  report_.keyframe_images = !export_context_.image_paths.empty();
+  report_.snapshots = snapshots_;
+  report_.checks = checks_;
+  if (trace_ != nullptr) {
+    report_.trace = trace_->Finish();
+    result_->extra_files.push_back(report_.trace);
   }
-  stages["engine"] = engine_seconds;
-  stages["export"] = export_seconds;
-  // What the exporters were given (SDK 1.1) and how the keyframe images were served to them.
-  report["export_input"] = {{"keyframes", export_images.keyframes},
-                      {"keyframe_images", !export_context.image_paths.empty()}};
-  if (export_images.store.requests > 0)
-    report["export_input"]["image_service"] = {{"requests", export_images.store.requests},
-                                         {"decodes", export_images.store.decodes},
-                                         {"evictions", export_images.store.evictions},
-                                         {"peak_bytes", export_images.store.peak_bytes},
-                                         {"decode_seconds", export_images.store.decode_seconds}};
-  if (!snapshots.empty()) stages["snapshots"] = snapshot_seconds;
-  if (!v.evaluation.is_null()) stages["evaluation"] = evaluation_seconds;
-  report["stage_seconds"] = stages;
-  if (!snapshots.empty()) report["snapshots"] = snapshots;
-  if (!exports.empty()) report["exports"] = exports;
-  if (!warnings.empty()) report["warnings"] = warnings;
-  if (options.check_invariants_every > 0)
-    report["invariant_checks"] = {{"every", options.check_invariants_every},
-                                  {"count", checks},
-                                  {"seconds", check_seconds}};
-  if (trace) {
-    const fs::path p = trace->Finish();
-    report["trace"] = fs::absolute(p).string();
-    result->extra_files.push_back(p);
-  }
-  json files = json::array();
-  for (const auto& f : staging.Staged(commit_last)) files.push_back(f.filename().string());
-  report["files"] = files;
-  result->seconds = Seconds(start);
-  report["seconds"] = result->seconds;
-  // report.json is staged with the meshes and moved in last: when it cannot be written (a full
-  // disk) no mesh of the failed run is left under a final name either.
+  report_.warnings = result_->warnings;
+  for (const auto& f : staging.Staged(commit_last)) report_.files.push_back(f.filename().string());
+  result_->seconds = Seconds(start_);
+  report_.seconds = result_->seconds;
+  json report = BuildReport(report_);
   WriteFileAtomically(staging.path() / "report.json", DumpJson(report, 2) + "\n");
-  result->files = staging.Commit(commit_last);
-  result->report = std::move(report);
-  result->ok = true;
+  result_->files = staging.Commit(commit_last);
+  result_->report = std::move(report);
+  result_->ok = true;
 }
 
 }  // namespace
@@ -764,34 +494,6 @@ fs::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& v, const 
   return io::ExpandTemplate(tmpl, {{"{sequence}", sequence},
                                    {"{job}", v.job.Name()},
                                    {"{output}", v.job.OutputDirectory(sequence).string()}});
-}
-
-SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
-                              const RunOptions& options, const SequenceRef& seq) {
-  SequenceResult r;
-  r.name = seq.name;
-  const auto start = std::chrono::steady_clock::now();
-  try {
-    RunSequence(v, registry, options, seq, &r);
-  } catch (const std::exception& e) {
-    r.ok = false;
-    r.error = e.what();
-    r.seconds = Seconds(start);
-    LogError("sequence " + seq.name + " failed: " + r.error);
-  }
-  return r;
-}
-
-BatchResult RunJob(const ValidatedJob& v, const plugin::PluginRegistry& registry,
-                   const RunOptions& options) {
-  BatchResult batch;
-  for (std::size_t i = 0; i < v.sequences.size(); ++i) {
-    const SequenceRef& seq = v.sequences[i];
-    LogInfo("[" + std::to_string(i + 1) + "/" + std::to_string(v.sequences.size()) +
-            "] sequence " + seq.name);
-    batch.sequences.push_back(RunOneSequence(v, registry, options, seq));
-  }
-  return batch;
 }
 
 }  // namespace imr::pipeline

@@ -30,11 +30,6 @@ struct SequenceResult {
   std::vector<std::string> warnings;
 };
 
-struct BatchResult {
-  std::vector<SequenceResult> sequences;
-  int failed() const;
-};
-
 // Where a running sequence is, for progress displays.
 struct SequenceProgress {
   int keyframes = 0;        // keyframes applied so far
@@ -81,14 +76,10 @@ std::vector<std::string> CheckRunOptions(const RunOptions& options, const Valida
 std::filesystem::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& job,
                                        const std::string& sequence);
 
-// Runs one sequence in this process; never throws for a failing sequence (ok false, error set).
+// Runs one sequence in this process (`imr run` gives each its own child process: host/batch);
+// never throws for a failing sequence (ok false, error set). The steps are in run.cc.
 SequenceResult RunOneSequence(const ValidatedJob& job, const plugin::PluginRegistry& registry,
                               const RunOptions& options, const SequenceRef& seq);
-
-// Every sequence in turn, in this process (`imr run` isolates each in a child process instead:
-// host/batch).
-BatchResult RunJob(const ValidatedJob& job, const plugin::PluginRegistry& registry,
-                   const RunOptions& options = {});
 
 // imr's own version, for reports and `imr --version`.
 const char* Version();

@@ -576,8 +576,9 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
 
   h << "<h2>Sequences</h2>\n<table id=\"summary\">\n<thead><tr><th>#</th><th>sequence</th>"
        "<th>status</th><th>frames</th><th>time (s)</th><th>vertices</th><th>faces</th>"
-       "<th title=\"mean distance from the ground truth to the mesh (DESIGN §8), scene units\">"
-       "accuracy</th><th>error</th><th>files</th><th>3D</th></tr></thead>\n<tbody>\n";
+       "<th title=\"mean distance from each ground-truth point to the nearest triangle of the "
+       "mesh (the paper's accuracy), scene units; ground truth cropped to what the cameras saw "
+       "(the report's accuracy says how)\">mean distance truth → mesh</th><th>error</th><th>files</th><th>3D</th></tr></thead>\n<tbody>\n";
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];
     h << "<tr class=\"" << (r.ok ? "ok" : "failed") << "\"><td class=\"num\">" << i + 1 << "</td><td>"

@@ -1,4 +1,4 @@
-// Accuracy of a triangle mesh against a known Scene (DESIGN §8, both directions): mesh -> scene
+// Accuracy of a triangle mesh against a known Scene (host/eval/README.md, both directions): mesh -> scene
 // (precision: is what we built on a true surface?) and true points -> mesh (completeness: is what
 // was seen covered?). Plain arrays in, no engine types.
 #pragma once

@@ -1,6 +1,6 @@
-// The assimp exporter (DESIGN.md section 7, "Outputs"): writes the output surface as OBJ, binary
+// The assimp exporter (README, Colour, texture and upright glTF): writes the output surface as OBJ, binary
 // PLY, glTF 2.0 or GLB, with per-vertex normals and, where the format has a place for them, the
-// per-vertex point ids that trace the mesh back to its 3D points (DESIGN.md section 3, "Output").
+// per-vertex point ids that trace the mesh back to its 3D points (host/engine/engine.h, `Mesh`).
 // Since SDK 1.1 it colours the surface from the keyframe images (vertex colours, a texture atlas:
 // texturing.hpp) and writes glTF upright (a root node's rotation).
 #include <imr/sdk/plugin.hpp>
@@ -33,6 +33,7 @@
 #include <optional>
 #include <unordered_map>
 
+#include "obj_writer.hpp"
 #include "point_id_channel.hpp"
 #include "texturing.hpp"
 
@@ -42,8 +43,16 @@ namespace fs = std::filesystem;
 using imr::exporter_assimp::AtlasPage;
 using imr::exporter_assimp::ColorAndTexture;
 using imr::exporter_assimp::ConvertGltfPointIds;
+using imr::exporter_assimp::AddPlyOrigin;
 using imr::exporter_assimp::EditGltf;
+using imr::exporter_assimp::ExportOrigin;
+using imr::exporter_assimp::SetGltfOrigin;
 using imr::exporter_assimp::GltfDocument;
+using imr::exporter_assimp::MtlText;
+using imr::exporter_assimp::ObjGroup;
+using imr::exporter_assimp::ObjMesh;
+using imr::exporter_assimp::ObjNeedsMtl;
+using imr::exporter_assimp::ObjText;
 using imr::exporter_assimp::SetUprightNode;
 using imr::exporter_assimp::TexturedMesh;
 using imr::exporter_assimp::TexturingOptions;
@@ -133,11 +142,10 @@ struct Format {
   bool texture;          // has a place for a texture atlas
 };
 
-// "objnomtl": one file, no .mtl beside it (the mesh has one plain material); a textured OBJ uses
-// assimp's "obj" (an .mtl naming the atlas images).
-// "plyb": assimp's binary PLY, little-endian on this host.
+// OBJ is written by obj_writer.hpp, not assimp (no exporter id): assimp's merges the vertices
+// the engine split. "plyb": assimp's binary PLY, little-endian on this host.
 constexpr std::array<Format, 4> kFormatTable = {{
-    {"obj", "objnomtl", ".obj", 0, true},
+    {"obj", nullptr, ".obj", 0, true},
     {"ply", "plyb", ".ply", kMaxPointId, false},
     {"gltf", "gltf2", ".gltf", kMaxGltfPointId, true},
     {"glb", "glb2", ".glb", kMaxGltfPointId, true},
@@ -209,7 +217,8 @@ struct Part {
 
 aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& normals,
                   const Part& part, const Appearance& look, bool with_point_ids,
-                  bool colors_on_textured, const std::string& name, unsigned material) {
+                  const std::string& name, unsigned material,
+                  const std::array<double, 3>& origin) {
   const TexturedMesh* tex = part.page >= 0 ? look.texture : nullptr;
   std::unordered_map<uint64_t, uint32_t> index;
   std::vector<uint32_t> source;  // input vertex of each output vertex
@@ -239,9 +248,9 @@ aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& nor
   m->mNormals = new aiVector3D[nv];
   for (unsigned i = 0; i < nv; ++i) {
     const std::size_t s = source[i];
-    m->mVertices[i] = aiVector3D(static_cast<ai_real>(mesh.vertices[3 * s]),
-                                 static_cast<ai_real>(mesh.vertices[3 * s + 1]),
-                                 static_cast<ai_real>(mesh.vertices[3 * s + 2]));
+    m->mVertices[i] = aiVector3D(static_cast<ai_real>(mesh.vertices[3 * s] - origin[0]),
+                                 static_cast<ai_real>(mesh.vertices[3 * s + 1] - origin[1]),
+                                 static_cast<ai_real>(mesh.vertices[3 * s + 2] - origin[2]));
     const double* n = &normals[3 * s];
     m->mNormals[i] = n[0] == 0 && n[1] == 0 && n[2] == 0
                          ? aiVector3D(0, 0, 1)
@@ -263,7 +272,7 @@ aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& nor
       m->mTextureCoords[channel][i] = aiVector3D(e.hi, e.lo, 0);
     }
   }
-  if (look.vertex_rgb != nullptr && (!tex || colors_on_textured)) {
+  if (look.vertex_rgb != nullptr && !tex) {
     m->mColors[0] = new aiColor4D[nv];
     for (unsigned i = 0; i < nv; ++i) {
       const uint8_t* c = look.vertex_rgb + 3 * static_cast<std::size_t>(source[i]);
@@ -296,13 +305,8 @@ aiMaterial* Material(const std::string& name, bool white, const std::string& tex
   return material;
 }
 
-// A complete scene: one root node holding one mesh per atlas page (with its textured material)
-// and one for the faces without texture (vertex colours, or the plain grey material).
-std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::string& name,
-                                    bool with_point_ids, const Appearance& look,
-                                    bool colors_on_textured) {
-  auto scene = std::make_unique<aiScene>();
-  const std::vector<double> normals = VertexNormals(mesh);
+// One part per atlas page and one for the faces without texture, the empty ones left out.
+std::vector<Part> Parts(const imr::sdk::MeshView& mesh, const Appearance& look) {
   std::vector<Part> parts;
   if (look.texture != nullptr) {
     parts.resize(look.texture->pages.size() + 1);
@@ -318,20 +322,69 @@ std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::s
     for (std::size_t f = 0; f < mesh.face_count(); ++f) parts[0].faces[f] = static_cast<uint32_t>(f);
   }
   std::erase_if(parts, [](const Part& p) { return p.faces.empty(); });
+  return parts;
+}
 
+std::string MaterialName(const Part& part) {
+  return part.page >= 0 ? "imr_atlas" + std::to_string(part.page) : "imr_surface";
+}
+
+std::string PartName(const std::string& name, const Part& part, std::size_t parts) {
+  return parts == 1 ? name : part.page >= 0 ? name + "_atlas" + std::to_string(part.page)
+                                            : name + "_untextured";
+}
+
+// The OBJ of the same parts (obj_writer.hpp): every mesh vertex one `v`, in the mesh's order.
+// The result points into `mesh`, `normals` and `look`.
+ObjMesh ObjOf(const imr::sdk::MeshView& mesh, const std::vector<double>& normals,
+              const std::string& name, const Appearance& look) {
+  ObjMesh obj;
+  obj.vertices = mesh.vertices.data();
+  obj.vertex_count = mesh.vertex_count();
+  obj.normals = &normals;
+  obj.vertex_rgb = look.vertex_rgb;
+  const std::vector<Part> parts = Parts(mesh, look);
+  for (const Part& part : parts) {
+    ObjGroup g;
+    g.name = PartName(name, part, parts.size());
+    g.material = MaterialName(part);
+    g.white = part.page >= 0 || look.vertex_rgb != nullptr;
+    const TexturedMesh* tex = part.page >= 0 ? look.texture : nullptr;
+    if (tex) g.texture = look.page_paths[static_cast<std::size_t>(part.page)];
+    std::unordered_map<uint64_t, uint32_t> index;  // (patch, vertex) -> vt, as BuildPart
+    for (const uint32_t f : part.faces)
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t v = mesh.faces[3 * f + k];
+        g.faces.push_back(v);
+        if (!tex) continue;
+        const uint64_t key = uint64_t{static_cast<uint32_t>(tex->face_patch[f])} << 32 | v;
+        const auto [it, added] = index.emplace(key, static_cast<uint32_t>(g.uv.size() / 2));
+        if (added)
+          g.uv.insert(g.uv.end(), {tex->face_uv[6 * f + 2 * k], 1.0f - tex->face_uv[6 * f + 2 * k + 1]});
+        g.corner_uv.push_back(it->second);
+      }
+    obj.groups.push_back(std::move(g));
+  }
+  return obj;
+}
+
+// A complete scene: one root node holding one mesh per atlas page (with its textured material)
+// and one for the faces without texture (vertex colours, or the plain grey material).
+std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::string& name,
+                                    bool with_point_ids, const Appearance& look,
+                                    const std::array<double, 3>& origin) {
+  auto scene = std::make_unique<aiScene>();
+  const std::vector<double> normals = VertexNormals(mesh);
+  const std::vector<Part> parts = Parts(mesh, look);
   std::vector<aiMaterial*> materials;
   std::vector<aiMesh*> meshes;
   for (const Part& part : parts) {
     const bool textured = part.page >= 0;
     const auto material = static_cast<unsigned>(materials.size());
-    materials.push_back(textured ? Material("imr_atlas" + std::to_string(part.page), true,
-                                            look.page_paths[static_cast<std::size_t>(part.page)])
-                                 : Material("imr_surface", look.vertex_rgb != nullptr, ""));
-    const std::string mesh_name = parts.size() == 1 ? name
-                                  : textured        ? name + "_atlas" + std::to_string(part.page)
-                                                    : name + "_untextured";
-    meshes.push_back(BuildPart(mesh, normals, part, look, with_point_ids, colors_on_textured,
-                               mesh_name, material));
+    materials.push_back(Material(MaterialName(part), textured || look.vertex_rgb != nullptr,
+                                 textured ? look.page_paths[static_cast<std::size_t>(part.page)] : ""));
+    const std::string mesh_name = PartName(name, part, parts.size());
+    meshes.push_back(BuildPart(mesh, normals, part, look, with_point_ids, mesh_name, material, origin));
   }
   scene->mNumMaterials = static_cast<unsigned>(materials.size());
   scene->mMaterials = new aiMaterial*[materials.size()];
@@ -360,14 +413,20 @@ std::vector<uint8_t> EncodePage(const AtlasPage& page, const std::string& format
   return bytes;
 }
 
-void WriteBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
+void WriteBytes(const fs::path& path, const void* bytes, std::size_t size) {
   std::string error;
   {
     CheckedIOSystem io(&error);
     std::unique_ptr<Assimp::IOStream> out(io.Open(path.string().c_str(), "wb"));
-    if (out) out->Write(bytes.data(), 1, bytes.size());
+    if (out) out->Write(bytes, 1, size);
   }
   if (!error.empty()) throw std::runtime_error(error);
+}
+void WriteBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
+  WriteBytes(path, bytes.data(), bytes.size());
+}
+void WriteBytes(const fs::path& path, const std::string& text) {
+  WriteBytes(path, text.data(), text.size());
 }
 
 // C = -R^T t.
@@ -459,8 +518,21 @@ class AssimpExporter : public imr::sdk::Exporter {
     }
     host_.CheckCancelled();
 
-    std::unique_ptr<aiScene> scene =
-        BuildScene(mesh, stem, write_ids, look, /*colors_on_textured=*/std::string(f.name) == "obj");
+    if (std::string(f.name) == "obj") {  // not through assimp (obj_writer.hpp)
+      const std::vector<double> normals = VertexNormals(mesh);
+      const ObjMesh obj = ObjOf(mesh, normals, stem, look);
+      if (ObjNeedsMtl(obj)) WriteBytes(fs::path(request.directory) / (stem + ".mtl"), MtlText(obj));
+      WriteBytes(path, ObjText(obj, stem + ".mtl"));
+      host_.Debug("wrote " + path.string() + ": " + std::to_string(mesh.vertex_count()) +
+                  " vertices, " + std::to_string(mesh.face_count()) + " triangles" +
+                  (look.vertex_rgb ? ", vertex colours" : "") +
+                  (look.texture ? ", " + std::to_string(tm->pages.size()) + " atlas page(s)" : ""));
+      return;
+    }
+    // Vertices relative to a local origin (0 near the origin: point_id_channel.hpp).
+    const std::array<double, 3> origin = ExportOrigin(mesh.vertices.data(), mesh.vertex_count());
+    const bool shifted = origin != std::array<double, 3>{};
+    std::unique_ptr<aiScene> scene = BuildScene(mesh, stem, write_ids, look, origin);
     if (look.texture != nullptr && std::string(f.name) == "glb") {
       scene->mNumTextures = static_cast<unsigned>(tm->pages.size());
       scene->mTextures = new aiTexture*[scene->mNumTextures];
@@ -476,7 +548,7 @@ class AssimpExporter : public imr::sdk::Exporter {
         scene->mTextures[p] = t;
       }
     }
-    const char* assimp_id = std::string(f.name) == "obj" && look.texture != nullptr ? "obj" : f.assimp_id;
+    const char* assimp_id = f.assimp_id;
     {
       std::string write_error;
       Assimp::Exporter exporter;
@@ -493,9 +565,11 @@ class AssimpExporter : public imr::sdk::Exporter {
                          UprightRotation(request.keyframes, rotation);
     if (std::string(f.name) == "ply") {
       if (write_ids || look.vertex_rgb != nullptr) RewritePly(path, write_ids);
-    } else if (std::string(f.name) != "obj" && (write_ids || upright)) {
+      if (shifted) AddPlyOrigin(path, origin);
+    } else if (write_ids || upright || shifted) {
       EditGltf(path, std::string(f.name) == "glb", [&](GltfDocument& g) {
         if (write_ids) ConvertGltfPointIds(g);
+        if (shifted) SetGltfOrigin(g, origin);
         if (upright) {
           // A viewer's natural start: from the first keyframe, toward one a few keyframes on.
           const auto& k = request.keyframes;
@@ -510,7 +584,10 @@ class AssimpExporter : public imr::sdk::Exporter {
                 " vertices, " + std::to_string(mesh.face_count()) + " triangles" +
                 (write_ids ? ", point ids" : "") + (look.vertex_rgb ? ", vertex colours" : "") +
                 (look.texture ? ", " + std::to_string(tm->pages.size()) + " atlas page(s)" : "") +
-                (upright ? ", upright" : ""));
+                (upright ? ", upright" : "") +
+                (shifted ? ", relative to the origin " + std::to_string(origin[0]) + " " +
+                               std::to_string(origin[1]) + " " + std::to_string(origin[2])
+                         : ""));
   }
 
  private:

@@ -349,7 +349,127 @@ TEST_F(AssimpExporter, ObjIsOneFileWithoutPointIds) {
   Export(Cube(), "obj");
   std::vector<std::string> files;
   for (const auto& e : fs::directory_iterator(dir_)) files.push_back(e.path().filename().string());
-  EXPECT_EQ(files, std::vector<std::string>{"mesh.obj"});  // "objnomtl": no .mtl beside it
+  EXPECT_EQ(files, std::vector<std::string>{"mesh.obj"});  // no .mtl beside it
+}
+
+// Two tetrahedra touching at one point, as the engine leaves a pinched vertex: split into two
+// vertices at the same position, one per fan (vertices 0 and 4).
+TestMesh PinchedTetrahedra() {
+  TestMesh m = Tetrahedron();
+  m.vertices.insert(m.vertices.end(), {0, 0, 0, -1, 0, 0, 0, -1, 0, 0, 0, -1});
+  m.faces.insert(m.faces.end(), {4, 6, 5, 4, 5, 7, 4, 7, 6, 5, 6, 7});
+  for (double& x : m.vertices) x += 4.1e5 + 0.123456789;  // beyond float's centimetres
+  m.ids.insert(m.ids.end(), {0, 8, 9, 10});
+  return m;
+}
+
+// An OBJ read as MeshLab or CGAL read it: the `v` lines in order, faces by their position index.
+struct ObjByIndex {
+  std::vector<std::array<double, 3>> v;
+  std::vector<std::array<uint32_t, 3>> f;
+};
+
+ObjByIndex ReadObjByIndex(const fs::path& file) {
+  ObjByIndex out;
+  const std::vector<uint8_t> bytes = Slurp(file);
+  std::istringstream in(std::string(bytes.begin(), bytes.end()));
+  for (std::string line; std::getline(in, line);) {
+    std::istringstream l(line);
+    std::string key;
+    l >> key;
+    if (key == "v") {
+      std::array<double, 3> p{};
+      l >> p[0] >> p[1] >> p[2];
+      out.v.push_back(p);
+    } else if (key == "f") {
+      std::array<uint32_t, 3> t{};
+      for (uint32_t& i : t) {
+        std::string corner;
+        l >> corner;
+        i = static_cast<uint32_t>(std::stoul(corner.substr(0, corner.find('/')))) - 1;
+      }
+      out.f.push_back(t);
+    }
+  }
+  return out;
+}
+
+TEST_F(AssimpExporter, ObjKeepsSplitVerticesAndDoublePositions) {
+  const TestMesh m = PinchedTetrahedra();
+  const ObjByIndex obj = ReadObjByIndex(Export(m, "obj"));
+  // One `v` per mesh vertex, in order, in double: the pinched point stays two vertices.
+  ASSERT_EQ(obj.v.size(), m.vertices.size() / 3);
+  for (std::size_t i = 0; i < obj.v.size(); ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(obj.v[i][k], m.vertices[3 * i + k]) << i << " " << k;
+  ASSERT_EQ(obj.f.size(), m.faces.size() / 3);
+  for (std::size_t f = 0; f < obj.f.size(); ++f)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(obj.f[f][k], m.faces[3 * f + k]) << f << " " << k;
+}
+
+// Vertex positions as written, in the sequence's coordinates: PLY's float x y z plus its
+// "comment imr_origin", glTF's POSITION plus the root node's translation.
+std::vector<std::array<double, 3>> WrittenPositions(const fs::path& file) {
+  std::vector<std::array<double, 3>> out;
+  std::array<double, 3> origin{};
+  if (file.extension() == ".ply") {
+    const std::vector<uint8_t> bytes = Slurp(file);
+    const std::string text(bytes.begin(), bytes.end());
+    const std::size_t body = text.find("end_header\n") + 11;
+    std::istringstream header(text.substr(0, body));
+    std::size_t count = 0, stride = 0;
+    std::string element;
+    for (std::string line; std::getline(header, line);) {
+      std::istringstream w(line);
+      std::string key, a, b;
+      w >> key >> a >> b;
+      if (key == "comment" && a == "imr_origin") {
+        origin[0] = std::stod(b);
+        w >> origin[1] >> origin[2];
+      }
+      if (key == "element") element = a, count = element == "vertex" ? std::stoul(b) : count;
+      if (key == "property" && element == "vertex") stride += a == "uchar" ? 1 : 4;
+    }
+    for (std::size_t i = 0; i < count; ++i) {
+      std::array<double, 3> p{};
+      for (int k = 0; k < 3; ++k) p[k] = origin[k] + LoadLE<float>(&bytes[body + i * stride + 4 * k]);
+      out.push_back(p);
+    }
+    return out;
+  }
+  const Gltf g = LoadGltf(file);
+  const json& root = g.doc["nodes"][g.doc["scenes"][0]["nodes"][0].get<std::size_t>()];
+  if (root.contains("translation"))
+    for (int k = 0; k < 3; ++k) origin[k] = root["translation"][k].get<double>();
+  const std::vector<double> v = AccessorValues(
+      g, g.doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"].get<std::size_t>());
+  for (std::size_t i = 0; i + 2 < v.size(); i += 3)
+    out.push_back({origin[0] + v[i], origin[1] + v[i + 1], origin[2] + v[i + 2]});
+  return out;
+}
+
+// Geo-referenced coordinates (UTM-sized: 5e5 east, 5e6 north) keep their centimetres in every
+// format: float32 alone keeps 3 cm at 5e5 and 50 cm at 5e6.
+TEST_F(AssimpExporter, FarFromTheOriginPositionsKeepCentimetres) {
+  for (const double offset : {5e5, 5e6}) {
+    TestMesh m = Grid(12);
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) m.vertices[i] += offset + 0.123456 * (i % 3);
+    for (const char* format : {"ply", "gltf", "glb"}) {
+      SCOPED_TRACE(std::string(format) + " at " + std::to_string(offset));
+      const std::vector<std::array<double, 3>> written = WrittenPositions(Export(m, format));
+      ASSERT_EQ(written.size(), m.vertices.size() / 3);
+      for (const auto& p : written) {  // each written vertex is an input vertex, within 1 cm
+        double best = 1e30;
+        for (std::size_t i = 0; i < m.vertices.size() / 3; ++i)
+          best = std::min(best, std::hypot(p[0] - m.vertices[3 * i], p[1] - m.vertices[3 * i + 1],
+                                           p[2] - m.vertices[3 * i + 2]));
+        EXPECT_LT(best, 0.01);
+      }
+    }
+  }
+  // Near the origin nothing changes: no origin comment, no translation.
+  const std::vector<uint8_t> ply = Slurp(Export(Cube(), "ply"));
+  EXPECT_EQ(std::string(ply.begin(), ply.end()).find("imr_origin"), std::string::npos);
+  EXPECT_FALSE(LoadGltf(Export(Cube(), "gltf")).doc["nodes"][0].contains("translation"));
 }
 
 TEST_F(AssimpExporter, PlyKeepsPointIdsIncludingSteinerAndLargeIds) {

@@ -387,4 +387,46 @@ void SetUprightNode(GltfDocument& g, const double rotation[9], const double view
   roots = json::array({doc["nodes"].size() - 1});
 }
 
+std::array<double, 3> ExportOrigin(const double* vertices, std::size_t vertex_count) {
+  std::array<double, 3> lo{}, hi{}, origin{};
+  bool small = true;
+  for (std::size_t i = 0; i < vertex_count; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double x = vertices[3 * i + k];
+      small = small && std::fabs(x) <= kOriginFreeRange;
+      lo[k] = i == 0 ? x : std::min(lo[k], x);
+      hi[k] = i == 0 ? x : std::max(hi[k], x);
+    }
+  if (small) return origin;
+  for (int k = 0; k < 3; ++k) origin[k] = std::round((lo[k] + hi[k]) / 2.0 / 1000.0) * 1000.0;
+  return origin;
+}
+
+void AddPlyOrigin(const fs::path& ply, const std::array<double, 3>& origin) {
+  Bytes bytes = ReadFile(ply);
+  static const std::string kFormat = "format ";
+  const auto format = std::search(bytes.begin(), bytes.end(), kFormat.begin(), kFormat.end());
+  const auto eol = std::find(format, bytes.end(), '\n');
+  if (format == bytes.end() || eol == bytes.end()) Fail(ply, "no format line");
+  std::ostringstream line;
+  line.precision(17);
+  line << "comment imr_origin " << origin[0] << ' ' << origin[1] << ' ' << origin[2]
+       << " (add it to every vertex for the sequence's coordinates)\n";
+  const std::string text = line.str();
+  bytes.insert(eol + 1, text.begin(), text.end());
+  WriteFile(ply, bytes);
+}
+
+void SetGltfOrigin(GltfDocument& g, const std::array<double, 3>& origin) {
+  nlohmann::json& doc = g.doc;
+  const auto scene = doc.value("scene", std::size_t{0});
+  if (!doc.contains("scenes") || scene >= doc["scenes"].size()) Fail(g.file, "no scene");
+  for (const nlohmann::json& root : doc["scenes"][scene]["nodes"]) {
+    nlohmann::json& node = doc["nodes"].at(root.get<std::size_t>());
+    if (node.contains("matrix") || node.contains("translation"))
+      Fail(g.file, "a root node already has a transform");
+    node["translation"] = {origin[0], origin[1], origin[2]};
+  }
+}
+
 }  // namespace imr::exporter_assimp

@@ -7,6 +7,7 @@
 // with different ids are never merged (their texture coordinates differ).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -66,5 +67,19 @@ void ConvertGltfPointIds(GltfDocument& gltf);
 // glTF coordinates, for viewers that want to open at the start of the camera path.
 void SetUprightNode(GltfDocument& gltf, const double rotation[9], const double view_from[3],
                     const double view_to[3]);
+
+// Geo-referenced coordinates (UTM-sized) lose centimetres in float32, which assimp writes: PLY
+// and glTF/GLB vertices are written relative to a local origin. ExportOrigin: 0 when every
+// coordinate is within kOriginFreeRange (float keeps better than a millimetre there, and the
+// files stay as they were), else the bounding box's centre rounded to a whole kilometre. The host
+// records the same rule's origin in report.json (host/pipeline/mesh_export.h); keep both equal.
+constexpr double kOriginFreeRange = 1e4;
+std::array<double, 3> ExportOrigin(const double* vertices, std::size_t vertex_count);
+// Adds "comment imr_origin X Y Z" (shortest round-trip decimals) after the PLY's format line:
+// the vertices are relative to it (imr's PLY reader adds it back).
+void AddPlyOrigin(const std::filesystem::path& ply, const std::array<double, 3>& origin);
+// Sets `translation` (double, as JSON numbers are) on the scene's root nodes, which hold the
+// mesh: call before SetUprightNode, which puts them under its rotation.
+void SetGltfOrigin(GltfDocument& gltf, const std::array<double, 3>& origin);
 
 }  // namespace imr::exporter_assimp

@@ -1,4 +1,4 @@
-// The Ceres refiner plugin (DESIGN.md section 5): 2D tracks + cameras in; new, moved and removed
+// The Ceres refiner plugin (README, Meshes from image sequences): 2D tracks + cameras in; new, moved and removed
 // 3D points out, at each keyframe.
 #include <imr/sdk/plugin.hpp>
 

@@ -1,4 +1,4 @@
-// The paper's three weight-transfer policies as plugins (DESIGN.md section 3). The arithmetic
+// The paper's three weight-transfer policies as plugins (the paper's section 3; host/engine/weight_transfer_policy.h). The arithmetic
 // lives in weight_transfer.hpp, shared with the engine's tests and benchmark.
 #include <imr/sdk/plugin.hpp>
 

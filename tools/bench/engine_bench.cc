@@ -1,5 +1,5 @@
 // imr-bench engine: the reconstruction engine on the synthetic street stream, in every visibility
-// mode, with and without moving points (DESIGN §4: per-move overhead = (T_mov - T_nonmov) / N_mov).
+// mode, with and without moving points (the paper's cost model: per-move overhead = (T_mov - T_nonmov) / N_mov).
 // Accuracy both ways on the mesh of real-point triangles: the mean distance of its triangles to
 // the true scene (acc_real), and the paper's figure, the mean distance from ground truth (points
 // sampled on the surfaces the cameras saw, independently of the stream) to it (gt2m_real). Then

@@ -2,9 +2,9 @@
 // efficient policies (nearest, mean, weighted_mean) and the straightforward baseline of Lovi et
 // al. (rays, K = 5 and K = 1), on identical input:
 //   - accuracy against ground truth: the paper's figure, the mean distance from each ground-truth
-//     point to the mesh (CloudCompare's cloud-to-mesh; DESIGN §8), with its median, and the other
+//     point to the mesh (CloudCompare's cloud-to-mesh; host/eval/README.md), with its median, and the other
 //     direction (mesh -> true surface) with completeness and precision;
-//   - per-move overhead (T_mov - T_nonmov) / N_mov (DESIGN §4), T_nonmov from the same stream
+//   - per-move overhead (T_mov - T_nonmov) / N_mov (the paper's cost model), T_nonmov from the same stream
 //     with every point frozen at its first estimate, N_mov every move the input delivers;
 //   - total engine time, points moved, moves refused, points dropped.
 // Sequences: the synthetic street and room streams (engine in process, exact ground truth), the

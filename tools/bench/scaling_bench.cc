@@ -1,4 +1,4 @@
-// imr-bench scaling: does a keyframe cost the same at frame 2000 as at frame 50 (DESIGN §4: the
+// imr-bench scaling: does a keyframe cost the same at frame 2000 as at frame 50 (the paper's cost model: the
 // efficient policy's keyframe cost must not grow with F)? The synthetic street of 250 / 500 /
 // 1000 / 2000 frames (points moving), each length in its own process so that peak RSS is its
 // own: per-keyframe time (median, p90) against frame index, total time, peak RSS, heap bytes

@@ -11,7 +11,7 @@ that see them) and the sequence's ground_truth/scene.json (world_from_scene), an
     and elsewhere, and per horizontal band of the image (--bands) the mean number of points.
 Plain Python (no numpy), so it runs wherever imr does.
 
-  tools/bench/street_points.py runs/synthetic-street/colmap build/synthetic-street
+  tools/bench/street_points.py runs/default/synthetic-street/colmap build/synthetic-street
 """
 import argparse
 import json

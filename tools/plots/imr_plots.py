@@ -10,7 +10,7 @@ snapshots/ skipped), or batch summaries (a JSON object with a "sequences" array:
 Writes into DIR (each PNG atomically: temporary name, then rename), each only when the reports
 hold what it needs, and prints one line per figure, written or skipped and why:
 
-  accuracy.png       mean distance ground truth -> mesh (the paper's accuracy, DESIGN §8) per
+  accuracy.png       mean distance ground truth -> mesh (the paper's accuracy; host/eval/README.md) per
                      sequence (groups) and policy (bars): accuracy.truth_to_mesh.mean (imr
                      evaluate), else accuracy.mean_truth_to_mesh (synthetic sources).
   overhead.png       per-move overhead per sequence and policy, in milliseconds. The paper's

@@ -5,6 +5,7 @@
 #include <iostream>
 #include <string>
 
+#include "host/util/exit_status.h"
 #include "tools/synth/sequence.h"
 
 namespace po = boost::program_options;
@@ -21,7 +22,8 @@ constexpr const char* kUsage =
     "calib.txt, times.txt, poses.txt, velodyne/*.bin, ground_truth/scene.{ply,json}.\n"
     "The folder is built as DIR.partial-<pid> and renamed to DIR when complete; a run that\n"
     "is killed leaves only that .partial folder (delete it). Same options, same bytes.\n"
-    "Exit status: 0 done; 1 failed or interrupted; 2 bad usage or DIR exists (no --force).\n";
+    "Exit status: 0 done; 1 failed or interrupted; 64 bad usage or DIR exists (no --force), as\n"
+    "imr's.\n";
 
 }  // namespace
 
@@ -57,7 +59,7 @@ int main(int argc, char** argv) {
     po::notify(vm);
   } catch (const po::error& e) {
     std::cerr << "imr-synth: " << e.what() << " (see --help)\n";
-    return 2;
+    return imr::kExitUsage;
   }
   if (vm.count("help")) {
     std::cout << kUsage << "\n" << desc << "\n";
@@ -65,24 +67,24 @@ int main(int argc, char** argv) {
   }
   if (!vm.count("out")) {
     std::cerr << "imr-synth: --out is required (see --help)\n";
-    return 2;
+    return imr::kExitUsage;
   }
   if (seed.empty() || seed.find_first_not_of("0123456789") != std::string::npos ||
       seed.size() > 20) {
     std::cerr << "imr-synth: --seed: expected a non-negative integer, got '" << seed << "'\n";
-    return 2;
+    return imr::kExitUsage;
   }
   try {
     o.seed = std::stoull(seed);
   } catch (const std::exception&) {
     std::cerr << "imr-synth: --seed: out of range: " << seed << "\n";
-    return 2;
+    return imr::kExitUsage;
   }
   o.lidar = !no_lidar;
   o.progress = !quiet;
   if (const std::string e = o.Check(); !e.empty()) {
     std::cerr << "imr-synth: " << e << "\n";
-    return 2;
+    return imr::kExitUsage;
   }
 
   std::signal(SIGINT, OnSignal);
@@ -97,12 +99,12 @@ int main(int argc, char** argv) {
     return 0;
   } catch (const imr::synth::OutputExistsError& e) {
     std::cerr << "imr-synth: " << e.what() << "\n";
-    return 2;
+    return imr::kExitUsage;
   } catch (const std::invalid_argument& e) {
     std::cerr << "imr-synth: " << e.what() << "\n";
-    return 2;
+    return imr::kExitUsage;
   } catch (const std::exception& e) {
     std::cerr << "imr-synth: " << e.what() << "\n";
-    return 1;
+    return imr::kExitFailed;
   }
 }

@@ -389,7 +389,7 @@ TEST_F(SynthTest, RefusesAnExistingFolderUnlessForced) {
   { std::ofstream(d / "keep.txt") << "mine"; }
   const std::string args = " --frames 2 --width 64 --height 32 -q --no-lidar";
   Outcome r = Synth("--out " + d.string() + args);
-  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.status, 64);  // as imr's bad usage
   EXPECT_NE(r.output.find(d.string()), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--force"), std::string::npos) << r.output;
   EXPECT_TRUE(fs::exists(d / "keep.txt"));
@@ -416,10 +416,10 @@ TEST_F(SynthTest, BadOptionsAreNamed) {
                                                         {"--lidar-step 0", "--lidar-step"},
                                                         {"--bogus", "bogus"}}) {
     const Outcome r = Synth(args + out);
-    EXPECT_EQ(r.status, 2) << args;
+    EXPECT_EQ(r.status, 64) << args;
     EXPECT_NE(r.output.find(name), std::string::npos) << args << ": " << r.output;
   }
-  EXPECT_EQ(Synth("").status, 2);
+  EXPECT_EQ(Synth("").status, 64);
   EXPECT_FALSE(fs::exists(root_ / "never"));
   const Outcome help = Synth("--help");
   EXPECT_EQ(help.status, 0);

@@ -1,10 +1,15 @@
-// A fresh folder under the system temp folder for one test, removed with everything in it.
+// The one scratch folder of the tests (unit tests here and in host/eval, the end-to-end tests
+// in tests/ through ScratchDir): a fresh folder under the system temp folder, made by mkdtemp
+// (unique, mode 0700), removed with everything in it by the destructor.
 #pragma once
 
 #include <stdlib.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 #include <string>
 #include <system_error>
 
@@ -12,9 +17,12 @@ namespace imr::io::testing {
 
 class TempDir {
  public:
+  // Throws std::runtime_error naming the folder and the reason when it cannot be made.
   explicit TempDir(const std::string& tag = "imr-io") {
     std::string tmpl = (std::filesystem::temp_directory_path() / (tag + "-XXXXXX")).string();
-    path_ = ::mkdtemp(tmpl.data());
+    if (::mkdtemp(tmpl.data()) == nullptr)
+      throw std::runtime_error("cannot make a scratch folder " + tmpl + ": " + std::strerror(errno));
+    path_ = tmpl;
   }
   ~TempDir() {
     std::error_code ec;

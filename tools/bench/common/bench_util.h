@@ -1,6 +1,6 @@
 // Shared helpers of the imr-bench subcommands (engine, paper, scaling): quantiles, memory and
 // machine figures, and accuracy against a known synthetic scene in both directions with medians
-// (DESIGN §8: the paper's figure is the mean distance from each ground-truth point to the mesh).
+// (host/eval/README.md: the paper's figure is the mean distance from each ground-truth point to the mesh).
 // Header-only; no CGAL.
 #pragma once
 
@@ -121,7 +121,7 @@ inline std::vector<synthetic::Vec3> SampleSeenSurfaces(const synthetic::Syntheti
   return out;
 }
 
-// Accuracy of a mesh against a known scene, both directions (DESIGN §8).
+// Accuracy of a mesh against a known scene, both directions (host/eval/README.md).
 struct SceneAccuracy {
   size_t triangles = 0;
   double area = 0.0;

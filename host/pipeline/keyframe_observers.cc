@@ -1,0 +1,107 @@
+#include "host/pipeline/keyframe_observers.h"
+
+#include "host/util/atomic_file.h"
+#include "host/util/json_text.h"
+#include "host/util/log.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <stdexcept>
+
+namespace imr::pipeline {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+namespace {
+
+// This process's resident memory (bytes), from /proc/self/statm; 0 when unreadable.
+uint64_t ResidentBytes() {
+  std::ifstream statm("/proc/self/statm");
+  uint64_t pages_total = 0, pages_resident = 0;
+  if (!(statm >> pages_total >> pages_resident)) return 0;
+  return pages_resident * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
+}  // namespace
+
+void InvariantCheck::OnKeyframe(KeyframeEvent& e) {
+  if (every_ <= 0 || e.keyframes % every_ != 0) return;
+  const auto start = std::chrono::steady_clock::now();
+  const engine::ManifoldCheckResult r = engine_.CheckInvariants();
+  e.check_seconds = Seconds(start);
+  seconds_ += e.check_seconds;
+  ++count_;
+  if (!r.ok)
+    throw std::runtime_error("keyframe " + std::to_string(e.info.index) + " (frame " +
+                             std::to_string(e.info.frame) + "): invariant check failed: " +
+                             r.message);
+}
+
+TraceWriter::TraceWriter(fs::path path, const engine::Engine& engine)
+    : path_(std::move(path)), partial_(path_), engine_(engine) {
+  partial_ += ".partial";
+  if (path_.has_parent_path()) fs::create_directories(path_.parent_path());
+  out_.open(partial_, std::ios::trunc);
+  if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
+}
+
+void TraceWriter::OnKeyframe(KeyframeEvent& e) {
+  const engine::EngineStats& es = engine_.Stats();
+  json line = {{"keyframe", e.keyframes},        {"frame", e.info.frame},
+               {"points", engine_.NumPoints()},  {"vertices", es.vertices},
+               {"cells", es.cells},              {"cells_in_o", es.cells_in_o},
+               {"rss_bytes", ResidentBytes()},   {"engine_seconds", e.engine_seconds}};
+  if (e.check_seconds >= 0.0) line["check_seconds"] = e.check_seconds;
+  out_ << DumpJson(line) << '\n';
+  out_.flush();
+  if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
+}
+
+const fs::path& TraceWriter::Finish() {
+  if (out_.is_open()) {
+    out_.close();
+    std::error_code ec;
+    fs::rename(partial_, path_, ec);
+    if (ec) LogWarning(path_.string() + ": cannot finish the trace: " + ec.message());
+  }
+  return path_;
+}
+
+void Snapshots::OnKeyframe(KeyframeEvent& e) {
+  if (every_ <= 0 || e.keyframes % every_ != 0) return;
+  const auto start = std::chrono::steady_clock::now();
+  const engine::Mesh snap = engine_.ExtractMesh();
+  if (!snap.faces.empty()) {
+    char suffix[64];
+    std::snprintf(suffix, sizeof(suffix), "_kf%06d", e.keyframes);
+    const std::string stem = target_.stem + suffix;
+    StagingDirectory dir(target_.directory / "snapshots");
+    target_.watch->SetPosition("snapshot after keyframe " + std::to_string(e.info.index));
+    ExportMesh(snap, *target_.context, *target_.formats, *target_.exporters, dir.path(), stem,
+               *target_.watch, target_.stage_timeout);
+    for (auto& f : dir.Commit()) target_.written->push_back(std::move(f));
+    list_.push_back({{"keyframe", e.keyframes}, {"frame", e.info.frame},
+                     {"stem", "snapshots/" + stem}, {"faces", snap.faces.size() / 3}});
+  }
+  seconds_ += Seconds(start);
+}
+
+Progress::Progress(std::string sequence, int total_keyframes,
+                   std::function<void(const SequenceProgress&)> callback)
+    : sequence_(std::move(sequence)),
+      total_keyframes_(total_keyframes),
+      of_total_(total_keyframes > 0 ? "/" + std::to_string(total_keyframes) : ""),
+      callback_(std::move(callback)) {}
+
+void Progress::OnKeyframe(KeyframeEvent& e) {
+  if (callback_) callback_({e.keyframes, total_keyframes_, e.info.frame});
+  if (e.keyframes % 20 == 0 || e.keyframes == total_keyframes_)
+    LogInfo("[" + sequence_ + "] keyframe " + std::to_string(e.keyframes) + of_total_);
+}
+
+}  // namespace imr::pipeline

@@ -1,0 +1,134 @@
+// What the keyframe loop does after the engine applied a keyframe, one observer per concern
+// (COLMAP's controller callbacks): the stream recorder, the invariant check, the trace, the
+// snapshots and the progress. host/pipeline/run.cc makes the list the run options ask for and
+// calls it in order after every keyframe; an observer that throws fails the sequence.
+#pragma once
+
+#include "host/engine/engine.h"
+#include "host/io/keyframe_source.h"
+#include "host/io/slam_json.h"
+#include "host/pipeline/mesh_export.h"
+#include "host/pipeline/run.h"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace imr::pipeline {
+
+// Wall seconds since `since` (the loop's and the observers' timings).
+double Seconds(std::chrono::steady_clock::time_point since);
+
+// One applied keyframe, as the observers see it.
+struct KeyframeEvent {
+  const engine::KeyframeUpdate& update;  // in canonical order, as the engine got it
+  const io::KeyframeInfo& info;
+  int keyframes = 0;            // keyframes applied so far, this one included
+  double engine_seconds = 0.0;  // this keyframe's ApplyUpdate
+  // The invariant check's time when it ran after this keyframe, -1 otherwise: InvariantCheck
+  // sets it, the trace (after it in the list) writes it.
+  double check_seconds = -1.0;
+};
+
+class KeyframeObserver {
+ public:
+  virtual ~KeyframeObserver() = default;
+  virtual void OnKeyframe(KeyframeEvent& event) = 0;
+};
+
+// --export-stream / --export-colmap: every update as the engine got it, for the SLAM JSON stream
+// and the COLMAP model written when the sequence ends.
+class StreamRecording : public KeyframeObserver {
+ public:
+  StreamRecording(const io::KeyframeSource* source, std::string written_by)
+      : recorder_(source, std::move(written_by)) {}
+  void OnKeyframe(KeyframeEvent& event) override { recorder_.Record(event.update, event.info); }
+  const io::StreamRecorder& recorder() const { return recorder_; }
+
+ private:
+  io::StreamRecorder recorder_;
+};
+
+// --check-invariants-every N: the engine's full check after every N-th keyframe; a failure
+// throws, naming the keyframe.
+class InvariantCheck : public KeyframeObserver {
+ public:
+  InvariantCheck(const engine::Engine& engine, int every) : engine_(engine), every_(every) {}
+  void OnKeyframe(KeyframeEvent& event) override;
+  int every() const { return every_; }
+  int count() const { return count_; }
+  double seconds() const { return seconds_; }
+
+ private:
+  const engine::Engine& engine_;
+  int every_;
+  int count_ = 0;
+  double seconds_ = 0.0;
+};
+
+// --trace: one JSON line per keyframe, flushed as it goes (a long run can be watched), under
+// <path>.partial until Finish renames it: a killed run never leaves a trace that looks complete.
+class TraceWriter : public KeyframeObserver {
+ public:
+  TraceWriter(std::filesystem::path path, const engine::Engine& engine);
+  ~TraceWriter() override { Finish(); }
+  void OnKeyframe(KeyframeEvent& event) override;
+  // Closes and renames the file (once; also from the destructor when the sequence fails).
+  const std::filesystem::path& Finish();
+
+ private:
+  std::filesystem::path path_, partial_;
+  const engine::Engine& engine_;
+  std::ofstream out_;
+};
+
+// output.snapshot_every: the mesh after every N-th keyframe, exported at once into
+// <output>/snapshots (whole files), so a running job can be watched.
+class Snapshots : public KeyframeObserver {
+ public:
+  struct Target {
+    const ExportContext* context;
+    const std::vector<std::string>* formats;
+    const Exporters* exporters;
+    std::filesystem::path directory;  // the sequence's output folder
+    std::string stem;                 // the job's output stem
+    StageWatch* watch;
+    double stage_timeout;
+    std::vector<std::filesystem::path>* written;  // each file committed is added here
+  };
+  Snapshots(const engine::Engine& engine, int every, Target target)
+      : engine_(engine), every_(every), target_(std::move(target)) {}
+  void OnKeyframe(KeyframeEvent& event) override;
+  // One entry per snapshot written: keyframe, frame, stem (relative to the output folder), faces.
+  const nlohmann::json& list() const { return list_; }
+  double seconds() const { return seconds_; }
+
+ private:
+  const engine::Engine& engine_;
+  int every_;
+  Target target_;
+  nlohmann::json list_ = nlohmann::json::array();
+  double seconds_ = 0.0;
+};
+
+// The run options' progress callback after every keyframe, and a log line every 20 keyframes
+// and after the last.
+class Progress : public KeyframeObserver {
+ public:
+  Progress(std::string sequence, int total_keyframes,
+           std::function<void(const SequenceProgress&)> callback);
+  void OnKeyframe(KeyframeEvent& event) override;
+
+ private:
+  std::string sequence_;
+  int total_keyframes_;  // -1: not known in advance
+  std::string of_total_;
+  std::function<void(const SequenceProgress&)> callback_;
+};
+
+}  // namespace imr::pipeline

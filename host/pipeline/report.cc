@@ -1,0 +1,232 @@
+#include "host/pipeline/report.h"
+
+#include "host/eval/evaluate.h"
+#include "host/eval/mesh_stats.h"
+#include "host/io/engine_options.h"
+#include "host/pipeline/run.h"
+#include "host/util/sha256.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace imr::pipeline {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+json StatsJson(const engine::EngineStats& s) {
+  const auto& t = s.time;
+  // Every counter engine::EngineStats keeps (REPORT.md lists them).
+  return {{"seconds", {{"steiner", t.steiner}, {"shrink", t.shrink}, {"move", t.move},
+                       {"insert", t.insert}, {"cast", t.cast}, {"scan", t.scan},
+                       {"grow", t.grow}, {"extract", t.extract}, {"total", t.total}}},
+          {"keyframes", s.updates},
+          {"rays_cast", s.rays_cast},
+          {"rays_cast_backward", s.rays_cast_backward},
+          {"rays_skipped_too_long", s.rays_skipped_too_long},
+          {"rays_truncated_to_camera", s.rays_truncated_to_camera},
+          {"rays_truncated", s.rays_truncated},
+          {"rays_rewalked", s.rays_rewalked},
+          {"rays_rewalked_exact", s.rays_rewalked_exact},
+          {"cells_rewalked", s.cells_rewalked},
+          {"ray_mismatches", s.ray_mismatches},
+          {"cells_traversed", s.cells_traversed},
+          {"cells_weighted", s.cells_weighted},
+          {"points_inserted", s.points_inserted},
+          {"points_moved", s.points_moved},
+          {"moves_skipped", s.moves_skipped},
+          {"points_dropped", s.points_dropped},
+          {"points_duplicate", s.points_duplicate},
+          {"moves_duplicate", s.moves_duplicate},
+          {"moves_in_place", s.moves_in_place},
+          {"points_reentered", s.points_reentered},
+          {"points_removed", s.points_removed},
+          {"steiner_points", s.steiner_points},
+          {"steiner_dropped", s.steiner_dropped},
+          {"cells_grown", s.cells_grown},
+          {"cells_shrunk", s.cells_shrunk},
+          {"policy_calls", s.policy_calls},
+          {"rays_scan_cells", s.rays_scan_cells},
+          {"vertices", s.vertices},
+          {"cells", s.cells},
+          {"cells_in_o", s.cells_in_o}};
+}
+
+// What the sequence was made from, by content: SHA-256 of each file of the source (a file, or the
+// files directly in its folder: calibration, poses, times) and, for image sequences, one digest
+// over every image in frame order (the hash of their hashes), so a report says which bytes it
+// describes.
+json InputChecksums(const std::string& source, const ImageFrontEndSource* front_end) {
+  json files = json::object();
+  std::error_code ec;
+  const fs::path root = front_end != nullptr ? fs::path(front_end->sequence().root) : fs::path(source);
+  if (fs::is_regular_file(root, ec)) {
+    files[root.filename().string()] = Sha256File(root);
+  } else if (fs::is_directory(root, ec)) {
+    std::vector<fs::path> list;
+    for (const auto& e : fs::directory_iterator(root, ec))
+      if (e.is_regular_file()) list.push_back(e.path());
+    std::sort(list.begin(), list.end());
+    for (const auto& f : list) files[f.filename().string()] = Sha256File(f);
+  }
+  json j = {{"algorithm", "sha256"}, {"files", files}};
+  if (front_end != nullptr) {
+    Sha256 all;
+    const auto& frames = front_end->sequence().frames;
+    for (const io::ImageFrame& f : frames) all.Update(Sha256File(f.image_path));
+    j["images"] = {{"count", frames.size()}, {"sha256_of_sha256s", all.HexDigest()}};
+  }
+  return j;
+}
+
+}  // namespace
+
+json PluginJson(const plugin::PluginInfo& info, const json& params) {
+  return {{"id", info.id()},     {"version", info.version()}, {"kind", info.kind()},
+          {"abi", info.abi()},   {"file", info.file.string()}, {"params", params}};
+}
+
+json EvaluateAgainstTruth(const json& options, const engine::Mesh& mesh,
+                          const ImageFrontEndSource* front_end) {
+  eval::TriangleMesh m;
+  for (std::size_t i = 0; i + 2 < mesh.vertices.size(); i += 3)
+    m.vertices.push_back({mesh.vertices[i], mesh.vertices[i + 1], mesh.vertices[i + 2]});
+  for (std::size_t i = 0; i + 2 < mesh.faces.size(); i += 3)
+    m.triangles.push_back({mesh.faces[i], mesh.faces[i + 1], mesh.faces[i + 2]});
+  eval::EvaluationOptions o;
+  const double tau = options.at("tau").get<double>();
+  if (std::find(o.taus.begin(), o.taus.end(), tau) == o.taus.end()) o.taus.push_back(tau);
+  std::sort(o.taus.begin(), o.taus.end());
+  o.max_ray_length = options.at("max_ray_length").get<double>();
+  o.crop = options.at("crop").get<bool>();
+  o.precision_samples = 200000;  // per sequence in a batch: enough for 3 digits
+  // "velodyne": the image sequence's scans; anything else names a point cloud or a mesh.
+  const std::string truth_name = options.at("truth").get<std::string>();
+  const bool velodyne = truth_name == "velodyne";
+  if (velodyne && (front_end == nullptr || !front_end->sequence().has_lidar))
+    throw std::runtime_error("evaluation.truth \"velodyne\": the sequence has no Velodyne scans");
+  const eval::Truth truth =
+      eval::LoadTruth(velodyne ? std::string() : truth_name,
+                      front_end != nullptr ? &front_end->sequence() : nullptr,
+                      options.at("scan_step").get<int>(), o);
+  const json& t = truth.description;
+  std::vector<io::CameraGeometry> cameras;
+  if (front_end != nullptr)
+    for (const io::ImageFrame& f : front_end->sequence().frames) cameras.push_back(f.camera);
+  const eval::Evaluation e = eval::Evaluate(m, truth.points, cameras, o);
+  const std::size_t k = static_cast<std::size_t>(
+      std::find(e.taus.begin(), e.taus.end(), tau) - e.taus.begin());
+  auto stats = [](const eval::DistanceStats& d) {
+    return json{{"count", d.count}, {"mean", d.mean}, {"median", d.median},
+                {"rms", d.rms}, {"p90", d.p90}, {"max", d.max}};
+  };
+  return {{"reference", "ground truth (" + t.value("source", std::string()) + ")"},
+          {"mean_truth_to_mesh", e.truth_to_mesh.mean},
+          {"median_truth_to_mesh", e.truth_to_mesh.median},
+          {"tau", tau},
+          {"completeness", k < e.completeness.size() ? e.completeness[k] : 0.0},
+          {"precision", k < e.precision.size() ? e.precision[k] : 0.0},
+          {"evaluation",
+           {{"truth", t},
+            {"crop", {{"applied", e.cropped}, {"rule", e.crop_note},
+                      {"truth_kept", e.truth_crop.kept}, {"truth_input", e.truth_crop.input}}},
+            {"truth_to_mesh", stats(e.truth_to_mesh)},
+            {"mesh_to_truth", stats(e.mesh_to_truth)},
+            {"taus", e.taus},
+            {"completeness", e.completeness},
+            {"precision", e.precision},
+            {"seconds", e.seconds_crop + e.seconds_truth_to_mesh + e.seconds_mesh_to_truth}}}};
+}
+
+std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mesh& mesh) {
+  const int64_t entered = s.points_inserted + s.points_reentered;
+  const int64_t refused = s.points_dropped + s.points_duplicate - s.points_reentered;
+  if (refused <= 0 || 2 * refused <= entered + refused) return {};
+  std::size_t steiner_only = 0;
+  if (mesh.point_ids.size() * 3 == mesh.vertices.size())
+    for (std::size_t f = 0; f + 2 < mesh.faces.size(); f += 3)
+      if (mesh.point_ids[mesh.faces[f]] < 0 && mesh.point_ids[mesh.faces[f + 1]] < 0 &&
+          mesh.point_ids[mesh.faces[f + 2]] < 0)
+        ++steiner_only;
+  return "most points never entered the mesh: " + std::to_string(s.points_duplicate) +
+         " new points were at the position of a point already in it and " +
+         std::to_string(s.points_dropped) +
+         " were dropped (their conflict zone met the reconstructed volume); " +
+         std::to_string(s.points_reentered) + " of them entered later, as they moved, against " +
+         std::to_string(s.points_inserted) + " inserted at once; " + std::to_string(steiner_only) +
+         " of the mesh's " + std::to_string(mesh.faces.size() / 3) +
+         " triangles touch no data point (Steiner grid only). Are the points' positions right?";
+}
+
+json BuildReport(const ReportInputs& in) {
+  const engine::EngineStats& stats = *in.stats;
+  const engine::Mesh& mesh = *in.mesh;
+  json report;
+  report["imr_version"] = Version();
+  report["job"] = fs::absolute(in.job->job.file).lexically_normal().string();
+  if (!in.job->job.overrides.empty()) report["overrides"] = in.job->job.overrides;  // imr run --set
+  report["sequence"] = {{"name", in.sequence->name}, {"source", in.sequence->source}};
+  report["input"] = {{"format", in.job->job.input.format}, {"options", in.job->input_options}};
+  if (in.format->sequences_are_paths)
+    report["input"]["checksums"] = InputChecksums(in.sequence->source, in.front_end);
+  if (const json summary = in.source->Summary(); !summary.is_null())
+    report["input"]["summary"] = summary;
+  report["engine_options"] = io::EngineOptionsToJson(in.engine_options);
+  report["engine_scale"] = ScaleJson(in.scale_mode, in.scale, in.engine_options, in.explicit_keys);
+  report["plugins"] = in.plugins;
+  report["engine"] = StatsJson(stats);
+  report["engine"]["keyframe_seconds"] = stats.keyframe_seconds;
+  // Time of the move phase per moved point. The paper's per-move overhead, (T_mov - T_nonmov) /
+  // N_mov, needs a second run with frozen points: imr-bench paper measures it.
+  report["engine"]["move_seconds_per_moved_point"] =
+      stats.points_moved > 0 ? stats.time.move / static_cast<double>(stats.points_moved) : 0.0;
+  report["mesh"] = {{"vertices", mesh.vertices.size() / 3},
+                    {"faces", mesh.faces.size() / 3},
+                    {"manifold", in.mesh_check.ok},
+                    {"boundary_closed_manifold", in.boundary_check.ok},
+                    {"boundary_triangles", in.boundary_check.boundary_triangles}};
+  // PLY and glTF/GLB vertices are relative to it (0 near the origin): mesh_export.h.
+  const std::array<double, 3> origin = ExportOrigin(mesh);
+  report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
+  // Topology of what was written: components, Euler characteristic, genus, boundary loops.
+  report["mesh"]["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
+  if (!in.accuracy.is_null()) report["accuracy"] = in.accuracy;
+  if (!in.accuracy_known_scene.is_null()) report["accuracy_known_scene"] = in.accuracy_known_scene;
+  // Wall time per stage of the chain (reader -> features -> refiner -> engine -> exporter).
+  json stages = json::object();
+  if (in.front_end != nullptr) {
+    const FrontEndStats& fe = in.front_end->stats();
+    stages["read_images"] = fe.read_seconds;
+    stages["features"] = fe.features_seconds;
+    stages["refiner"] = fe.refiner_seconds;
+  }
+  stages["engine"] = in.engine_seconds;
+  stages["export"] = in.export_seconds;
+  // What the exporters were given (SDK 1.1) and how the keyframe images were served to them.
+  const ExportImageStats& ei = in.export_images;
+  report["export_input"] = {{"keyframes", ei.keyframes}, {"keyframe_images", in.keyframe_images}};
+  if (ei.store.requests > 0)
+    report["export_input"]["image_service"] = {{"requests", ei.store.requests},
+                                               {"decodes", ei.store.decodes},
+                                               {"evictions", ei.store.evictions},
+                                               {"peak_bytes", ei.store.peak_bytes},
+                                               {"decode_seconds", ei.store.decode_seconds}};
+  const bool snapshots = in.snapshots != nullptr && !in.snapshots->list().empty();
+  if (snapshots) stages["snapshots"] = in.snapshots->seconds();
+  if (!in.job->evaluation.is_null()) stages["evaluation"] = in.evaluation_seconds;
+  report["stage_seconds"] = stages;
+  if (snapshots) report["snapshots"] = in.snapshots->list();
+  if (!in.exports.empty()) report["exports"] = in.exports;
+  if (!in.warnings.empty()) report["warnings"] = in.warnings;
+  if (in.checks != nullptr)
+    report["invariant_checks"] = {{"every", in.checks->every()},
+                                  {"count", in.checks->count()},
+                                  {"seconds", in.checks->seconds()}};
+  if (!in.trace.empty()) report["trace"] = fs::absolute(in.trace).string();
+  report["files"] = in.files;
+  report["seconds"] = in.seconds;
+  return report;
+}
+
+}  // namespace imr::pipeline

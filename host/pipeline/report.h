@@ -1,0 +1,70 @@
+// A sequence's report.json (host/pipeline/REPORT.md lists its keys), built from what the run
+// gathered; and the pieces of it computed from the inputs (checksums, accuracy, warnings).
+#pragma once
+
+#include "host/engine/engine.h"
+#include "host/io/input_formats.h"
+#include "host/pipeline/front_end.h"
+#include "host/pipeline/job_validation.h"
+#include "host/pipeline/keyframe_observers.h"
+#include "host/pipeline/mesh_export.h"
+#include "host/pipeline/scale.h"
+#include "host/plugin/registry.h"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace imr::pipeline {
+
+// One stage of the job as the report names it: id, version, kind, abi, file, params.
+nlohmann::json PluginJson(const plugin::PluginInfo& info, const nlohmann::json& params);
+
+// Accuracy against the ground truth the job names (its "evaluation" section, with defaults), as
+// the report's "accuracy": the paper's mean distance from ground truth to the mesh, completeness
+// and precision at the job's tau, and host/eval's full report under "evaluation". Velodyne
+// ground truth needs an image sequence (`front_end`), whose cameras also crop the truth.
+nlohmann::json EvaluateAgainstTruth(const nlohmann::json& evaluation, const engine::Mesh& mesh,
+                                    const ImageFrontEndSource* front_end);
+
+// When most points never entered the triangulation (all at one position, at a camera, or cut
+// off by the reconstructed volume), the mesh rests on a few points and is mostly the Steiner
+// grid's: "ok" alone would hide it. Empty when a half or less was refused (points refused at
+// first and entered later, as they moved, count as entered).
+std::string RefusedPointsWarning(const engine::EngineStats& stats, const engine::Mesh& mesh);
+
+// What the report is made of, gathered by the run (host/pipeline/run.cc) as it goes.
+struct ReportInputs {
+  const ValidatedJob* job = nullptr;
+  const SequenceRef* sequence = nullptr;
+  const io::InputFormat* format = nullptr;
+  const io::KeyframeSource* source = nullptr;
+  const ImageFrontEndSource* front_end = nullptr;  // image inputs only
+  nlohmann::json plugins;                          // PluginJson per stage, in job order
+  // The engine's options as used, and how its scale was decided (scale.h).
+  engine::EngineOptions engine_options;
+  ScaleMode scale_mode = ScaleMode::kMetric;
+  ScaleEstimate scale;
+  std::set<std::string> explicit_keys;
+  const engine::EngineStats* stats = nullptr;
+  const engine::Mesh* mesh = nullptr;
+  engine::ManifoldCheckResult boundary_check, mesh_check;
+  nlohmann::json accuracy, accuracy_known_scene;  // null: none
+  double engine_seconds = 0.0, export_seconds = 0.0, evaluation_seconds = 0.0;
+  ExportImageStats export_images;
+  bool keyframe_images = false;               // the exporters were offered keyframe images
+  const Snapshots* snapshots = nullptr;       // null: no snapshots asked
+  const InvariantCheck* checks = nullptr;     // null: no check during the loop
+  std::filesystem::path trace;                // empty: no trace
+  nlohmann::json exports = nlohmann::json::object();  // stream, colmap: absolute paths
+  std::vector<std::string> warnings;
+  std::vector<std::string> files;             // names in the output folder, report.json last
+  double seconds = 0.0;                       // the sequence's wall time
+};
+
+nlohmann::json BuildReport(const ReportInputs& in);
+
+}  // namespace imr::pipeline
