@@ -41,9 +41,11 @@
 #include <string>
 #include <vector>
 
+#include "host/util/geometry.h"
+
 namespace imr::eval {
 
-using Vec3 = std::array<double, 3>;
+using ::imr::Vec3;
 
 struct TriangleMesh {
   std::vector<Vec3> vertices;
