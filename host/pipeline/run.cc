@@ -14,6 +14,7 @@
 #include "host/io/slam_json.h"
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
+#include "host/util/clock.h"
 #include "host/util/sha256.h"
 #include "host/util/log.h"
 
@@ -42,10 +43,6 @@ int BatchResult::failed() const {
 }
 
 namespace {
-
-double Seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
 
 json PluginJson(const plugin::PluginInfo& info, const json& params) {
   return {{"id", info.id()},     {"version", info.version()}, {"kind", info.kind()},
@@ -488,7 +485,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     watch.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
     const auto engine_start = std::chrono::steady_clock::now();
     engine::Status st = engine.ApplyUpdate(update);
-    const double keyframe_seconds = Seconds(engine_start);
+    const double keyframe_seconds = SecondsSince(engine_start);
     engine_seconds += keyframe_seconds;
     if (!st.ok())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
@@ -503,7 +500,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     if (options.check_invariants_every > 0 && keyframes % options.check_invariants_every == 0) {
       const auto check_start = std::chrono::steady_clock::now();
       const engine::ManifoldCheckResult r = engine.CheckInvariants();
-      this_check = Seconds(check_start);
+      this_check = SecondsSince(check_start);
       check_seconds += this_check;
       ++checks;
       if (!r.ok)
@@ -536,7 +533,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                              {"stem", "snapshots/" + job.output.stem + stem},
                              {"faces", snap.faces.size() / 3}});
       }
-      snapshot_seconds += Seconds(snap_start);
+      snapshot_seconds += SecondsSince(snap_start);
     }
     if (options.progress) options.progress({keyframes, total_keyframes, kf.frame});
     if (keyframes % 20 == 0 || keyframes == total_keyframes)
@@ -618,7 +615,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
     const auto eval_start = std::chrono::steady_clock::now();
     known_scene = std::move(accuracy);
     accuracy = EvaluateAgainstTruth(v.evaluation, mesh, front_end);
-    evaluation_seconds = Seconds(eval_start);
+    evaluation_seconds = SecondsSince(eval_start);
   }
 
   const auto export_start = std::chrono::steady_clock::now();
@@ -628,7 +625,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
       ExportMesh(mesh, export_context, job.output.formats, exporters, staging.path(),
                  job.output.stem, watch, options.stage_timeout);
   const std::vector<std::string> commit_last = {job.output.stem + ".gltf", "report.json"};
-  const double export_seconds = Seconds(export_start);
+  const double export_seconds = SecondsSince(export_start);
 
   json report;
   report["imr_version"] = Version();
@@ -694,7 +691,7 @@ void RunSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
   json files = json::array();
   for (const auto& f : staging.Staged(commit_last)) files.push_back(f.filename().string());
   report["files"] = files;
-  result->seconds = Seconds(start);
+  result->seconds = SecondsSince(start);
   report["seconds"] = result->seconds;
   // report.json is staged with the meshes and moved in last: when it cannot be written (a full
   // disk) no mesh of the failed run is left under a final name either.
@@ -791,7 +788,7 @@ SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistr
   } catch (const std::exception& e) {
     r.ok = false;
     r.error = e.what();
-    r.seconds = Seconds(start);
+    r.seconds = SecondsSince(start);
     LogError("sequence " + seq.name + " failed: " + r.error);
   }
   return r;
