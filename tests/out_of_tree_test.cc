@@ -25,10 +25,10 @@ class OutOfTree : public ::testing::Test {
   }
   static void TearDownTestSuite() { delete scratch_; }
 
-  // Copies the example plugin's folder out of the tree and builds it against `prefix`.
+  // Copies the example plugin's folder, as installed with the SDK, and builds it against `prefix`.
   static CommandResult BuildExample(const fs::path& prefix, const fs::path& where) {
     fs::create_directories(where);
-    fs::copy(fs::path(IMR_SOURCE_DIR) / "sdk" / "examples" / "max_policy", where / "src",
+    fs::copy(prefix / "share" / "doc" / "imr_sdk" / "examples" / "max_policy", where / "src",
              fs::copy_options::recursive);
     // Only the prefix is on the search path: no access to the imr source or build tree.
     return RunShell(kCmake + " -S " + Quote((where / "src").string()) + " -B " +
@@ -51,6 +51,19 @@ TEST_F(OutOfTree, InstallHasTheSdkPackageAndAWorkingImr) {
   ASSERT_TRUE(install_ok_) << install_log_;
   EXPECT_TRUE(fs::exists(prefix_ / "include" / "imr" / "sdk" / "plugin.h"));
   EXPECT_TRUE(fs::exists(prefix_ / "lib" / "cmake" / "imr_sdk" / "imr_sdkConfig.cmake"));
+  // The SDK's documentation (its headers, the contract in plugin.h) and examples install with it
+  // and point to nothing outside it.
+  const fs::path examples = prefix_ / "share" / "doc" / "imr_sdk" / "examples";
+  EXPECT_TRUE(fs::exists(examples / "max_policy" / "max_policy.cc"));
+  EXPECT_TRUE(fs::exists(examples / "vertex_color_exporter" / "vertex_color_exporter.cc"));
+  EXPECT_NE(ReadText(prefix_ / "include" / "imr" / "sdk" / "plugin.h").find("THE CONTRACT"),
+            std::string::npos);
+  for (const fs::path& root : {prefix_ / "include" / "imr", examples}) {
+    for (const auto& entry : fs::recursive_directory_iterator(root)) {
+      if (!entry.is_regular_file()) continue;
+      EXPECT_EQ(ReadText(entry.path()).find("DESIGN"), std::string::npos) << entry.path();
+    }
+  }
   // The installed imr finds the installed plugins with no configuration.
   auto r = RunShell(Quote((prefix_ / "bin" / "imr").string()) + " plugins");
   ASSERT_EQ(r.status, 0) << r.err;

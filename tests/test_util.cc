@@ -1,5 +1,7 @@
 #include "test_util.h"
 
+#include "host/util/shell.h"
+
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -39,11 +41,7 @@ std::string ReadText(const fs::path& path) {
   return ss.str();
 }
 
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
+std::string Quote(const std::string& s) { return ShellQuote(s); }
 
 void ReplaceLine(const fs::path& path, std::size_t index, const std::string& text) {
   std::istringstream in(ReadText(path));

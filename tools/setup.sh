@@ -11,6 +11,8 @@ PACKAGES=(
   # libraries (DESIGN.md: CGAL, Eigen, OpenCV, Ceres, Boost, nlohmann-json, assimp)
   libcgal-dev libeigen3-dev libopencv-dev libceres-dev libboost-dev libboost-program-options-dev
   nlohmann-json3-dev libassimp-dev
+  # SHA-256 of inputs and outputs (host/util/sha256.cc: OpenSSL's libcrypto)
+  libssl-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # the cross-check of `imr evaluate` (tests/evaluate_test: CloudCompare's cloud-to-mesh distance)

@@ -6,6 +6,7 @@
 #include "host/batch/summary.h"
 #include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
+#include "host/util/clock.h"
 #include "host/util/atomic_file.h"
 #include "host/util/file_lock.h"
 #include "host/util/json_text.h"
@@ -37,7 +38,6 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Seconds a running sequence has, after the batch's SIGTERM, to stop before it is killed.
 constexpr int kCancelGraceSeconds = 10;
@@ -453,7 +453,7 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     ::close(r.proc.output_fd);
     ::close(r.proc.message_fd);
     SequenceOutcome& o = outcomes[r.index];
-    o.seconds = Since(r.shown.started);
+    o.seconds = SecondsSince(r.shown.started);
     o.peak_rss = r.peak_rss;
     const int st = r.wait_status;
     const bool result_ok = r.result.is_object() && r.result.value("ok", false);
@@ -526,7 +526,7 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
       for (auto& r : running) ::kill(r->proc.pid, SIGTERM);
     }
     // A sequence stuck in a plugin call cannot act on SIGTERM: it must not hold the batch.
-    if (cancelled && Since(cancelled_at) > kCancelGraceSeconds)
+    if (cancelled && SecondsSince(cancelled_at) > kCancelGraceSeconds)
       for (auto& r : running)
         if (!r->killed_after_cancel) {
           r->killed_after_cancel = true;
@@ -640,7 +640,7 @@ int RunOneChild(const ChildArguments& args, MessageChannel& channel,
   auto last = Clock::now() - std::chrono::seconds(1);
   run_options.progress = [&](const pipeline::SequenceProgress& p) {
     // At most 10 messages a second, and always the last keyframe.
-    if (p.keyframes != p.total_keyframes && Since(last) < 0.1) return;
+    if (p.keyframes != p.total_keyframes && SecondsSince(last) < 0.1) return;
     last = Clock::now();
     channel.Send({{"progress", {p.keyframes, p.total_keyframes, p.frame}}});
   };

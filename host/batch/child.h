@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "host/util/shell.h"
+
 namespace imr::batch {
 
 // The fd a child writes its messages (JSON lines) to.
@@ -72,7 +74,7 @@ std::string FormatBytes(uint64_t bytes);
 // be started (e.g. not installed), naming the program.
 int RunAndCapture(const std::vector<std::string>& argv, std::string* out, std::string* err);
 
-// Quotes a word for a POSIX shell when it needs it.
-std::string ShellQuote(const std::string& word);
+// Quotes a word for a POSIX shell when it needs it (host/util/shell.h).
+using ::imr::ShellQuote;
 
 }  // namespace imr::batch

@@ -12,10 +12,11 @@
 #include <vector>
 
 #include "host/engine/weight_transfer_policy.h"
+#include "host/util/geometry.h"
 
 namespace imr::engine {
 
-using Vec3 = std::array<double, 3>;
+using Vec3 = ::imr::Vec3;
 
 // Errors are values: ok() or a message naming what was refused.
 class Status {

@@ -4,6 +4,7 @@
 #include "host/eval/parallel.h"
 #include "host/eval/synthetic_truth.h"
 #include "host/util/atomic_file.h"
+#include "host/util/clock.h"
 
 #include <algorithm>
 #include <chrono>
@@ -19,10 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-double Seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
 
 double Share(std::size_t part, std::size_t whole) {
   return whole == 0 ? std::numeric_limits<double>::quiet_NaN()
@@ -151,7 +148,7 @@ Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
   kept.reserve(e.truth_crop.kept);
   for (std::size_t i = 0; i < truth.size(); ++i)
     if (keep[i]) kept.push_back(truth[i]);
-  e.seconds_crop = Seconds(t0);
+  e.seconds_crop = SecondsSince(t0);
   if (kept.empty())
     throw std::runtime_error(
         "no ground-truth point left" +
@@ -165,7 +162,7 @@ Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
   const MeshDistance to_mesh(mesh);  // throws when no triangle has an area
   e.degenerate_triangles = to_mesh.degenerate();
   std::vector<double> d = to_mesh.Distances(kept, e.threads);
-  e.seconds_truth_to_mesh = Seconds(t0);
+  e.seconds_truth_to_mesh = SecondsSince(t0);
   e.completeness = SharesWithin(d, e.taus);
   if (per_point) {
     e.per_point.assign(truth.size(), std::numeric_limits<double>::quiet_NaN());
@@ -187,7 +184,7 @@ Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
   std::vector<double> ds = to_truth.Distances(samples, e.threads);
   e.precision = SharesWithin(ds, e.taus);
   e.mesh_to_truth = Summarize(std::move(ds));
-  e.seconds_mesh_to_truth = Seconds(t0);
+  e.seconds_mesh_to_truth = SecondsSince(t0);
   return e;
 }
 
@@ -257,7 +254,7 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
 
   Truth truth = LoadTruth(in.truth, in.sequence.empty() ? nullptr : &seq, in.scan_step, options);
   report["truth"] = std::move(truth.description);
-  const double seconds_read = Seconds(start);
+  const double seconds_read = SecondsSince(start);
 
   const Evaluation e = Evaluate(mesh, truth.points, cameras, options, !in.per_point.empty());
   if (!in.per_point.empty()) WritePerPoint(in.per_point, e.per_point);
@@ -298,14 +295,14 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
         {"truth_to_mesh", StatsJson(road.truth_to_mesh)},
         {"completeness", road.completeness},
         {"completeness_visible", road.completeness_visible}};
-    seconds_road = Seconds(t0);
+    seconds_road = SecondsSince(t0);
   }
   report["seconds"] = {{"read", seconds_read},
                        {"crop", e.seconds_crop},
                        {"truth_to_mesh", e.seconds_truth_to_mesh},
                        {"mesh_to_truth", e.seconds_mesh_to_truth},
                        {"road_surface", seconds_road},
-                       {"total", Seconds(start)}};
+                       {"total", SecondsSince(start)}};
   return report;
 }
 

@@ -27,6 +27,12 @@
 // Every error is a std::runtime_error whose message starts with the file's path and says what is
 // wrong and where (line, element, accessor), e.g. "m.ply: truncated: face 12 of 40 ends past the
 // end of the file".
+//
+// Why not CGAL's readers (CGAL::IO::read_OBJ / read_PLY, linked here anyway; issue 19, checked on
+// CGAL 5.5.1): they are less strict and lose the error. They return a bool, printing at most a
+// line without the file or the field to std::cerr; they accept faces that name no vertex (OBJ
+// "f 1 2 4" or "f 0 1 2" with 3 vertices, a PLY index 7 with 3 vertices), two-vertex faces and
+// "0junk" as 0; and they refuse a whole OBJ for one "l" line and a PLY whose indices are uchar.
 #pragma once
 
 #include <array>
@@ -35,9 +41,11 @@
 #include <string>
 #include <vector>
 
+#include "host/util/geometry.h"
+
 namespace imr::eval {
 
-using Vec3 = std::array<double, 3>;
+using ::imr::Vec3;
 
 struct TriangleMesh {
   std::vector<Vec3> vertices;

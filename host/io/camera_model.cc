@@ -22,6 +22,22 @@ Vec3 Mul(const Mat3& m, const Vec3& v) {
           m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2]};
 }
 
+Mat3 MatMul(const Mat3& a, const Mat3& b) {
+  Mat3 c{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) c[i][j] += a[i][k] * b[k][j];
+  return c;
+}
+
+Rigid Compose(const Rigid& a, const Rigid& b) { return {MatMul(a.r, b.r), Add(Mul(a.r, b.t), a.t)}; }
+
+Rigid Inverse(const Rigid& a) {
+  const Mat3 rt = Transpose(a.r);
+  const Vec3 t = Mul(rt, a.t);
+  return {rt, {-t[0], -t[1], -t[2]}};
+}
+
 double Determinant(const Mat3& m) {
   return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
          m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +

@@ -28,7 +28,17 @@ using Mat3 = std::array<std::array<double, 3>, 3>;  // row-major: m[row][col]
 Mat3 Identity3();
 Mat3 Transpose(const Mat3& m);
 Vec3 Mul(const Mat3& m, const Vec3& v);
+Mat3 MatMul(const Mat3& a, const Mat3& b);  // a b
 double Determinant(const Mat3& m);
+
+// A rigid transform x' = r x + t: a pose, or the calibration between two sensors.
+struct Rigid {
+  Mat3 r = Identity3();
+  Vec3 t{};
+};
+// a after b: x -> a(b(x)).
+Rigid Compose(const Rigid& a, const Rigid& b);
+Rigid Inverse(const Rigid& a);
 
 // The one tolerance of every reader on rotations, on the largest entry of |R R^T - I|. Files
 // keep 6 to 9 significant digits (1e-9 .. 1e-6 off): within it a rotation is re-orthonormalised

@@ -20,34 +20,6 @@ using nlohmann::json;
 
 [[noreturn]] void Fail(const std::string& message) { throw std::runtime_error(message); }
 
-// Rigid transform x' = r x + t.
-struct Rigid {
-  Mat3 r = Identity3();
-  Vec3 t{};
-};
-
-Mat3 MatMul(const Mat3& a, const Mat3& b) {
-  Mat3 c{};
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      for (int k = 0; k < 3; ++k) c[i][j] += a[i][k] * b[k][j];
-  return c;
-}
-
-Vec3 Add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-Vec3 Sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-
-// a after b: x -> a(b(x)).
-Rigid Compose(const Rigid& a, const Rigid& b) {
-  return {MatMul(a.r, b.r), Add(Mul(a.r, b.t), a.t)};
-}
-
-Rigid Inverse(const Rigid& a) {
-  const Mat3 rt = Transpose(a.r);
-  const Vec3 t = Mul(rt, a.t);
-  return {rt, {-t[0], -t[1], -t[2]}};
-}
-
 Mat34 ToMat34(const Rigid& a) {
   Mat34 m{};
   for (int i = 0; i < 3; ++i) {

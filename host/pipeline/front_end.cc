@@ -2,6 +2,7 @@
 
 #include "host/io/image_io.h"
 #include "host/synthetic/evaluation.h"
+#include "host/util/clock.h"
 
 #include <algorithm>
 #include <chrono>
@@ -13,10 +14,6 @@ namespace imr::pipeline {
 using nlohmann::json;
 
 namespace {
-
-double SecondsSince(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
 
 engine::Camera ToEngineCamera(const io::CameraGeometry& g) {
   engine::Camera c;

@@ -13,10 +13,6 @@ namespace imr::pipeline {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-double Seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
 namespace {
 
 // This process's resident memory (bytes), from /proc/self/statm; 0 when unreadable.
@@ -33,7 +29,7 @@ void InvariantCheck::OnKeyframe(KeyframeEvent& e) {
   if (every_ <= 0 || e.keyframes % every_ != 0) return;
   const auto start = std::chrono::steady_clock::now();
   const engine::ManifoldCheckResult r = engine_.CheckInvariants();
-  e.check_seconds = Seconds(start);
+  e.check_seconds = SecondsSince(start);
   seconds_ += e.check_seconds;
   ++count_;
   if (!r.ok)
@@ -88,7 +84,7 @@ void Snapshots::OnKeyframe(KeyframeEvent& e) {
     list_.push_back({{"keyframe", e.keyframes}, {"frame", e.info.frame},
                      {"stem", "snapshots/" + stem}, {"faces", snap.faces.size() / 3}});
   }
-  seconds_ += Seconds(start);
+  seconds_ += SecondsSince(start);
 }
 
 Progress::Progress(std::string sequence, int total_keyframes,

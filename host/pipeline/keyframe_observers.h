@@ -19,10 +19,9 @@
 #include <string>
 #include <vector>
 
-namespace imr::pipeline {
+#include "host/util/clock.h"
 
-// Wall seconds since `since` (the loop's and the observers' timings).
-double Seconds(std::chrono::steady_clock::time_point since);
+namespace imr::pipeline {
 
 // One applied keyframe, as the observers see it.
 struct KeyframeEvent {

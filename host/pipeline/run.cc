@@ -130,7 +130,7 @@ SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistr
   } catch (const std::exception& e) {
     r.ok = false;
     r.error = e.what();
-    r.seconds = Seconds(start);
+    r.seconds = SecondsSince(start);
     LogError("sequence " + seq.name + " failed: " + r.error);
   }
   return r;
@@ -274,7 +274,7 @@ void SequenceRun::ProcessKeyframes() {
     const auto engine_start = std::chrono::steady_clock::now();
     const engine::Status st = engine_->ApplyUpdate(update);
     KeyframeEvent event{update, kf};
-    event.engine_seconds = Seconds(engine_start);
+    event.engine_seconds = SecondsSince(engine_start);
     engine_seconds_ += event.engine_seconds;
     if (!st.ok())
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + " (frame " +
@@ -390,7 +390,7 @@ void SequenceRun::EvaluateMesh(const engine::Mesh& mesh) {
   const auto start = std::chrono::steady_clock::now();
   report_.accuracy_known_scene = std::move(report_.accuracy);
   report_.accuracy = EvaluateAgainstTruth(v_.evaluation, mesh, front_end_);
-  report_.evaluation_seconds = Seconds(start);
+  report_.evaluation_seconds = SecondsSince(start);
 }
 
 // The mesh in every format and report.json, staged together and moved into the output folder,
@@ -403,7 +403,7 @@ void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh) {
   report_.export_images = ExportMesh(mesh, export_context_, job_.output.formats, exporters_,
                                      staging.path(), job_.output.stem, watch_,
                                      options_.stage_timeout);
-  report_.export_seconds = Seconds(export_start);
+  report_.export_seconds = SecondsSince(export_start);
   const std::vector<std::string> commit_last = {job_.output.stem + ".gltf", "report.json"};
 
   report_.job = &v_;
@@ -427,7 +427,7 @@ void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh) {
   }
   report_.warnings = result_->warnings;
   for (const auto& f : staging.Staged(commit_last)) report_.files.push_back(f.filename().string());
-  result_->seconds = Seconds(start_);
+  result_->seconds = SecondsSince(start_);
   report_.seconds = result_->seconds;
   json report = BuildReport(report_);
   WriteFileAtomically(staging.path() / "report.json", DumpJson(report, 2) + "\n");

@@ -73,6 +73,67 @@ TEST(Registry, FirstPathWinsForAnId) {
   EXPECT_NE(r.refusals()[0].reason.find("already provided by"), std::string::npos);
 }
 
+// plugin.h: a host accepts plugins of any minor and reads only the fields their struct_size
+// covers. A C plugin whose descriptor is the ABI 1.0 prefix alone (96 bytes, smaller than this
+// host's) loads, is created and does its work.
+TEST(Registry, LoadsAPluginBuiltAgainstASmallerDescriptor) {
+  PluginRegistry r;
+  r.Scan({IMR_C_DESCRIPTOR_1_0_PLUGIN});
+  ASSERT_TRUE(r.refusals().empty()) << r.refusals()[0].ToString();
+  const PluginInfo* info = r.Find("org.imr.test.policy.c_descriptor_1_0");
+  ASSERT_NE(info, nullptr);
+  EXPECT_EQ(info->descriptor->struct_size, IMR_DESCRIPTOR_SIZE_1_0);
+  EXPECT_LT(info->descriptor->struct_size, sizeof(imr_plugin_descriptor));
+  EXPECT_EQ(info->abi(), "1.0");
+  EXPECT_EQ(info->kind(), "weight_policy");
+  PluginWeightPolicy policy(CreateInstance(*info, nlohmann::json::object()), info->id());
+  const double rc[] = {0, 0, 0, 1, 0, 0}, rw[] = {2.0, 5.0}, nc[] = {0.5, 0, 0, 9, 9, 9};
+  double out[2] = {-1, -1};
+  policy.Transfer({rc, rw, 2, nc, 2}, out);
+  EXPECT_FALSE(policy.failed()) << policy.error();
+  EXPECT_EQ(out[0], 5.0);
+  EXPECT_EQ(out[1], 5.0);
+  // Its create refuses params it does not take, and a failed create leaves nothing to destroy.
+  try {
+    CreateInstance(*info, {{"radius", 1.0}});
+    ADD_FAILURE() << "params accepted";
+  } catch (const imr::sdk::PluginCallError& e) {
+    EXPECT_EQ(e.status(), IMR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(e.what()).find("params: none accepted"), std::string::npos) << e.what();
+  }
+}
+
+// What the host refuses below the ABI 1.0 sizes, with the sizes named.
+TEST(Registry, CheckDescriptorWantsTheAbi10Sizes) {
+  static const imr_weight_policy_api api{sizeof(imr_weight_policy_api), 0,
+                                         [](imr_instance*, const imr_transfer_request*,
+                                            imr_error*) -> imr_status { return IMR_OK; }};
+  imr_plugin_descriptor d{};
+  d.struct_size = IMR_DESCRIPTOR_SIZE_1_0;
+  d.abi_major = IMR_ABI_MAJOR;
+  d.kind = IMR_KIND_WEIGHT_POLICY;
+  d.id = "org.imr.test.sizes";
+  d.version = "1";
+  d.create = [](const char*, const imr_host_services*, imr_instance**, imr_error*) -> imr_status {
+    return IMR_ERROR;
+  };
+  d.destroy = [](imr_instance*) {};
+  d.weight_policy = &api;
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d), "");
+  d.struct_size = IMR_DESCRIPTOR_SIZE_1_0 - 8;
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d), "descriptor is 88 bytes, expected at least 96 (its ABI 1.0 size)");
+  d.struct_size = IMR_DESCRIPTOR_SIZE_1_0;
+  imr_weight_policy_api small = api;
+  small.struct_size = 8;
+  d.weight_policy = &small;
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d),
+            "weight_policy table is 8 bytes, expected at least 16 (its ABI 1.0 size)");
+  imr_weight_policy_api empty = api;
+  empty.transfer = nullptr;
+  d.weight_policy = &empty;
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d), "weight_policy table lacks its function");
+}
+
 TEST(PolicyAdapter, DrivesAPluginThroughTheEngineInterface) {
   PluginRegistry r;
   r.LoadFile(IMR_EXAMPLE_PLUGIN);

@@ -10,14 +10,6 @@ namespace {
 
 constexpr float kNoDepth = std::numeric_limits<float>::infinity();
 
-Vec3 Sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 Add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-Vec3 Scale(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-double Dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 Cross(const Vec3& a, const Vec3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double Norm(const Vec3& a) { return std::sqrt(Dot(a, a)); }
 Vec3 Normalized(const Vec3& a) {
   const double n = Norm(a);
   return n > 0 ? Scale(a, 1.0 / n) : Vec3{0, 0, 0};

@@ -21,6 +21,7 @@
 #pragma once
 
 #include "host/io/image_io.h"
+#include "host/util/geometry.h"
 
 #include <array>
 #include <cstddef>
@@ -31,7 +32,7 @@
 
 namespace imr::render {
 
-using Vec3 = std::array<double, 3>;
+using ::imr::Vec3;
 using Mat3 = std::array<std::array<double, 3>, 3>;  // row-major
 using Rgb = std::array<uint8_t, 3>;                  // red, green, blue
 

@@ -79,6 +79,66 @@ std::vector<Vec3> SampleRoadSurface(const Scene& scene, double density, uint64_t
   return out;
 }
 
+std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
+                                         const std::vector<uint32_t>& faces,
+                                         const std::vector<Vec3>& truth, double cap, double cell,
+                                         int64_t max_span) {
+  const size_t triangles = faces.size() / 3;
+  auto vert = [&](uint32_t i) -> Vec3 {
+    return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
+  };
+  const double g = cell;
+  auto key = [](int64_t x, int64_t y, int64_t z) {
+    return (static_cast<uint64_t>(x & 0x1FFFFF) << 42) |
+           (static_cast<uint64_t>(y & 0x1FFFFF) << 21) | static_cast<uint64_t>(z & 0x1FFFFF);
+  };
+  auto cell_of = [&](double v) { return static_cast<int64_t>(std::floor(v / g)); };
+  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
+  for (size_t t = 0; t < triangles; ++t) {
+    int64_t lo[3] = {std::numeric_limits<int64_t>::max(), std::numeric_limits<int64_t>::max(),
+                     std::numeric_limits<int64_t>::max()};
+    int64_t hi[3] = {std::numeric_limits<int64_t>::min(), std::numeric_limits<int64_t>::min(),
+                     std::numeric_limits<int64_t>::min()};
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 v = vert(faces[3 * t + k]);
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], cell_of(v[d]));
+        hi[d] = std::max(hi[d], cell_of(v[d]));
+      }
+    }
+    if (hi[0] - lo[0] > max_span || hi[1] - lo[1] > max_span || hi[2] - lo[2] > max_span)
+      continue;
+    for (int64_t x = lo[0]; x <= hi[0]; ++x)
+      for (int64_t y = lo[1]; y <= hi[1]; ++y)
+        for (int64_t z = lo[2]; z <= hi[2]; ++z)
+          grid[key(x, y, z)].push_back(static_cast<uint32_t>(t));
+  }
+  const int max_ring = static_cast<int>(std::ceil(cap / g)) + 1;
+  std::vector<double> dist;
+  dist.reserve(truth.size());
+  for (const Vec3& p : truth) {
+    double best = cap;
+    const int64_t cx = cell_of(p[0]), cy = cell_of(p[1]), cz = cell_of(p[2]);
+    for (int ring = 0; ring <= max_ring; ++ring) {
+      for (int64_t x = cx - ring; x <= cx + ring; ++x)
+        for (int64_t y = cy - ring; y <= cy + ring; ++y)
+          for (int64_t z = cz - ring; z <= cz + ring; ++z) {
+            if (std::max({std::abs(x - cx), std::abs(y - cy), std::abs(z - cz)}) != ring) continue;
+            auto it = grid.find(key(x, y, z));
+            if (it == grid.end()) continue;
+            for (uint32_t t : it->second)
+              best = std::min(best, PointTriangleDistance(p, vert(faces[3 * t]),
+                                                          vert(faces[3 * t + 1]),
+                                                          vert(faces[3 * t + 2])));
+          }
+      // Every triangle within ring * g of p has been seen.
+      if (best <= ring * g) break;
+    }
+    dist.push_back(best);
+  }
+  return dist;
+}
+
 MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertices,
                           const std::vector<uint32_t>& faces, const std::vector<Vec3>& truth,
                           double tau, double cap) {
@@ -109,47 +169,11 @@ MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertice
     r.mean_mesh_to_scene = sum / r.area;
     r.precision = within / r.area;
   }
-  // Truth -> mesh through a hash grid of triangle bounding boxes.
+  // Truth -> mesh: the grid's cells at least as large as the cap (so two rings at most).
   if (truth.empty()) return r;
-  const double g = std::max(cap, 1.0);
-  auto key = [](int64_t x, int64_t y, int64_t z) {
-    return (static_cast<uint64_t>(x & 0x1FFFFF) << 42) | (static_cast<uint64_t>(y & 0x1FFFFF) << 21) |
-           static_cast<uint64_t>(z & 0x1FFFFF);
-  };
-  auto cell = [&](double v) { return static_cast<int64_t>(std::floor(v / g)); };
-  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
-  for (size_t t = 0; t < r.triangles; ++t) {
-    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-    for (int k = 0; k < 3; ++k) {
-      const Vec3 v = vert(faces[3 * t + k]);
-      for (int d = 0; d < 3; ++d) {
-        lo[d] = std::min(lo[d], v[d]);
-        hi[d] = std::max(hi[d], v[d]);
-      }
-    }
-    if (cell(hi[0]) - cell(lo[0]) > 64 || cell(hi[1]) - cell(lo[1]) > 64 ||
-        cell(hi[2]) - cell(lo[2]) > 64)
-      continue;  // Absurdly large triangle: ignore for completeness.
-    for (int64_t x = cell(lo[0]); x <= cell(hi[0]); ++x)
-      for (int64_t y = cell(lo[1]); y <= cell(hi[1]); ++y)
-        for (int64_t z = cell(lo[2]); z <= cell(hi[2]); ++z)
-          grid[key(x, y, z)].push_back(static_cast<uint32_t>(t));
-  }
   double tsum = 0.0;
   size_t near = 0;
-  for (const Vec3& p : truth) {
-    double best = cap;
-    const int64_t cx = cell(p[0]), cy = cell(p[1]), cz = cell(p[2]);
-    for (int64_t x = cx - 1; x <= cx + 1; ++x)
-      for (int64_t y = cy - 1; y <= cy + 1; ++y)
-        for (int64_t z = cz - 1; z <= cz + 1; ++z) {
-          auto it = grid.find(key(x, y, z));
-          if (it == grid.end()) continue;
-          for (uint32_t t : it->second)
-            best = std::min(best, PointTriangleDistance(p, vert(faces[3 * t]),
-                                                        vert(faces[3 * t + 1]),
-                                                        vert(faces[3 * t + 2])));
-        }
+  for (const double best : TruthToMeshDistances(vertices, faces, truth, cap, std::max(cap, 1.0), 64)) {
     tsum += best;
     if (best <= tau) ++near;
   }

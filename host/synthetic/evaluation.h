@@ -36,4 +36,15 @@ std::vector<Vec3> SampleRoadSurface(const Scene& scene, double density, uint64_t
 // Distance from p to the triangle (a, b, c).
 double PointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 
+// Truth -> mesh, the one implementation of EvaluateMesh and the benchmarks' accuracy: for each
+// point of `truth`, the distance to the nearest triangle (vertices packed xyz, 3 indices per
+// face), capped at `cap`. Exact (PointTriangleDistance over every triangle within the cap), found
+// through a hash grid of triangle bounding boxes with cells of side `cell`, searched ring by
+// ring; a triangle spanning more than `max_span` cells along an axis is left out (an absurdly
+// large one, which would fill the grid).
+std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
+                                         const std::vector<uint32_t>& faces,
+                                         const std::vector<Vec3>& truth, double cap, double cell,
+                                         int64_t max_span);
+
 }  // namespace imr::synthetic

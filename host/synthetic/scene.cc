@@ -19,7 +19,6 @@ std::string ToString(Material material) {
   return "plain";
 }
 
-double Norm(const Vec3& a) { return std::sqrt(Dot(a, a)); }
 Vec3 Normalized(const Vec3& a) {
   const double n = Norm(a);
   return n > 0.0 ? Scale(a, 1.0 / n) : a;

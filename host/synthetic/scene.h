@@ -9,9 +9,11 @@
 #include <string>
 #include <vector>
 
+#include "host/util/geometry.h"
+
 namespace imr::synthetic {
 
-using Vec3 = std::array<double, 3>;
+using ::imr::Vec3;
 
 // What a rect is, for its appearance only (texture.h); geometry ignores it.
 enum class Material : uint8_t {
@@ -74,15 +76,14 @@ class Scene {
   mutable std::vector<std::vector<int>> bins_;
 };
 
-// Small vector helpers shared by the synthetic code.
-inline Vec3 Add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-inline Vec3 Sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-inline Vec3 Scale(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-inline double Dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-inline Vec3 Cross(const Vec3& a, const Vec3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double Norm(const Vec3& a);
+// The vector helpers (host/util/geometry.h), also as synthetic::Add etc. for the benchmarks.
+using ::imr::Add;
+using ::imr::Cross;
+using ::imr::Dot;
+using ::imr::Norm;
+using ::imr::Scale;
+using ::imr::Sub;
+// a / |a|, or a itself when it has no length.
 Vec3 Normalized(const Vec3& a);
 
 }  // namespace imr::synthetic

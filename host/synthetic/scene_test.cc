@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
+#include <tuple>
 
 #include "host/synthetic/evaluation.h"
 
@@ -51,6 +54,37 @@ TEST(EvaluationTest, PointTriangleDistanceAndMeshAccuracy) {
   EXPECT_NEAR(a.area, 4.0, 1e-9);
   EXPECT_NEAR(a.precision, 1.0, 1e-12);
   EXPECT_NEAR(a.completeness, 2.0 / 3.0, 1e-12);
+}
+
+// The grid search is exact: the same distances, bit for bit, as trying every triangle, for the
+// cell sizes EvaluateMesh (the cap) and the benchmarks (2 m) use.
+TEST(EvaluationTest, TruthToMeshDistancesAreTheBruteForceMinimum) {
+  std::mt19937_64 g(7);
+  std::uniform_real_distribution<double> u(-30.0, 30.0), small(-1.5, 1.5);
+  std::vector<double> v;
+  std::vector<uint32_t> f;
+  for (uint32_t t = 0; t < 300; ++t) {
+    const Vec3 c = {u(g), u(g), u(g) / 6};
+    for (int k = 0; k < 3; ++k) v.insert(v.end(), {c[0] + small(g), c[1] + small(g), c[2] + small(g)});
+    f.insert(f.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+  }
+  std::vector<Vec3> truth;
+  for (int i = 0; i < 2000; ++i) truth.push_back({u(g), u(g), u(g) / 6});
+  for (const auto& [cap, cell, span] : {std::tuple{5.0, 5.0, int64_t{64}}, {20.0, 2.0, int64_t{200}}}) {
+    const std::vector<double> d = TruthToMeshDistances(v, f, truth, cap, cell, span);
+    ASSERT_EQ(d.size(), truth.size());
+    int capped = 0;
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      double best = cap;
+      for (std::size_t t = 0; t < f.size() / 3; ++t)
+        best = std::min(best, PointTriangleDistance(truth[i], {v[9 * t], v[9 * t + 1], v[9 * t + 2]},
+                                                    {v[9 * t + 3], v[9 * t + 4], v[9 * t + 5]},
+                                                    {v[9 * t + 6], v[9 * t + 7], v[9 * t + 8]}));
+      ASSERT_EQ(d[i], best) << "point " << i << ", cap " << cap;
+      capped += best == cap;
+    }
+    EXPECT_LT(capped, static_cast<int>(truth.size())) << "some points are within the cap";
+  }
 }
 
 // A road x in [-4, 4], y in [0, 20] with a box 2 m x 4 m x 1.5 m standing on it at x in [1, 3],

@@ -97,9 +97,9 @@ class EdgeKltFeatures : public imr::sdk::Features {
   // The image as 8-bit gray, wrapping the host's pixels when they already are.
   cv::Mat Gray(const imr_image_view& image) {
     using imr::sdk::InvalidArgument;
-    if (image.struct_size < sizeof(imr_image_view))
+    if (image.struct_size < IMR_IMAGE_VIEW_SIZE_1_0)  // its 1.0 size: a host of any minor
       throw InvalidArgument("image.struct_size: " + std::to_string(image.struct_size) +
-                            ", expected at least " + std::to_string(sizeof(imr_image_view)));
+                            ", expected at least " + std::to_string(IMR_IMAGE_VIEW_SIZE_1_0));
     if (image.width <= 0 || image.height <= 0)
       throw InvalidArgument("image.width/height: expected positive, got " +
                             std::to_string(image.width) + "x" + std::to_string(image.height));

@@ -27,13 +27,6 @@ std::string RefinerOptions::Check() const {
   return {};
 }
 
-void RefinerUpdate::Clear() {
-  new_points.clear();
-  moved_points.clear();
-  removed_ids.clear();
-  camera_ids.clear();
-}
-
 void PointRefiner::ValidateCamera(const imr_camera& c) const {
   const std::string where = "camera " + std::to_string(c.id);
   if (has_frame_ && c.id <= last_camera_id_)

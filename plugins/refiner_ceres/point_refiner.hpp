@@ -5,7 +5,7 @@
 // changes since the previous keyframe are reported: new, moved and removed points.
 #pragma once
 
-#include <imr/sdk/plugin.h>
+#include <imr/sdk/plugin.hpp>
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -36,14 +36,8 @@ struct RefinerOptions {
   std::string Check() const;
 };
 
-// What one keyframe changed; views into storage kept until the next AddFrame.
-struct RefinerUpdate {
-  std::vector<imr_point_estimate> new_points;
-  std::vector<imr_point_estimate> moved_points;
-  std::vector<uint64_t> removed_ids;
-  std::vector<uint64_t> camera_ids;
-  void Clear();
-};
+// What one keyframe changed (the SDK's type, handed to the host as it is).
+using RefinerUpdate = imr::sdk::RefinerUpdate;
 
 class PointRefiner {
  public:

@@ -42,22 +42,14 @@ class CeresRefiner : public imr::sdk::Refiner {
   CeresRefiner(const imr::sdk::Params& params, const imr::sdk::Host& host)
       : refiner_(Options(params)), host_(host) {}
 
-  void AddFrame(const imr_camera& camera, std::span<const imr_track_observation> observations,
-                bool is_keyframe, imr_refiner_update* out) override {
-    refiner_.AddFrame(camera, observations, is_keyframe, &update_);
-    out->new_points = update_.new_points.data();
-    out->new_count = update_.new_points.size();
-    out->moved_points = update_.moved_points.data();
-    out->moved_count = update_.moved_points.size();
-    out->removed_ids = update_.removed_ids.data();
-    out->removed_count = update_.removed_ids.size();
-    out->camera_ids = update_.camera_ids.data();
-    out->camera_id_count = update_.camera_ids.size();
+  void Refine(const imr_camera& camera, std::span<const imr_track_observation> observations,
+              bool is_keyframe, imr::sdk::RefinerUpdate* update) override {
+    refiner_.AddFrame(camera, observations, is_keyframe, update);
     if (is_keyframe)
       host_.Debug(std::string(kId) + ": keyframe " + std::to_string(camera.id) + ": " +
-                  std::to_string(update_.new_points.size()) + " new, " +
-                  std::to_string(update_.moved_points.size()) + " moved, " +
-                  std::to_string(update_.removed_ids.size()) + " removed, " +
+                  std::to_string(update->new_points.size()) + " new, " +
+                  std::to_string(update->moved_points.size()) + " moved, " +
+                  std::to_string(update->removed_ids.size()) + " removed, " +
                   std::to_string(refiner_.live_track_count()) + " live tracks");
   }
 
@@ -81,7 +73,6 @@ class CeresRefiner : public imr::sdk::Refiner {
   }
 
   PointRefiner refiner_;
-  RefinerUpdate update_;
   imr::sdk::Host host_;
 };
 

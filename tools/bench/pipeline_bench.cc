@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tools/bench/common/subprocess.h"
+#include "host/util/clock.h"
 
 namespace imr::bench {
 namespace {
@@ -35,10 +36,6 @@ struct PipelineArgs {
   std::string kitti;            // KITTI raw drive folder; default from IMR_SHARED_DIR
   bool keep = false;
 };
-
-double Seconds(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
 
 // The settings of configs/default.json (the README's first command), one output format.
 json Job(const std::string& format, const std::string& sequence, const fs::path& out) {
@@ -80,7 +77,7 @@ Measured RunImr(const std::string& name, const std::string& format, const std::s
   const auto start = std::chrono::steady_clock::now();
   const int rc = Sh(Quote((ExeDir() / "imr").string()) + " run " + Quote(job_file.string()) +
                      " 2>" + Quote((work / (name + ".log")).string()));
-  m.wall = Seconds(start);
+  m.wall = SecondsSince(start);
   std::ifstream in(out / "report.json");
   if (rc != 0 || !in) {
     std::fprintf(stderr, "%s: imr run failed (exit %d); log in %s\n", name.c_str(), rc,
@@ -193,7 +190,7 @@ int RunPipelineBench(int argc, char** argv) {
                          Quote(synth.string()) + " --frames " + std::to_string(a.frames) +
                          " --width " + std::to_string(a.width) + " --height " +
                          std::to_string(a.height) + " --no-lidar --force >/dev/null");
-  const double gen_seconds = Seconds(gen_start);
+  const double gen_seconds = SecondsSince(gen_start);
   if (gen_rc != 0) {
     std::fprintf(stderr, "imr-bench pipeline: imr-synth failed (exit %d)\n", gen_rc);
     return 1;

@@ -34,6 +34,7 @@
 #include "host/plugin/registry.h"
 #include "tools/bench/common/bench_util.h"
 #include "tools/bench/common/subprocess.h"
+#include "host/util/clock.h"
 
 namespace imr::bench {
 namespace {
@@ -51,10 +52,6 @@ struct TextureArgs {
   std::string work;
   bool keep = false;
 };
-
-double Seconds(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
 
 long StatusKb(const char* key) {
   std::ifstream in("/proc/self/status");
@@ -169,7 +166,7 @@ int Main(const TextureArgs& a) {
       const plugin::ScopedKeyframeImages scope(&store);
       instance.instance.ExportMesh(&req);
     }
-    e.seconds = Seconds(start);
+    e.seconds = SecondsSince(start);
     e.peak_kb = StatusKb("VmHWM:");
     e.images = store.stats();
     for (const auto& f : fs::directory_iterator(dir)) {

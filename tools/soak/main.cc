@@ -23,10 +23,12 @@
 #include "tools/bench/common/bench_util.h"
 #include "tools/bench/common/subprocess.h"
 #include "tools/soak/trace.h"
+#include "host/util/clock.h"
 
 namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
+using imr::SecondsSince;
 using imr::bench::ExeDir;
 using imr::bench::LoadAverage;
 using imr::bench::Quote;
@@ -93,10 +95,6 @@ struct Run {
   json report;  // the sequence's report.json (null when the run failed)
   fs::path log;
 };
-
-double SecondsSince(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
 
 std::string Fixed(double v, int decimals) {
   char b[64];

@@ -30,7 +30,7 @@ class MaxPolicy : public imr::sdk::WeightPolicy {
   })";
 
   MaxPolicy(const imr::sdk::Params& params, const imr::sdk::Host& host)
-      : radius_(params.Get<double>("radius", 1.0)) {
+      : radius_(params.Get<double>("radius")) {  // the schema's default when the job gives none
     // Defence in depth: a plugin may be driven by a host that did not validate.
     if (!(radius_ >= 0.0)) throw imr::sdk::InvalidArgument("params.radius: expected >= 0");
     host.Debug("max policy, radius " + std::to_string(radius_));

@@ -188,54 +188,8 @@ inline SceneAccuracy EvaluateAgainstScene(const synthetic::Scene& scene,
                   static_cast<double>(d.size());
   }
   if (truth.empty()) return r;
-  // Truth -> mesh: a hash grid of triangle bounding boxes, searched ring by ring.
-  const double g = 2.0;
-  auto key = [](int64_t x, int64_t y, int64_t z) {
-    return (static_cast<uint64_t>(x & 0x1FFFFF) << 42) |
-           (static_cast<uint64_t>(y & 0x1FFFFF) << 21) | static_cast<uint64_t>(z & 0x1FFFFF);
-  };
-  auto cell = [&](double v) { return static_cast<int64_t>(std::floor(v / g)); };
-  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
-  for (size_t t = 0; t < r.triangles; ++t) {
-    int64_t lo[3] = {std::numeric_limits<int64_t>::max(), std::numeric_limits<int64_t>::max(),
-                     std::numeric_limits<int64_t>::max()};
-    int64_t hi[3] = {std::numeric_limits<int64_t>::min(), std::numeric_limits<int64_t>::min(),
-                     std::numeric_limits<int64_t>::min()};
-    for (int k = 0; k < 3; ++k) {
-      const Vec3 v = vert(faces[3 * t + k]);
-      for (int d = 0; d < 3; ++d) {
-        lo[d] = std::min(lo[d], cell(v[d]));
-        hi[d] = std::max(hi[d], cell(v[d]));
-      }
-    }
-    if (hi[0] - lo[0] > 200 || hi[1] - lo[1] > 200 || hi[2] - lo[2] > 200) continue;
-    for (int64_t x = lo[0]; x <= hi[0]; ++x)
-      for (int64_t y = lo[1]; y <= hi[1]; ++y)
-        for (int64_t z = lo[2]; z <= hi[2]; ++z) grid[key(x, y, z)].push_back(static_cast<uint32_t>(t));
-  }
-  const int max_ring = static_cast<int>(std::ceil(cap / g)) + 1;
-  std::vector<double> dist;
-  dist.reserve(truth.size());
-  for (const Vec3& p : truth) {
-    double best = cap;
-    const int64_t cx = cell(p[0]), cy = cell(p[1]), cz = cell(p[2]);
-    for (int ring = 0; ring <= max_ring; ++ring) {
-      for (int64_t x = cx - ring; x <= cx + ring; ++x)
-        for (int64_t y = cy - ring; y <= cy + ring; ++y)
-          for (int64_t z = cz - ring; z <= cz + ring; ++z) {
-            if (std::max({std::abs(x - cx), std::abs(y - cy), std::abs(z - cz)}) != ring) continue;
-            auto it = grid.find(key(x, y, z));
-            if (it == grid.end()) continue;
-            for (uint32_t t : it->second)
-              best = std::min(best, synthetic::PointTriangleDistance(
-                                        p, vert(faces[3 * t]), vert(faces[3 * t + 1]),
-                                        vert(faces[3 * t + 2])));
-          }
-      // Every triangle within ring * g of p has been seen.
-      if (best <= ring * g) break;
-    }
-    dist.push_back(best);
-  }
+  // Truth -> mesh (the same code as EvaluateMesh's): 2 m cells, triangles up to 400 m.
+  const std::vector<double> dist = synthetic::TruthToMeshDistances(vertices, faces, truth, cap, 2.0, 200);
   r.truth_to_mesh_mean = Mean(dist);
   r.truth_to_mesh_median = Median(dist);
   r.truth_to_mesh_p90 = Quantile(dist, 0.9);

@@ -22,6 +22,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "host/util/shell.h"
+
 namespace imr::bench {
 
 // The folder of the running executable (imr-bench sits beside imr and imr-synth).
@@ -30,11 +32,7 @@ inline std::filesystem::path ExeDir() {
 }
 
 // `s` as one word for /bin/sh.
-inline std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
+inline std::string Quote(const std::string& s) { return ShellQuote(s); }
 
 // Runs `command` with /bin/sh after echoing it to stderr; its exit status (128 when signalled).
 inline int Sh(const std::string& command) {

@@ -44,7 +44,9 @@ class PluginCallError : public std::runtime_error {
 };
 
 // Checks what a host must check before using a descriptor. Returns an empty string when usable,
-// otherwise what is wrong (without the file name, which the caller adds).
+// otherwise what is wrong (without the file name, which the caller adds). A plugin of any minor
+// of this major is usable: its descriptor and function table need only their ABI 1.0 size (a
+// plugin built against an older, smaller struct), and this host reads no field past that.
 inline std::string CheckDescriptor(const imr_plugin_descriptor* d) {
   if (d == nullptr) return "null descriptor";
   if (d->abi_major != IMR_ABI_MAJOR)
@@ -52,26 +54,40 @@ inline std::string CheckDescriptor(const imr_plugin_descriptor* d) {
            std::to_string(d->abi_minor) + ", this host speaks ABI " +
            std::to_string(IMR_ABI_MAJOR) + "." + std::to_string(IMR_ABI_MINOR) +
            " (the ABI major must match: rebuild the plugin against this SDK)";
-  if (d->struct_size < sizeof(imr_plugin_descriptor))
+  if (d->struct_size < IMR_DESCRIPTOR_SIZE_1_0)
     return "descriptor is " + std::to_string(d->struct_size) + " bytes, expected at least " +
-           std::to_string(sizeof(imr_plugin_descriptor));
+           std::to_string(IMR_DESCRIPTOR_SIZE_1_0) + " (its ABI 1.0 size)";
   if (d->id == nullptr || *d->id == '\0') return "descriptor has no id";
   if (d->version == nullptr) return "descriptor has no version";
   if (d->create == nullptr || d->destroy == nullptr) return "descriptor lacks create/destroy";
-  const void* table = nullptr;
+  // The kind's function table: at least its ABI 1.0 size, with its function.
+  const auto table = [&](const auto* t, std::size_t min_size, bool complete) -> std::string {
+    const std::string kind = KindName(d->kind);
+    if (t == nullptr) return "kind is " + kind + " but its function table is missing";
+    if (t->struct_size < min_size)
+      return kind + " table is " + std::to_string(t->struct_size) + " bytes, expected at least " +
+             std::to_string(min_size) + " (its ABI 1.0 size)";
+    if (!complete) return kind + " table lacks its function";
+    return {};
+  };
   switch (d->kind) {
-    case IMR_KIND_FEATURES: table = d->features; break;
-    case IMR_KIND_REFINER: table = d->refiner; break;
-    case IMR_KIND_WEIGHT_POLICY: table = d->weight_policy; break;
-    case IMR_KIND_EXPORTER: table = d->exporter; break;
+    case IMR_KIND_FEATURES:
+      return table(d->features, IMR_FEATURES_API_SIZE_1_0, d->features && d->features->process_frame);
+    case IMR_KIND_REFINER:
+      return table(d->refiner, IMR_REFINER_API_SIZE_1_0, d->refiner && d->refiner->add_frame);
+    case IMR_KIND_WEIGHT_POLICY:
+      return table(d->weight_policy, IMR_WEIGHT_POLICY_API_SIZE_1_0,
+                   d->weight_policy && d->weight_policy->transfer);
+    case IMR_KIND_EXPORTER:
+      return table(d->exporter, IMR_EXPORTER_API_SIZE_1_0,
+                   d->exporter && d->exporter->formats && d->exporter->export_mesh);
     default: return "unknown plugin kind " + std::to_string(d->kind);
   }
-  if (table == nullptr)
-    return std::string("kind is ") + KindName(d->kind) + " but its function table is missing";
-  return {};
 }
 
-// One plugin instance: created from params, destroyed with the object. Move-only.
+// One plugin instance: created from params, destroyed with the object. Move-only. A failed
+// create throws PluginCallError and leaves no instance: destroy follows only a successful create
+// (plugin.h's contract). Every call on the instance must come from one thread at a time.
 class Instance {
  public:
   Instance() = default;

@@ -11,13 +11,67 @@
  *  - Nothing throws across it: every function returns an imr_status and, on failure, writes a
  *    message into the caller's imr_error buffer.
  *  - Instances are opaque handles made by `create` and released by `destroy`. Memory is freed by
- *    whoever allocated it: outputs a plugin hands back (views) stay owned by the plugin and valid
- *    until the next call on the same instance or its destruction.
- *  - Structs are only ever extended at their end, with a minor version bump; every struct the host
- *    passes in starts with `struct_size` so a plugin can tell which fields exist.
+ *    whoever allocated it.
+ *  - Growing structs (descriptor, function tables, host services, requests, views) start with
+ *    `struct_size` and are only ever extended at their end, with a minor version bump. A reader
+ *    accepts any size from the struct's ABI 1.0 size (IMR_*_SIZE_1_0 below) up, reads a field only
+ *    when struct_size covers it, and ignores what lies beyond its own struct.
+ *  - Frozen structs have no struct_size and never change within ABI major 1: imr_camera,
+ *    imr_track_observation and imr_point_estimate (they travel in arrays, whose stride is their
+ *    size), imr_track_view and imr_refiner_update (filled by the plugin in the host's memory:
+ *    adding a size field to them now would move every field, an ABI major bump that would break
+ *    every plugin out there). A later minor that needs more adds a new struct, reached through a
+ *    function appended to a function table (whose struct_size says whether the plugin has it).
+ *
+ * THE CONTRACT (what the host promises and what it expects; each call below says more)
+ *
+ *  Order. The host loads a library and calls the entry point with 0, 1, ... until NULL, before
+ *  any other call into the library; it calls the entry point again only after loading the library
+ *  again. It may load a library only to list or check its plugins (`imr plugins`, `imr validate`)
+ *  and never create an instance. For each sequence it creates one instance per job stage, in the
+ *  job's stage order, then per frame of an image input: features.process_frame(frame), then
+ *  refiner.add_frame(same frame, those tracks); each keyframe then updates the engine, which calls
+ *  weight_policy.transfer zero or more times; exporters' export_mesh runs for snapshots and at the
+ *  end, once per output format (each format through the first exporter stage that lists it). Then
+ *  it destroys every instance it created, in no promised order, and only then unloads the library.
+ *
+ *  Threads. Every call on an instance (create, its calls, destroy) comes from one thread, and
+ *  never two at a time: an instance needs no lock for its own state. Today each sequence runs in a
+ *  process of its own and every instance of that process is called from the same thread; do not
+ *  rely on that for state shared between instances (globals): keep it thread-safe. A plugin may
+ *  use threads of its own inside a call and must join them before the call returns. Host
+ *  services may be called from any thread while the instance lives (keyframe_image: see there).
+ *
+ *  create and destroy. `destroy` follows every successful `create` (IMR_OK and a non-NULL
+ *  instance), once, after the instance's last call. It never follows a failed `create`: a create
+ *  that fails releases whatever it made and leaves *out_instance NULL.
+ *
+ *  Statuses. A call returns IMR_OK or, on failure, IMR_INVALID_ARGUMENT (bad params or input),
+ *  IMR_ERROR (anything else), IMR_CANCELLED (the host's is_cancelled asked it to stop) or
+ *  IMR_UNSUPPORTED (valid, but not something this plugin does), with a message in `error`. Every
+ *  status other than IMR_OK fails the sequence (the other sequences of a batch still run) with
+ *  "<plugin id>: <call> failed (<status>): <message>"; the status says what kind of failure it is,
+ *  the message says which parameter, frame or file. A status outside this list is a failure too.
+ *
+ *  The process may end during any call. A job stage may set `timeout_seconds` (or `imr run
+ *  --stage-timeout` sets one for every stage): a stage watchdog, on another thread, ends the
+ *  sequence's process (exit status 124) when one call of that stage (create, process_frame,
+ *  add_frame, transfer, export_mesh; not destroy) runs longer, without calling destroy or any
+ *  destructor; what an exporter wrote into its staging folder is discarded. A cancelled batch
+ *  sends SIGTERM (is_cancelled then returns non-zero) and SIGKILL 10 s later; a batch's memory
+ *  limit kills the process too. So keep nothing that cannot be lost, and poll is_cancelled in
+ *  long calls.
+ *
+ *  Lifetimes. Inputs (params_json, cameras, images, observations, request structs and every
+ *  array or string they point to) are valid only during the call: copy what you keep. The host
+ *  services table is valid for the instance's lifetime. Outputs a plugin hands back (imr_track_view,
+ *  imr_refiner_update and the arrays they point to) stay owned by the plugin and must stay valid
+ *  until the next call on the same instance or its destruction. A descriptor, its function table
+ *  and its strings must stay valid while the library is loaded.
  *
  * Most plugin authors never touch this file directly: see plugin.hpp for the C++ wrapper (one
- * class + IMR_PLUGIN_EXPORT), and examples/ for a complete plugin.
+ * class + IMR_PLUGIN_EXPORT), and the example plugins installed with the SDK
+ * (share/doc/imr_sdk/examples; sdk/examples in imr's source) for complete ones.
  */
 #ifndef IMR_SDK_PLUGIN_H
 #define IMR_SDK_PLUGIN_H
@@ -30,8 +84,9 @@ extern "C" {
 #endif
 
 /* ABI version. Major: incompatible change (the host refuses other majors). Minor: fields
- * appended at the end of structs; a host accepts plugins of any minor of its major and reads only
- * the fields their struct_size covers. */
+ * appended at the end of growing structs; a host accepts plugins of any minor of its major (older
+ * or newer than its own) and reads only the fields their struct_size covers, and a plugin does
+ * the same with what the host passes. */
 #define IMR_ABI_MAJOR 1
 #define IMR_ABI_MINOR 1
 
@@ -46,6 +101,7 @@ extern "C" {
 /* ------------------------------------------------------------------------------------------ */
 /* Status and errors                                                                          */
 
+/* What a call returns (see "Statuses" above: every status but IMR_OK fails the sequence). */
 typedef int32_t imr_status;
 #define IMR_OK 0
 #define IMR_ERROR 1            /* generic failure; see the message */
@@ -53,8 +109,8 @@ typedef int32_t imr_status;
 #define IMR_CANCELLED 3        /* the host asked to stop (host services: is_cancelled) */
 #define IMR_UNSUPPORTED 4      /* the request is valid but this plugin cannot do it */
 
-/* Message buffer owned by the caller. A plugin writes a NUL-terminated UTF-8 message on failure
- * (truncated to fit). */
+/* Message buffer owned by the caller, empty (message[0] == 0) before the call. A plugin writes a
+ * NUL-terminated UTF-8 message on failure (truncated to fit); on success it leaves it alone. */
 #define IMR_ERROR_MESSAGE_CAPACITY 1024
 typedef struct imr_error {
   char message[IMR_ERROR_MESSAGE_CAPACITY];
@@ -68,7 +124,8 @@ typedef struct imr_error {
 #define IMR_LOG_WARNING 2
 #define IMR_LOG_ERROR 3
 
-/* An 8-bit image: a frame for the features plugin, a keyframe image for an exporter. */
+/* An 8-bit image: a frame for the features plugin, a keyframe image for an exporter. Growing;
+ * filled by the host. */
 typedef struct imr_image_view {
   uint32_t struct_size;
   int32_t width;
@@ -80,7 +137,8 @@ typedef struct imr_image_view {
 
 /* Version 1: ABI 1.0 (log, progress, is_cancelled). Version 2: ABI 1.1 (keyframe images). A
  * plugin uses a service only when struct_size covers it: a 1.1 plugin run by a 1.0 host sees a
- * 40-byte table and does without images; a 1.0 plugin never looks past its own fields. */
+ * 40-byte table and does without images; a 1.0 plugin never looks past its own fields. Every
+ * service is safe to call from any thread until the instance's destroy returns. */
 #define IMR_HOST_SERVICES_VERSION 2
 typedef struct imr_host_services {
   uint32_t struct_size; /* sizeof(imr_host_services) as the host knows it */
@@ -120,7 +178,8 @@ typedef enum imr_plugin_kind {
 
 typedef struct imr_instance imr_instance; /* opaque; defined by each plugin */
 
-/* Cameras: pinhole, world -> camera: x_cam = R * X_world + t, pixel = K * x_cam (row-major). */
+/* Cameras: pinhole, world -> camera: x_cam = R * X_world + t, pixel = K * x_cam (row-major).
+ * Frozen (no struct_size; an array element in imr_export_request). */
 typedef struct imr_camera {
   uint64_t id;      /* frame index within the sequence */
   double K[9];      /* intrinsics, row-major */
@@ -130,9 +189,13 @@ typedef struct imr_camera {
   int32_t height;
 } imr_camera;
 
-/* --- weight policy (DESIGN.md section 3, "Weight-transfer policies") ---------------------- */
+/* --- weight policy ----------------------------------------------------------------------- */
+/* When the engine moves or inserts a point, the Delaunay triangulation replaces some tetrahedra
+ * (the removed cells) by new ones (the added cells); a weight-transfer policy gives each added
+ * cell a free-space weight from the removed cells' weights and centroids, without casting rays
+ * again (the paper's policies: mean, weighted mean, nearest). */
 
-typedef struct imr_transfer_request {
+typedef struct imr_transfer_request { /* growing; filled by the host */
   uint32_t struct_size;
   uint32_t reserved0;
   const double* removed_centroids; /* 3 * removed_count doubles, packed xyz */
@@ -146,15 +209,21 @@ typedef struct imr_transfer_request {
 typedef struct imr_weight_policy_api {
   uint32_t struct_size;
   uint32_t reserved0;
-  /* Fill request->added_weights. Called on the engine's hot path: no allocation per call if
-   * avoidable, no logging. */
+  /* Fill request->added_weights with a finite weight for each added cell.
+   * When: zero or more times per keyframe, from inside the engine's update. Called on the
+   * engine's hot path: no allocation per call if avoidable, no logging.
+   * Pre: added_count >= 1; removed_count may be 0 (nothing to inherit: the paper's policies give
+   * 0); the arrays hold the counts the request gives, valid during the call only.
+   * Returns IMR_OK, or IMR_INVALID_ARGUMENT / IMR_ERROR / IMR_CANCELLED with a message. On a
+   * failure, or a weight that is not finite, the host gives the added cells weight 0, finishes the
+   * update and then fails the sequence with the first message. */
   imr_status (*transfer)(imr_instance* instance, const imr_transfer_request* request,
                          imr_error* error);
 } imr_weight_policy_api;
 
 /* --- exporter ----------------------------------------------------------------------------- */
 
-typedef struct imr_mesh_view {
+typedef struct imr_mesh_view { /* growing; filled by the host */
   uint32_t struct_size;
   uint32_t reserved0;
   const double* vertices;   /* 3 * vertex_count, packed xyz */
@@ -169,7 +238,7 @@ typedef struct imr_mesh_view {
   const uint8_t* vertex_colors;
 } imr_mesh_view;
 
-typedef struct imr_export_request {
+typedef struct imr_export_request { /* growing; filled by the host */
   uint32_t struct_size;
   uint32_t reserved0;
   const imr_mesh_view* mesh;
@@ -193,22 +262,31 @@ typedef struct imr_exporter_api {
   uint32_t reserved0;
   /* Comma-separated formats this exporter writes, e.g. "obj,ply,gltf,glb". */
   const char* formats;
-  /* Write the mesh as directory/stem.<ext> (plus companion files the format needs). The host
-   * gives a private staging folder and moves the files to their final place only on success, so
-   * a plugin need not write atomically itself. */
+  /* Write the mesh as directory/stem.<ext> (plus companion files the format needs).
+   * When: once per output format this stage is the first to list, for each snapshot (every
+   * output.snapshot_every keyframes, when set) and for the final mesh.
+   * Pre: request->format is one of `formats`; the mesh has at least one face; request, mesh,
+   * strings and keyframes are valid during the call only.
+   * The host gives a private staging folder and moves the files to their final place only on
+   * success, so a plugin need not write atomically itself; on a failure (or when the process is
+   * ended mid-call) the folder is discarded.
+   * Returns IMR_OK, or IMR_INVALID_ARGUMENT (a mesh or request it cannot take), IMR_UNSUPPORTED
+   * (a format it does not write), IMR_ERROR (a write failed), IMR_CANCELLED, with a message;
+   * each fails the sequence. Keyframe images held by the plugin are released when it returns. */
   imr_status (*export_mesh)(imr_instance* instance, const imr_export_request* request,
                             imr_error* error);
 } imr_exporter_api;
 
-/* --- features (DESIGN.md section 5) ------------------------------------------------------- */
+/* --- features ---------------------------------------------------------------------------- */
+/* Image features tracked from frame to frame (e.g. edge points followed by Lucas-Kanade). */
 
-typedef struct imr_track_observation {
+typedef struct imr_track_observation { /* frozen: an array element */
   uint64_t track_id; /* stable across frames */
   double x;          /* pixel coordinates, origin at the centre of the top-left pixel */
   double y;
 } imr_track_observation;
 
-typedef struct imr_track_view { /* owned by the plugin, valid until its next call */
+typedef struct imr_track_view { /* frozen; owned by the plugin, valid until its next call */
   const imr_track_observation* observations;
   uint64_t count;
 } imr_track_view;
@@ -216,23 +294,33 @@ typedef struct imr_track_view { /* owned by the plugin, valid until its next cal
 typedef struct imr_features_api {
   uint32_t struct_size;
   uint32_t reserved0;
-  /* Track features into this frame; `is_keyframe` non-zero asks to replenish. Returns every track
-   * observed in this frame. */
+  /* Track features into this frame; `is_keyframe` non-zero asks to replenish. Fills `out` with
+   * every track observed in this frame (count 0 and observations NULL when none).
+   * When: once per frame of an image input, in frame order from frame 0; keyframes are every
+   * keyframe_every-th frame and the last one.
+   * Pre: camera->id is the frame index; image is 8-bit gray or BGR, the size of every frame of
+   * the sequence; camera, image and pixels are valid during the call only.
+   * Post: *out points into the plugin's storage, valid until its next call or destroy (the host
+   * hands it to the refiner's add_frame of the same frame).
+   * Returns IMR_OK, or IMR_INVALID_ARGUMENT / IMR_ERROR / IMR_CANCELLED with a message; each
+   * fails the sequence. */
   imr_status (*process_frame)(imr_instance* instance, const imr_camera* camera,
                               const imr_image_view* image, int32_t is_keyframe,
                               imr_track_view* out, imr_error* error);
 } imr_features_api;
 
-/* --- refiner (DESIGN.md section 5) -------------------------------------------------------- */
+/* --- refiner ----------------------------------------------------------------------------- */
+/* 3D points from 2D tracks and known cameras: triangulated once seen with enough parallax,
+ * refined as frames arrive (so points move), outliers removed. */
 
-typedef struct imr_point_estimate {
+typedef struct imr_point_estimate { /* frozen: an array element */
   uint64_t id;
   double position[3];
   uint64_t first_camera; /* index into imr_refiner_update.camera_ids */
   uint64_t camera_count; /* cameras observing the point (for new points; may be 0 for moves) */
 } imr_point_estimate;
 
-typedef struct imr_refiner_update { /* owned by the plugin, valid until its next call */
+typedef struct imr_refiner_update { /* frozen; owned by the plugin, valid until its next call */
   const imr_point_estimate* new_points;
   uint64_t new_count;
   const imr_point_estimate* moved_points;
@@ -247,7 +335,16 @@ typedef struct imr_refiner_api {
   uint32_t struct_size;
   uint32_t reserved0;
   /* Feed one frame's camera and track observations. On keyframes (`is_keyframe` non-zero) the
-   * refiner triangulates/refines and fills `out`; on other frames `out` is left empty. */
+   * refiner triangulates/refines and fills `out`; on other frames `out` is left empty.
+   * When: once per frame, in frame order, right after the features' process_frame of the frame.
+   * Pre: *out is zeroed; camera, observations (the features plugin's view) are valid during the
+   * call only: copy what you keep.
+   * Post: *out points into the plugin's storage, valid until its next call or destroy. Every
+   * moved or removed id was reported new before and not removed since, new ids are new, every
+   * position is finite, every camera id is a frame already given: the host checks this and fails
+   * the sequence naming the point otherwise.
+   * Returns IMR_OK, or IMR_INVALID_ARGUMENT (a bad camera or observation) / IMR_ERROR /
+   * IMR_CANCELLED with a message; each fails the sequence. */
   imr_status (*add_frame)(imr_instance* instance, const imr_camera* camera,
                           const imr_track_observation* observations, uint64_t observation_count,
                           int32_t is_keyframe, imr_refiner_update* out, imr_error* error);
@@ -256,7 +353,7 @@ typedef struct imr_refiner_api {
 /* ------------------------------------------------------------------------------------------ */
 /* The descriptor                                                                              */
 
-typedef struct imr_plugin_descriptor {
+typedef struct imr_plugin_descriptor { /* growing; filled by the plugin */
   /* --- fixed prefix: never changes, in any ABI version --- */
   uint32_t struct_size; /* sizeof(imr_plugin_descriptor) as the plugin was built */
   uint16_t abi_major;   /* IMR_ABI_MAJOR the plugin was built against */
@@ -273,13 +370,22 @@ typedef struct imr_plugin_descriptor {
    * Unknown params are errors. */
   const char* params_schema;
 
-  /* Make an instance from params (a JSON object, "{}" when none) and the host's services (kept
-   * by the instance; valid for its lifetime). */
+  /* Make an instance from params (a JSON object, "{}" when none) and the host's services.
+   * When: once per job stage naming this plugin, per sequence, before any call on the instance.
+   * Pre: params_json is the stage's `params`, checked by the host against params_schema with its
+   * defaults filled in; valid during the call only. `host` stays valid for the instance's
+   * lifetime (keep the pointer).
+   * Post: IMR_OK with *out_instance non-NULL; or IMR_INVALID_ARGUMENT (bad params) / IMR_ERROR /
+   * IMR_CANCELLED with a message and *out_instance NULL: nothing to destroy, the sequence fails
+   * naming the stage. */
   imr_status (*create)(const char* params_json, const imr_host_services* host,
                        imr_instance** out_instance, imr_error* error);
+  /* Release an instance: once per successful create, after its last call, on the thread that
+   * made the calls; never after a failed create. Cannot fail. Not watched by the stage watchdog,
+   * and not called when the process is ended (see "The process may end during any call"). */
   void (*destroy)(imr_instance* instance);
 
-  /* Exactly one is non-NULL, matching `kind`. */
+  /* Exactly one is non-NULL, matching `kind`; its struct_size covers at least its ABI 1.0 size. */
   const imr_features_api* features;
   const imr_refiner_api* refiner;
   const imr_weight_policy_api* weight_policy;
@@ -289,36 +395,73 @@ typedef struct imr_plugin_descriptor {
 } imr_plugin_descriptor;
 
 /* The entry point every plugin library exports. Returns the index-th descriptor of the library,
- * or NULL past the last one. The returned descriptor lives as long as the library is loaded. */
+ * or NULL past the last one. The returned descriptor lives as long as the library is loaded.
+ * Called with 0, 1, ... right after the library is loaded, on the loading thread: cheap, no side
+ * effects, no host services (none are given). A descriptor the host refuses (another ABI major,
+ * a struct smaller than its 1.0 size, a missing id/create/destroy/table, a malformed
+ * params_schema) is reported with the library's path and skipped; the library's other plugins
+ * still load. */
 typedef const imr_plugin_descriptor* (*imr_plugin_entry_fn)(uint32_t index);
 
 #ifdef __cplusplus
 } /* extern "C" */
 #endif
 
+/* The smallest size a reader accepts for each growing struct: its size in ABI 1.0 (every field
+ * it has had since). A host refuses a descriptor or function table smaller than this; a plugin may
+ * refuse (IMR_INVALID_ARGUMENT) a request smaller than this. Between this and its own sizeof, a
+ * reader uses a field only when struct_size covers it. */
+#define IMR_DESCRIPTOR_SIZE_1_0 96 /* up to `exporter`; the reserved tail is not needed */
+#define IMR_HOST_SERVICES_SIZE_1_0 40
+#define IMR_IMAGE_VIEW_SIZE_1_0 32
+#define IMR_TRANSFER_REQUEST_SIZE_1_0 56
+#define IMR_MESH_VIEW_SIZE_1_0 48
+#define IMR_EXPORT_REQUEST_SIZE_1_0 40
+#define IMR_WEIGHT_POLICY_API_SIZE_1_0 16
+#define IMR_EXPORTER_API_SIZE_1_0 24
+#define IMR_FEATURES_API_SIZE_1_0 16
+#define IMR_REFINER_API_SIZE_1_0 16
+
+/* Pin the layout: these offsets are the ABI. Changing one is an ABI major bump. Checked by C11
+ * and C++ compilers alike. */
 #ifdef __cplusplus
-/* Pin the layout: these offsets are the ABI. Changing one is an ABI major bump. */
-static_assert(offsetof(imr_plugin_descriptor, struct_size) == 0, "ABI: descriptor prefix");
-static_assert(offsetof(imr_plugin_descriptor, abi_major) == 4, "ABI: descriptor prefix");
-static_assert(offsetof(imr_plugin_descriptor, abi_minor) == 6, "ABI: descriptor prefix");
-static_assert(offsetof(imr_plugin_descriptor, kind) == 8, "ABI: descriptor layout");
-static_assert(offsetof(imr_plugin_descriptor, id) == 16, "ABI: descriptor layout");
-static_assert(offsetof(imr_plugin_descriptor, params_schema) == 40, "ABI: descriptor layout");
-static_assert(offsetof(imr_plugin_descriptor, create) == 48, "ABI: descriptor layout");
-static_assert(offsetof(imr_plugin_descriptor, exporter) == 88, "ABI: descriptor layout");
-static_assert(sizeof(imr_plugin_descriptor) == 160, "ABI: descriptor size");
-static_assert(sizeof(imr_host_services) == 56, "ABI: host services size");
-static_assert(offsetof(imr_host_services, keyframe_image) == 40, "ABI: host services 1.1");
-static_assert(sizeof(imr_error) == IMR_ERROR_MESSAGE_CAPACITY, "ABI: error buffer");
-static_assert(sizeof(imr_transfer_request) == 56, "ABI: transfer request");
-static_assert(sizeof(imr_mesh_view) == 56, "ABI: mesh view");
-static_assert(offsetof(imr_mesh_view, vertex_colors) == 48, "ABI: mesh view 1.1");
-static_assert(sizeof(imr_export_request) == 64, "ABI: export request");
-static_assert(offsetof(imr_export_request, keyframes) == 40, "ABI: export request 1.1");
-static_assert(sizeof(imr_image_view) == 32, "ABI: image view");
-static_assert(sizeof(imr_camera) == 184, "ABI: camera");
-static_assert(sizeof(imr_track_observation) == 24, "ABI: track observation");
-static_assert(sizeof(imr_point_estimate) == 48, "ABI: point estimate");
+#define IMR_STATIC_ASSERT(condition, message) static_assert(condition, message)
+#else
+#define IMR_STATIC_ASSERT(condition, message) _Static_assert(condition, message)
 #endif
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, struct_size) == 0, "ABI: descriptor prefix");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, abi_major) == 4, "ABI: descriptor prefix");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, abi_minor) == 6, "ABI: descriptor prefix");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, kind) == 8, "ABI: descriptor layout");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, id) == 16, "ABI: descriptor layout");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, params_schema) == 40, "ABI: descriptor layout");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, create) == 48, "ABI: descriptor layout");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, exporter) == 88, "ABI: descriptor layout");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, reserved) == IMR_DESCRIPTOR_SIZE_1_0,
+                  "ABI: descriptor 1.0 size");
+IMR_STATIC_ASSERT(sizeof(imr_plugin_descriptor) == 160, "ABI: descriptor size");
+IMR_STATIC_ASSERT(sizeof(imr_host_services) == 56, "ABI: host services size");
+IMR_STATIC_ASSERT(offsetof(imr_host_services, keyframe_image) == IMR_HOST_SERVICES_SIZE_1_0,
+                  "ABI: host services 1.1");
+IMR_STATIC_ASSERT(sizeof(imr_error) == IMR_ERROR_MESSAGE_CAPACITY, "ABI: error buffer");
+IMR_STATIC_ASSERT(sizeof(imr_transfer_request) == IMR_TRANSFER_REQUEST_SIZE_1_0,
+                  "ABI: transfer request");
+IMR_STATIC_ASSERT(sizeof(imr_mesh_view) == 56, "ABI: mesh view");
+IMR_STATIC_ASSERT(offsetof(imr_mesh_view, vertex_colors) == IMR_MESH_VIEW_SIZE_1_0,
+                  "ABI: mesh view 1.1");
+IMR_STATIC_ASSERT(sizeof(imr_export_request) == 64, "ABI: export request");
+IMR_STATIC_ASSERT(offsetof(imr_export_request, keyframes) == IMR_EXPORT_REQUEST_SIZE_1_0,
+                  "ABI: export request 1.1");
+IMR_STATIC_ASSERT(sizeof(imr_image_view) == IMR_IMAGE_VIEW_SIZE_1_0, "ABI: image view");
+IMR_STATIC_ASSERT(sizeof(imr_weight_policy_api) == IMR_WEIGHT_POLICY_API_SIZE_1_0,
+                  "ABI: weight policy table");
+IMR_STATIC_ASSERT(sizeof(imr_exporter_api) == IMR_EXPORTER_API_SIZE_1_0, "ABI: exporter table");
+IMR_STATIC_ASSERT(sizeof(imr_features_api) == IMR_FEATURES_API_SIZE_1_0, "ABI: features table");
+IMR_STATIC_ASSERT(sizeof(imr_refiner_api) == IMR_REFINER_API_SIZE_1_0, "ABI: refiner table");
+IMR_STATIC_ASSERT(sizeof(imr_camera) == 184, "ABI: camera (frozen)");
+IMR_STATIC_ASSERT(sizeof(imr_track_observation) == 24, "ABI: track observation (frozen)");
+IMR_STATIC_ASSERT(sizeof(imr_track_view) == 16, "ABI: track view (frozen)");
+IMR_STATIC_ASSERT(sizeof(imr_point_estimate) == 48, "ABI: point estimate (frozen)");
+IMR_STATIC_ASSERT(sizeof(imr_refiner_update) == 64, "ABI: refiner update (frozen)");
 
 #endif /* IMR_SDK_PLUGIN_H */

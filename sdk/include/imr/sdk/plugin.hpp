@@ -14,12 +14,16 @@
 //   IMR_PLUGIN_EXPORT(MyPolicy)            // several classes: IMR_PLUGIN_EXPORT(A, B, C)
 //
 // An exporter overrides Export (geometry) or, since ABI 1.1, ExportMesh (the request with the
-// keyframe cameras; Host::GetKeyframeImage fetches their images): see
-// examples/vertex_color_exporter.
+// keyframe cameras; Host::GetKeyframeImage fetches their images): see the example
+// vertex_color_exporter (installed with the SDK in share/doc/imr_sdk/examples).
 //
 // The wrapper builds the C descriptor (plugin.h), converts parameters, and catches every
-// exception at the boundary: throw imr::sdk::InvalidArgument for bad parameters or input, any
-// other std::exception for failures; the host receives a status and the message.
+// exception at the boundary: throw imr::sdk::InvalidArgument for bad parameters or input,
+// imr::sdk::Cancelled (Host::CheckCancelled) to stop when asked, any other std::exception for
+// failures; the host receives a status and the message. plugin.h's contract holds for the class
+// as for the C functions: the constructor is `create` (a constructor that throws means no
+// instance and no destructor), the destructor is `destroy`, and every call of one object comes
+// from one thread at a time.
 #pragma once
 
 #include <imr/sdk/params_schema.hpp>
@@ -224,7 +228,8 @@ struct TransferRequest {
   std::size_t added_count() const { return added_weights.size(); }
 };
 
-// Weight-transfer policy (DESIGN.md section 3): give each new cell a weight from the removed ones.
+// Weight-transfer policy: give each new cell a weight from the removed ones (plugin.h, "weight
+// policy").
 class WeightPolicy : public PluginBase {
  public:
   static constexpr imr_plugin_kind kKind = IMR_KIND_WEIGHT_POLICY;
@@ -280,13 +285,51 @@ class Features : public PluginBase {
                                                              bool is_keyframe) = 0;
 };
 
-// Point refiner: on keyframes fill `out` with views into storage kept by the plugin.
+// What a refiner reports at a keyframe (the storage behind imr_refiner_update). A point's
+// observing cameras are camera_ids[first_camera, first_camera + camera_count).
+struct RefinerUpdate {
+  std::vector<imr_point_estimate> new_points;
+  std::vector<imr_point_estimate> moved_points;
+  std::vector<uint64_t> removed_ids;
+  std::vector<uint64_t> camera_ids;
+
+  void Clear() {
+    new_points.clear();
+    moved_points.clear();
+    removed_ids.clear();
+    camera_ids.clear();
+  }
+  // The C view of this update, valid while it is neither changed nor destroyed.
+  imr_refiner_update View() const {
+    return {new_points.data(), new_points.size(),  moved_points.data(), moved_points.size(),
+            removed_ids.data(), removed_ids.size(), camera_ids.data(),  camera_ids.size()};
+  }
+};
+
+// Point refiner: override Refine (fill a RefinerUpdate, which the wrapper keeps until the next
+// call and hands to the host) or, as plugins written before RefinerUpdate do, AddFrame (fill the
+// C view with storage of your own).
 class Refiner : public PluginBase {
  public:
   static constexpr imr_plugin_kind kKind = IMR_KIND_REFINER;
+  // Feed one frame; on keyframes put the new, moved and removed points into `update` (empty on
+  // entry).
+  virtual void Refine(const imr_camera& camera, std::span<const imr_track_observation> observations,
+                      bool is_keyframe, RefinerUpdate* update) {
+    (void)camera, (void)observations, (void)is_keyframe, (void)update;
+    throw std::logic_error("refiner overrides neither Refine nor AddFrame");
+  }
+  // The same, filling the C view. By default, Refine into storage the wrapper keeps.
   virtual void AddFrame(const imr_camera& camera,
                         std::span<const imr_track_observation> observations, bool is_keyframe,
-                        imr_refiner_update* out) = 0;
+                        imr_refiner_update* out) {
+    update_.Clear();
+    Refine(camera, observations, is_keyframe, &update_);
+    *out = update_.View();
+  }
+
+ private:
+  RefinerUpdate update_;
 };
 
 // ---- the wrapper behind IMR_PLUGIN_EXPORT ----------------------------------------------------
@@ -358,7 +401,7 @@ template <typename T>
 imr_status Transfer(imr_instance* instance, const imr_transfer_request* r,
                     imr_error* error) noexcept {
   return Guard(error, [&] {
-    if (r == nullptr || r->struct_size < sizeof(imr_transfer_request))
+    if (r == nullptr || r->struct_size < IMR_TRANSFER_REQUEST_SIZE_1_0)
       throw InvalidArgument("transfer: request struct too small");
     const auto nr = static_cast<std::size_t>(r->removed_count);
     const auto na = static_cast<std::size_t>(r->added_count);
@@ -374,7 +417,9 @@ template <typename T>
 imr_status ExportMesh(imr_instance* instance, const imr_export_request* r,
                       imr_error* error) noexcept {
   return Guard(error, [&] {
-    if (r == nullptr || r->mesh == nullptr) throw InvalidArgument("export: no mesh");
+    if (r == nullptr || r->struct_size < IMR_EXPORT_REQUEST_SIZE_1_0 || r->mesh == nullptr ||
+        r->mesh->struct_size < IMR_MESH_VIEW_SIZE_1_0)
+      throw InvalidArgument("export: no mesh, or a request or mesh struct too small");
     const imr_mesh_view& m = *r->mesh;
     const auto nv = static_cast<std::size_t>(m.vertex_count);
     // Fields of a newer minor exist only when the host's struct is long enough (1.0 hosts).
