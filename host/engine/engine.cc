@@ -33,6 +33,7 @@
 //   keyframe does not grow with the size of the reconstruction.
 #include "host/engine/engine.h"
 #include "host/engine/engine_internal.h"
+#include "host/engine/mesh_topology.h"
 #include "host/util/thread_pool.h"
 
 #include <CGAL/Delaunay_triangulation_3.h>
@@ -46,7 +47,6 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
-#include <map>
 #include <queue>
 #include <sstream>
 #include <unordered_map>
@@ -151,58 +151,6 @@ double Jitter(uint64_t key, int axis) {
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
   z ^= z >> 31;
   return static_cast<double>(z >> 11) / static_cast<double>(1ull << 52) - 1.0;
-}
-
-// After dropping triangles from a closed 2-manifold, a vertex may keep several separate fans;
-// give each extra fan its own copy of the vertex so the result is a 2-manifold with boundary.
-void SplitPinchedVertices(Mesh* m) {
-  const size_t nv = m->vertices.size() / 3;
-  const size_t nt = m->faces.size() / 3;
-  std::vector<std::vector<uint32_t>> around(nv);
-  for (size_t t = 0; t < nt; ++t)
-    for (int k = 0; k < 3; ++k) around[m->faces[3 * t + k]].push_back(static_cast<uint32_t>(t));
-  for (size_t v = 0; v < nv; ++v) {
-    const auto& tris = around[v];
-    if (tris.size() < 2) continue;
-    // Union-find over the triangles around v: two are joined when they share an edge at v.
-    std::vector<int> parent(tris.size());
-    for (size_t i = 0; i < tris.size(); ++i) parent[i] = static_cast<int>(i);
-    auto root = [&](int i) {
-      while (parent[i] != i) i = parent[i] = parent[parent[i]];
-      return i;
-    };
-    auto others = [&](uint32_t t, uint32_t out[2]) {
-      int n = 0;
-      for (int k = 0; k < 3; ++k)
-        if (m->faces[3 * t + k] != v) out[n++] = m->faces[3 * t + k];
-    };
-    for (size_t i = 0; i < tris.size(); ++i) {
-      uint32_t a[2];
-      others(tris[i], a);
-      for (size_t j = i + 1; j < tris.size(); ++j) {
-        uint32_t b[2];
-        others(tris[j], b);
-        if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1])
-          parent[root(static_cast<int>(i))] = root(static_cast<int>(j));
-      }
-    }
-    std::map<int, uint32_t> copy;  // Component root -> vertex index.
-    copy[root(0)] = static_cast<uint32_t>(v);
-    for (size_t i = 0; i < tris.size(); ++i) {
-      const int r = root(static_cast<int>(i));
-      auto it = copy.find(r);
-      if (it == copy.end()) {
-        const uint32_t nvtx = static_cast<uint32_t>(m->vertices.size() / 3);
-        m->vertices.insert(m->vertices.end(), {m->vertices[3 * v], m->vertices[3 * v + 1],
-                                               m->vertices[3 * v + 2]});
-        m->point_ids.push_back(m->point_ids[v]);
-        it = copy.emplace(r, nvtx).first;
-      }
-      if (it->second == v) continue;
-      for (int k = 0; k < 3; ++k)
-        if (m->faces[3 * tris[i] + k] == v) m->faces[3 * tris[i] + k] = it->second;
-    }
-  }
 }
 
 }  // namespace
@@ -2476,73 +2424,5 @@ void EngineInternals::RecastAllAndRegrow(Engine& e) {
 }
 
 }  // namespace internal
-
-ManifoldCheckResult CheckMesh(const Mesh& mesh, bool closed) {
-  ManifoldCheckResult r;
-  auto fail = [&](const std::string& s) {
-    if (r.ok) r.message = s;
-    r.ok = false;
-  };
-  const size_t nv = mesh.vertices.size() / 3;
-  std::map<std::pair<uint32_t, uint32_t>, int> directed;
-  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> links(nv);
-  for (size_t t = 0; t + 2 < mesh.faces.size(); t += 3) {
-    const uint32_t f[3] = {mesh.faces[t], mesh.faces[t + 1], mesh.faces[t + 2]};
-    for (int k = 0; k < 3; ++k)
-      if (f[k] >= nv) {
-        fail("a face index is out of range");
-        return r;
-      }
-    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) fail("a degenerate face");
-    for (int k = 0; k < 3; ++k) {
-      if (++directed[{f[k], f[(k + 1) % 3]}] > 1) fail("a directed edge repeats");
-      links[f[k]].push_back({f[(k + 1) % 3], f[(k + 2) % 3]});
-    }
-  }
-  r.boundary_triangles = static_cast<int64_t>(mesh.faces.size() / 3);
-  for (const auto& [e, n] : directed) {
-    (void)n;
-    if (!directed.count({e.second, e.first}) && closed) {
-      fail("an edge is in only one triangle of a mesh required closed");
-      break;
-    }
-  }
-  // Each vertex: its link edges (a -> b, consistently oriented) form one cycle or one path.
-  for (size_t v = 0; v < nv; ++v) {
-    const auto& l = links[v];
-    if (l.empty()) continue;
-    ++r.boundary_vertices;
-    std::unordered_map<uint32_t, uint32_t> next;
-    std::unordered_set<uint32_t> has_prev;
-    bool bad = false;
-    for (const auto& e : l) {
-      if (!next.emplace(e.first, e.second).second || !has_prev.insert(e.second).second) bad = true;
-    }
-    uint32_t start = l[0].first;
-    int starts = 0;
-    for (const auto& e : l)
-      if (!has_prev.count(e.first)) {
-        start = e.first;
-        ++starts;
-      }
-    if (!bad && starts <= 1 && !(closed && starts == 1)) {
-      size_t steps = 0;
-      uint32_t cur = start;
-      while (next.count(cur) && steps <= l.size()) {
-        cur = next[cur];
-        ++steps;
-        if (cur == start) break;
-      }
-      bad = steps != l.size();
-    } else {
-      bad = true;
-    }
-    if (bad) {
-      fail("vertex " + std::to_string(v) + " is not one fan");
-      break;
-    }
-  }
-  return r;
-}
 
 }  // namespace imr::engine

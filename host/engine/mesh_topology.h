@@ -1,0 +1,13 @@
+// Mesh topology without CGAL: making a surface cut from a closed 2-manifold a 2-manifold with
+// boundary again. CheckMesh, the matching test, is declared in engine.h.
+#pragma once
+
+#include "host/engine/engine.h"
+
+namespace imr::engine {
+
+// After dropping triangles from a closed 2-manifold, a vertex may keep several separate fans;
+// give each extra fan its own copy of the vertex so the result is a 2-manifold with boundary.
+void SplitPinchedVertices(Mesh* m);
+
+}  // namespace imr::engine
