@@ -11,13 +11,12 @@
 #include <thread>
 #include <vector>
 
+#include "host/util/thread_pool.h"
+
 namespace imr::eval {
 
-// Threads to use for `requested` (<= 0: the hardware's concurrency, at least 1).
-inline int ResolveThreads(int requested) {
-  if (requested > 0) return requested;
-  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-}
+// Threads to use for `requested` (<= 0: the cores of the process's affinity mask).
+using util::ResolveThreads;
 
 // Calls fn(begin, end) over [0, n) in chunks of `chunk`, on ResolveThreads(threads) threads. The
 // first exception thrown by fn is rethrown here once every thread has stopped.
