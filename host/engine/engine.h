@@ -120,12 +120,6 @@ struct EngineOptions {
   // Empty when every field is usable; otherwise which field and why (the validator shape of
   // every options struct of imr).
   std::string Check() const;
-  // The former shape, kept only until engine.cc and engine_test.cc call Check() (issue 19).
-  bool Check(std::string* error) const {
-    std::string e = Check();
-    if (error) *error = e;
-    return e.empty();
-  }
 };
 
 struct Camera {

@@ -40,7 +40,7 @@ struct CellProbe {
 
 class EngineInternals {
  public:
-  // --- Ray casting (DESIGN §3). ---
+  // --- Ray casting (paper §2.1). ---
   // Walks the segment point -> camera from the point's vertex and counts the cells it crosses,
   // without weighting anything: the traversal alone.
   static int64_t TraverseOnly(Engine& e, uint64_t point_id, uint64_t camera_id);

@@ -15,8 +15,7 @@ namespace {
 
 TEST(EngineOptionsTest, DefaultsAreValid) {
   EngineOptions o;
-  std::string error;
-  EXPECT_TRUE(o.Check(&error)) << error;
+  EXPECT_EQ(o.Check(), "");
   // The paper's parameters.
   EXPECT_EQ(o.steiner_spacing, 5.0);
   EXPECT_EQ(o.w1, 1.0);
@@ -40,13 +39,12 @@ TEST(EngineOptionsTest, CheckNamesTheBadField) {
   EngineOptions o;
   o.window = 0;
   o.steiner_spacing = -1;
-  std::string error;
-  EXPECT_FALSE(o.Check(&error));
+  std::string error = o.Check();
   EXPECT_NE(error.find("window"), std::string::npos) << error;
   EXPECT_NE(error.find("steiner_spacing"), std::string::npos) << error;
   EngineOptions nan;
   nan.max_ray_length = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_FALSE(nan.Check(&error));
+  error = nan.Check();
   EXPECT_NE(error.find("max_ray_length"), std::string::npos) << error;
 }
 

@@ -216,8 +216,7 @@ void SequenceRun::StartEngine() {
                  std::to_string(scale_.keyframes) + " keyframes; the metric defaults are kept");
     } else {
       engine_options_ = ScaledOptions(v_.engine_options, scale_, explicit_keys_);
-      std::string error;
-      if (!engine_options_.Check(&error))
+      if (const std::string error = engine_options_.Check(); !error.empty())
         throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale_.median_ray) +
                                  ") gives unusable options: " + error +
                                  "; set the engine's lengths in the job, or engine.scale \"metric\"");

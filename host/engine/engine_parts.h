@@ -1,0 +1,551 @@
+// The engine's named parts over one Delaunay triangulation (paper sections 2-3). Private to
+// host/engine: it includes CGAL, and only the engine's CGAL translation units include it
+// (engine.cc, ray_caster.cc, engine_checks.cc). Engine::Impl conducts a keyframe through them;
+// each part is a class over the shared EngineState:
+//   RayCaster         viewing rays (paper §2.1): T, N1 and N2 weighted by one ray (weights and
+//                     rays modes); the exact mode's ray sets, cast in batches on the thread pool,
+//                     and the holes a change of the triangulation opens in them (ray_caster.cc)
+//   WeightTransfer    the weights of the cells a change makes, from those it destroys (§3.2)
+//   Carving           O, the outside cells: the manifold test, shrink, peel and grow (§2.2)
+//   SteinerGrid       the Steiner points around each camera
+//   InvariantChecker  dO closed, oriented and manifold; the weights against their ledger
+//                     (engine_checks.cc)
+// The benchmark and diagnostic hooks (engine_internal.h, engine_checks.cc) keep their state in
+// Hooks, which a normal run never allocates.
+#pragma once
+
+#include "host/engine/engine.h"
+#include "host/engine/engine_internal.h"
+#include "host/util/clock.h"
+#include "host/util/thread_pool.h"
+
+#include <CGAL/Delaunay_triangulation_3.h>
+#include <CGAL/Delaunay_triangulation_cell_base_3.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_cell_base_with_info_3.h>
+#include <CGAL/Triangulation_vertex_base_with_info_3.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
+#include <vector>
+
+namespace imr::engine::detail {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+
+// One ray stored in a cell. kRays: camera index, point, and the ring (level: 0 = T, 1 = N1,
+// 2 = N2). kExact: the ray's index among its point's cameras (camera), the point, and the ray's
+// generation when it was added (level): an entry whose generation is not the ray's current one
+// is stale (the ray was un-cast since) and is dropped when met.
+struct RayEntry {
+  uint32_t camera;
+  uint32_t point;
+  uint32_t level;
+};
+
+struct VertexInfo {
+  int64_t id = -1;     // >= 0: internal point index; < 0: Steiner point number -(k + 1).
+  int32_t o_cells = 0;  // Incident cells in O (kept by SetInO: cells of O are never destroyed,
+                        // shrink takes them out of O before the triangulation changes).
+};
+
+struct CellInfo {
+  int64_t weight = 0;     // In units of EngineOptions::weight_unit.
+  uint64_t stamp = 0;     // Ray stamp: a cell joins T, N1 or N2 once per ray.
+  bool in_o = false;      // Member of O (outside, the manifold part of free space).
+  bool fresh = false;     // kExact: made by the triangulation change being processed.
+  uint32_t slot = 0;      // kExact: index of the cell among those being made (scratch).
+  uint32_t region = 0;    // Member of the region being peeled (Shrink's E, PeelAround's)
+                          // when equal to EngineState::region_mark; apart from `stamp`, which
+                          // the manifold test uses while the region is peeled.
+  std::vector<RayEntry> rays;  // kRays: at most K rays that raised this cell's weight; kExact:
+                               // every ray that crosses it (and stale entries, see RayEntry).
+};
+
+using Vb = CGAL::Triangulation_vertex_base_with_info_3<VertexInfo, K>;
+using Cb = CGAL::Triangulation_cell_base_with_info_3<CellInfo, K,
+                                                     CGAL::Delaunay_triangulation_cell_base_3<K>>;
+using Tds = CGAL::Triangulation_data_structure_3<Vb, Cb>;
+using Dt = CGAL::Delaunay_triangulation_3<K, Tds>;
+using Point = Dt::Point;
+using Cell_handle = Dt::Cell_handle;
+using Vertex_handle = Dt::Vertex_handle;
+using Facet = Dt::Facet;
+
+using Clock = std::chrono::steady_clock;
+
+inline Point ToPoint(const Vec3& p) { return Point(p[0], p[1], p[2]); }
+
+// Regularity of a vertex from the edges of its link on the surface: they must form exactly one
+// closed cycle (or the vertex is not on the surface at all). Edges are given as id pairs.
+template <class Id>
+bool LinkIsOneCycle(const std::vector<std::pair<Id, Id>>& edges) {
+  if (edges.empty()) return true;
+  // Each link vertex must appear in exactly two edges.
+  std::vector<std::pair<Id, std::array<Id, 2>>> adj;
+  std::vector<int> deg;
+  auto find = [&](Id v) -> int {
+    for (size_t i = 0; i < adj.size(); ++i)
+      if (adj[i].first == v) return static_cast<int>(i);
+    adj.push_back({v, {v, v}});
+    deg.push_back(0);
+    return static_cast<int>(adj.size()) - 1;
+  };
+  for (const auto& e : edges) {
+    if (e.first == e.second) return false;
+    const int a = find(e.first), b = find(e.second);
+    if (deg[a] >= 2 || deg[b] >= 2) return false;
+    adj[a].second[deg[a]++] = e.second;
+    adj[b].second[deg[b]++] = e.first;
+  }
+  for (int d : deg)
+    if (d != 2) return false;
+  // Walk the cycle from the first vertex; it must visit every vertex.
+  Id start = adj[0].first, prev = start, cur = adj[0].second[0];
+  size_t steps = 1;
+  while (!(cur == start)) {
+    const int i = find(cur);
+    const Id next = (adj[i].second[0] == prev) ? adj[i].second[1] : adj[i].second[0];
+    prev = cur;
+    cur = next;
+    if (++steps > adj.size()) return false;
+  }
+  return steps == adj.size() && adj.size() == edges.size();
+}
+
+struct PointRecord {
+  uint64_t id = 0;
+  Vertex_handle vertex;        // Valid when in_triangulation.
+  bool in_triangulation = false;
+  bool removed = false;        // Removed by an update (never enters again); a point refused
+                               // at insertion (duplicate, dropped) tries again when it moves.
+  Vec3 position{};             // Latest estimate received.
+  std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
+  // kExact, parallel to cameras: whether the ray is cast, and where it ended when it was (the
+  // point's position then; a ray older than the window keeps its end when the point moves).
+  std::vector<uint8_t> ray_cast;
+  std::vector<uint32_t> ray_gen;  // generation: +1 at each un-cast (entries made before: stale)
+  std::vector<Point> ray_end;
+};
+
+// The state of the benchmark and diagnostic hooks (engine_internal.h).
+struct Hooks {
+  bool cross_check_manifold_test =
+      false;  // Run both forms of the manifold test, count differences.
+  int64_t manifold_test_mismatches = 0;
+  bool record_transfers = false;
+  size_t record_limit = 0;
+  std::vector<internal::RecordedTransfer> recorded;
+  std::vector<Cell_handle> probe_cells;
+};
+
+// What the parts share: the triangulation with its cells' weights and O, the points and cameras,
+// the counters.
+struct EngineState {
+  explicit EngineState(const EngineOptions& o);
+
+  EngineOptions opt;
+  Dt dt;
+  std::array<int64_t, 3> unit{};  // w1, w2, w3 in weight units.
+  int64_t threshold = 0;          // T_w in weight units: a cell is free above it.
+
+  std::vector<Point> cameras;
+  std::vector<uint64_t> camera_ids;
+  std::unordered_map<uint64_t, uint32_t> camera_index;
+  std::vector<PointRecord> points;
+  std::unordered_map<uint64_t, uint32_t> point_index;
+  Vertex_handle last_vertex;  // Locate hint.
+
+  uint64_t stamp = 0;        // CellInfo::stamp of the current walk or star visit.
+  uint32_t region_mark = 0;  // CellInfo::region of the region being peeled.
+  // Cells whose state changed this keyframe (became free, created, shrunk): growing seeds.
+  std::unordered_set<Cell_handle> dirty;
+  int64_t cells_in_o = 0;
+  // Sum of every cell's weight (finite and infinite), kept by each change of a weight and of the
+  // cells: CheckInvariants compares it with the cells' own sum, so a weight changed or a cell made
+  // or destroyed outside casting and transfer shows. Modulo 2^64 (unsigned wrap is exact).
+  uint64_t weight_ledger = 0;
+  EngineStats stats;
+  std::unique_ptr<Hooks> hooks;  // null unless a benchmark or a test asked for them
+
+  int64_t ToUnits(double w) const {
+    if (!std::isfinite(w)) return 0;
+    // A policy may return any finite double: saturate far below int64's range (llround of an
+    // unrepresentable value is unspecified) while leaving room for rays added on top.
+    constexpr double kMaxUnits = 4611686018427387904.0;  // 2^62
+    const double u = std::clamp(w / opt.weight_unit, -kMaxUnits, kMaxUnits);
+    return static_cast<int64_t>(std::llround(u));
+  }
+  double FromUnits(int64_t w) const { return static_cast<double>(w) * opt.weight_unit; }
+  void Ledger(int64_t before, int64_t after) {
+    weight_ledger += static_cast<uint64_t>(after) - static_cast<uint64_t>(before);
+  }
+
+  bool IsFree(Cell_handle c) const { return c->info().weight > threshold; }
+  bool HullAdjacent(Cell_handle c) const {
+    for (int i = 0; i < 4; ++i)
+      if (dt.is_infinite(c->neighbor(i))) return true;
+    return false;
+  }
+  bool TouchesO(Cell_handle c) const {
+    for (int i = 0; i < 4; ++i)
+      if (c->neighbor(i)->info().in_o) return true;
+    return false;
+  }
+  Point Centroid(Cell_handle c) const {
+    return CGAL::centroid(c->vertex(0)->point(), c->vertex(1)->point(), c->vertex(2)->point(),
+                          c->vertex(3)->point());
+  }
+  void MarkDirty(Cell_handle c) {
+    if (!dt.is_infinite(c) && !c->info().in_o) dirty.insert(c);
+  }
+  // The cell's vertex ids, sorted: a key that does not depend on memory addresses.
+  std::array<int64_t, 4> CellKey(Cell_handle c) const {
+    std::array<int64_t, 4> k;
+    for (int i = 0; i < 4; ++i)
+      k[i] = dt.is_infinite(c->vertex(i)) ? std::numeric_limits<int64_t>::min()
+                                          : c->vertex(i)->info().id;
+    std::sort(k.begin(), k.end());
+    return k;
+  }
+  // kExact: is a cell's entry the current cast of its ray?
+  bool Live(const RayEntry& e) const {
+    const PointRecord& rec = points[e.point];
+    return e.camera < rec.ray_cast.size() && rec.ray_cast[e.camera] &&
+           rec.ray_gen[e.camera] == e.level;
+  }
+  // The last W cameras of a point (internal indices): the rays a move re-casts.
+  std::vector<uint32_t> Window(const PointRecord& rec) const {
+    const size_t w = static_cast<size_t>(opt.window);
+    const size_t n = rec.cameras.size();
+    return std::vector<uint32_t>(rec.cameras.begin() + (n > w ? n - w : 0), rec.cameras.end());
+  }
+};
+
+// -------------------------------------------------------------------------------------------------
+// kExact: the rays held by cells about to be destroyed, each with the part of its segment
+// (parameter t in [0, 1] from its end to its camera) that lies in those cells, and the facet
+// through which it enters them (the cell before it, which survives, and the facet's index there).
+struct HoleRay {
+  uint32_t camera;  // the ray's index among its point's cameras
+  uint32_t point;
+  double t0, t1;
+  Cell_handle before;  // null: the part starts inside (at the ray's end) or is ambiguous
+  int facet;
+  Cell_handle first;   // the destroyed cell where the part starts (scratch)
+  int entry_face;
+  uint32_t next;       // next ray of the same point in the list (scratch)
+};
+struct Hole {
+  std::vector<HoleRay> rays;
+};
+
+// A tetrahedron's four face planes, oriented so that inside is n . x >= off on each.
+struct TetPlanes {
+  double n[4][3];
+  double off[4];
+};
+
+// Casting of viewing rays (paper §2.1). kWeights and kRays: one ray weights the cells
+// it traverses (T), their neighbours (N1) and theirs (N2), each cell once per ray. kExact: every
+// cell holds the rays (camera, point) whose segment crosses it, so a cell's weight is exactly w1
+// times their number; casting adds a ray to the cells its segment crosses, un-casting removes it
+// from the same cells (the ray keeps the end it was cast with, so both walk the same segment).
+// When the triangulation replaces cells (an insertion's conflict zone, a removed vertex's star),
+// the new cells fill exactly the volume of the old ones: the rays held by the old cells are
+// walked again through that volume only (CollectHole, RefillHole), and nothing else changes.
+class RayCaster {
+ public:
+  explicit RayCaster(EngineState& s) : s_(s) {}
+
+  // Camera cam -> point pt, cast (+1) or un-cast (-1); kExact: the point's ray from that camera.
+  void Cast(uint32_t cam, uint32_t pt, int sign);
+  // kExact: ray k of point pt out of its cells.
+  void ExactUncast(uint32_t pt, size_t k);
+  // kExact batches: the rays (point, k) cast (those not cast yet, from their points' current
+  // positions) or un-cast together, walked on the thread pool. Deterministic: the same weights,
+  // ray lists and free cells for any number of threads.
+  void CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
+  void UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
+  // kExact, before cells are destroyed: the rays they hold and where.
+  void CollectHole(const std::vector<Cell_handle>& cells, Hole* hole);
+  // kExact, after the new cells exist: each ray of the hole walked again through them.
+  void RefillHole(const std::vector<Cell_handle>& added, const Hole& hole);
+  // kRays: the whole-triangulation scan of Lovi et al., taking point pt's rays out of every cell.
+  void ScanRemoveRays(uint32_t pt);
+  // kRays: re-casts the rays of U, skipping points no longer in the triangulation and, if given,
+  // the rays of point `skip`.
+  void RecastRays(std::vector<RayEntry> u, int64_t skip);
+
+  // CGAL's traversal of a -> b: from the vertex `from` when a is its point (a ray of a point
+  // starts at its vertex: no point location, 9 % of the run on the street stream), else located
+  // from `hint` (a cell near a). Every walk of a ray starts the same way, so all agree on the
+  // cells of a ray that leaves its vertex along a facet or an edge.
+  Dt::Segment_cell_iterator BeginWalk(const Point& a, const Point& b, Cell_handle hint,
+                                      Vertex_handle from) const {
+    if (from != Vertex_handle() && from->point() == a)
+      return Dt::Segment_cell_iterator(&s_.dt, from, b);
+    return s_.dt.segment_traverser_cells_begin(a, b, hint);
+  }
+  static Vertex_handle StartVertex(const PointRecord& rec) {
+    return rec.in_triangulation ? rec.vertex : Vertex_handle();
+  }
+  // A cell near where a walk of a point's ray starts: the point's vertex when the ray ends
+  // there, else any cell near it (the traverser locates the start from it).
+  Cell_handle WalkHint(const PointRecord& rec) const {
+    if (rec.in_triangulation) return rec.vertex->cell();
+    return s_.last_vertex != Vertex_handle() ? s_.last_vertex->cell() : Cell_handle();
+  }
+
+  // Walks the segment a -> b through the cells it crosses (BeginWalk), calling visit(cell) once
+  // per finite cell. Stops at the hull or after max_cells_per_ray cells.
+  template <class Visit>
+  void Walk(const Point& a, const Point& b, Cell_handle hint, Vertex_handle from, Visit&& visit) {
+    ++s_.stamp;
+    int steps = 0;
+    try {
+      auto it = BeginWalk(a, b, hint, from);
+      const auto end = s_.dt.segment_traverser_cells_end();
+      for (; it != end; ++it) {
+        Cell_handle c = it;
+        if (s_.dt.is_infinite(c)) break;
+        if (++steps > s_.opt.max_cells_per_ray) {
+          ++s_.stats.rays_truncated;
+          break;
+        }
+        if (c->info().stamp == s_.stamp) continue;
+        c->info().stamp = s_.stamp;
+        visit(c);
+      }
+    } catch (...) {
+      ++s_.stats.rays_truncated;
+    }
+  }
+
+ private:
+  // A ray of a keyframe batch and where its walk's cells are.
+  struct BatchRay {
+    uint32_t point;
+    uint32_t k;    // the ray's index among its point's cameras
+    uint32_t gen;  // cast: its new generation; un-cast: the generation taken out
+    Point a, b;    // the segment walked (end -> camera)
+    Cell_handle hint;
+    Vertex_handle from;  // see BeginWalk
+    uint32_t worker = 0, offset = 0, count = 0;  // its cells in walk_cells_[worker]
+    bool truncated = false;
+  };
+  struct BatchPart {  // what one apply task changed besides the cells
+    uint64_t ledger = 0;
+    int64_t cells = 0, mismatches = 0;
+    std::vector<Cell_handle> became_free;
+  };
+  // The part t in [lo, hi] of segment a + t d (t in [0, 1]) inside a tetrahedron, the faces that
+  // bound it (-1: the segment's own end), and whether another face bounds it within rounding
+  // (the segment passes through an edge or a vertex there: the caller walks with exact
+  // predicates instead).
+  struct Clip {
+    double lo = 0.0, hi = 1.0;
+    int lo_face = -1, hi_face = -1;
+    bool lo_tie = false, hi_tie = false;
+    bool grazing = false;  // the segment runs within rounding of a face's plane
+  };
+
+  void CastWeights(uint32_t cam, uint32_t pt, int sign);  // kWeights and kRays
+  void ExactCast(uint32_t pt, size_t k);
+  bool RaySegment(const Point& p, const Point& cam, Point* start);
+  static size_t RayIndex(const PointRecord& rec, uint32_t cam);
+  void AddRay(Cell_handle c, uint32_t pt, uint32_t k);
+  bool PushRay(CellInfo* info, const RayEntry& e) const;
+  bool Holds(const CellInfo& info, const RayEntry& mine) const;
+  static constexpr size_t kSearchUncastBelow = 32;
+
+  util::ThreadPool& Pool();
+  static size_t Owner(Cell_handle c, size_t parts);
+  bool Trace(const BatchRay& r, std::vector<Cell_handle>* out) const;
+  template <class Apply>
+  std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, Apply&& apply);
+  void MergeParts(const std::vector<BatchPart>& parts);
+
+  static TetPlanes PlanesOf(Cell_handle c);
+  static bool ClipSegment(const TetPlanes& t, const double a[3], const double d[3], Clip* out);
+
+  EngineState& s_;
+  std::vector<Cell_handle> ring_[2];  // T and N1 of the ray being cast.
+  std::vector<Cell_handle> given_;    // RefillHole: new cells given the ray being walked.
+  std::unique_ptr<util::ThreadPool> pool_;
+  std::vector<std::vector<Cell_handle>> walk_cells_;  // per worker
+  std::vector<uint64_t> point_hole_mark_;  // per point: the hole that lists its rays
+  std::vector<uint32_t> point_hole_head_;  // per point: its first ray in that hole's list
+  uint64_t hole_count_ = 0;
+  std::vector<TetPlanes> fresh_planes_;    // planes of the cells being made, by their slot
+};
+
+// -------------------------------------------------------------------------------------------------
+// What the cells a change destroys (R) hand to the cells it makes (A).
+struct Removed {
+  std::vector<double> centroids;
+  std::vector<double> weights;
+  std::vector<RayEntry> rays;  // kRays: rays stored in R (the set U of Lovi et al.).
+  Hole hole;                   // kExact: the rays R's cells hold, and where.
+};
+
+// Transfer of weights from removed cells R to new cells A (efficient approach, paper §3.2): the
+// weight-transfer policy in weights mode, the rays of the hole walked again in exact mode.
+class WeightTransfer {
+ public:
+  WeightTransfer(EngineState& s, WeightTransferPolicy* policy, RayCaster& caster)
+      : s_(s), policy_(policy), caster_(caster) {}
+
+  // Before the cells are destroyed: what they hand over (their weights leave the ledger).
+  void CollectRemoved(const std::vector<Cell_handle>& cells, Removed* r);
+  // After the new cells exist: their weights. `transfer`: through the policy (weights mode);
+  // else they start at 0.
+  void AssignNewCells(const std::vector<Cell_handle>& added, const Removed& r, bool transfer);
+  // transfer_camera_side for the changes that follow: the point being inserted and its cameras
+  // (null: no such rule). The pointers must stay valid until the next call.
+  void SetCameraSide(const Point* apex, const std::vector<uint32_t>* cameras) {
+    side_apex_ = apex;
+    side_cams_ = cameras;
+  }
+
+ private:
+  EngineState& s_;
+  WeightTransferPolicy* policy_;
+  RayCaster& caster_;
+  const Point* side_apex_ = nullptr;
+  const std::vector<uint32_t>* side_cams_ = nullptr;
+};
+
+// -------------------------------------------------------------------------------------------------
+// O, the manifold set of outside cells, and its boundary dO (paper §2.2).
+class Carving {
+ public:
+  explicit Carving(EngineState& s) : s_(s) {}
+
+  // Toggling one cell in or out of O keeps dO a 2-manifold: the combinatorial form the engine
+  // uses, and the reference form (each of the cell's four vertices' links rebuilt).
+  bool ToggleKeepsManifold(Cell_handle c);
+  bool ToggleKeepsManifoldByLinks(Cell_handle c);
+  void SetInO(Cell_handle c, bool in);
+  // shrink: removes from O the cells of an enclosing set E of D; returns whether D no longer
+  // meets O.
+  bool Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>& centres);
+  // Takes out of O every cell with a vertex within `radius` of one of the given vertices.
+  void PeelAround(const std::vector<Vertex_handle>& centres, double radius);
+  // grow: the free cells touching dO join O, highest weight first, while dO stays manifold.
+  void Grow();
+
+ private:
+  bool VertexRegular(Vertex_handle v, Cell_handle toggled);
+  bool VertexTouchesSide(Cell_handle c, int i, bool adding);
+  bool EdgeTouchesSide(Cell_handle c, int i, int j, bool adding) const;
+  uint32_t NewRegion();
+  template <typename Cells, typename InRegion, typename Done>
+  bool PeelFromO(const Cells& region, InRegion in_region, Done done);
+
+  EngineState& s_;
+  std::vector<Cell_handle> incident_;  // scratch
+  std::vector<Cell_handle> star_;      // scratch
+};
+
+// -------------------------------------------------------------------------------------------------
+// The Steiner grid: spacing steiner_spacing, covering every camera +- (max_ray_length + margin),
+// each point off its node by a deterministic jitter.
+class SteinerGrid {
+ public:
+  explicit SteinerGrid(const EngineOptions& opt) : opt_(opt) {}
+  // The grid's points within reach of a camera that were not placed before, in placement order.
+  std::vector<Point> NewPoints(const Point& camera);
+
+ private:
+  const EngineOptions& opt_;
+  std::unordered_set<uint64_t> keys_;  // nodes placed
+};
+
+// dO's facets: between a cell of O and a cell outside O, oriented toward the O cell.
+struct Triangle {
+  Vertex_handle v[3];
+};
+std::vector<Triangle> Boundary(const EngineState& s);
+
+// -------------------------------------------------------------------------------------------------
+// The invariants (Engine::CheckInvariants): O's counters, dO closed, oriented and manifold, the
+// weights within what casting and transfer can make and equal to their ledger, a valid
+// triangulation.
+class InvariantChecker {
+ public:
+  explicit InvariantChecker(const EngineState& s) : s_(s) {}
+  ManifoldCheckResult Check() const;
+  // A vertex or a cell as a user would find it: the point's id (or the Steiner point's number)
+  // and where it is.
+  std::string DescribeVertex(Vertex_handle v) const;
+  std::string DescribeCell(Cell_handle c) const;
+
+ private:
+  void CheckWeights(const std::function<void(const std::string&)>& fail) const;
+  const EngineState& s_;
+};
+
+}  // namespace imr::engine::detail
+
+namespace imr::engine {
+
+// The conductor of a keyframe (ApplyUpdate): validate, cameras and their Steiner points,
+// removals, moves, insertions, the exact mode's batches, peel and grow.
+struct Engine::Impl {
+  using Point = detail::Point;
+  using Cell_handle = detail::Cell_handle;
+  using Vertex_handle = detail::Vertex_handle;
+  using RayEntry = detail::RayEntry;
+
+  Impl(const EngineOptions& o, WeightTransferPolicy* p);
+
+  Status ApplyUpdate(const KeyframeUpdate& u);
+  Mesh ToMesh(const std::vector<detail::Triangle>& tris, SteinerExportRule rule) const;
+
+  detail::EngineState s;
+  detail::RayCaster caster;
+  detail::WeightTransfer transfer;
+  detail::Carving carving;
+  detail::SteinerGrid steiner;
+  Status init;
+
+ private:
+  Status Validate(const KeyframeUpdate& u) const;
+  void AddCameras(detail::PointRecord& rec, const std::vector<uint64_t>& ids,
+                  std::vector<uint32_t>* added);
+  Vertex_handle InsertPoint(const Point& p, int64_t vertex_id, bool with_policy, bool* duplicate,
+                            std::vector<RayEntry>* rays);
+  void RemoveVertex(Vertex_handle v, std::vector<RayEntry>* rays);
+  void PlaceSteinerPoints(const Point& camera);
+  void TimedCast(uint32_t cam, uint32_t pt, int sign);
+  void TimedRecast(std::vector<RayEntry> u, int64_t skip);
+  void TimedScan(uint32_t pt);
+  void RemovePoint(uint32_t pt);
+  void ExactRemovePoint(uint32_t pt);
+  bool DelaunayAfterMove(Vertex_handle v, const Point& p, const std::vector<Cell_handle>& star);
+  bool ShrinkMoveRegion(Vertex_handle v, const Point& p_old, const Point& p_new,
+                        std::vector<Cell_handle>* d);
+  void ExactMovePoint(uint32_t pt, const MovedPoint& m);
+  void MovePoint(uint32_t pt, const MovedPoint& m);
+  void InsertNewPoint(const NewPoint& np);
+  bool Enter(uint32_t pt, bool again);
+  void MoveAbsentPoint(uint32_t pt, const MovedPoint& m);
+  void UncastMoving(const KeyframeUpdate& u);
+  void CastUpdated(const KeyframeUpdate& u);
+
+  int64_t steiner_count_ = 0;
+  std::vector<uint32_t> entered_;  // kExact: points that entered during this update
+};
+
+}  // namespace imr::engine

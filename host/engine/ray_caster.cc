@@ -1,0 +1,553 @@
+// Casting of viewing rays (engine_parts.h, RayCaster): one ray at a time in the weights and rays
+// modes; in exact mode, the ray sets of the cells, cast and un-cast in keyframe batches on the
+// thread pool, and the holes a change of the triangulation opens in them.
+#include "host/engine/engine_parts.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace imr::engine::detail {
+
+void RayCaster::Cast(uint32_t cam, uint32_t pt, int sign) {
+  if (s_.opt.visibility_mode != VisibilityMode::kExact) {
+    CastWeights(cam, pt, sign);
+    return;
+  }
+  const size_t k = RayIndex(s_.points[pt], cam);
+  if (k == static_cast<size_t>(-1)) return;
+  if (sign > 0) ExactCast(pt, k);
+  else ExactUncast(pt, k);
+}
+
+// cast_rays: one viewing ray, camera centre -> point. T = traversed cells, N1 = their
+// neighbours, N2 = neighbours of N1; each cell once per ray (paper §2.1).
+void RayCaster::CastWeights(uint32_t cam, uint32_t pt, int sign) {
+  const PointRecord& rec = s_.points[pt];
+  if (!rec.in_triangulation) return;
+  if (s_.dt.dimension() != 3) return;
+  const Point& b = s_.cameras[cam];
+  Point a;
+  if (!RaySegment(rec.vertex->point(), b, &a)) return;
+  if (sign > 0) ++s_.stats.rays_cast;
+  else ++s_.stats.rays_cast_backward;
+  ring_[0].clear();
+  ring_[1].clear();
+  const bool rays_mode = s_.opt.visibility_mode == VisibilityMode::kRays;
+  // Each cell is weighted when it is first reached (T, then N1, then N2), while it is in cache;
+  // only T and N1 are kept, to find the next ring.
+  auto weigh = [&](Cell_handle c, int level) {
+    CellInfo& info = c->info();
+    const int64_t before = info.weight;
+    const bool was_free = before > s_.threshold;
+    if (rays_mode) {
+      // Lovi et al.: a cell remembers the rays that raised its weight (at most K, oldest
+      // forgotten); a ray already stored is not counted twice when it is re-cast.
+      for (const RayEntry& e : info.rays)
+        if (e.camera == cam && e.point == pt) return;
+      info.weight += s_.unit[level];
+      info.rays.push_back({cam, pt, static_cast<uint8_t>(level)});
+      if (static_cast<int>(info.rays.size()) > s_.opt.rays_per_cell)
+        info.rays.erase(info.rays.begin());
+    } else {
+      info.weight += sign * s_.unit[level];
+      if (s_.opt.nonnegative_weights && info.weight < 0) info.weight = 0;
+    }
+    s_.Ledger(before, info.weight);
+    if (!was_free && info.weight > s_.threshold) s_.MarkDirty(c);
+  };
+  // T: the walk from the point's own vertex (no point location, ~15x faster than a walk from an
+  // arbitrary cell), to the cell holding the camera, the hull or max_cells_per_ray cells. N1 and
+  // N2 are found with the walk's stamp.
+  Walk(a, b, rec.vertex->cell(), rec.vertex, [&](Cell_handle c) {
+    ring_[0].push_back(c);
+    weigh(c, 0);
+  });
+  s_.stats.cells_traversed += static_cast<int64_t>(ring_[0].size());
+  int64_t weighted = static_cast<int64_t>(ring_[0].size());
+  for (int level = 1; level < 3; ++level)
+    for (Cell_handle c : ring_[level - 1])
+      for (int i = 0; i < 4; ++i) {
+        Cell_handle n = c->neighbor(i);
+        if (n->info().stamp == s_.stamp || s_.dt.is_infinite(n)) continue;
+        n->info().stamp = s_.stamp;
+        if (level == 1) ring_[1].push_back(n);
+        weigh(n, level);
+        ++weighted;
+      }
+  s_.stats.cells_weighted += weighted;
+}
+
+// Index of camera `cam` in a point's list, or npos.
+size_t RayCaster::RayIndex(const PointRecord& rec, uint32_t cam) {
+  for (size_t k = 0; k < rec.cameras.size(); ++k)
+    if (rec.cameras[k] == cam) return k;
+  return static_cast<size_t>(-1);
+}
+
+// Adds ray k of point pt (its current generation) to a cell. A cell's list keeps stale entries
+// until it is destroyed or holds twice as many entries as rays: then it is compacted.
+void RayCaster::AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
+  const int64_t before = c->info().weight;
+  if (PushRay(&c->info(), {k, pt, s_.points[pt].ray_gen[k]})) s_.MarkDirty(c);
+  s_.Ledger(before, c->info().weight);
+}
+
+// The entry and its weight; true when the cell just became free. Reads only the points' ray
+// states besides the cell: safe on several threads for distinct cells.
+bool RayCaster::PushRay(CellInfo* info, const RayEntry& e) const {
+  const int64_t before = info->weight;
+  const int64_t live = s_.unit[0] > 0 ? before / s_.unit[0] : 0;
+  if (static_cast<int64_t>(info->rays.size()) >= 2 * live + 8) {
+    info->rays.erase(std::remove_if(info->rays.begin(), info->rays.end(),
+                                    [&](const RayEntry& x) { return !s_.Live(x); }),
+                     info->rays.end());
+  }
+  info->rays.push_back(e);
+  info->weight += s_.unit[0];
+  return before <= s_.threshold && info->weight > s_.threshold;
+}
+
+// The segment a ray carves: from its point to its camera, or, for a ray longer than
+// max_ray_length with long_rays = near_camera, the max_ray_length next to the camera (the
+// space near the camera is free whatever the far end is). False: the ray carves nothing.
+bool RayCaster::RaySegment(const Point& p, const Point& cam, Point* start) {
+  const double len2 = CGAL::squared_distance(p, cam);
+  if (len2 <= 0.0) return false;  // A point at the camera centre carves nothing.
+  if (len2 <= s_.opt.max_ray_length * s_.opt.max_ray_length) {
+    *start = p;
+    return true;
+  }
+  ++s_.stats.rays_skipped_too_long;
+  if (s_.opt.long_rays == LongRays::kSkip) return false;
+  ++s_.stats.rays_truncated_to_camera;
+  const double f = s_.opt.max_ray_length / std::sqrt(len2);
+  *start = Point(cam.x() + f * (p.x() - cam.x()), cam.y() + f * (p.y() - cam.y()),
+                 cam.z() + f * (p.z() - cam.z()));
+  return true;
+}
+
+// Ray k of point pt, cast from the point's current position.
+void RayCaster::ExactCast(uint32_t pt, size_t k) {
+  PointRecord& rec = s_.points[pt];
+  if (!rec.in_triangulation || rec.ray_cast[k] || s_.dt.dimension() != 3) return;
+  const uint32_t cam = rec.cameras[k];
+  const Point& b = s_.cameras[cam];
+  Point a;
+  if (!RaySegment(rec.vertex->point(), b, &a)) return;
+  ++s_.stats.rays_cast;
+  int64_t n = 0;
+  rec.ray_cast[k] = 1;
+  rec.ray_end[k] = a;
+  Walk(a, b, rec.vertex->cell(), rec.vertex, [&](Cell_handle c) {
+    AddRay(c, pt, static_cast<uint32_t>(k));
+    ++n;
+  });
+  s_.stats.cells_traversed += n;
+  s_.stats.cells_weighted += n;
+}
+
+// Takes ray k of point pt out of the cells it was cast into: the same segment walked again
+// takes one off each cell's count; its entries there become stale (a new generation).
+// A short list is searched first (a cell reached only by a walk that disagrees with the one
+// that gave it the ray, through an edge or a vertex, keeps its count); a long one, deep in free
+// space, is not: that would cost more than all the rest.
+void RayCaster::ExactUncast(uint32_t pt, size_t k) {
+  PointRecord& rec = s_.points[pt];
+  if (!rec.ray_cast[k]) return;
+  const RayEntry mine{static_cast<uint32_t>(k), pt, rec.ray_gen[k]};
+  rec.ray_cast[k] = 0;
+  ++rec.ray_gen[k];
+  ++s_.stats.rays_cast_backward;
+  const uint32_t cam = rec.cameras[k];
+  Walk(rec.ray_end[k], s_.cameras[cam], WalkHint(rec), StartVertex(rec), [&](Cell_handle c) {
+    const int64_t before = c->info().weight;
+    if (!Holds(c->info(), mine)) {
+      ++s_.stats.ray_mismatches;
+      return;
+    }
+    c->info().weight -= s_.unit[0];
+    s_.Ledger(before, c->info().weight);
+  });
+}
+
+// Whether an un-cast may take the ray `mine` off the cell (see ExactUncast).
+bool RayCaster::Holds(const CellInfo& info, const RayEntry& mine) const {
+  if (info.weight < s_.unit[0]) return false;
+  if (info.rays.size() > kSearchUncastBelow) return true;
+  for (const RayEntry& e : info.rays)
+    if (e.point == mine.point && e.camera == mine.camera && e.level == mine.level) return true;
+  return false;
+}
+
+// kExact batches: the rays a keyframe casts (or un-casts) together, walked on several threads.
+// The walks only read the triangulation; what they found is then applied cell by cell, each
+// cell by one thread and its rays in batch order, so weights, ray lists and all that follows
+// are the same for any number of threads.
+util::ThreadPool& RayCaster::Pool() {
+  if (!pool_) pool_ = std::make_unique<util::ThreadPool>(util::ResolveThreads(s_.opt.num_threads));
+  return *pool_;
+}
+
+// Which apply task owns a cell: a hash of its address (fixed while the cell lives).
+size_t RayCaster::Owner(Cell_handle c, size_t parts) {
+  const uint64_t h = (reinterpret_cast<uintptr_t>(&*c) >> 4) * 0x9E3779B97F4A7C15ull;
+  return static_cast<size_t>((h >> 32) % parts);
+}
+
+// The finite cells the segment a -> b crosses, in order, as Walk visits them but without its
+// stamps (a cell may repeat; the apply step skips repeats). Thread-safe: reads only.
+bool RayCaster::Trace(const BatchRay& r, std::vector<Cell_handle>* out) const {
+  int steps = 0;
+  try {
+    auto it = BeginWalk(r.a, r.b, r.hint, r.from);
+    const auto end = s_.dt.segment_traverser_cells_end();
+    for (; it != end; ++it) {
+      Cell_handle c = it;
+      if (s_.dt.is_infinite(c)) break;
+      if (++steps > s_.opt.max_cells_per_ray) return false;
+      out->push_back(c);
+    }
+  } catch (...) {
+    return false;
+  }
+  return true;
+}
+
+// Walks every ray of the batch (in parallel), then calls apply(ray, cell, part) for each cell
+// each ray crosses, once per ray and cell, in batch order per cell; returns the parts.
+template <class Apply>
+std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& rays, Apply&& apply) {
+  util::ThreadPool& tp = Pool();
+  const size_t workers = static_cast<size_t>(tp.size());
+  walk_cells_.resize(workers);
+  for (auto& w : walk_cells_) w.clear();
+  constexpr size_t kChunk = 32;
+  const size_t chunks = (rays.size() + kChunk - 1) / kChunk;
+  tp.Run(chunks, [&](size_t chunk, int worker) {
+    std::vector<Cell_handle>& out = walk_cells_[static_cast<size_t>(worker)];
+    for (size_t i = chunk * kChunk; i < std::min(rays.size(), (chunk + 1) * kChunk); ++i) {
+      BatchRay& r = rays[i];
+      r.worker = static_cast<uint32_t>(worker);
+      r.offset = static_cast<uint32_t>(out.size());
+      r.truncated = !Trace(r, &out);
+      r.count = static_cast<uint32_t>(out.size() - r.offset);
+    }
+  });
+  const size_t parts = rays.size() < 64 ? 1 : workers;
+  std::vector<BatchPart> part(parts);
+  const uint64_t base = s_.stamp + 1;
+  s_.stamp += rays.size();
+  tp.Run(parts, [&](size_t t, int) {
+    BatchPart& p = part[t];
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const BatchRay& r = rays[i];
+      const Cell_handle* cells = walk_cells_[r.worker].data() + r.offset;
+      const uint64_t s = base + i;
+      for (uint32_t j = 0; j < r.count; ++j) {
+        const Cell_handle c = cells[j];
+        if ((parts > 1 && Owner(c, parts) != t) || c->info().stamp == s) continue;
+        c->info().stamp = s;
+        apply(r, c, p);
+      }
+    }
+  });
+  for (const BatchRay& r : rays) s_.stats.rays_truncated += r.truncated ? 1 : 0;
+  return part;
+}
+
+void RayCaster::MergeParts(const std::vector<BatchPart>& parts) {
+  for (const BatchPart& p : parts) {
+    s_.weight_ledger += p.ledger;
+    s_.stats.ray_mismatches += p.mismatches;
+    for (Cell_handle c : p.became_free) s_.MarkDirty(c);
+  }
+}
+
+// Casts the rays (point, k) that are not cast yet, from their points' current positions.
+void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo) {
+  if (s_.dt.dimension() != 3) return;
+  std::vector<BatchRay> rays;
+  for (const auto& [pt, k] : todo) {
+    PointRecord& rec = s_.points[pt];
+    if (!rec.in_triangulation || rec.ray_cast[k]) continue;
+    const Point& b = s_.cameras[rec.cameras[k]];
+    Point a;
+    if (!RaySegment(rec.vertex->point(), b, &a)) continue;
+    ++s_.stats.rays_cast;
+    rec.ray_cast[k] = 1;
+    rec.ray_end[k] = a;
+    rays.push_back({pt, k, rec.ray_gen[k], a, b, rec.vertex->cell(), rec.vertex});
+  }
+  const std::vector<BatchPart> parts =
+      RunBatch(rays, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+        if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
+        p.ledger += static_cast<uint64_t>(s_.unit[0]);
+        ++p.cells;
+      });
+  MergeParts(parts);
+  for (const BatchPart& p : parts)
+    s_.stats.cells_traversed += p.cells, s_.stats.cells_weighted += p.cells;
+}
+
+// Takes the rays (point, k) that are cast out of their cells (as ExactUncast does, together).
+void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo) {
+  std::vector<BatchRay> rays;
+  for (const auto& [pt, k] : todo) {
+    PointRecord& rec = s_.points[pt];
+    if (!rec.ray_cast[k]) continue;
+    rays.push_back({pt, k, rec.ray_gen[k], rec.ray_end[k], s_.cameras[rec.cameras[k]],
+                    WalkHint(rec), StartVertex(rec)});
+    rec.ray_cast[k] = 0;
+    ++rec.ray_gen[k];
+    ++s_.stats.rays_cast_backward;
+  }
+  MergeParts(RunBatch(rays, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+    CellInfo& info = c->info();
+    if (!Holds(info, {r.k, r.point, r.gen})) {
+      ++p.mismatches;
+      return;
+    }
+    info.weight -= s_.unit[0];
+    p.ledger -= static_cast<uint64_t>(s_.unit[0]);
+  }));
+}
+
+TetPlanes RayCaster::PlanesOf(Cell_handle c) {
+  TetPlanes t;
+  for (int i = 0; i < 4; ++i) {
+    const Point& p0 = c->vertex((i + 1) & 3)->point();
+    const Point& p1 = c->vertex((i + 2) & 3)->point();
+    const Point& p2 = c->vertex((i + 3) & 3)->point();
+    const Point& q = c->vertex(i)->point();
+    const double u[3] = {p1.x() - p0.x(), p1.y() - p0.y(), p1.z() - p0.z()};
+    const double v[3] = {p2.x() - p0.x(), p2.y() - p0.y(), p2.z() - p0.z()};
+    double* n = t.n[i];
+    n[0] = u[1] * v[2] - u[2] * v[1];
+    n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+    const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    double off = n[0] * p0.x() + n[1] * p0.y() + n[2] * p0.z();
+    const double side = n[0] * q.x() + n[1] * q.y() + n[2] * q.z() - off;
+    const double sign = (side < 0.0 ? -1.0 : 1.0) / (nn > 0.0 ? nn : 1.0);
+    for (int k = 0; k < 3; ++k) n[k] *= sign;
+    t.off[i] = off * sign;
+  }
+  return t;
+}
+
+bool RayCaster::ClipSegment(const TetPlanes& t, const double a[3], const double d[3], Clip* out) {
+  Clip c;
+  const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  const double eps = 1e-9;  // in t: well below any cell a ray crosses
+  for (int i = 0; i < 4; ++i) {
+    const double f0 = t.n[i][0] * a[0] + t.n[i][1] * a[1] + t.n[i][2] * a[2] - t.off[i];
+    const double fd = t.n[i][0] * d[0] + t.n[i][1] * d[1] + t.n[i][2] * d[2];
+    if (std::abs(fd) <= 1e-12 * len) {
+      if (f0 < -1e-9 * len) return false;
+      if (f0 <= 1e-9 * len) c.grazing = true;
+      continue;
+    }
+    const double ti = -f0 / fd;
+    if (fd > 0.0) {  // entering through face i
+      if (ti > c.lo + eps) c.lo = ti, c.lo_face = i, c.lo_tie = false;
+      else if (ti > c.lo - eps && c.lo_face >= 0) c.lo_tie = true;
+    } else {  // leaving through face i
+      if (ti < c.hi - eps) c.hi = ti, c.hi_face = i, c.hi_tie = false;
+      else if (ti < c.hi + eps && c.hi_face >= 0) c.hi_tie = true;
+    }
+  }
+  *out = c;
+  return c.lo <= c.hi + eps;
+}
+
+// kExact, before cells are destroyed: the rays they hold and where.
+void RayCaster::CollectHole(const std::vector<Cell_handle>& cells, Hole* hole) {
+  std::vector<HoleRay>& out = hole->rays;
+  out.clear();
+  ++hole_count_;
+  if (point_hole_mark_.size() < s_.points.size()) {
+    point_hole_mark_.resize(s_.points.size(), 0);
+    point_hole_head_.resize(s_.points.size(), 0);
+  }
+  for (Cell_handle c : cells) c->info().fresh = true;  // "destroyed" while collecting
+  for (Cell_handle c : cells) {
+    if (s_.dt.is_infinite(c) || c->info().rays.empty()) continue;
+    const TetPlanes planes = PlanesOf(c);
+    for (const RayEntry& e : c->info().rays) {
+      if (!s_.Live(e)) continue;  // a stale entry: dropped with the cell
+      const PointRecord& rec = s_.points[e.point];
+      const size_t k = e.camera;
+      const Point& end = rec.ray_end[k];
+      const Point& cam = s_.cameras[rec.cameras[k]];
+      const double a[3] = {end.x(), end.y(), end.z()};
+      const double d[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
+      Clip cl;
+      HoleRay r{e.camera, e.point, 0.0, 1.0, Cell_handle(), -1, Cell_handle(), -1, 0};
+      if (ClipSegment(planes, a, d, &cl)) {
+        r.t0 = cl.lo;
+        r.t1 = cl.hi;
+        if (cl.lo_face >= 0 && !cl.lo_tie) r.first = c, r.entry_face = cl.lo_face;
+      }
+      // Merge with the ray's other parts: the hull of the parts, entered at the first one.
+      uint32_t* link = nullptr;
+      bool merged = false;
+      if (point_hole_mark_[e.point] == hole_count_) {
+        for (uint32_t i = point_hole_head_[e.point];; i = out[i].next) {
+          HoleRay& x = out[i];
+          if (x.camera == e.camera) {
+            if (r.t0 < x.t0) x.t0 = r.t0, x.first = r.first, x.entry_face = r.entry_face;
+            x.t1 = std::max(x.t1, r.t1);
+            merged = true;
+            break;
+          }
+          if (x.next == 0xFFFFFFFFu) {
+            link = &x.next;
+            break;
+          }
+        }
+      } else {
+        point_hole_mark_[e.point] = hole_count_;
+        point_hole_head_[e.point] = static_cast<uint32_t>(out.size());
+      }
+      if (merged) continue;
+      r.next = 0xFFFFFFFFu;
+      if (link) *link = static_cast<uint32_t>(out.size());
+      out.push_back(r);
+    }
+  }
+  for (HoleRay& r : out) {
+    if (r.first == Cell_handle() || r.t0 <= 0.0) continue;
+    const Cell_handle b = r.first->neighbor(r.entry_face);
+    if (s_.dt.is_infinite(b) || b->info().fresh) continue;  // entered at an edge: ambiguous
+    r.before = b;
+    r.facet = b->index(r.first);
+  }
+  for (Cell_handle c : cells) c->info().fresh = false;
+}
+
+// kExact, after the new cells exist: each ray of the hole walked again over its part inside
+// the hole (a little beyond, for rounding), adding it to the new cells it crosses. The walk
+// starts at the surviving facet where the ray entered the hole (or at its end's vertex) and
+// steps from face to face; where it passes within rounding of an edge or a vertex, it walks
+// with CGAL's exact traversal instead.
+void RayCaster::RefillHole(const std::vector<Cell_handle>& added, const Hole& h) {
+  const std::vector<HoleRay>& hole = h.rays;
+  if (hole.empty()) return;
+  Cell_handle hint;
+  fresh_planes_.clear();
+  for (Cell_handle c : added) {
+    if (s_.dt.is_infinite(c)) continue;
+    c->info().fresh = true;
+    c->info().slot = static_cast<uint32_t>(fresh_planes_.size());
+    fresh_planes_.push_back(PlanesOf(c));
+    if (hint == Cell_handle()) hint = c;
+  }
+  constexpr double kPad = 1e-6;
+  // A face-to-face walk meets each new cell once per ray; when it gives up part way, the exact
+  // walk skips the cells it already gave the ray.
+  std::vector<Cell_handle>& given = given_;
+  auto add = [&](Cell_handle c, const HoleRay& r, bool check) {
+    if (!c->info().fresh) return;
+    if (check && std::find(given.begin(), given.end(), c) != given.end()) return;
+    if (!check) given.push_back(c);
+    AddRay(c, r.point, r.camera);
+    ++s_.stats.cells_rewalked;
+  };
+  for (const HoleRay& r : hole) {
+    const PointRecord& rec = s_.points[r.point];
+    const size_t k = r.camera;  // the ray's index among its point's s_.cameras
+    const Point& e = rec.ray_end[k];
+    const Point& cam = s_.cameras[rec.cameras[k]];
+    given.clear();
+    const double a[3] = {e.x(), e.y(), e.z()};
+    const double d[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
+    const double t_end = std::min(1.0, r.t1 + kPad);
+    ++s_.stats.rays_rewalked;
+    // The start: the cell behind the entry facet, or the new cell at the ray's end vertex.
+    Cell_handle c;
+    double t = r.t0;
+    if (r.before != Cell_handle()) {
+      c = r.before->neighbor(r.facet);
+    } else if (r.t0 <= 0.0 && rec.in_triangulation && rec.vertex->point() == e) {
+      // The new cell at the ray's end vertex that the ray leaves into; none or two (it leaves
+      // along a facet or an edge): the exact walk decides.
+      int found = 0;
+      for (Cell_handle x : added) {
+        if (s_.dt.is_infinite(x) || !x->has_vertex(rec.vertex)) continue;
+        Clip cl;
+        if (ClipSegment(fresh_planes_[x->info().slot], a, d, &cl) && cl.lo <= 1e-9 &&
+            cl.hi > 1e-9) {
+          c = x;
+          if (++found > 1 || cl.hi_tie || cl.grazing) break;
+        }
+      }
+      if (found != 1) c = Cell_handle();
+      t = 0.0;
+    }
+    bool exact = c == Cell_handle();
+    for (int steps = 0; !exact; ++steps) {
+      if (steps > s_.opt.max_cells_per_ray) {
+        exact = true;
+        break;
+      }
+      Clip cl;
+      const bool ok = c->info().fresh
+                          ? ClipSegment(fresh_planes_[c->info().slot], a, d, &cl)
+                          : ClipSegment(PlanesOf(c), a, d, &cl);
+      if (!ok || cl.hi_tie || cl.grazing || cl.hi_face < 0 || cl.hi < t - 1e-9) {
+        exact = true;
+        break;
+      }
+      add(c, r, false);
+      if (cl.hi >= t_end) break;
+      const Cell_handle next = c->neighbor(cl.hi_face);
+      if (s_.dt.is_infinite(next)) break;
+      t = cl.hi;
+      c = next;
+    }
+    if (exact) {
+      // The whole ray with exact predicates, as casting and un-casting walk it (cells already
+      // given the ray are skipped): where a part of it runs through an edge or a vertex, a
+      // walk of that part alone could choose other cells than the whole walk does.
+      ++s_.stats.rays_rewalked_exact;
+      Walk(e, cam, rec.in_triangulation ? WalkHint(rec) : hint, StartVertex(rec),
+           [&](Cell_handle x) { add(x, r, true); });
+    }
+  }
+  for (Cell_handle c : added) c->info().fresh = false;
+}
+
+// kRays: the whole-triangulation scan of Lovi et al. - remove from every cell the rays ending
+// at point pt, and their contribution to the weight.
+void RayCaster::ScanRemoveRays(uint32_t pt) {
+  for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c) {
+    ++s_.stats.rays_scan_cells;
+    auto& rs = c->info().rays;
+    for (size_t i = 0; i < rs.size();) {
+      if (rs[i].point == pt) {
+        s_.Ledger(s_.unit[rs[i].level], 0);
+        c->info().weight -= s_.unit[rs[i].level];
+        rs.erase(rs.begin() + static_cast<std::ptrdiff_t>(i));
+      } else {
+        ++i;
+      }
+    }
+  }
+}
+
+// Re-casts the rays of U (kRays), skipping rays of points no longer in the triangulation and,
+// if given, the rays of point `skip`.
+void RayCaster::RecastRays(std::vector<RayEntry> u, int64_t skip) {
+  std::sort(u.begin(), u.end(), [](const RayEntry& a, const RayEntry& b) {
+    return a.point != b.point ? a.point < b.point : a.camera < b.camera;
+  });
+  u.erase(std::unique(u.begin(), u.end(),
+                      [](const RayEntry& a, const RayEntry& b) {
+                        return a.point == b.point && a.camera == b.camera;
+                      }),
+          u.end());
+  for (const RayEntry& r : u)
+    if (static_cast<int64_t>(r.point) != skip) Cast(r.camera, r.point, +1);
+}
+
+}  // namespace imr::engine::detail
