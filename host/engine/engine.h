@@ -84,6 +84,10 @@ struct EngineOptions {
   double regrow_radius = 2.0;         // After each update, cells within this distance of a moved
                                       // or new point leave O (keeping it manifold) and are grown
                                       // again in weight order; 0: off.
+  double min_move_fraction = 0.0;     // A move shorter than this fraction of the distance from
+                                      // the point's vertex to its nearest neighbour is not made:
+                                      // the vertex and its rays stay (new cameras are cast from
+                                      // it) and the next move is measured from it; 0: every move.
   SteinerExportRule steiner_export = SteinerExportRule::kAnySteiner;  // Export filter.
   double fill_holes_perimeter = 16.0; // Export: holes of the exported mesh with a perimeter up
                                       // to this (metres; 0: none) are closed by a fan around a
@@ -193,6 +197,8 @@ struct EngineStats {
   int64_t moves_duplicate = 0;        // Move onto an existing vertex: refused (moves_skipped).
   int64_t moves_in_place = 0;         // kExact moves that kept the cells (the vertex stayed inside
                                       // its star and no facet flipped): no re-insertion.
+  int64_t moves_below_min = 0;        // Moves shorter than min_move_fraction of the local
+                                      // spacing: not made.
   int64_t points_reentered = 0;       // Points refused at insertion that entered at a later move.
   int64_t points_removed = 0;
   int64_t steiner_points = 0;

@@ -69,6 +69,8 @@ std::string EngineOptions::Check() const {
     e << "fill_holes_perimeter must be >= 0; ";
   if (smoothing_iterations < 0) e << "smoothing_iterations must be >= 0; ";
   if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";
+  if (!(min_move_fraction >= 0.0 && min_move_fraction <= 1.0))
+    e << "min_move_fraction must be in [0, 1]; ";
   if (!finite_positive(max_ray_length)) e << "max_ray_length must be > 0; ";
   if (rays_per_cell < 1) e << "rays_per_cell must be >= 1; ";
   if (!std::isfinite(shrink_radius) || shrink_radius < 0.0) e << "shrink_radius must be >= 0; ";

@@ -541,11 +541,13 @@ struct Engine::Impl {
   void InsertNewPoint(const NewPoint& np);
   bool Enter(uint32_t pt, bool again);
   void MoveAbsentPoint(uint32_t pt, const MovedPoint& m);
+  void FindShortMoves(const KeyframeUpdate& u);
   void UncastMoving(const KeyframeUpdate& u);
   void CastUpdated(const KeyframeUpdate& u);
 
   int64_t steiner_count_ = 0;
   std::vector<uint32_t> entered_;  // kExact: points that entered during this update
+  std::vector<uint8_t> short_move_;  // per moved point of the update: too short to make
 };
 
 }  // namespace imr::engine

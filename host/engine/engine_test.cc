@@ -194,6 +194,47 @@ TEST_P(SmallSceneTest, WallIsCarvedAndMovesKeepTheManifold) {
   EXPECT_FALSE(engine_->PointPosition(40, &p) && engine_->Stats().points_removed == 4);
 }
 
+// min_move_fraction: a move shorter than that fraction of the distance to the nearest vertex is
+// not made (the vertex stays, its new camera is still cast); a longer one is, measured from the
+// vertex, not from the estimate last received.
+TEST_P(SmallSceneTest, ShortMovesAreNotMadeButTheirCamerasAreCast) {
+  options_.min_move_fraction = 0.25;
+  options_.check_invariants = true;
+  engine_ = std::make_unique<Engine>(options_, policy_.get());
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());  // grid step 1 m, 0.5 m in z
+  Vec3 before;
+  ASSERT_TRUE(engine_->PointPosition(41, &before));
+  const int64_t rays_before = engine_->Stats().rays_cast;
+  // 5 cm: short (the nearest vertex is at least 0.5 m away), and a new camera sees it.
+  KeyframeUpdate u;
+  u.cameras = {{3, {0.0, 1.0, 1.5}}};
+  u.moved_points.push_back({41, {before[0], before[1] - 0.05, before[2]}, {3}});
+  ASSERT_TRUE(engine_->ApplyUpdate(u).ok());
+  Vec3 p;
+  ASSERT_TRUE(engine_->PointPosition(41, &p));
+  EXPECT_EQ(p, before);
+  EXPECT_EQ(engine_->Stats().moves_below_min, 1);
+  EXPECT_EQ(engine_->Stats().points_moved, 0);
+  EXPECT_GT(engine_->Stats().rays_cast, rays_before);  // the new camera's ray
+  // Another 5 cm from the last estimate is 10 cm from the vertex: still short.
+  KeyframeUpdate v;
+  v.moved_points.push_back({41, {before[0], before[1] - 0.10, before[2]}, {}});
+  ASSERT_TRUE(engine_->ApplyUpdate(v).ok());
+  EXPECT_EQ(engine_->Stats().moves_below_min, 2);
+  // 40 cm from the vertex: long, tried like any move (made, or refused when its cells cannot
+  // leave O: the weights and rays modes here).
+  const int64_t skipped = engine_->Stats().moves_skipped;
+  KeyframeUpdate w;
+  w.moved_points.push_back({41, {before[0], before[1] - 0.40, before[2]}, {}});
+  ASSERT_TRUE(engine_->ApplyUpdate(w).ok());
+  EXPECT_EQ(engine_->Stats().moves_below_min, 2);
+  EXPECT_EQ(engine_->Stats().points_moved + engine_->Stats().moves_skipped - skipped, 1);
+  ASSERT_TRUE(engine_->PointPosition(41, &p));
+  EXPECT_EQ(p[1], engine_->Stats().points_moved == 1 ? before[1] - 0.40 : before[1]);
+  ExpectManifold();
+  ExpectExactRaySets();
+}
+
 TEST_P(SmallSceneTest, CoplanarCollinearAndDuplicatePoints) {
   // Coplanar on a regular grid (cospherical quadruples everywhere).
   ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 6)).ok());

@@ -92,6 +92,10 @@ std::vector<EngineOption> MakeTable() {
       Option("regrow_radius", &E::regrow_radius, Min(0.0), "m",
              "after each keyframe, O is labelled again in weight order within this distance of "
              "moved and new points; 0: off"),
+      Option("min_move_fraction", &E::min_move_fraction, {{"minimum", 0.0}, {"maximum", 1.0}}, "",
+             "a move shorter than this fraction of the distance from the point to its nearest "
+             "neighbouring vertex is not made (the vertex and its rays stay); 0: every move "
+             "(trade-off measured in the README, Engine speed)"),
       Option("steiner_export", &E::steiner_export, kNone, "",
              "which triangles touching Steiner points the exported mesh drops"),
       Option("fill_holes_perimeter", &E::fill_holes_perimeter, Min(0.0), "m",

@@ -40,6 +40,7 @@ json StatsJson(const engine::EngineStats& s) {
           {"points_duplicate", s.points_duplicate},
           {"moves_duplicate", s.moves_duplicate},
           {"moves_in_place", s.moves_in_place},
+          {"moves_below_min", s.moves_below_min},
           {"points_reentered", s.points_reentered},
           {"points_removed", s.points_removed},
           {"steiner_points", s.steiner_points},
