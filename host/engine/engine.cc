@@ -564,7 +564,7 @@ Status Engine::Impl::Validate(const KeyframeUpdate& u) const {
 }
 
 void Engine::Impl::AddCameras(PointRecord& rec, const std::vector<uint64_t>& ids,
-                std::vector<uint32_t>* added) {
+                              std::vector<uint32_t>* added) {
   for (uint64_t id : ids) {
     const uint32_t c = s.camera_index.at(id);
     if (std::find(rec.cameras.begin(), rec.cameras.end(), c) != rec.cameras.end()) continue;
@@ -589,8 +589,8 @@ Engine::Impl::Vertex_handle Engine::Impl::InsertPoint(const Point& p, int64_t ve
   if (s.dt.dimension() < 3) {
     // Only Steiner points get here (before the grid spans 3D): O is empty.
     const size_t before = s.dt.number_of_vertices();
-    Vertex_handle v = s.dt.insert(p, s.last_vertex != Vertex_handle() ? s.last_vertex->cell()
-                                                                  : Cell_handle());
+    Vertex_handle v =
+        s.dt.insert(p, s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle());
     if (s.dt.number_of_vertices() == before) {
       *duplicate = true;
       return Vertex_handle();
@@ -614,8 +614,8 @@ Engine::Impl::Vertex_handle Engine::Impl::InsertPoint(const Point& p, int64_t ve
   if (!carving.Shrink(conflicts, {p})) return Vertex_handle();
   Removed removed;
   transfer.CollectRemoved(conflicts, &removed);
-  Vertex_handle v = s.dt.insert_in_hole(p, conflicts.begin(), conflicts.end(), boundary.first,
-                                      boundary.second);
+  Vertex_handle v =
+      s.dt.insert_in_hole(p, conflicts.begin(), conflicts.end(), boundary.first, boundary.second);
   v->info().id = vertex_id;
   s.last_vertex = v;
   std::vector<Cell_handle> added;
