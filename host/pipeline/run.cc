@@ -10,6 +10,7 @@
 #include "host/pipeline/front_end.h"
 #include "host/pipeline/keyframe_observers.h"
 #include "host/pipeline/mesh_export.h"
+#include "host/pipeline/prefetch.h"
 #include "host/pipeline/report.h"
 #include "host/pipeline/scale.h"
 #include "host/pipeline/stage_watch.h"
@@ -18,6 +19,7 @@
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
+#include "host/util/thread_pool.h"
 
 #include <chrono>
 #include <deque>
@@ -91,6 +93,11 @@ class SequenceRun {
   const io::InputFormat* format_ = nullptr;
   std::unique_ptr<io::KeyframeSource> source_;
   const ImageFrontEndSource* front_end_ = nullptr;  // image inputs: the source itself
+  // The front end overlapped with the engine (RunOptions::overlap): keyframes are taken from it
+  // instead of source_. Declared after the source and the stages, so that its thread is joined
+  // before they go, on every path.
+  std::optional<PrefetchingSource> prefetch_;
+  io::KeyframeSource& Input() { return prefetch_ ? *prefetch_ : *source_; }
   std::optional<WatchedPolicy> watched_policy_;
 
   // The scene's scale (scale.h) and the engine.
@@ -184,6 +191,10 @@ void SequenceRun::OpenSource() {
     fe->Watch(&watch_, &watched_[features_stage_], &watched_[refiner_stage_]);
     front_end_ = fe.get();
     source_ = std::move(fe);
+    // Only the front end: its keyframes cost time to make, and it reads no engine state (its
+    // cameras, which the exports ask for during the loop, are fixed when it opens). Two keyframes
+    // ahead absorb the engine's uneven keyframes.
+    if (options_.overlap && util::AvailableCores() >= 2) prefetch_.emplace(source_.get(), 2);
   } else {
     source_ = format_->open(seq_.source, v_.input_options);
   }
@@ -206,7 +217,7 @@ void SequenceRun::StartEngine() {
       if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
       engine::KeyframeUpdate u;
       io::KeyframeInfo i;
-      if (!source_->Next(&u, &i)) break;
+      if (!Input().Next(&u, &i)) break;
       probe_.Add(u);
       early_.emplace_back(std::move(u), i);
     }
@@ -290,7 +301,7 @@ void SequenceRun::ProcessKeyframes() {
 
 // The keyframes read to decide the scale first, then the rest.
 bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info) {
-  if (early_.empty()) return source_->Next(update, info);
+  if (early_.empty()) return Input().Next(update, info);
   *update = std::move(early_.front().first);
   *info = early_.front().second;
   early_.pop_front();
