@@ -969,8 +969,8 @@ class Overlap : public BadImages {
       const CommandResult r = Run(job, overlap ? "" : "--no-overlap");
       CheckOnlyTheBadSequenceFailed(r, Case() / "runs", job, "bad", "street", error_has);
       const json row = SummaryRow(ReadJson(Case() / "runs/summary.json"), "bad");
-      rows[overlap] = {{"error", row.value("error", "")}, {"exit_code", row["exit_code"]},
-                       {"status", row["status"]}, {"imr_status", r.status}};
+      rows[overlap] = {{"error", row.value("error", "")}, {"exit_code", row.value("exit_code", json())},
+                       {"status", row.value("status", "")}, {"imr_status", r.status}};
     }
     EXPECT_EQ(rows[1], rows[0]) << "with the overlap, then without";
     return rows[1];
@@ -1019,14 +1019,16 @@ TEST_F(Overlap, SignalWhileTheFrontEndRunsAhead) {
   ASSERT_TRUE(WaitForText(Case() / "runs/imr-batch/status/bad.json", "running", 60)) << run.Output();
   ::sleep(2);  // past keyframe 0, into the policy's calls
   ::kill(run.pid(), SIGTERM);
+  const auto signalled = std::chrono::steady_clock::now();
   const int status = run.Wait(60);
   EXPECT_NE(status, 0) << run.Output();
+  // Sooner than the batch's 10 s grace before it kills a sequence that does not stop.
+  EXPECT_LT(std::chrono::steady_clock::now() - signalled, std::chrono::seconds(8)) << run.Output();
   ASSERT_TRUE(fs::exists(Case() / "runs/summary.json")) << run.Output();
   const json row = SummaryRow(ReadJson(Case() / "runs/summary.json"), "bad");
   EXPECT_EQ(row["status"], "interrupted") << row.dump(2);
   EXPECT_NE(row.value("error", "").find("stopped by SIGTERM"), std::string::npos) << row.dump(2);
   EXPECT_EQ(row.value("error", "").find("was killed"), std::string::npos) << row.dump(2);
-  EXPECT_TRUE(row["signal"].is_null()) << "ended by a signal, not by itself: " << row.dump(2);
   EXPECT_EQ(Leftovers(Case() / "runs"), std::vector<std::string>{});
 }
 

@@ -93,6 +93,26 @@ std::optional<StageWatch::Call> ImageFrontEndSource::Watched(const WatchedStage*
   return watch_->Enter(*stage);
 }
 
+std::pair<io::Image, double> ImageFrontEndSource::ReadFrame(std::size_t index) {
+  auto read = [this](std::size_t f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    io::Image image = io::ReadImage(sequence_.frames[f].image_path, sequence_.image_limits);
+    return std::pair<io::Image, double>(std::move(image), SecondsSince(t0));
+  };
+  std::pair<io::Image, double> frame;
+  if (ahead_.valid() && ahead_frame_ == index) {
+    frame = ahead_.get();  // rethrows the read's error, naming the file as it would here
+  } else {
+    if (ahead_.valid()) ahead_.wait();
+    frame = read(index);
+  }
+  if (options_.read_ahead && index + 1 < sequence_.frames.size()) {
+    ahead_frame_ = index + 1;
+    ahead_ = std::async(std::launch::async, read, ahead_frame_);
+  }
+  return frame;
+}
+
 bool ImageFrontEndSource::IsKeyframe(int frame) const {
   return frame % options_.keyframe_every == 0 ||
          frame + 1 == static_cast<int>(sequence_.frames.size());
@@ -125,8 +145,7 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     ++next_frame_;
     const bool keyframe = IsKeyframe(index);
 
-    auto t0 = std::chrono::steady_clock::now();
-    const io::Image image = io::ReadImage(frame.image_path, sequence_.image_limits);
+    auto [image, read_seconds] = ReadFrame(next_frame_ - 1);
     if (width_ == 0) {
       width_ = image.width;
       height_ = image.height;
@@ -135,7 +154,7 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
                                "x" + std::to_string(image.height) + ", the sequence's first is " +
                                std::to_string(width_) + "x" + std::to_string(height_));
     }
-    stats_.read_seconds += SecondsSince(t0);
+    stats_.read_seconds += read_seconds;
 
     const imr_camera camera = ToPluginCamera(frame.camera, width_, height_);
     imr_image_view view{};
@@ -146,7 +165,7 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     view.stride_bytes = image.stride_bytes;
     view.pixels = image.pixels.data();
 
-    t0 = std::chrono::steady_clock::now();
+    auto t0 = std::chrono::steady_clock::now();
     imr_track_view tracks{};
     if (watch_ != nullptr) watch_->SetPosition("frame " + std::to_string(index));
     try {

@@ -9,6 +9,7 @@
 #pragma once
 
 #include "host/eval/synthetic_truth.h"
+#include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
 #include "host/io/keyframe_source.h"
 #include "host/pipeline/stage_watch.h"
@@ -16,6 +17,7 @@
 #include <imr/sdk/host.hpp>
 #include <nlohmann/json.hpp>
 
+#include <future>
 #include <memory>
 #include <optional>
 #include <string>
@@ -31,6 +33,9 @@ struct FrontEndOptions {
   int truth_pixel_step = 16;
   double truth_range = 30.0;
   double tau = 0.2;  // metres: a mesh or true point within tau counts as precise / complete
+  // Decode frame k + 1's image on a thread of its own while the plugins process frame k (run.cc
+  // sets it with the overlap, on 2 cores or more). What the plugins get is the same.
+  bool read_ahead = false;
 
   // Empty when usable, else which field and why.
   std::string Check() const;
@@ -87,6 +92,8 @@ class ImageFrontEndSource : public io::KeyframeSource {
 
  private:
   bool IsKeyframe(int frame) const;
+  // Frame `index`'s image and the seconds its decoding took (the read-ahead's when it has it).
+  std::pair<io::Image, double> ReadFrame(std::size_t index);
   std::optional<StageWatch::Call> Watched(const WatchedStage* stage);
   void TrackPointError(uint64_t id, const io::Vec3& position, bool is_new);
 
@@ -101,6 +108,8 @@ class ImageFrontEndSource : public io::KeyframeSource {
   std::size_t next_frame_ = 0;
   int next_keyframe_ = 0;
   int width_ = 0, height_ = 0;
+  std::future<std::pair<io::Image, double>> ahead_;  // frame ahead_frame_'s, being read
+  std::size_t ahead_frame_ = 0;
   std::vector<uint64_t> keyframe_tracks_;  // sorted track ids seen at the last keyframe
   std::unique_ptr<SyntheticTruth> truth_;
   // Synthetic truth only: distance to the true surface of each point's first and latest estimate.

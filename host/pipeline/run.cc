@@ -183,18 +183,20 @@ void SequenceRun::InstantiateStages() {
 void SequenceRun::OpenSource() {
   format_ = io::FindInputFormat(job_.input.format);
   if (format_->needs_front_end) {
+    // Only the front end is overlapped with the engine: its keyframes cost time to make, and it
+    // reads no engine state (its cameras, which the exports ask for during the loop, are fixed
+    // when it opens). Two keyframes ahead absorb the engine's uneven keyframes.
+    const bool overlap = options_.overlap && util::AvailableCores() >= 2;
     FrontEndOptions fo;
     fo.keyframe_every = io::ImageSequenceOptionsFromJson(v_.input_options).keyframe_every;
+    fo.read_ahead = overlap;
     auto fe = std::make_unique<ImageFrontEndSource>(
         format_->open_images(seq_.source, v_.input_options), features_->instance,
         refiner_->instance, fo);
     fe->Watch(&watch_, &watched_[features_stage_], &watched_[refiner_stage_]);
     front_end_ = fe.get();
     source_ = std::move(fe);
-    // Only the front end: its keyframes cost time to make, and it reads no engine state (its
-    // cameras, which the exports ask for during the loop, are fixed when it opens). Two keyframes
-    // ahead absorb the engine's uneven keyframes.
-    if (options_.overlap && util::AvailableCores() >= 2) prefetch_.emplace(source_.get(), 2);
+    if (overlap) prefetch_.emplace(source_.get(), 2);
   } else {
     source_ = format_->open(seq_.source, v_.input_options);
   }
