@@ -23,6 +23,7 @@
 
 #include <chrono>
 #include <deque>
+#include <future>
 #include <map>
 #include <memory>
 #include <optional>
@@ -68,7 +69,7 @@ class SequenceRun {
   void Warn(const std::string& warning);
   void WriteStreamExports();
   void EvaluateMesh(const engine::Mesh& mesh);
-  void WriteMeshAndReport(const engine::Mesh& mesh);
+  void WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>* evaluation);
 
   const ValidatedJob& v_;
   const io::JobSpec& job_;
@@ -311,13 +312,18 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 }
 
 // The last mesh, checked and with its warnings; then exports first (each whole or absent), the
-// evaluation, the mesh and the report.
+// evaluation, the mesh and the report. With the overlap (2 cores or more) the evaluation, which
+// only reads the mesh and the source, runs beside the mesh's export; its error still comes first.
 void SequenceRun::Finish() {
   const engine::Mesh mesh = CheckedMesh();
   WarnAbout(mesh);
   WriteStreamExports();
-  EvaluateMesh(mesh);
-  WriteMeshAndReport(mesh);
+  std::future<void> evaluation;
+  if (prefetch_)
+    evaluation = std::async(std::launch::async, [&] { EvaluateMesh(mesh); });
+  else
+    EvaluateMesh(mesh);
+  WriteMeshAndReport(mesh, &evaluation);
 }
 
 // The mesh after the last keyframe; throws when dO or the mesh is not what it must be.
@@ -409,14 +415,20 @@ void SequenceRun::EvaluateMesh(const engine::Mesh& mesh) {
 // The mesh in every format and report.json, staged together and moved into the output folder,
 // the glTF and report.json last: when the report cannot be written (a full disk) no mesh of the
 // failed run is left under a final name either.
-void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh) {
+void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>* evaluation) {
   const auto export_start = std::chrono::steady_clock::now();
   StagingDirectory staging(result_->output_directory);
   watch_.SetPosition("writing the mesh after the last keyframe");
-  report_.export_images = ExportMesh(mesh, export_context_, job_.output.formats, exporters_,
-                                     staging.path(), job_.output.stem, watch_,
-                                     options_.stage_timeout);
+  try {
+    report_.export_images = ExportMesh(mesh, export_context_, job_.output.formats, exporters_,
+                                       staging.path(), job_.output.stem, watch_,
+                                       options_.stage_timeout);
+  } catch (...) {
+    if (evaluation->valid()) evaluation->get();  // its error first, as without the overlap
+    throw;
+  }
   report_.export_seconds = SecondsSince(export_start);
+  if (evaluation->valid()) evaluation->get();
   const std::vector<std::string> commit_last = {job_.output.stem + ".gltf", "report.json"};
 
   report_.job = &v_;
