@@ -1007,6 +1007,22 @@ TEST_F(Overlap, PolicyHangsWhileTheFrontEndRunsAhead) {
   EXPECT_EQ(row["exit_code"], 124) << row.dump(2);
 }
 
+TEST_F(Overlap, EachFrontEndInstanceStaysOnOneThread) {
+  // The SDK promises one thread per instance (create, calls, destroy). The test plugin checks it
+  // and tracks nothing, so a run that keeps the promise fails for want of a surface.
+  json job = ImageJob({"bad"});
+  job["pipeline"][0] = {{"kind", "features"}, {"plugin", "org.imr.test.features.thread_checked"}};
+  job["plugin_paths"] = {kTestPlugins};
+  for (const char* flags : {"", "--no-overlap"}) {
+    const CommandResult r = Run(job, flags);
+    EXPECT_NE(r.status, 0) << r.out << r.err;
+    const json row = SummaryRow(ReadJson(Case() / "runs/summary.json"), "bad");
+    EXPECT_NE(row.value("error", "").find("no surface was reconstructed"), std::string::npos)
+        << flags << "\n" << row.dump(2) << r.err;
+    EXPECT_EQ(r.err.find("thread_checked"), std::string::npos) << flags << "\n" << r.err;
+  }
+}
+
 TEST_F(Overlap, SignalWhileTheFrontEndRunsAhead) {
   // SIGTERM to the batch while "bad" is busy in its (slow) policy with keyframes made ahead of
   // it: the sequence stops by itself at the next keyframe, joins the front end's thread and

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 namespace imr::pipeline {
 namespace {
@@ -125,6 +126,51 @@ TEST(PrefetchingSource, DroppedMidSequenceItStopsAndJoins) {
   CountingSource unused(5);
   { PrefetchingSource source(&unused, 2); }
   EXPECT_EQ(unused.made_.load(), 0);
+}
+
+// The SDK's promise (one thread per plugin instance): what runs on a lane, made there, called
+// there by a prefetcher and released there, all on the lane's one thread, in the order given.
+TEST(Lane, RunsWhatItIsGivenInOrderOnOneThreadAndRethrows) {
+  Lane lane;
+  std::thread::id made, released;
+  std::vector<std::thread::id> called;
+  lane.Run([&] { made = std::this_thread::get_id(); });
+  EXPECT_NE(made, std::this_thread::get_id());
+  {
+    int n = 0;
+    Prefetcher<int> ahead(
+        [&](int* item) {
+          called.push_back(std::this_thread::get_id());
+          *item = n;
+          return n++ < 5;
+        },
+        2, &lane);
+    int item = -1;
+    for (int k = 0; k < 5; ++k) {
+      ASSERT_TRUE(ahead.Take(&item));
+      EXPECT_EQ(item, k);
+    }
+    EXPECT_FALSE(ahead.Take(&item));
+  }
+  lane.Run([&] { released = std::this_thread::get_id(); });
+  EXPECT_EQ(released, made);
+  ASSERT_EQ(called.size(), 6u);
+  for (const std::thread::id& id : called) EXPECT_EQ(id, made);
+  try {
+    lane.Run([] { throw std::runtime_error("pipeline[0] (features): create failed"); });
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "pipeline[0] (features): create failed");
+  }
+  // A prefetcher dropped while its maker waits for room on the lane: the lane is free again.
+  {
+    Prefetcher<int> ahead([](int* item) { *item = 1; return true; }, 1, &lane);
+    int item = 0;
+    ASSERT_TRUE(ahead.Take(&item));
+  }
+  bool ran = false;
+  lane.Run([&] { ran = true; });
+  EXPECT_TRUE(ran);
 }
 
 }  // namespace

@@ -44,7 +44,22 @@ class SequenceRun {
       : v_(v), job_(v.job), registry_(registry), options_(options), seq_(seq), result_(result),
         watch_(options.on_stage_timeout) {
     result_->output_directory = job_.OutputDirectory(seq.name);
+    // Only the image front end is overlapped with the engine: its keyframes cost time to make,
+    // and it reads no engine state (its cameras, which the exports ask for during the loop, are
+    // fixed when it opens).
+    overlap_ = options_.overlap && util::AvailableCores() >= 2 &&
+               io::FindInputFormat(job_.input.format)->needs_front_end;
   }
+  // The front end's threads stop first; then the features and refiner instances are destroyed
+  // on the lanes that made and called them.
+  ~SequenceRun() {
+    prefetch_.reset();
+    source_.reset();
+    if (refiner_lane_) refiner_lane_->Run([&] { refiner_.reset(); });
+    if (features_lane_) features_lane_->Run([&] { features_.reset(); });
+  }
+  SequenceRun(const SequenceRun&) = delete;
+  SequenceRun& operator=(const SequenceRun&) = delete;
 
   // Throws, naming the keyframe, file or stage, when the sequence fails.
   void Run() {
@@ -78,6 +93,12 @@ class SequenceRun {
   const SequenceRef& seq_;
   SequenceResult* result_;
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+
+  // With the overlap (RunOptions::overlap, image inputs, 2 cores or more), the features and the
+  // refiner instances each live on a lane of their own (prefetch.h): made, called and destroyed
+  // there. The engine, the policy and the exporters stay on this thread.
+  bool overlap_ = false;
+  std::optional<Lane> features_lane_, refiner_lane_;
 
   // The stages: one policy (weights mode), the exporters, the image front end's two plugins.
   std::optional<plugin::PluginWeightPolicy> policy_;
@@ -156,24 +177,36 @@ void SequenceRun::InstantiateStages() {
     const io::StageSpec& stage = job_.pipeline[i];
     const plugin::PluginInfo* info = registry_.Find(stage.plugin);
     report_.plugins.push_back(PluginJson(*info, v_.stage_params[i]));
-    auto instance = [&] {
+    std::optional<plugin::LoadedInstance> instance;
+    auto create = [&] {
       const StageWatch::Call call = watch_.Enter(watched_[i]);
       try {
-        return plugin::CreateInstance(*info, v_.stage_params[i]);
+        instance.emplace(plugin::CreateInstance(*info, v_.stage_params[i]));
       } catch (const std::exception& e) {  // name the stage: its params are in the job there
         throw std::runtime_error(stage.json_path + " (" + stage.kind + "): " + e.what());
       }
-    }();
+    };
+    Lane* lane = !overlap_                  ? nullptr
+                 : stage.kind == "features" ? &features_lane_.emplace()
+                 : stage.kind == "refiner"  ? &refiner_lane_.emplace()
+                                            : nullptr;
+    if (lane != nullptr)
+      lane->Run([&] {
+        watch_.SetPosition("creating the plugin instances");
+        create();
+      });
+    else
+      create();
     if (stage.kind == "weight_policy") {
-      policy_.emplace(std::move(instance), info->id());
+      policy_.emplace(std::move(*instance), info->id());
       policy_stage_ = i;
     } else if (stage.kind == "exporter") {
-      exporters_.emplace_back(&stage, std::move(instance));
+      exporters_.emplace_back(&stage, std::move(*instance));
     } else if (stage.kind == "features") {
-      features_.emplace(std::move(instance));
+      features_.emplace(std::move(*instance));
       features_stage_ = i;
     } else if (stage.kind == "refiner") {
-      refiner_.emplace(std::move(instance));
+      refiner_.emplace(std::move(*instance));
       refiner_stage_ = i;
     }
   }
@@ -184,20 +217,18 @@ void SequenceRun::InstantiateStages() {
 void SequenceRun::OpenSource() {
   format_ = io::FindInputFormat(job_.input.format);
   if (format_->needs_front_end) {
-    // Only the front end is overlapped with the engine: its keyframes cost time to make, and it
-    // reads no engine state (its cameras, which the exports ask for during the loop, are fixed
-    // when it opens). Two keyframes ahead absorb the engine's uneven keyframes.
-    const bool overlap = options_.overlap && util::AvailableCores() >= 2;
     FrontEndOptions fo;
     fo.keyframe_every = io::ImageSequenceOptionsFromJson(v_.input_options).keyframe_every;
-    fo.read_ahead = overlap;
+    fo.track_ahead = overlap_;
     auto fe = std::make_unique<ImageFrontEndSource>(
         format_->open_images(seq_.source, v_.input_options), features_->instance,
         refiner_->instance, fo);
     fe->Watch(&watch_, &watched_[features_stage_], &watched_[refiner_stage_]);
+    if (overlap_) fe->TrackOn(&*features_lane_);
     front_end_ = fe.get();
     source_ = std::move(fe);
-    if (overlap) prefetch_.emplace(source_.get(), 2);
+    // Two keyframes ahead absorb the engine's uneven keyframes.
+    if (overlap_) prefetch_.emplace(source_.get(), 2, &*refiner_lane_);
   } else {
     source_ = format_->open(seq_.source, v_.input_options);
   }
