@@ -75,13 +75,18 @@ TEST(PrefetchingSource, NeverRunsMoreThanDepthAhead) {
   PrefetchingSource source(&inner, 2);
   engine::KeyframeUpdate u;
   io::KeyframeInfo info;
+  // Waits (up to 5 s, a loaded machine) for the inner to have made `n`, then a little longer:
+  // it must not make more.
+  auto made_after_a_while = [&](int n) {
+    for (int i = 0; i < 500 && inner.made_.load() < n; ++i) std::this_thread::sleep_for(10ms);
+    std::this_thread::sleep_for(200ms);
+    return inner.made_.load();
+  };
   ASSERT_TRUE(source.Next(&u, &info));
-  std::this_thread::sleep_for(200ms);  // time to run ahead as far as it may
   // Taken 1, 2 waiting: the inner made 3 and is not called again until one is taken.
-  EXPECT_EQ(inner.made_.load(), 3);
+  EXPECT_EQ(made_after_a_while(3), 3);
   ASSERT_TRUE(source.Next(&u, &info));
-  std::this_thread::sleep_for(200ms);
-  EXPECT_EQ(inner.made_.load(), 4);
+  EXPECT_EQ(made_after_a_while(4), 4);
 }
 
 TEST(PrefetchingSource, TheInnersErrorComesAfterTheKeyframesBeforeIt) {
@@ -120,8 +125,13 @@ TEST(PrefetchingSource, DroppedMidSequenceItStopsAndJoins) {
     ASSERT_TRUE(source.Next(&u, &info));
     std::this_thread::sleep_for(100ms);  // the thread is now inside the second Next
   }
-  EXPECT_EQ(inner.made_.load(), 2);
-  EXPECT_LT(std::chrono::steady_clock::now() - start, 2s);
+  // The call in progress (usually the second) had returned when the source was gone: nothing
+  // changes after, and no call was made beyond it.
+  const int made = inner.made_.load();
+  std::this_thread::sleep_for(400ms);
+  EXPECT_EQ(inner.made_.load(), made);
+  EXPECT_LE(made, 2);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 3s);
   // Never asked for a keyframe: no thread was started.
   CountingSource unused(5);
   { PrefetchingSource source(&unused, 2); }
