@@ -935,6 +935,119 @@ bool WaitForText(const fs::path& file, const std::string& text, int seconds) {
   return false;
 }
 
+// ---- The front end overlapped with the engine (issue 18: by default on 2 cores, the front end
+// makes the next keyframes on its own thread while the engine applies one; --no-overlap: not).
+// Whatever fails, on which thread, the run ends the same way with and without it. ----
+
+class Overlap : public BadImages {
+ protected:
+  // A longer sequence than BadImages' (40 frames, 9 keyframes): the front end still has
+  // keyframes to make when the engine fails at keyframe 2.
+  static void SetUpTestSuite() {
+    dir_ = new ScratchDir("overlap");
+    const CommandResult r = RunShell(Quote(kSynth) + " --out " + Quote(Sequence().string()) +
+                                     " --frames 40 --width 414 --height 125 --no-lidar -q");
+    ASSERT_EQ(r.status, 0) << r.out << r.err;
+  }
+  // The image job on a copy of the suite's sequence ("bad") and the sequence itself ("street"),
+  // the test policy misbehaving with `params` in "bad" only.
+  static json ImageJobWithFailingPolicy(const json& params) {
+    json j = ImageJob({"bad", Sequence().string()});
+    json p = params;
+    p["only_in"] = "bad";
+    j["pipeline"][2] = {{"kind", "weight_policy"}, {"plugin", "org.imr.test.policy.failing"},
+                        {"params", p}};
+    j["engine"]["visibility_mode"] = "weights";  // the mode that calls a policy
+    j["plugin_paths"] = {kTestPlugins};
+    return j;
+  }
+  // `job` with the front end overlapped and not: "bad" fails, naming `error_has`, in both, with
+  // the same error and the same exit code; "street" is ok. The bad sequence's summary row.
+  json ExpectTheSameFailureWithAndWithout(const json& job, const std::vector<std::string>& error_has) {
+    json rows[2];
+    for (const int overlap : {1, 0}) {
+      const CommandResult r = Run(job, overlap ? "" : "--no-overlap");
+      CheckOnlyTheBadSequenceFailed(r, Case() / "runs", job, "bad", "street", error_has);
+      const json row = SummaryRow(ReadJson(Case() / "runs/summary.json"), "bad");
+      rows[overlap] = {{"error", row.value("error", "")}, {"exit_code", row.value("exit_code", json())},
+                       {"status", row.value("status", "")}, {"imr_status", r.status}};
+    }
+    EXPECT_EQ(rows[1], rows[0]) << "with the overlap, then without";
+    return rows[1];
+  }
+  void SetUp() override {
+    BadImages::SetUp();
+    CopySequence();
+  }
+};
+
+TEST_F(Overlap, FrameMissingAheadOfTheEngine) {
+  // Frame 26 ends keyframe 6: the front end meets it while the engine applies keyframe 4 or 5.
+  fs::remove(Case() / "bad/image_0/000026.png");
+  ExpectTheSameFailureWithAndWithout(
+      ImageJob({"bad", Sequence().string()}), {(Case() / "bad/image_0/000026.png").string(), "no such file"});
+}
+
+TEST_F(Overlap, PolicyFailsWhileTheFrontEndRunsAhead) {
+  const auto start = std::chrono::steady_clock::now();
+  ExpectTheSameFailureWithAndWithout(ImageJobWithFailingPolicy({{"fail_after", 0}}),
+                                     {"keyframe 2", "weight policy org.imr.test.policy.failing",
+                                      "failing policy: transfer failed on purpose"});
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60));
+}
+
+TEST_F(Overlap, PolicyHangsWhileTheFrontEndRunsAhead) {
+  // The watchdog sees the policy's call on the engine's thread while the features and refiner
+  // plugins are called on the other, and names the engine thread's position.
+  json job = ImageJobWithFailingPolicy({{"hang", true}});
+  job["pipeline"][2]["timeout_seconds"] = 1;
+  const json row = ExpectTheSameFailureWithAndWithout(
+      job, {"stage \"weight_policy\" (pipeline[2], plugin org.imr.test.policy.failing) did not "
+            "return within 1 s (keyframe 2, frame 10); the limit is pipeline[2].timeout_seconds"});
+  EXPECT_EQ(row["exit_code"], 124) << row.dump(2);
+}
+
+TEST_F(Overlap, EachFrontEndInstanceStaysOnOneThread) {
+  // The SDK promises one thread per instance (create, calls, destroy). The test plugin checks it
+  // and tracks nothing, so a run that keeps the promise fails for want of a surface.
+  json job = ImageJob({"bad"});
+  job["pipeline"][0] = {{"kind", "features"}, {"plugin", "org.imr.test.features.thread_checked"}};
+  job["plugin_paths"] = {kTestPlugins};
+  for (const char* flags : {"", "--no-overlap"}) {
+    const CommandResult r = Run(job, flags);
+    EXPECT_NE(r.status, 0) << r.out << r.err;
+    const json row = SummaryRow(ReadJson(Case() / "runs/summary.json"), "bad");
+    EXPECT_NE(row.value("error", "").find("no surface was reconstructed"), std::string::npos)
+        << flags << "\n" << row.dump(2) << r.err;
+    EXPECT_EQ(r.err.find("thread_checked"), std::string::npos) << flags << "\n" << r.err;
+  }
+}
+
+TEST_F(Overlap, SignalWhileTheFrontEndRunsAhead) {
+  // SIGTERM to the batch while "bad" is busy in its (slow) policy with keyframes made ahead of
+  // it: the sequence stops by itself at the next keyframe, joins the front end's thread and
+  // counts as interrupted; it is not killed after the grace period.
+  json job = ImageJobWithFailingPolicy({{"sleep_ms", 30}});
+  job["sequences"] = {"bad"};
+  WriteText(Case() / "job.json", job.dump(2));
+  const BackgroundRun run(Case(), "run");
+  ASSERT_GT(run.pid(), 0);
+  ASSERT_TRUE(WaitForText(Case() / "runs/imr-batch/status/bad.json", "running", 60)) << run.Output();
+  ::sleep(2);  // past keyframe 0, into the policy's calls
+  ::kill(run.pid(), SIGTERM);
+  const auto signalled = std::chrono::steady_clock::now();
+  const int status = run.Wait(60);
+  EXPECT_NE(status, 0) << run.Output();
+  // Sooner than the batch's 10 s grace before it kills a sequence that does not stop.
+  EXPECT_LT(std::chrono::steady_clock::now() - signalled, std::chrono::seconds(8)) << run.Output();
+  ASSERT_TRUE(fs::exists(Case() / "runs/summary.json")) << run.Output();
+  const json row = SummaryRow(ReadJson(Case() / "runs/summary.json"), "bad");
+  EXPECT_EQ(row["status"], "interrupted") << row.dump(2);
+  EXPECT_NE(row.value("error", "").find("stopped by SIGTERM"), std::string::npos) << row.dump(2);
+  EXPECT_EQ(row.value("error", "").find("was killed"), std::string::npos) << row.dump(2);
+  EXPECT_EQ(Leftovers(Case() / "runs"), std::vector<std::string>{});
+}
+
 TEST_F(BadSfm, FolderNamedLikeAPlaceholder) {
   // Placeholders are replaced in one pass over the template: a name holding "{sequence}" or
   // "{job}" is text (the replacement used to find what it had just inserted, and spin for ever).

@@ -69,6 +69,17 @@ std::vector<RunFlag> MakeFlags() {
          if (o.threads <= 0) return std::nullopt;
          return std::to_string(o.threads);
        }},
+      {"no-overlap", "",
+       "make each keyframe of the image front end only when the engine asks for it (default, "
+       "on 2 or more cores: the next keyframes are made while the engine applies this one)",
+       [](const std::string&, RunOptions* o) -> std::string {
+         o->overlap = false;
+         return "";
+       },
+       [](const RunOptions& o) -> std::optional<std::string> {
+         if (o.overlap) return std::nullopt;
+         return std::string();
+       }},
       {"stage-timeout", "SECONDS",
        "fail a sequence when a call into a plugin takes longer (a stage's timeout_seconds "
        "wins; 0: no limit, the default)",

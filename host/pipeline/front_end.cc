@@ -93,6 +93,26 @@ std::optional<StageWatch::Call> ImageFrontEndSource::Watched(const WatchedStage*
   return watch_->Enter(*stage);
 }
 
+std::pair<io::Image, double> ImageFrontEndSource::ReadFrame(std::size_t index) {
+  auto read = [this](std::size_t f) {
+    const auto t0 = std::chrono::steady_clock::now();
+    io::Image image = io::ReadImage(sequence_.frames[f].image_path, sequence_.image_limits);
+    return std::pair<io::Image, double>(std::move(image), SecondsSince(t0));
+  };
+  std::pair<io::Image, double> frame;
+  if (ahead_.valid() && ahead_frame_ == index) {
+    frame = ahead_.get();  // rethrows the read's error, naming the file as it would here
+  } else {
+    if (ahead_.valid()) ahead_.wait();
+    frame = read(index);
+  }
+  if (options_.track_ahead && index + 1 < sequence_.frames.size()) {
+    ahead_frame_ = index + 1;
+    ahead_ = std::async(std::launch::async, read, ahead_frame_);
+  }
+  return frame;
+}
+
 bool ImageFrontEndSource::IsKeyframe(int frame) const {
   return frame % options_.keyframe_every == 0 ||
          frame + 1 == static_cast<int>(sequence_.frames.size());
@@ -117,49 +137,68 @@ void ImageFrontEndSource::TrackPointError(uint64_t id, const io::Vec3& position,
   ++it->second.moves;
 }
 
+bool ImageFrontEndSource::TrackFrame(TrackedFrame* out) {
+  if (tracked_frames_ >= sequence_.frames.size()) return false;
+  const std::size_t f = tracked_frames_++;
+  const io::ImageFrame& frame = sequence_.frames[f];
+  const int index = static_cast<int>(f);
+  out->index = f;
+  out->keyframe = IsKeyframe(index);
+
+  auto [image, read_seconds] = ReadFrame(f);
+  if (width_ == 0) {
+    width_ = image.width;
+    height_ = image.height;
+  } else if (image.width != width_ || image.height != height_) {
+    throw std::runtime_error(frame.image_path + ": image is " + std::to_string(image.width) +
+                             "x" + std::to_string(image.height) + ", the sequence's first is " +
+                             std::to_string(width_) + "x" + std::to_string(height_));
+  }
+  out->read_seconds = read_seconds;
+
+  out->camera = ToPluginCamera(frame.camera, width_, height_);
+  imr_image_view view{};
+  view.struct_size = sizeof(view);
+  view.width = image.width;
+  view.height = image.height;
+  view.channels = image.channels;
+  view.stride_bytes = image.stride_bytes;
+  view.pixels = image.pixels.data();
+
+  const auto t0 = std::chrono::steady_clock::now();
+  imr_track_view tracks{};
+  if (watch_ != nullptr) watch_->SetPosition("frame " + std::to_string(index));
+  try {
+    const auto call = Watched(watch_features_);
+    tracks = features_.ProcessFrame(out->camera, view, out->keyframe);
+  } catch (const std::exception& e) {
+    throw std::runtime_error("frame " + std::to_string(index) + " (" + frame.image_path +
+                             "): " + e.what());
+  }
+  out->features_seconds = SecondsSince(t0);
+  if (tracks.count > 0 && tracks.observations == nullptr)
+    throw std::runtime_error("features plugin returned " + std::to_string(tracks.count) +
+                             " observations but no array");
+  // The view is the plugin's until its next call, which may come before the refiner's.
+  out->tracks.assign(tracks.observations, tracks.observations + tracks.count);
+  return true;
+}
+
 bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo* info) {
   *update = engine::KeyframeUpdate{};
-  while (next_frame_ < sequence_.frames.size()) {
-    const io::ImageFrame& frame = sequence_.frames[next_frame_];
-    const int index = static_cast<int>(next_frame_);
-    ++next_frame_;
-    const bool keyframe = IsKeyframe(index);
-
-    auto t0 = std::chrono::steady_clock::now();
-    const io::Image image = io::ReadImage(frame.image_path, sequence_.image_limits);
-    if (width_ == 0) {
-      width_ = image.width;
-      height_ = image.height;
-    } else if (image.width != width_ || image.height != height_) {
-      throw std::runtime_error(frame.image_path + ": image is " + std::to_string(image.width) +
-                               "x" + std::to_string(image.height) + ", the sequence's first is " +
-                               std::to_string(width_) + "x" + std::to_string(height_));
-    }
-    stats_.read_seconds += SecondsSince(t0);
-
-    const imr_camera camera = ToPluginCamera(frame.camera, width_, height_);
-    imr_image_view view{};
-    view.struct_size = sizeof(view);
-    view.width = image.width;
-    view.height = image.height;
-    view.channels = image.channels;
-    view.stride_bytes = image.stride_bytes;
-    view.pixels = image.pixels.data();
-
-    t0 = std::chrono::steady_clock::now();
-    imr_track_view tracks{};
-    if (watch_ != nullptr) watch_->SetPosition("frame " + std::to_string(index));
-    try {
-      const auto call = Watched(watch_features_);
-      tracks = features_.ProcessFrame(camera, view, keyframe);
-    } catch (const std::exception& e) {
-      throw std::runtime_error("frame " + std::to_string(index) + " (" + frame.image_path +
-                               "): " + e.what());
-    }
-    stats_.features_seconds += SecondsSince(t0);
-    if (tracks.count > 0 && tracks.observations == nullptr)
-      throw std::runtime_error("features plugin returned " + std::to_string(tracks.count) +
-                               " observations but no array");
+  if (options_.track_ahead && !tracker_)
+    tracker_ = std::make_unique<Prefetcher<TrackedFrame>>(
+        [this](TrackedFrame* f) { return TrackFrame(f); }, 2, track_lane_);
+  TrackedFrame tracked;
+  while (tracker_ ? tracker_->Take(&tracked) : TrackFrame(&tracked)) {
+    const io::ImageFrame& frame = sequence_.frames[tracked.index];
+    const int index = static_cast<int>(tracked.index);
+    next_frame_ = tracked.index + 1;
+    const bool keyframe = tracked.keyframe;
+    const imr_camera& camera = tracked.camera;
+    const imr_track_view tracks{tracked.tracks.data(), tracked.tracks.size()};
+    stats_.read_seconds += tracked.read_seconds;
+    stats_.features_seconds += tracked.features_seconds;
     stats_.observations += static_cast<int64_t>(tracks.count);
 
     if (keyframe) {
@@ -177,7 +216,8 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
       keyframe_tracks_ = std::move(ids);
     }
 
-    t0 = std::chrono::steady_clock::now();
+    if (watch_ != nullptr && tracker_) watch_->SetPosition("frame " + std::to_string(index));
+    const auto t0 = std::chrono::steady_clock::now();
     imr_refiner_update out{};
     try {
       const auto call = Watched(watch_refiner_);

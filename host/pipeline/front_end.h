@@ -9,13 +9,16 @@
 #pragma once
 
 #include "host/eval/synthetic_truth.h"
+#include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
 #include "host/io/keyframe_source.h"
+#include "host/pipeline/prefetch.h"
 #include "host/pipeline/stage_watch.h"
 
 #include <imr/sdk/host.hpp>
 #include <nlohmann/json.hpp>
 
+#include <future>
 #include <memory>
 #include <optional>
 #include <string>
@@ -31,6 +34,10 @@ struct FrontEndOptions {
   int truth_pixel_step = 16;
   double truth_range = 30.0;
   double tau = 0.2;  // metres: a mesh or true point within tau counts as precise / complete
+  // Three threads instead of one (run.cc sets it with the overlap, on 2 cores or more): frame
+  // k + 2's image is decoded and frame k + 1 is tracked by the features plugin while the refiner
+  // plugin takes frame k. What each plugin gets, and in which order, is the same.
+  bool track_ahead = false;
 
   // Empty when usable, else which field and why.
   std::string Check() const;
@@ -82,11 +89,28 @@ class ImageFrontEndSource : public io::KeyframeSource {
     watch_refiner_ = refiner;
   }
 
+  // With track_ahead, the features plugin's calls run on `lane` (where its instance was made and
+  // is destroyed: one thread per instance, as the SDK promises); must outlive the source.
+  void TrackOn(Lane* lane) { track_lane_ = lane; }
+
   const FrontEndStats& stats() const { return stats_; }
   const io::ImageSequence& sequence() const { return sequence_; }
 
  private:
+  // A frame through the reader and the features plugin, for the refiner.
+  struct TrackedFrame {
+    std::size_t index = 0;
+    bool keyframe = false;
+    imr_camera camera{};
+    std::vector<imr_track_observation> tracks;  // a copy of the plugin's view
+    double read_seconds = 0.0, features_seconds = 0.0;
+  };
   bool IsKeyframe(int frame) const;
+  // The next frame not yet tracked; false after the last. Runs on the tracking thread with
+  // track_ahead, which alone touches tracked_frames_, width_, height_ and ahead_ until it ends.
+  bool TrackFrame(TrackedFrame* out);
+  // Frame `index`'s image and the seconds its decoding took (the read-ahead's when it has it).
+  std::pair<io::Image, double> ReadFrame(std::size_t index);
   std::optional<StageWatch::Call> Watched(const WatchedStage* stage);
   void TrackPointError(uint64_t id, const io::Vec3& position, bool is_new);
 
@@ -97,10 +121,14 @@ class ImageFrontEndSource : public io::KeyframeSource {
   StageWatch* watch_ = nullptr;
   const WatchedStage* watch_features_ = nullptr;
   const WatchedStage* watch_refiner_ = nullptr;
+  Lane* track_lane_ = nullptr;
   FrontEndStats stats_;
-  std::size_t next_frame_ = 0;
+  std::size_t next_frame_ = 0;     // frames through the refiner
+  std::size_t tracked_frames_ = 0;  // frames through the features plugin
   int next_keyframe_ = 0;
   int width_ = 0, height_ = 0;
+  std::future<std::pair<io::Image, double>> ahead_;  // frame ahead_frame_'s, being read
+  std::size_t ahead_frame_ = 0;
   std::vector<uint64_t> keyframe_tracks_;  // sorted track ids seen at the last keyframe
   std::unique_ptr<SyntheticTruth> truth_;
   // Synthetic truth only: distance to the true surface of each point's first and latest estimate.
@@ -110,6 +138,9 @@ class ImageFrontEndSource : public io::KeyframeSource {
     int moves = 0;
   };
   std::unordered_map<uint64_t, PointError> point_errors_;
+  // track_ahead: TrackFrame on a thread of its own; declared last, so that its thread is joined
+  // before anything it uses goes.
+  std::unique_ptr<Prefetcher<TrackedFrame>> tracker_;
 };
 
 }  // namespace imr::pipeline

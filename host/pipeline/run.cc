@@ -10,6 +10,7 @@
 #include "host/pipeline/front_end.h"
 #include "host/pipeline/keyframe_observers.h"
 #include "host/pipeline/mesh_export.h"
+#include "host/pipeline/prefetch.h"
 #include "host/pipeline/report.h"
 #include "host/pipeline/scale.h"
 #include "host/pipeline/stage_watch.h"
@@ -18,9 +19,11 @@
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
+#include "host/util/thread_pool.h"
 
 #include <chrono>
 #include <deque>
+#include <future>
 #include <map>
 #include <memory>
 #include <optional>
@@ -41,7 +44,22 @@ class SequenceRun {
       : v_(v), job_(v.job), registry_(registry), options_(options), seq_(seq), result_(result),
         watch_(options.on_stage_timeout) {
     result_->output_directory = job_.OutputDirectory(seq.name);
+    // Only the image front end is overlapped with the engine: its keyframes cost time to make,
+    // and it reads no engine state (its cameras, which the exports ask for during the loop, are
+    // fixed when it opens).
+    overlap_ = options_.overlap && util::AvailableCores() >= 2 &&
+               io::FindInputFormat(job_.input.format)->needs_front_end;
   }
+  // The front end's threads stop first; then the features and refiner instances are destroyed
+  // on the lanes that made and called them.
+  ~SequenceRun() {
+    prefetch_.reset();
+    source_.reset();
+    if (refiner_lane_) refiner_lane_->Run([&] { refiner_.reset(); });
+    if (features_lane_) features_lane_->Run([&] { features_.reset(); });
+  }
+  SequenceRun(const SequenceRun&) = delete;
+  SequenceRun& operator=(const SequenceRun&) = delete;
 
   // Throws, naming the keyframe, file or stage, when the sequence fails.
   void Run() {
@@ -66,7 +84,7 @@ class SequenceRun {
   void Warn(const std::string& warning);
   void WriteStreamExports();
   void EvaluateMesh(const engine::Mesh& mesh);
-  void WriteMeshAndReport(const engine::Mesh& mesh);
+  void WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>* evaluation);
 
   const ValidatedJob& v_;
   const io::JobSpec& job_;
@@ -75,6 +93,12 @@ class SequenceRun {
   const SequenceRef& seq_;
   SequenceResult* result_;
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+
+  // With the overlap (RunOptions::overlap, image inputs, 2 cores or more), the features and the
+  // refiner instances each live on a lane of their own (prefetch.h): made, called and destroyed
+  // there. The engine, the policy and the exporters stay on this thread.
+  bool overlap_ = false;
+  std::optional<Lane> features_lane_, refiner_lane_;
 
   // The stages: one policy (weights mode), the exporters, the image front end's two plugins.
   std::optional<plugin::PluginWeightPolicy> policy_;
@@ -91,6 +115,11 @@ class SequenceRun {
   const io::InputFormat* format_ = nullptr;
   std::unique_ptr<io::KeyframeSource> source_;
   const ImageFrontEndSource* front_end_ = nullptr;  // image inputs: the source itself
+  // The front end overlapped with the engine (RunOptions::overlap): keyframes are taken from it
+  // instead of source_. Declared after the source and the stages, so that its thread is joined
+  // before they go, on every path.
+  std::optional<PrefetchingSource> prefetch_;
+  io::KeyframeSource& Input() { return prefetch_ ? *prefetch_ : *source_; }
   std::optional<WatchedPolicy> watched_policy_;
 
   // The scene's scale (scale.h) and the engine.
@@ -148,24 +177,36 @@ void SequenceRun::InstantiateStages() {
     const io::StageSpec& stage = job_.pipeline[i];
     const plugin::PluginInfo* info = registry_.Find(stage.plugin);
     report_.plugins.push_back(PluginJson(*info, v_.stage_params[i]));
-    auto instance = [&] {
+    std::optional<plugin::LoadedInstance> instance;
+    auto create = [&] {
       const StageWatch::Call call = watch_.Enter(watched_[i]);
       try {
-        return plugin::CreateInstance(*info, v_.stage_params[i]);
+        instance.emplace(plugin::CreateInstance(*info, v_.stage_params[i]));
       } catch (const std::exception& e) {  // name the stage: its params are in the job there
         throw std::runtime_error(stage.json_path + " (" + stage.kind + "): " + e.what());
       }
-    }();
+    };
+    Lane* lane = !overlap_                  ? nullptr
+                 : stage.kind == "features" ? &features_lane_.emplace()
+                 : stage.kind == "refiner"  ? &refiner_lane_.emplace()
+                                            : nullptr;
+    if (lane != nullptr)
+      lane->Run([&] {
+        watch_.SetPosition("creating the plugin instances");
+        create();
+      });
+    else
+      create();
     if (stage.kind == "weight_policy") {
-      policy_.emplace(std::move(instance), info->id());
+      policy_.emplace(std::move(*instance), info->id());
       policy_stage_ = i;
     } else if (stage.kind == "exporter") {
-      exporters_.emplace_back(&stage, std::move(instance));
+      exporters_.emplace_back(&stage, std::move(*instance));
     } else if (stage.kind == "features") {
-      features_.emplace(std::move(instance));
+      features_.emplace(std::move(*instance));
       features_stage_ = i;
     } else if (stage.kind == "refiner") {
-      refiner_.emplace(std::move(instance));
+      refiner_.emplace(std::move(*instance));
       refiner_stage_ = i;
     }
   }
@@ -178,12 +219,16 @@ void SequenceRun::OpenSource() {
   if (format_->needs_front_end) {
     FrontEndOptions fo;
     fo.keyframe_every = io::ImageSequenceOptionsFromJson(v_.input_options).keyframe_every;
+    fo.track_ahead = overlap_;
     auto fe = std::make_unique<ImageFrontEndSource>(
         format_->open_images(seq_.source, v_.input_options), features_->instance,
         refiner_->instance, fo);
     fe->Watch(&watch_, &watched_[features_stage_], &watched_[refiner_stage_]);
+    if (overlap_) fe->TrackOn(&*features_lane_);
     front_end_ = fe.get();
     source_ = std::move(fe);
+    // Two keyframes ahead absorb the engine's uneven keyframes.
+    if (overlap_) prefetch_.emplace(source_.get(), 2, &*refiner_lane_);
   } else {
     source_ = format_->open(seq_.source, v_.input_options);
   }
@@ -206,7 +251,7 @@ void SequenceRun::StartEngine() {
       if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
       engine::KeyframeUpdate u;
       io::KeyframeInfo i;
-      if (!source_->Next(&u, &i)) break;
+      if (!Input().Next(&u, &i)) break;
       probe_.Add(u);
       early_.emplace_back(std::move(u), i);
     }
@@ -289,7 +334,7 @@ void SequenceRun::ProcessKeyframes() {
 
 // The keyframes read to decide the scale first, then the rest.
 bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info) {
-  if (early_.empty()) return source_->Next(update, info);
+  if (early_.empty()) return Input().Next(update, info);
   *update = std::move(early_.front().first);
   *info = early_.front().second;
   early_.pop_front();
@@ -297,13 +342,18 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 }
 
 // The last mesh, checked and with its warnings; then exports first (each whole or absent), the
-// evaluation, the mesh and the report.
+// evaluation, the mesh and the report. With the overlap (2 cores or more) the evaluation, which
+// only reads the mesh and the source, runs beside the mesh's export; its error still comes first.
 void SequenceRun::Finish() {
   const engine::Mesh mesh = CheckedMesh();
   WarnAbout(mesh);
   WriteStreamExports();
-  EvaluateMesh(mesh);
-  WriteMeshAndReport(mesh);
+  std::future<void> evaluation;
+  if (prefetch_)
+    evaluation = std::async(std::launch::async, [&] { EvaluateMesh(mesh); });
+  else
+    EvaluateMesh(mesh);
+  WriteMeshAndReport(mesh, &evaluation);
 }
 
 // The mesh after the last keyframe; throws when dO or the mesh is not what it must be.
@@ -395,14 +445,20 @@ void SequenceRun::EvaluateMesh(const engine::Mesh& mesh) {
 // The mesh in every format and report.json, staged together and moved into the output folder,
 // the glTF and report.json last: when the report cannot be written (a full disk) no mesh of the
 // failed run is left under a final name either.
-void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh) {
+void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>* evaluation) {
   const auto export_start = std::chrono::steady_clock::now();
   StagingDirectory staging(result_->output_directory);
   watch_.SetPosition("writing the mesh after the last keyframe");
-  report_.export_images = ExportMesh(mesh, export_context_, job_.output.formats, exporters_,
-                                     staging.path(), job_.output.stem, watch_,
-                                     options_.stage_timeout);
+  try {
+    report_.export_images = ExportMesh(mesh, export_context_, job_.output.formats, exporters_,
+                                       staging.path(), job_.output.stem, watch_,
+                                       options_.stage_timeout);
+  } catch (...) {
+    if (evaluation->valid()) evaluation->get();  // its error first, as without the overlap
+    throw;
+  }
   report_.export_seconds = SecondsSince(export_start);
+  if (evaluation->valid()) evaluation->get();
   const std::vector<std::string> commit_last = {job_.output.stem + ".gltf", "report.json"};
 
   report_.job = &v_;

@@ -62,6 +62,11 @@ struct RunOptions {
   // --threads: threads of the engine's ray casting, overriding the job's engine.threads. 0: the
   // job's value (its default: every core of the affinity mask). The mesh does not depend on it.
   int threads = 0;
+  // --no-overlap (false): the image front end makes each keyframe only when the engine asks for
+  // it. By default (true), when the process may run on 2 cores or more, it makes the next
+  // keyframes on a thread of its own while the engine applies the current one (prefetch.h); the
+  // mesh and the report's contents are the same either way.
+  bool overlap = true;
   // Called after every keyframe (from the running thread); empty: not called.
   std::function<void(const SequenceProgress&)> progress;
   // Called on the watchdog thread when a stage times out, with the message; must end the

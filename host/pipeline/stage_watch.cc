@@ -58,47 +58,58 @@ StageWatch::~StageWatch() {
 }
 
 StageWatch::Call StageWatch::Enter(const WatchedStage& stage) {
-  if (!(stage.timeout_seconds > 0.0)) return Call(nullptr);
+  if (!(stage.timeout_seconds > 0.0)) return Call(nullptr, 0);
   std::lock_guard<std::mutex> lock(mutex_);
-  current_ = &stage;
-  deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                 std::chrono::duration<double>(stage.timeout_seconds));
-  reported_ = false;
+  const uint64_t id = next_id_++;
+  calls_.emplace(id, Active{&stage,
+                            Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                               std::chrono::duration<double>(stage.timeout_seconds)),
+                            std::this_thread::get_id()});
   if (!thread_.joinable()) thread_ = std::thread([this] { Run(); });
-  return Call(this);
+  return Call(this, id);
 }
 
-void StageWatch::Leave() {
+void StageWatch::Leave(uint64_t id) {
   std::lock_guard<std::mutex> lock(mutex_);
-  current_ = nullptr;
+  calls_.erase(id);
 }
 
 void StageWatch::SetPosition(std::string position) {
   std::lock_guard<std::mutex> lock(mutex_);
-  position_ = std::move(position);
+  positions_[std::this_thread::get_id()] = std::move(position);
 }
 
 void StageWatch::Run() {
   std::unique_lock<std::mutex> lock(mutex_);
   while (!stop_) {
     const auto now = Clock::now();
-    if (current_ != nullptr && !reported_ && now >= deadline_) {
-      const WatchedStage& s = *current_;
+    auto wait = Clock::duration(kPoll);
+    Active* due = nullptr;
+    for (auto& [id, call] : calls_) {
+      if (call.reported) continue;
+      if (now >= call.deadline) {
+        due = &call;
+        break;
+      }
+      wait = std::min(wait, call.deadline - now);
+    }
+    if (due != nullptr) {
+      const WatchedStage& s = *due->stage;
+      const auto at = positions_.find(due->thread);
+      const std::string position = at == positions_.end() ? std::string() : at->second;
       const std::string message =
           "stage \"" + s.kind + "\" (" + s.json_path + ", plugin " + s.plugin +
           ") did not return within " + Seconds(s.timeout_seconds) +
-          (position_.empty() ? std::string() : " (" + position_ + ")") + "; the limit is " +
+          (position.empty() ? std::string() : " (" + position + ")") + "; the limit is " +
           s.limit_source;
-      reported_ = true;
+      due->reported = true;
       // The handler ends the process; unlocked, so that a handler that returns (tests) does not
-      // block the watched thread.
+      // block the watched threads.
       lock.unlock();
       on_timeout_(message);
       lock.lock();
       continue;
     }
-    auto wait = Clock::duration(kPoll);
-    if (current_ != nullptr && !reported_) wait = std::min(wait, deadline_ - now);
     wake_.wait_for(lock, wait);
   }
 }

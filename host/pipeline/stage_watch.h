@@ -14,7 +14,9 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -59,26 +61,35 @@ class StageWatch {
   // Marks a call in progress until destroyed. Inert when the stage has no timeout.
   class Call {
    public:
-    Call(Call&& o) noexcept : watch_(std::exchange(o.watch_, nullptr)) {}
+    Call(Call&& o) noexcept : watch_(std::exchange(o.watch_, nullptr)), id_(o.id_) {}
     Call& operator=(Call&&) = delete;
     Call(const Call&) = delete;
     ~Call() {
-      if (watch_ != nullptr) watch_->Leave();
+      if (watch_ != nullptr) watch_->Leave(id_);
     }
 
    private:
     friend class StageWatch;
-    explicit Call(StageWatch* watch) : watch_(watch) {}
+    Call(StageWatch* watch, uint64_t id) : watch_(watch), id_(id) {}
     StageWatch* watch_;
+    uint64_t id_;
   };
   // `stage` must outlive the call. Starts the watchdog thread on the first watched call.
   [[nodiscard]] Call Enter(const WatchedStage& stage);
 
-  // Where the sequence is, for the message: "keyframe 3, frame 15".
+  // Where the calling thread's part of the sequence is, for the message of its calls:
+  // "keyframe 3, frame 15".
   void SetPosition(std::string position);
 
  private:
-  void Leave();
+  // A watched call in progress.
+  struct Active {
+    const WatchedStage* stage;
+    std::chrono::steady_clock::time_point deadline;
+    std::thread::id thread;
+    bool reported = false;  // its timeout was handed to the handler
+  };
+  void Leave(uint64_t id);
   void Run();
 
   TimeoutHandler on_timeout_;
@@ -86,10 +97,9 @@ class StageWatch {
   std::condition_variable wake_;
   std::thread thread_;
   bool stop_ = false;
-  const WatchedStage* current_ = nullptr;  // the call in progress, if watched
-  std::chrono::steady_clock::time_point deadline_;
-  bool reported_ = false;  // the current call's timeout was handed to the handler
-  std::string position_;
+  uint64_t next_id_ = 1;
+  std::map<uint64_t, Active> calls_;
+  std::map<std::thread::id, std::string> positions_;
 };
 
 // A weight policy whose every Transfer is a watched call of `stage` (the engine calls the

@@ -118,5 +118,40 @@ TEST(StageWatch, EachOverrunIsReportedAgainAndTheWatchStopsCleanly) {
   EXPECT_NE(got[1].find("(frame 1)"), std::string::npos) << got[1];
 }
 
+// The front end's plugins run on the prefetching thread while the engine calls the policy
+// (prefetch.h): a call that overruns on one thread is reported with that thread's position,
+// while the other thread's calls, returning in time, are not.
+TEST(StageWatch, CallsOnTwoThreadsAreWatchedAtOnceEachWithItsThreadsPosition) {
+  Reports reports;
+  StageWatch watch(Recorder(&reports));
+  const WatchedStage policy = Policy(0.3);
+  io::StageSpec spec;
+  spec.kind = "features";
+  spec.plugin = "org.example.hangs";
+  spec.json_path = "pipeline[0]";
+  spec.timeout_seconds = 0.05;
+  const WatchedStage features = WatchedStageOf(spec, 0.0);
+  std::atomic<bool> done{false};
+  std::thread engine([&] {
+    watch.SetPosition("keyframe 3, frame 15");
+    while (!done) {
+      const StageWatch::Call call = watch.Enter(policy);
+      std::this_thread::sleep_for(1ms);
+    }
+  });
+  watch.SetPosition("frame 16");
+  {
+    const StageWatch::Call call = watch.Enter(features);
+    std::this_thread::sleep_for(400ms);
+  }
+  done = true;
+  engine.join();
+  const std::vector<std::string> got = reports.Get();
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0],
+            "stage \"features\" (pipeline[0], plugin org.example.hangs) did not return within "
+            "0.05 s (frame 16); the limit is pipeline[0].timeout_seconds");
+}
+
 }  // namespace
 }  // namespace imr::pipeline

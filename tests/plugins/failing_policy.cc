@@ -1,8 +1,9 @@
 // Test plugins that misbehave on purpose, to check the host's handling: a policy whose create
 // fails on a param, one that returns an error from transfer, one that returns NaN weights, one
 // that returns negative weights (finite, so only `imr run --check-invariants` catches them), one
-// that hangs in transfer (for the stage timeout). With "only_in", it misbehaves only in the
-// process of the sequence of that name, so one job can hold a bad and a good sequence.
+// that hangs in transfer (for the stage timeout), one that is slow (a run to signal midway). With
+// "only_in", it misbehaves only in the process of the sequence of that name, so one job can hold
+// a bad and a good sequence.
 #include <imr/sdk/plugin.hpp>
 
 #include <chrono>
@@ -37,6 +38,7 @@ class FailingPolicy : public imr::sdk::WeightPolicy {
     "nan": {"type": "boolean", "default": false},
     "negative": {"type": "boolean", "default": false},
     "hang": {"type": "boolean", "default": false, "description": "transfer never returns"},
+    "sleep_ms": {"type": "integer", "default": 0, "description": "each transfer sleeps this long"},
     "only_in": {"type": "string", "default": "", "description": "misbehave only in this sequence's process"}
   })";
   FailingPolicy(const imr::sdk::Params& p, const imr::sdk::Host&)
@@ -45,12 +47,14 @@ class FailingPolicy : public imr::sdk::WeightPolicy {
         fail_after_(active_ ? p.Get<int>("fail_after", -1) : -1),
         nan_(active_ && p.Get<bool>("nan", false)),
         negative_(active_ && p.Get<bool>("negative", false)),
-        hang_(active_ && p.Get<bool>("hang", false)) {
+        hang_(active_ && p.Get<bool>("hang", false)),
+        sleep_ms_(active_ ? p.Get<int>("sleep_ms", 0) : 0) {
     if (active_ && p.Get<bool>("fail_create", false))
       throw imr::sdk::InvalidArgument("params.fail_create: asked to fail");
   }
   void Transfer(const imr::sdk::TransferRequest& r) override {
     while (hang_) std::this_thread::sleep_for(std::chrono::seconds(1));
+    if (sleep_ms_ > 0) std::this_thread::sleep_for(std::chrono::milliseconds(sleep_ms_));
     if (fail_after_ >= 0 && calls_++ >= fail_after_)
       throw std::runtime_error("failing policy: transfer failed on purpose");
     for (auto& w : r.added_weights)
@@ -63,6 +67,7 @@ class FailingPolicy : public imr::sdk::WeightPolicy {
   bool nan_;
   bool negative_;
   bool hang_;
+  int sleep_ms_;
   int calls_ = 0;
 };
 
