@@ -1,5 +1,7 @@
 #include "host/synthetic/evaluation.h"
 
+#include "host/util/thread_pool.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -7,6 +9,20 @@
 #include <unordered_map>
 
 namespace imr::synthetic {
+namespace {
+
+// Calls fn(i) for every i in [0, n) on the cores of the process's affinity mask, in chunks.
+template <typename Fn>
+void ForChunks(size_t n, Fn&& fn) {
+  constexpr size_t kChunk = 512;
+  const size_t chunks = (n + kChunk - 1) / kChunk;
+  util::ThreadPool pool(chunks > 1 ? util::ResolveThreads(0) : 1);
+  pool.Run(chunks, [&](size_t c, int) {
+    for (size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i) fn(i);
+  });
+}
+
+}  // namespace
 
 // Closest point on a triangle (Ericson, Real-Time Collision Detection, 5.1.5).
 double PointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -114,9 +130,8 @@ std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
           grid[key(x, y, z)].push_back(static_cast<uint32_t>(t));
   }
   const int max_ring = static_cast<int>(std::ceil(cap / g)) + 1;
-  std::vector<double> dist;
-  dist.reserve(truth.size());
-  for (const Vec3& p : truth) {
+  const auto& cells = grid;  // read only from here on, by several threads
+  auto nearest = [&](const Vec3& p) {
     double best = cap;
     const int64_t cx = cell_of(p[0]), cy = cell_of(p[1]), cz = cell_of(p[2]);
     for (int ring = 0; ring <= max_ring; ++ring) {
@@ -124,8 +139,8 @@ std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
         for (int64_t y = cy - ring; y <= cy + ring; ++y)
           for (int64_t z = cz - ring; z <= cz + ring; ++z) {
             if (std::max({std::abs(x - cx), std::abs(y - cy), std::abs(z - cz)}) != ring) continue;
-            auto it = grid.find(key(x, y, z));
-            if (it == grid.end()) continue;
+            auto it = cells.find(key(x, y, z));
+            if (it == cells.end()) continue;
             for (uint32_t t : it->second)
               best = std::min(best, PointTriangleDistance(p, vert(faces[3 * t]),
                                                           vert(faces[3 * t + 1]),
@@ -134,8 +149,11 @@ std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
       // Every triangle within ring * g of p has been seen.
       if (best <= ring * g) break;
     }
-    dist.push_back(best);
-  }
+    return best;
+  };
+  // Each point's distance on its own: the result does not depend on the threads.
+  std::vector<double> dist(truth.size(), cap);
+  ForChunks(truth.size(), [&](size_t i) { dist[i] = nearest(truth[i]); });
   return dist;
 }
 
@@ -149,21 +167,33 @@ MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertice
     return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
   };
   // Mesh -> scene: four samples per triangle (centroid and three inner points), area-weighted.
-  double sum = 0.0, within = 0.0;
-  for (size_t t = 0; t < r.triangles; ++t) {
+  // The samples' distances on several threads, then summed in triangle order (the same sums as
+  // one thread makes).
+  struct Samples {
+    double area = 0.0;
+    double d[4] = {0.0, 0.0, 0.0, 0.0};
+  };
+  std::vector<Samples> samples(r.triangles);
+  scene.Distance({0.0, 0.0, 0.0});  // builds the scene's lazy index before the threads read it
+  ForChunks(r.triangles, [&](size_t t) {
     const Vec3 a = vert(faces[3 * t]), b = vert(faces[3 * t + 1]), c = vert(faces[3 * t + 2]);
     const double area = 0.5 * Norm(Cross(Sub(b, a), Sub(c, a)));
-    if (area <= 0.0) continue;
+    if (area <= 0.0) return;
     const Vec3 g = Scale(Add(a, Add(b, c)), 1.0 / 3.0);
-    const Vec3 s[4] = {g, Scale(Add(Scale(a, 4), Add(b, c)), 1.0 / 6.0),
+    const Vec3 q[4] = {g, Scale(Add(Scale(a, 4), Add(b, c)), 1.0 / 6.0),
                        Scale(Add(Scale(b, 4), Add(a, c)), 1.0 / 6.0),
                        Scale(Add(Scale(c, 4), Add(a, b)), 1.0 / 6.0)};
-    for (const Vec3& q : s) {
-      const double d = scene.Distance(q);
-      sum += 0.25 * area * d;
-      if (d <= tau) within += 0.25 * area;
+    samples[t].area = area;
+    for (int k = 0; k < 4; ++k) samples[t].d[k] = scene.Distance(q[k]);
+  });
+  double sum = 0.0, within = 0.0;
+  for (const Samples& x : samples) {
+    if (x.area <= 0.0) continue;
+    for (const double d : x.d) {
+      sum += 0.25 * x.area * d;
+      if (d <= tau) within += 0.25 * x.area;
     }
-    r.area += area;
+    r.area += x.area;
   }
   if (r.area > 0.0) {
     r.mean_mesh_to_scene = sum / r.area;
