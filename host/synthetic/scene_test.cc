@@ -65,21 +65,24 @@ TEST(EvaluationTest, TruthToMeshDistancesAreTheBruteForceMinimum) {
   std::vector<uint32_t> f;
   for (uint32_t t = 0; t < 300; ++t) {
     const Vec3 c = {u(g), u(g), u(g) / 6};
-    for (int k = 0; k < 3; ++k) v.insert(v.end(), {c[0] + small(g), c[1] + small(g), c[2] + small(g)});
+    for (int k = 0; k < 3; ++k)
+      v.insert(v.end(), {c[0] + small(g), c[1] + small(g), c[2] + small(g)});
     f.insert(f.end(), {3 * t, 3 * t + 1, 3 * t + 2});
   }
   std::vector<Vec3> truth;
   for (int i = 0; i < 2000; ++i) truth.push_back({u(g), u(g), u(g) / 6});
-  for (const auto& [cap, cell, span] : {std::tuple{5.0, 5.0, int64_t{64}}, {20.0, 2.0, int64_t{200}}}) {
+  for (const auto& [cap, cell, span] :
+       {std::tuple{5.0, 5.0, int64_t{64}}, {20.0, 2.0, int64_t{200}}}) {
     const std::vector<double> d = TruthToMeshDistances(v, f, truth, cap, cell, span);
     ASSERT_EQ(d.size(), truth.size());
     int capped = 0;
     for (std::size_t i = 0; i < truth.size(); ++i) {
       double best = cap;
       for (std::size_t t = 0; t < f.size() / 3; ++t)
-        best = std::min(best, PointTriangleDistance(truth[i], {v[9 * t], v[9 * t + 1], v[9 * t + 2]},
-                                                    {v[9 * t + 3], v[9 * t + 4], v[9 * t + 5]},
-                                                    {v[9 * t + 6], v[9 * t + 7], v[9 * t + 8]}));
+        best =
+            std::min(best, PointTriangleDistance(truth[i], {v[9 * t], v[9 * t + 1], v[9 * t + 2]},
+                                                 {v[9 * t + 3], v[9 * t + 4], v[9 * t + 5]},
+                                                 {v[9 * t + 6], v[9 * t + 7], v[9 * t + 8]}));
       ASSERT_EQ(d[i], best) << "point " << i << ", cap " << cap;
       capped += best == cap;
     }
@@ -89,6 +92,58 @@ TEST(EvaluationTest, TruthToMeshDistancesAreTheBruteForceMinimum) {
 
 // A road x in [-4, 4], y in [0, 20] with a box 2 m x 4 m x 1.5 m standing on it at x in [1, 3],
 // y in [10, 14] (its top marked as Scene::StreetCanyon marks box tops).
+// EvaluateMesh runs on every core it may use; its figures are the bits one thread gives
+// (the sums in triangle and point order), recomputed here serially.
+TEST(EvaluationTest, MeshAccuracyIsTheSerialSumOnAnyNumberOfThreads) {
+  const Scene street = Scene::StreetCanyon(100, 3);
+  std::mt19937_64 g(11);
+  std::uniform_real_distribution<double> x(-9.0, 9.0), y(0.0, 100.0), z(0.0, 6.0), small(-0.8, 0.8);
+  std::vector<double> v;
+  std::vector<uint32_t> f;
+  for (uint32_t t = 0; t < 3000; ++t) {  // several chunks of triangles
+    const Vec3 c = {x(g), y(g), z(g)};
+    for (int k = 0; k < 3; ++k)
+      v.insert(v.end(), {c[0] + small(g), c[1] + small(g), c[2] + small(g)});
+    f.insert(f.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+  }
+  std::vector<Vec3> truth;
+  for (int i = 0; i < 3000; ++i) truth.push_back({x(g), y(g), z(g)});
+  const double tau = 0.2, cap = 5.0;
+  const MeshAccuracy a = EvaluateMesh(street, v, f, truth, tau, cap);
+  double sum = 0.0, within = 0.0, area = 0.0;
+  for (size_t t = 0; t < f.size() / 3; ++t) {
+    auto p = [&](int k) {
+      return Vec3{v[3 * f[3 * t + k]], v[3 * f[3 * t + k] + 1], v[3 * f[3 * t + k] + 2]};
+    };
+    const Vec3 a0 = p(0), b0 = p(1), c0 = p(2);
+    const double ar = 0.5 * Norm(Cross(Sub(b0, a0), Sub(c0, a0)));
+    if (ar <= 0.0) continue;
+    const Vec3 q[4] = {Scale(Add(a0, Add(b0, c0)), 1.0 / 3.0),
+                       Scale(Add(Scale(a0, 4), Add(b0, c0)), 1.0 / 6.0),
+                       Scale(Add(Scale(b0, 4), Add(a0, c0)), 1.0 / 6.0),
+                       Scale(Add(Scale(c0, 4), Add(a0, b0)), 1.0 / 6.0)};
+    for (const Vec3& s : q) {
+      const double d = street.Distance(s);
+      sum += 0.25 * ar * d;
+      if (d <= tau) within += 0.25 * ar;
+    }
+    area += ar;
+  }
+  EXPECT_EQ(a.area, area);
+  EXPECT_EQ(a.mean_mesh_to_scene, sum / area);
+  EXPECT_EQ(a.precision, within / area);
+  double tsum = 0.0;
+  size_t near = 0;
+  for (const double d : TruthToMeshDistances(v, f, truth, cap, cap, 64)) {
+    tsum += d;
+    near += d <= tau ? 1 : 0;
+  }
+  EXPECT_EQ(a.mean_truth_to_mesh, tsum / truth.size());
+  EXPECT_EQ(a.completeness, static_cast<double>(near) / truth.size());
+  EXPECT_GT(a.completeness, 0.0);
+  EXPECT_GT(a.precision, 0.0);
+}
+
 TEST(SampleRoadSurfaceTest, GroundOnlyNotUnderBoxesDenseAndDeterministic) {
   Scene s;
   s.AddRect({{0, 10, 0}, {1, 0, 0}, {0, 1, 0}, 4, 10, Material::kGround});
