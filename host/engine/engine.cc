@@ -488,13 +488,6 @@ bool Finite(const Vec3& p) {
   return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
 }
 
-// The (point, ray index) pairs of a point's last `window` cameras.
-void WindowRays(const PointRecord& rec, int window, uint32_t pt,
-                std::vector<std::pair<uint32_t, uint32_t>>* out) {
-  const size_t n = rec.cameras.size(), w = static_cast<size_t>(window);
-  for (size_t k = n > w ? n - w : 0; k < n; ++k) out->push_back({pt, static_cast<uint32_t>(k)});
-}
-
 }  // namespace
 
 Engine::Impl::Impl(const EngineOptions& o, WeightTransferPolicy* p)
@@ -962,6 +955,13 @@ void Engine::Impl::MoveAbsentPoint(uint32_t pt, const MovedPoint& m) {
 // batches run on all threads. A ray that leaves the window during the move (its point gained
 // cameras) is not cast again: a moving point keeps the rays of its last W cameras only, which
 // the quality bench prefers (street stream F 0.742 against 0.705 keeping them).
+// The (point, ray index) pairs of point pt's window.
+void Engine::Impl::WindowRays(uint32_t pt, std::vector<std::pair<uint32_t, uint32_t>>* out) const {
+  const PointRecord& rec = s.points[pt];
+  for (size_t k = s.WindowBegin(rec); k < rec.cameras.size(); ++k)
+    out->push_back({pt, static_cast<uint32_t>(k)});
+}
+
 // Which moves of the update are shorter than min_move_fraction of the distance from the point's
 // vertex to its nearest neighbour (decided on the triangulation before any move, so the order
 // of the moves does not matter).
@@ -992,7 +992,7 @@ void Engine::Impl::UncastMoving(const KeyframeUpdate& u) {
     const uint32_t pt = s.point_index.at(m.id);
     const PointRecord& rec = s.points[pt];
     if (rec.in_triangulation && !short_move_[i] && ToPoint(m.position) != rec.vertex->point())
-      WindowRays(rec, s.opt.window, pt, &rays);
+      WindowRays(pt, &rays);
   }
   caster.UncastBatch(rays);
 }
@@ -1006,7 +1006,7 @@ void Engine::Impl::CastUpdated(const KeyframeUpdate& u) {
   for (const MovedPoint& m : u.moved_points) {
     const uint32_t pt = s.point_index.at(m.id);
     if (s.points[pt].in_triangulation && !std::binary_search(sorted.begin(), sorted.end(), pt))
-      WindowRays(s.points[pt], s.opt.window, pt, &rays);
+      WindowRays(pt, &rays);
   }
   for (uint32_t pt : entered_)
     for (size_t k = 0; k < s.points[pt].cameras.size(); ++k)

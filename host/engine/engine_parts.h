@@ -224,11 +224,15 @@ struct EngineState {
     return e.camera < rec.ray_cast.size() && rec.ray_cast[e.camera] &&
            rec.ray_gen[e.camera] == e.level;
   }
-  // The last W cameras of a point (internal indices): the rays a move re-casts.
+  // Where a point's last W cameras start in its list: the rays a move re-casts.
+  size_t WindowBegin(const PointRecord& rec) const {
+    const size_t w = static_cast<size_t>(opt.window), n = rec.cameras.size();
+    return n > w ? n - w : 0;
+  }
+  // Those cameras (internal indices).
   std::vector<uint32_t> Window(const PointRecord& rec) const {
-    const size_t w = static_cast<size_t>(opt.window);
-    const size_t n = rec.cameras.size();
-    return std::vector<uint32_t>(rec.cameras.begin() + (n > w ? n - w : 0), rec.cameras.end());
+    const auto begin = rec.cameras.begin() + static_cast<std::ptrdiff_t>(WindowBegin(rec));
+    return std::vector<uint32_t>(begin, rec.cameras.end());
   }
 };
 
@@ -541,6 +545,7 @@ struct Engine::Impl {
   void InsertNewPoint(const NewPoint& np);
   bool Enter(uint32_t pt, bool again);
   void MoveAbsentPoint(uint32_t pt, const MovedPoint& m);
+  void WindowRays(uint32_t pt, std::vector<std::pair<uint32_t, uint32_t>>* out) const;
   void FindShortMoves(const KeyframeUpdate& u);
   void UncastMoving(const KeyframeUpdate& u);
   void CastUpdated(const KeyframeUpdate& u);

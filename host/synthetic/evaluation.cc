@@ -1,6 +1,6 @@
 #include "host/synthetic/evaluation.h"
 
-#include "host/util/thread_pool.h"
+#include "host/util/parallel_for.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,15 +11,12 @@
 namespace imr::synthetic {
 namespace {
 
-// Calls fn(i) for every i in [0, n) on the cores of the process's affinity mask, in chunks.
+// Calls fn(i) for every i in [0, n) on the cores of the process's affinity mask.
 template <typename Fn>
-void ForChunks(size_t n, Fn&& fn) {
-  constexpr size_t kChunk = 512;
-  const size_t chunks = (n + kChunk - 1) / kChunk;
-  util::ThreadPool pool(chunks > 1 ? util::ResolveThreads(0) : 1);
-  pool.Run(chunks, [&](size_t c, int) {
-    for (size_t i = c * kChunk; i < std::min(n, (c + 1) * kChunk); ++i) fn(i);
-  });
+void ForEachIndex(size_t n, Fn&& fn) {
+  util::ParallelFor(n, 0, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) fn(i);
+  }, 512);
 }
 
 }  // namespace
@@ -153,7 +150,7 @@ std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
   };
   // Each point's distance on its own: the result does not depend on the threads.
   std::vector<double> dist(truth.size(), cap);
-  ForChunks(truth.size(), [&](size_t i) { dist[i] = nearest(truth[i]); });
+  ForEachIndex(truth.size(), [&](size_t i) { dist[i] = nearest(truth[i]); });
   return dist;
 }
 
@@ -175,7 +172,7 @@ MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertice
   };
   std::vector<Samples> samples(r.triangles);
   scene.Distance({0.0, 0.0, 0.0});  // builds the scene's lazy index before the threads read it
-  ForChunks(r.triangles, [&](size_t t) {
+  ForEachIndex(r.triangles, [&](size_t t) {
     const Vec3 a = vert(faces[3 * t]), b = vert(faces[3 * t + 1]), c = vert(faces[3 * t + 2]);
     const double area = 0.5 * Norm(Cross(Sub(b, a), Sub(c, a)));
     if (area <= 0.0) return;
