@@ -566,6 +566,7 @@ void Engine::Impl::AddCameras(PointRecord& rec, const std::vector<uint64_t>& ids
       rec.ray_cast.push_back(0);
       rec.ray_gen.push_back(0);
       rec.ray_end.push_back(Point(0, 0, 0));
+      rec.ray_cells.emplace_back();
     }
     if (added) added->push_back(c);
   }
@@ -995,6 +996,7 @@ void Engine::Impl::UncastMoving(const KeyframeUpdate& u) {
       WindowRays(pt, &rays);
   }
   caster.UncastBatch(rays);
+  caster.DropLists();  // the lists of the points that do not move: walked if they ever do
 }
 
 // What is not cast: the window's rays of the moved points (also of those that kept their
@@ -1049,6 +1051,12 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& u) {
     s.stats.time.cast += SecondsSince(a);
   };
   FindShortMoves(u);
+  if (exact && s.opt.check_invariants) {
+    // The lists are consumed next: check them after the Steiner points and removals changed
+    // the cells (the check after the update sees them only as the cast batch made them).
+    const std::string lists = detail::InvariantChecker(s).CheckRayLists();
+    if (!lists.empty()) return Status::Error("invariant broken before the un-cast batch: " + lists);
+  }
   if (exact) timed_batch([&] { UncastMoving(u); });
   timed(&s.stats.time.move, [&] {
     for (size_t i = 0; i < u.moved_points.size(); ++i) {

@@ -181,6 +181,8 @@ struct EngineStats {
   int64_t rays_skipped_too_long = 0;  // Longer than max_ray_length (cast whole: none of them).
   int64_t rays_truncated_to_camera = 0;  // Of those, cast over max_ray_length next to the camera.
   int64_t rays_truncated = 0;         // Hit max_cells_per_ray or a traversal failure.
+  int64_t rays_uncast_listed = 0;     // kExact: of rays_cast_backward, taken out of the cells
+                                      // their cast listed, without a walk.
   int64_t rays_rewalked = 0;          // kExact: rays walked again through the new cells of a hole.
   int64_t rays_rewalked_exact = 0;    // kExact: of those, walked with exact predicates (near an
                                       // edge or vertex, or no entry facet known).

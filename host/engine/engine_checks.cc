@@ -2,6 +2,7 @@
 // (engine_internal.h): what a run calls only when asked (check_invariants, tests, imr-microbench).
 #include "host/engine/engine_parts.h"
 
+#include <tuple>
 #include <sstream>
 
 namespace imr::engine {
@@ -25,6 +26,38 @@ std::string InvariantChecker::DescribeCell(Cell_handle c) const {
   std::string s = "cell {";
   for (int i = 0; i < 4; ++i) s += (i ? "; " : "") + DescribeVertex(c->vertex(i));
   return s + "}";
+}
+
+// kExact: each listed ray (PointRecord::ray_cells) names exactly the cells that hold it. Empty
+// when so, else the first ray that does not. Handles are compared, never followed: a list that
+// kept a destroyed cell shows as a cell no live cell matches.
+std::string InvariantChecker::CheckRayLists() const {
+  std::vector<std::tuple<uint32_t, uint32_t, Cell_handle>> holders;  // (point, ray, cell)
+  for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c)
+    for (const RayEntry& e : c->info().rays)
+      if (s_.Live(e) && s_.points[e.point].Listed(e.camera))
+        holders.push_back({e.point, e.camera, c});
+  std::sort(holders.begin(), holders.end());
+  auto next = holders.begin();
+  std::vector<Cell_handle> listed, held;
+  for (uint32_t pt = 0; pt < s_.points.size(); ++pt) {
+    const PointRecord& rec = s_.points[pt];
+    for (uint32_t k = 0; k < rec.ray_cast.size(); ++k) {
+      if (!rec.Listed(k)) continue;
+      listed = rec.ray_cells[k];
+      std::sort(listed.begin(), listed.end());
+      listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
+      held.clear();  // holders are sorted by (point, ray) as this loop visits them
+      for (; next != holders.end() && std::get<0>(*next) == pt && std::get<1>(*next) == k; ++next)
+        held.push_back(std::get<2>(*next));
+      if (listed != held)
+        return "the ray of point " + std::to_string(rec.id) + " from camera " +
+               std::to_string(s_.camera_ids[rec.cameras[k]]) + " lists " +
+               std::to_string(listed.size()) + " cells but " + std::to_string(held.size()) +
+               " cells hold it";
+    }
+  }
+  return {};
 }
 
 // Weight consistency: every weight within what casting and transfer can make (>= 0 when
@@ -107,6 +140,10 @@ ManifoldCheckResult InvariantChecker::Check() const {
   if (s_.hooks && s_.hooks->manifold_test_mismatches > 0)
     fail("the two forms of the manifold test disagreed");
   CheckWeights(fail);
+  if (s_.opt.visibility_mode == VisibilityMode::kExact) {
+    const std::string lists = CheckRayLists();
+    if (!lists.empty()) fail(lists);
+  }
   const std::vector<Triangle> tris = Boundary(s_);
   r.boundary_triangles = static_cast<int64_t>(tris.size());
   // Orientation: the O cell's opposite vertex is on the positive side of each triangle.
@@ -410,6 +447,8 @@ std::string EngineInternals::CheckRaySets(Engine& e) {
   return {};
 }
 
+void EngineInternals::DropRayLists(Engine& e) { e.impl_->caster.DropLists(); }
+
 void EngineInternals::Regrow(Engine& e) {
   Engine::Impl& m = *e.impl_;
   for (auto c = m.s.dt.all_cells_begin(); c != m.s.dt.all_cells_end(); ++c)
@@ -426,6 +465,7 @@ void EngineInternals::RecastAllAndRegrow(Engine& e) {
     c->info().weight = 0;
     c->info().rays.clear();
   }
+  m.caster.DropLists();
   for (auto& rec : m.s.points) std::fill(rec.ray_cast.begin(), rec.ray_cast.end(), 0);
   m.s.dirty.clear();
   for (uint32_t pt = 0; pt < m.s.points.size(); ++pt)

@@ -84,6 +84,9 @@ class EngineInternals {
   // Forgets every weight and O, re-casts every point's rays (all its cameras) through today's
   // triangulation and grows O again: the labelling a batch run would give on the same cells.
   static void RecastAllAndRegrow(Engine& e);
+  // kExact: forgets the cells each ray's cast listed, so that the next un-casts walk (the rays'
+  // cells and weights stay).
+  static void DropRayLists(Engine& e);
   // Empties O and grows it again from the best cell (weights kept).
   static void Regrow(Engine& e);
 

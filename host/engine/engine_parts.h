@@ -131,11 +131,18 @@ struct PointRecord {
                                // at insertion (duplicate, dropped) tries again when it moves.
   Vec3 position{};             // Latest estimate received.
   std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
-  // kExact, parallel to cameras: whether the ray is cast, and where it ended when it was (the
-  // point's position then; a ray older than the window keeps its end when the point moves).
+  // kExact, parallel to cameras: whether the ray is cast (kCast, and kListed, see ray_cells), and
+  // where it ended when it was (the point's position then; a ray older than the window keeps its
+  // end when the point moves).
+  static constexpr uint8_t kCast = 1, kListed = 2;
   std::vector<uint8_t> ray_cast;
   std::vector<uint32_t> ray_gen;  // generation: +1 at each un-cast (entries made before: stale)
   std::vector<Point> ray_end;
+  // kExact, parallel to cameras: when ray_cast has kListed, the cells that hold the ray (every
+  // one of them, a cell possibly twice), so that un-casting it needs no walk. Kept from a
+  // keyframe's cast batch to the next keyframe's un-cast batch (RayCaster::CastBatch, DropLists).
+  std::vector<std::vector<Cell_handle>> ray_cells;
+  bool Listed(size_t k) const { return (ray_cast[k] & kListed) != 0; }
 };
 
 // The state of the benchmark and diagnostic hooks (engine_internal.h).
@@ -279,8 +286,11 @@ class RayCaster {
   // kExact batches: the rays (point, k) cast (those not cast yet, from their points' current
   // positions) or un-cast together, walked on the thread pool. Deterministic: the same weights,
   // ray lists and free cells for any number of threads.
+  // A cast batch lists each ray's cells (PointRecord::ray_cells) and an un-cast batch takes the
+  // listed rays out of those cells without walking; DropLists frees the lists not used.
   void CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
   void UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
+  void DropLists();
   // kExact, before cells are destroyed: the rays they hold and where.
   void CollectHole(const std::vector<Cell_handle>& cells, Hole* hole);
   // kExact, after the new cells exist: each ray of the hole walked again through them.
@@ -345,6 +355,10 @@ class RayCaster {
     Point a, b;    // the segment walked (end -> camera)
     Cell_handle hint;
     Vertex_handle from;  // see BeginWalk
+    // Un-cast: the cells listed for the ray, taken instead of a walk (null: walk). Cast: where
+    // to list the cells walked (null: nowhere).
+    const std::vector<Cell_handle>* listed = nullptr;
+    std::vector<Cell_handle>* list_to = nullptr;
     uint32_t worker = 0, offset = 0, count = 0;  // its cells in walk_cells_[worker]
     bool truncated = false;
   };
@@ -365,6 +379,7 @@ class RayCaster {
   };
 
   void CastWeights(uint32_t cam, uint32_t pt, int sign);  // kWeights and kRays
+  void Unlist(PointRecord& rec, size_t k, bool free_memory);
   void ExactCast(uint32_t pt, size_t k);
   bool RaySegment(const Point& p, const Point& cam, Point* start);
   static size_t RayIndex(const PointRecord& rec, uint32_t cam);
@@ -392,6 +407,7 @@ class RayCaster {
   std::vector<uint32_t> point_hole_head_;  // per point: its first ray in that hole's list
   uint64_t hole_count_ = 0;
   std::vector<TetPlanes> fresh_planes_;    // planes of the cells being made, by their slot
+  std::vector<std::pair<uint32_t, uint32_t>> listed_;  // rays listed by the last cast batch
 };
 
 // -------------------------------------------------------------------------------------------------
@@ -490,6 +506,7 @@ class InvariantChecker {
  public:
   explicit InvariantChecker(const EngineState& s) : s_(s) {}
   ManifoldCheckResult Check() const;
+  std::string CheckRayLists() const;
   // A vertex or a cell as a user would find it: the point's id (or the Steiner point's number)
   // and where it is.
   std::string DescribeVertex(Vertex_handle v) const;

@@ -116,6 +116,59 @@ TEST(ThreadsTest, SameMeshAndWeightsForOneTwoAndFourThreads) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Exact mode un-casts a moving point's rays from the cells their cast listed, without walking
+// them: the same cells and weights as the walk, so the same mesh as an engine whose lists are
+// dropped before each keyframe. Between the cast and the un-cast, removals destroy cells that
+// hold listed rays (the points inserted three keyframes before stop moving and are removed):
+// the lists follow (checked before each un-cast batch with check_invariants).
+TEST(RayListsTest, UncastFromListsEqualsUncastByWalking) {
+  for (SceneKind scene : {SceneKind::kStreet, SceneKind::kRoom}) {
+    synthetic::StreamOptions so = SmallStream(scene, 5);
+    so.frames = 60;
+    Mesh meshes[2];
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[2];
+    int64_t removed = 0;
+    for (int walk : {0, 1}) {
+      synthetic::SyntheticStream stream(so);
+      EngineOptions eo;
+      eo.check_invariants = true;  // each listed ray names exactly the cells that hold it
+      Engine engine(eo, nullptr);
+      std::vector<uint64_t> previous;  // the points the last update moved or inserted
+      synthetic::StreamKeyframe kf;
+      while (stream.Next(&kf)) {
+        KeyframeUpdate u = testing::ToUpdate(kf);
+        std::vector<uint64_t> now;
+        for (const MovedPoint& m : u.moved_points) now.push_back(m.id);
+        std::sort(now.begin(), now.end());
+        for (uint64_t id : previous)  // every third point that stopped moving
+          if (id % 3 == 0 && !std::binary_search(now.begin(), now.end(), id))
+            u.removed_points.push_back(id);
+        previous = now;
+        for (const NewPoint& p : u.new_points) previous.push_back(p.id);
+        const Status st = engine.ApplyUpdate(u);
+        ASSERT_TRUE(st.ok()) << st.message();
+        if (walk) internal::EngineInternals::DropRayLists(engine);
+      }
+      const EngineStats& st = engine.Stats();
+      EXPECT_GT(st.points_moved, 50);
+      EXPECT_GT(st.points_removed, 20);
+      removed = st.points_removed;
+      if (walk) EXPECT_EQ(st.rays_uncast_listed, 0);
+      else EXPECT_GT(st.rays_uncast_listed, st.rays_cast_backward / 2);
+      EXPECT_EQ(st.ray_mismatches, 0);
+      meshes[walk] = engine.ExtractMesh();
+      weights[walk] = engine.CellWeights();
+    }
+    ASSERT_FALSE(meshes[0].faces.empty());
+    const std::string what = synthetic::ToString(scene) + ", " + std::to_string(removed) +
+                             " points removed";
+    EXPECT_EQ(meshes[0].vertices, meshes[1].vertices) << what;
+    EXPECT_EQ(meshes[0].faces, meshes[1].faces) << what;
+    EXPECT_EQ(weights[0], weights[1]) << what;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Casting rays forward and then backward restores every cell weight bit for bit, including with
 // weights that are not multiples of one another.
 TEST(CastingTest, ForwardThenBackwardRestoresWeightsExactly) {

@@ -87,9 +87,26 @@ size_t RayCaster::RayIndex(const PointRecord& rec, uint32_t cam) {
 // Adds ray k of point pt (its current generation) to a cell. A cell's list keeps stale entries
 // until it is destroyed or holds twice as many entries as rays: then it is compacted.
 void RayCaster::AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
+  PointRecord& rec = s_.points[pt];
   const int64_t before = c->info().weight;
-  if (PushRay(&c->info(), {k, pt, s_.points[pt].ray_gen[k]})) s_.MarkDirty(c);
+  if (PushRay(&c->info(), {k, pt, rec.ray_gen[k]})) s_.MarkDirty(c);
   s_.Ledger(before, c->info().weight);
+  if (rec.Listed(k)) rec.ray_cells[k].push_back(c);
+}
+
+// The ray's list is no longer kept: emptied, its memory freed or kept for the next cast.
+void RayCaster::Unlist(PointRecord& rec, size_t k, bool free_memory) {
+  rec.ray_cast[k] &= static_cast<uint8_t>(~PointRecord::kListed);
+  if (free_memory) std::vector<Cell_handle>().swap(rec.ray_cells[k]);
+  else rec.ray_cells[k].clear();
+}
+
+void RayCaster::DropLists() {
+  for (const auto& [pt, k] : listed_) {
+    PointRecord& rec = s_.points[pt];
+    if (k < rec.ray_cast.size() && rec.Listed(k)) Unlist(rec, k, true);
+  }
+  listed_.clear();
 }
 
 // The entry and its weight; true when the cell just became free. Reads only the points' ray
@@ -136,7 +153,7 @@ void RayCaster::ExactCast(uint32_t pt, size_t k) {
   if (!RaySegment(rec.vertex->point(), b, &a)) return;
   ++s_.stats.rays_cast;
   int64_t n = 0;
-  rec.ray_cast[k] = 1;
+  rec.ray_cast[k] = PointRecord::kCast;
   rec.ray_end[k] = a;
   Walk(a, b, rec.vertex->cell(), rec.vertex, [&](Cell_handle c) {
     AddRay(c, pt, static_cast<uint32_t>(k));
@@ -155,9 +172,22 @@ void RayCaster::ExactUncast(uint32_t pt, size_t k) {
   PointRecord& rec = s_.points[pt];
   if (!rec.ray_cast[k]) return;
   const RayEntry mine{static_cast<uint32_t>(k), pt, rec.ray_gen[k]};
+  const bool listed = rec.Listed(k);
   rec.ray_cast[k] = 0;
   ++rec.ray_gen[k];
   ++s_.stats.rays_cast_backward;
+  if (listed) {  // its cells are known: no walk
+    ++s_.stats.rays_uncast_listed;
+    ++s_.stamp;
+    for (Cell_handle c : rec.ray_cells[k]) {
+      if (c->info().stamp == s_.stamp) continue;
+      c->info().stamp = s_.stamp;
+      s_.Ledger(c->info().weight, c->info().weight - s_.unit[0]);
+      c->info().weight -= s_.unit[0];
+    }
+    Unlist(rec, k, false);
+    return;
+  }
   const uint32_t cam = rec.cameras[k];
   Walk(rec.ray_end[k], s_.cameras[cam], WalkHint(rec), StartVertex(rec), [&](Cell_handle c) {
     const int64_t before = c->info().weight;
@@ -229,8 +259,10 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
       BatchRay& r = rays[i];
       r.worker = static_cast<uint32_t>(worker);
       r.offset = static_cast<uint32_t>(out.size());
-      r.truncated = !Trace(r, &out);
+      if (r.listed) out.insert(out.end(), r.listed->begin(), r.listed->end());
+      else r.truncated = !Trace(r, &out);
       r.count = static_cast<uint32_t>(out.size() - r.offset);
+      if (r.list_to) r.list_to->assign(out.begin() + r.offset, out.end());
     }
   });
   const size_t parts = rays.size() < 64 ? 1 : workers;
@@ -274,9 +306,12 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     Point a;
     if (!RaySegment(rec.vertex->point(), b, &a)) continue;
     ++s_.stats.rays_cast;
-    rec.ray_cast[k] = 1;
+    // Its walk fills its list (each thread writes the lists of its own rays).
+    rec.ray_cast[k] = PointRecord::kCast | PointRecord::kListed;
     rec.ray_end[k] = a;
+    listed_.push_back({pt, k});
     rays.push_back({pt, k, rec.ray_gen[k], a, b, rec.vertex->cell(), rec.vertex});
+    rays.back().list_to = &rec.ray_cells[k];
   }
   const std::vector<BatchPart> parts =
       RunBatch(rays, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
@@ -297,19 +332,25 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     if (!rec.ray_cast[k]) continue;
     rays.push_back({pt, k, rec.ray_gen[k], rec.ray_end[k], s_.cameras[rec.cameras[k]],
                     WalkHint(rec), StartVertex(rec)});
+    if (rec.Listed(k)) rays.back().listed = &rec.ray_cells[k];
     rec.ray_cast[k] = 0;
     ++rec.ray_gen[k];
     ++s_.stats.rays_cast_backward;
   }
   MergeParts(RunBatch(rays, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
     CellInfo& info = c->info();
-    if (!Holds(info, {r.k, r.point, r.gen})) {
+    if (!r.listed && !Holds(info, {r.k, r.point, r.gen})) {
       ++p.mismatches;
       return;
     }
     info.weight -= s_.unit[0];
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
   }));
+  for (const BatchRay& r : rays) {
+    if (!r.listed) continue;
+    Unlist(s_.points[r.point], r.k, false);  // cast again soon: memory kept
+    ++s_.stats.rays_uncast_listed;
+  }
 }
 
 TetPlanes RayCaster::PlanesOf(Cell_handle c) {
@@ -375,8 +416,12 @@ void RayCaster::CollectHole(const std::vector<Cell_handle>& cells, Hole* hole) {
     const TetPlanes planes = PlanesOf(c);
     for (const RayEntry& e : c->info().rays) {
       if (!s_.Live(e)) continue;  // a stale entry: dropped with the cell
-      const PointRecord& rec = s_.points[e.point];
+      PointRecord& rec = s_.points[e.point];
       const size_t k = e.camera;
+      if (rec.Listed(k)) {  // the cell leaves the ray's list (RefillHole lists the new ones)
+        std::vector<Cell_handle>& l = rec.ray_cells[k];
+        l.erase(std::remove(l.begin(), l.end(), c), l.end());
+      }
       const Point& end = rec.ray_end[k];
       const Point& cam = s_.cameras[rec.cameras[k]];
       const double a[3] = {end.x(), end.y(), end.z()};

@@ -27,6 +27,7 @@ json StatsJson(const engine::EngineStats& s) {
           {"rays_skipped_too_long", s.rays_skipped_too_long},
           {"rays_truncated_to_camera", s.rays_truncated_to_camera},
           {"rays_truncated", s.rays_truncated},
+          {"rays_uncast_listed", s.rays_uncast_listed},
           {"rays_rewalked", s.rays_rewalked},
           {"rays_rewalked_exact", s.rays_rewalked_exact},
           {"cells_rewalked", s.cells_rewalked},
