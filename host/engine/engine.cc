@@ -356,7 +356,7 @@ void WeightTransfer::CollectRemoved(const std::vector<Cell_handle>& cells, Remov
     if (s_.dt.is_infinite(c)) continue;
     if (s_.opt.visibility_mode == VisibilityMode::kRays) {
       r->rays.insert(r->rays.end(), c->info().rays.begin(), c->info().rays.end());
-    } else {
+    } else if (s_.opt.visibility_mode == VisibilityMode::kWeights) {  // the policy's input
       const Point g = s_.Centroid(c);
       r->centroids.insert(r->centroids.end(), {g.x(), g.y(), g.z()});
       r->weights.push_back(s_.FromUnits(c->info().weight));

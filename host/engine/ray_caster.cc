@@ -113,8 +113,10 @@ void RayCaster::DropLists() {
 // states besides the cell: safe on several threads for distinct cells.
 bool RayCaster::PushRay(CellInfo* info, const RayEntry& e) const {
   const int64_t before = info->weight;
-  const int64_t live = s_.unit[0] > 0 ? before / s_.unit[0] : 0;
-  if (static_cast<int64_t>(info->rays.size()) >= 2 * live + 8) {
+  // Compacted when it holds 2 live + 8 entries or more; the weight is unit[0] times the live
+  // entries, so compared without a division (this runs once per cell a ray crosses).
+  const int64_t u = s_.unit[0], n = static_cast<int64_t>(info->rays.size());
+  if (u > 0 ? n * u >= 2 * before + 8 * u : n >= 8) {
     info->rays.erase(std::remove_if(info->rays.begin(), info->rays.end(),
                                     [&](const RayEntry& x) { return !s_.Live(x); }),
                      info->rays.end());
@@ -221,7 +223,7 @@ util::ThreadPool& RayCaster::Pool() {
 // Which apply task owns a cell: a hash of its address (fixed while the cell lives).
 size_t RayCaster::Owner(Cell_handle c, size_t parts) {
   const uint64_t h = (reinterpret_cast<uintptr_t>(&*c) >> 4) * 0x9E3779B97F4A7C15ull;
-  return static_cast<size_t>((h >> 32) % parts);
+  return static_cast<size_t>(((h >> 32) * parts) >> 32);  // in [0, parts) without a division
 }
 
 // The finite cells the segment a -> b crosses, in order, as Walk visits them but without its
