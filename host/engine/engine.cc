@@ -566,7 +566,7 @@ void Engine::Impl::AddCameras(PointRecord& rec, const std::vector<uint64_t>& ids
       rec.ray_cast.push_back(0);
       rec.ray_gen.push_back(0);
       rec.ray_end.push_back(Point(0, 0, 0));
-      rec.ray_cells.emplace_back();
+      rec.ray_list.emplace_back();
     }
     if (added) added->push_back(c);
   }

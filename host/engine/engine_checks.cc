@@ -28,7 +28,7 @@ std::string InvariantChecker::DescribeCell(Cell_handle c) const {
   return s + "}";
 }
 
-// kExact: each listed ray (PointRecord::ray_cells) names exactly the cells that hold it. Empty
+// kExact: each listed ray (EngineState::list_cells) names exactly the cells that hold it. Empty
 // when so, else the first ray that does not. Handles are compared, never followed: a list that
 // kept a destroyed cell shows as a cell no live cell matches.
 std::string InvariantChecker::CheckRayLists() const {
@@ -44,7 +44,8 @@ std::string InvariantChecker::CheckRayLists() const {
     const PointRecord& rec = s_.points[pt];
     for (uint32_t k = 0; k < rec.ray_cast.size(); ++k) {
       if (!rec.Listed(k)) continue;
-      listed = rec.ray_cells[k];
+      listed.clear();
+      s_.ForEachListed(pt, k, [&](Cell_handle c) { listed.push_back(c); });
       std::sort(listed.begin(), listed.end());
       listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
       held.clear();  // holders are sorted by (point, ray) as this loop visits them

@@ -131,17 +131,19 @@ struct PointRecord {
                                // at insertion (duplicate, dropped) tries again when it moves.
   Vec3 position{};             // Latest estimate received.
   std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
-  // kExact, parallel to cameras: whether the ray is cast (kCast, and kListed, see ray_cells), and
+  // kExact, parallel to cameras: whether the ray is cast (kCast, and kListed, see ray_list), and
   // where it ended when it was (the point's position then; a ray older than the window keeps its
   // end when the point moves).
   static constexpr uint8_t kCast = 1, kListed = 2;
   std::vector<uint8_t> ray_cast;
   std::vector<uint32_t> ray_gen;  // generation: +1 at each un-cast (entries made before: stale)
   std::vector<Point> ray_end;
-  // kExact, parallel to cameras: when ray_cast has kListed, the cells that hold the ray (every
-  // one of them, a cell possibly twice), so that un-casting it needs no walk. Kept from a
-  // keyframe's cast batch to the next keyframe's un-cast batch (RayCaster::CastBatch, DropLists).
-  std::vector<std::vector<Cell_handle>> ray_cells;
+  // kExact, parallel to cameras: when ray_cast has kListed, where the cells that hold the ray
+  // are listed (EngineState::list_cells), so that un-casting it needs no walk.
+  struct RayList {
+    uint32_t worker = 0, offset = 0, count = 0;
+  };
+  std::vector<RayList> ray_list;
   bool Listed(size_t k) const { return (ray_cast[k] & kListed) != 0; }
 };
 
@@ -178,6 +180,22 @@ struct EngineState {
   // Cells whose state changed this keyframe (became free, created, shrunk): growing seeds.
   std::unordered_set<Cell_handle> dirty;
   int64_t cells_in_o = 0;
+  // kExact: the cells of the rays the last cast batch listed (PointRecord::ray_list), kept from
+  // that batch to the next keyframe's un-cast batch: the batch's walks as they were, per worker,
+  // a cell destroyed since set to null; the cells a listed ray gained since (holes refilled) in
+  // list_extra. Every cell that holds a listed ray, once or more (a walk may repeat a cell).
+  std::vector<std::vector<Cell_handle>> list_cells;
+  std::unordered_map<uint64_t, std::vector<Cell_handle>> list_extra;
+  static uint64_t RayKey(uint32_t pt, size_t k) { return (uint64_t{pt} << 32) | k; }
+  template <class Visit>
+  void ForEachListed(uint32_t pt, size_t k, Visit&& visit) const {
+    const PointRecord::RayList& l = points[pt].ray_list[k];
+    const Cell_handle* cells = list_cells[l.worker].data() + l.offset;
+    for (uint32_t i = 0; i < l.count; ++i)
+      if (cells[i] != Cell_handle()) visit(cells[i]);
+    if (auto it = list_extra.find(RayKey(pt, k)); it != list_extra.end())
+      for (Cell_handle c : it->second) visit(c);
+  }
   // Sum of every cell's weight (finite and infinite), kept by each change of a weight and of the
   // cells: CheckInvariants compares it with the cells' own sum, so a weight changed or a cell made
   // or destroyed outside casting and transfer shows. Modulo 2^64 (unsigned wrap is exact).
@@ -286,8 +304,8 @@ class RayCaster {
   // kExact batches: the rays (point, k) cast (those not cast yet, from their points' current
   // positions) or un-cast together, walked on the thread pool. Deterministic: the same weights,
   // ray lists and free cells for any number of threads.
-  // A cast batch lists each ray's cells (PointRecord::ray_cells) and an un-cast batch takes the
-  // listed rays out of those cells without walking; DropLists frees the lists not used.
+  // A cast batch lists each ray's cells (EngineState::list_cells) and the next un-cast batch
+  // takes the listed rays out of those cells without walking; DropLists forgets the lists.
   void CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
   void UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
   void DropLists();
@@ -355,10 +373,9 @@ class RayCaster {
     Point a, b;    // the segment walked (end -> camera)
     Cell_handle hint;
     Vertex_handle from;  // see BeginWalk
-    // Un-cast: the cells listed for the ray, taken instead of a walk (null: walk). Cast: where
-    // to list the cells walked (null: nowhere).
-    const std::vector<Cell_handle>* listed = nullptr;
-    std::vector<Cell_handle>* list_to = nullptr;
+    bool listed = false;     // un-cast: its listed cells, taken instead of a walk
+    bool list_to = false;    // cast: its walk lists the ray
+    bool from_list = false;  // its cells are in EngineState::list_cells, not walk_cells_
     uint32_t worker = 0, offset = 0, count = 0;  // its cells in walk_cells_[worker]
     bool truncated = false;
   };
@@ -379,7 +396,7 @@ class RayCaster {
   };
 
   void CastWeights(uint32_t cam, uint32_t pt, int sign);  // kWeights and kRays
-  void Unlist(PointRecord& rec, size_t k, bool free_memory);
+  void Unlist(uint32_t pt, size_t k);
   void ExactCast(uint32_t pt, size_t k);
   bool RaySegment(const Point& p, const Point& cam, Point* start);
   static size_t RayIndex(const PointRecord& rec, uint32_t cam);

@@ -91,22 +91,29 @@ void RayCaster::AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
   const int64_t before = c->info().weight;
   if (PushRay(&c->info(), {k, pt, rec.ray_gen[k]})) s_.MarkDirty(c);
   s_.Ledger(before, c->info().weight);
-  if (rec.Listed(k)) rec.ray_cells[k].push_back(c);
+  if (rec.Listed(k)) s_.list_extra[EngineState::RayKey(pt, k)].push_back(c);
 }
 
-// The ray's list is no longer kept: emptied, its memory freed or kept for the next cast.
-void RayCaster::Unlist(PointRecord& rec, size_t k, bool free_memory) {
-  rec.ray_cast[k] &= static_cast<uint8_t>(~PointRecord::kListed);
-  if (free_memory) std::vector<Cell_handle>().swap(rec.ray_cells[k]);
-  else rec.ray_cells[k].clear();
+void RayCaster::Unlist(uint32_t pt, size_t k) {
+  s_.points[pt].ray_cast[k] &= static_cast<uint8_t>(~PointRecord::kListed);
+  if (!s_.list_extra.empty()) s_.list_extra.erase(EngineState::RayKey(pt, k));
 }
 
+// One batch's worth of storage is kept for the next batch's walks, the larger of each worker's
+// two buffers (no allocation per ray, nor per batch once the largest batch has been seen).
 void RayCaster::DropLists() {
   for (const auto& [pt, k] : listed_) {
     PointRecord& rec = s_.points[pt];
-    if (k < rec.ray_cast.size() && rec.Listed(k)) Unlist(rec, k, true);
+    if (k < rec.ray_cast.size() && rec.Listed(k)) Unlist(pt, k);
   }
   listed_.clear();
+  for (size_t w = 0; w < s_.list_cells.size(); ++w) {
+    if (w >= walk_cells_.size()) walk_cells_.resize(w + 1);
+    std::vector<Cell_handle>& kept = walk_cells_[w];
+    if (s_.list_cells[w].capacity() > kept.capacity()) kept.swap(s_.list_cells[w]);
+  }
+  std::vector<std::vector<Cell_handle>>().swap(s_.list_cells);
+  s_.list_extra.clear();
 }
 
 // The entry and its weight; true when the cell just became free. Reads only the points' ray
@@ -181,13 +188,13 @@ void RayCaster::ExactUncast(uint32_t pt, size_t k) {
   if (listed) {  // its cells are known: no walk
     ++s_.stats.rays_uncast_listed;
     ++s_.stamp;
-    for (Cell_handle c : rec.ray_cells[k]) {
-      if (c->info().stamp == s_.stamp) continue;
+    s_.ForEachListed(pt, k, [&](Cell_handle c) {
+      if (c->info().stamp == s_.stamp) return;
       c->info().stamp = s_.stamp;
       s_.Ledger(c->info().weight, c->info().weight - s_.unit[0]);
       c->info().weight -= s_.unit[0];
-    }
-    Unlist(rec, k, false);
+    });
+    Unlist(pt, k);
     return;
   }
   const uint32_t cam = rec.cameras[k];
@@ -261,10 +268,16 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
       BatchRay& r = rays[i];
       r.worker = static_cast<uint32_t>(worker);
       r.offset = static_cast<uint32_t>(out.size());
-      if (r.listed) out.insert(out.end(), r.listed->begin(), r.listed->end());
+      if (r.listed && !s_.list_extra.count(EngineState::RayKey(r.point, r.k))) {
+        const PointRecord::RayList& l = s_.points[r.point].ray_list[r.k];
+        r.from_list = true;  // read in place (its destroyed cells are null: skipped)
+        r.worker = l.worker, r.offset = l.offset, r.count = l.count;
+        continue;
+      }
+      if (r.listed) s_.ForEachListed(r.point, r.k, [&](Cell_handle c) { out.push_back(c); });
       else r.truncated = !Trace(r, &out);
       r.count = static_cast<uint32_t>(out.size() - r.offset);
-      if (r.list_to) r.list_to->assign(out.begin() + r.offset, out.end());
+      if (r.list_to) s_.points[r.point].ray_list[r.k] = {r.worker, r.offset, r.count};
     }
   });
   const size_t parts = rays.size() < 64 ? 1 : workers;
@@ -275,10 +288,12 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
     BatchPart& p = part[t];
     for (size_t i = 0; i < rays.size(); ++i) {
       const BatchRay& r = rays[i];
-      const Cell_handle* cells = walk_cells_[r.worker].data() + r.offset;
+      const Cell_handle* cells =
+          (r.from_list ? s_.list_cells : walk_cells_)[r.worker].data() + r.offset;
       const uint64_t s = base + i;
       for (uint32_t j = 0; j < r.count; ++j) {
         const Cell_handle c = cells[j];
+        if (c == Cell_handle()) continue;
         if ((parts > 1 && Owner(c, parts) != t) || c->info().stamp == s) continue;
         c->info().stamp = s;
         apply(r, c, p);
@@ -300,6 +315,7 @@ void RayCaster::MergeParts(const std::vector<BatchPart>& parts) {
 // Casts the rays (point, k) that are not cast yet, from their points' current positions.
 void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo) {
   if (s_.dt.dimension() != 3) return;
+  DropLists();  // the walks below become the lists
   std::vector<BatchRay> rays;
   for (const auto& [pt, k] : todo) {
     PointRecord& rec = s_.points[pt];
@@ -308,12 +324,12 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     Point a;
     if (!RaySegment(rec.vertex->point(), b, &a)) continue;
     ++s_.stats.rays_cast;
-    // Its walk fills its list (each thread writes the lists of its own rays).
+    // Its walk is its list (each thread writes the list places of its own rays).
     rec.ray_cast[k] = PointRecord::kCast | PointRecord::kListed;
     rec.ray_end[k] = a;
     listed_.push_back({pt, k});
     rays.push_back({pt, k, rec.ray_gen[k], a, b, rec.vertex->cell(), rec.vertex});
-    rays.back().list_to = &rec.ray_cells[k];
+    rays.back().list_to = true;
   }
   const std::vector<BatchPart> parts =
       RunBatch(rays, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
@@ -324,6 +340,7 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
   MergeParts(parts);
   for (const BatchPart& p : parts)
     s_.stats.cells_traversed += p.cells, s_.stats.cells_weighted += p.cells;
+  std::swap(s_.list_cells, walk_cells_);  // the walks are the lists now
 }
 
 // Takes the rays (point, k) that are cast out of their cells (as ExactUncast does, together).
@@ -334,7 +351,7 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     if (!rec.ray_cast[k]) continue;
     rays.push_back({pt, k, rec.ray_gen[k], rec.ray_end[k], s_.cameras[rec.cameras[k]],
                     WalkHint(rec), StartVertex(rec)});
-    if (rec.Listed(k)) rays.back().listed = &rec.ray_cells[k];
+    rays.back().listed = rec.Listed(k);
     rec.ray_cast[k] = 0;
     ++rec.ray_gen[k];
     ++s_.stats.rays_cast_backward;
@@ -350,7 +367,7 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
   }));
   for (const BatchRay& r : rays) {
     if (!r.listed) continue;
-    Unlist(s_.points[r.point], r.k, false);  // cast again soon: memory kept
+    Unlist(r.point, r.k);
     ++s_.stats.rays_uncast_listed;
   }
 }
@@ -421,8 +438,14 @@ void RayCaster::CollectHole(const std::vector<Cell_handle>& cells, Hole* hole) {
       PointRecord& rec = s_.points[e.point];
       const size_t k = e.camera;
       if (rec.Listed(k)) {  // the cell leaves the ray's list (RefillHole lists the new ones)
-        std::vector<Cell_handle>& l = rec.ray_cells[k];
-        l.erase(std::remove(l.begin(), l.end(), c), l.end());
+        const PointRecord::RayList& l = rec.ray_list[k];
+        Cell_handle* at = s_.list_cells[l.worker].data() + l.offset;
+        std::replace(at, at + l.count, c, Cell_handle());
+        const auto extra = s_.list_extra.find(EngineState::RayKey(e.point, k));
+        if (extra != s_.list_extra.end()) {
+          std::vector<Cell_handle>& x = extra->second;
+          x.erase(std::remove(x.begin(), x.end(), c), x.end());
+        }
       }
       const Point& end = rec.ray_end[k];
       const Point& cam = s_.cameras[rec.cameras[k]];
