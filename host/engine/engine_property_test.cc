@@ -73,8 +73,8 @@ TEST_P(InvariantTest, ManifoldAfterEveryKeyframe) {
 
 INSTANTIATE_TEST_SUITE_P(
     Modes, InvariantTest,
-    ::testing::Combine(::testing::Values("exact", "exact_4threads", "nearest", "mean", "weighted_mean", "rays5",
-                                         "rays1"),
+    ::testing::Combine(::testing::Values("exact", "exact_4threads", "nearest", "mean",
+                                         "weighted_mean", "rays5", "rays1"),
                        ::testing::Values(SceneKind::kStreet, SceneKind::kRoom),
                        ::testing::Values(uint64_t{1}, uint64_t{7})),
     [](const auto& param_info) {
@@ -107,7 +107,8 @@ TEST(ThreadsTest, SameMeshAndWeightsForOneTwoAndFourThreads) {
         first_weights = weights;
         continue;
       }
-      const std::string what = synthetic::ToString(scene) + ", " + std::to_string(threads) + " threads";
+      const std::string what =
+          synthetic::ToString(scene) + ", " + std::to_string(threads) + " threads";
       EXPECT_EQ(mesh.vertices, first_mesh.vertices) << what;
       EXPECT_EQ(mesh.faces, first_mesh.faces) << what;
       EXPECT_EQ(weights, first_weights) << what;
