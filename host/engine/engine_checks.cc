@@ -2,8 +2,8 @@
 // (engine_internal.h): what a run calls only when asked (check_invariants, tests, imr-microbench).
 #include "host/engine/engine_parts.h"
 
-#include <tuple>
 #include <sstream>
+#include <tuple>
 
 namespace imr::engine {
 namespace detail {

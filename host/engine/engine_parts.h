@@ -396,7 +396,6 @@ class RayCaster {
   };
 
   void CastWeights(uint32_t cam, uint32_t pt, int sign);  // kWeights and kRays
-  void Unlist(uint32_t pt, size_t k);
   void ExactCast(uint32_t pt, size_t k);
   bool RaySegment(const Point& p, const Point& cam, Point* start);
   static size_t RayIndex(const PointRecord& rec, uint32_t cam);

@@ -94,17 +94,12 @@ void RayCaster::AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
   if (rec.Listed(k)) s_.list_extra[EngineState::RayKey(pt, k)].push_back(c);
 }
 
-void RayCaster::Unlist(uint32_t pt, size_t k) {
-  s_.points[pt].ray_cast[k] &= static_cast<uint8_t>(~PointRecord::kListed);
-  if (!s_.list_extra.empty()) s_.list_extra.erase(EngineState::RayKey(pt, k));
-}
-
 // One batch's worth of storage is kept for the next batch's walks, the larger of each worker's
 // two buffers (no allocation per ray, nor per batch once the largest batch has been seen).
 void RayCaster::DropLists() {
-  for (const auto& [pt, k] : listed_) {
+  for (const auto& [pt, k] : listed_) {  // an un-cast ray lost its flag with its cast
     PointRecord& rec = s_.points[pt];
-    if (k < rec.ray_cast.size() && rec.Listed(k)) Unlist(pt, k);
+    if (k < rec.ray_cast.size()) rec.ray_cast[k] &= static_cast<uint8_t>(~PointRecord::kListed);
   }
   listed_.clear();
   for (size_t w = 0; w < s_.list_cells.size(); ++w) {
@@ -194,7 +189,6 @@ void RayCaster::ExactUncast(uint32_t pt, size_t k) {
       s_.Ledger(c->info().weight, c->info().weight - s_.unit[0]);
       c->info().weight -= s_.unit[0];
     });
-    Unlist(pt, k);
     return;
   }
   const uint32_t cam = rec.cameras[k];
@@ -352,7 +346,8 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     rays.push_back({pt, k, rec.ray_gen[k], rec.ray_end[k], s_.cameras[rec.cameras[k]],
                     WalkHint(rec), StartVertex(rec)});
     rays.back().listed = rec.Listed(k);
-    rec.ray_cast[k] = 0;
+    s_.stats.rays_uncast_listed += rec.Listed(k) ? 1 : 0;
+    rec.ray_cast[k] = 0;  // and no longer listed (DropLists forgets the lists' storage)
     ++rec.ray_gen[k];
     ++s_.stats.rays_cast_backward;
   }
@@ -365,11 +360,6 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     info.weight -= s_.unit[0];
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
   }));
-  for (const BatchRay& r : rays) {
-    if (!r.listed) continue;
-    Unlist(r.point, r.k);
-    ++s_.stats.rays_uncast_listed;
-  }
 }
 
 TetPlanes RayCaster::PlanesOf(Cell_handle c) {
