@@ -776,9 +776,10 @@ bool Engine::Impl::ShrinkMoveRegion(Vertex_handle v, const Point& p_old, const P
 }
 
 // kExact move: in place when the cells stay (DelaunayAfterMove), else the vertex removed and
-// re-inserted at the new position. Its rays are not touched here: ApplyUpdate un-casts the
-// window's rays of every moving point before the moves and casts them again after
-// (UncastMoving, CastUpdated), so the holes of the moves carry fewer rays.
+// re-inserted at the new position, the region both change taken as one hole. Its rays are not
+// touched here: ApplyUpdate un-casts the window's rays of every moving point before the moves
+// and casts them again after (UncastMoving, CastUpdated), so the holes of the moves carry fewer
+// rays.
 void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   PointRecord& rec = s.points[pt];
   if (!rec.in_triangulation) {
@@ -812,17 +813,42 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   }
   if (!ShrinkMoveRegion(rec.vertex, p_old, p_new, &d)) return;
   const Vertex_handle v_old = rec.vertex;
-  rec.in_triangulation = false;
-  rec.vertex = Vertex_handle();
-  RemoveVertex(v_old, nullptr);
-  bool dup = false;
-  Vertex_handle v = InsertPoint(p_new, pt, false, &dup, nullptr);
-  if (v == Vertex_handle()) {
-    ++s.stats.points_dropped;  // Cannot happen once D was shrunk; counted if it ever does.
+  // Removal and insertion change D's cells only (a cell outside D was not in conflict with
+  // p_new, and stays so without v), and none is in O: one hole, D's rays collected before
+  // and walked once through the cells that fill D after both.
+  Removed removed;
+  transfer.CollectRemoved(d, &removed);
+  if (s.last_vertex == v_old) s.last_vertex = Vertex_handle();
+  std::vector<Cell_handle> made;
+  s.dt.remove_and_give_new_cells(v_old, std::back_inserter(made));
+  Dt::Locate_type lt;
+  int li, lj;
+  const Cell_handle loc = s.dt.locate(p_new, lt, li, lj, made.front());
+  std::vector<Cell_handle> conflicts;
+  Facet boundary;
+  if (lt != Dt::VERTEX)  // ShrinkMoveRegion found no vertex there
+    s.dt.find_conflicts(p_new, loc, CGAL::Oneset_iterator<Facet>(boundary),
+                        std::back_inserter(conflicts));
+  // The cells the insertion destroys of those the removal made never held anything.
+  const uint64_t doomed = ++s.stamp;  // stamps are only compared for equality
+  for (Cell_handle c : conflicts) c->info().stamp = doomed;
+  std::vector<Cell_handle> added;
+  for (Cell_handle c : made)
+    if (c->info().stamp != doomed) added.push_back(c);
+  if (conflicts.empty()) {
+    rec.in_triangulation = false;
+    rec.vertex = Vertex_handle();
+    transfer.AssignNewCells(added, removed, false);
+    ++s.stats.points_dropped;  // Cannot happen: counted if it ever does.
     return;
   }
+  const Vertex_handle v = s.dt.insert_in_hole(p_new, conflicts.begin(), conflicts.end(),
+                                              boundary.first, boundary.second);
+  v->info().id = pt;
+  s.last_vertex = v;
   rec.vertex = v;
-  rec.in_triangulation = true;
+  s.dt.incident_cells(v, std::back_inserter(added));
+  transfer.AssignNewCells(added, removed, false);
   ++s.stats.points_moved;
 }
 
