@@ -379,7 +379,8 @@ class RayCaster {
     uint32_t worker = 0, offset = 0, count = 0;  // its cells in walk_cells_[worker]
     bool truncated = false;
   };
-  struct BatchPart {  // what one apply task changed besides the cells
+  struct alignas(64) BatchPart {  // what one apply task changed besides the cells (a cache
+                                  // line each: the tasks count every cell)
     uint64_t ledger = 0;
     int64_t cells = 0, mismatches = 0;
     std::vector<Cell_handle> became_free;
@@ -407,8 +408,11 @@ class RayCaster {
   util::ThreadPool& Pool();
   static size_t Owner(Cell_handle c, size_t parts);
   bool Trace(const BatchRay& r, std::vector<Cell_handle>* out) const;
+  // split_apply: the apply runs as one task per thread, each on the cells it owns (every task
+  // scans all the batch's cells: worth it when applying costs more than scanning, as a cast's
+  // list entries do; an un-cast's weight decrement does not).
   template <class Apply>
-  std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, Apply&& apply);
+  std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, bool split_apply, Apply&& apply);
   void MergeParts(const std::vector<BatchPart>& parts);
 
   static TetPlanes PlanesOf(Cell_handle c);

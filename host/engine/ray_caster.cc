@@ -221,9 +221,10 @@ util::ThreadPool& RayCaster::Pool() {
   return *pool_;
 }
 
-// Which apply task owns a cell: a hash of its address (fixed while the cell lives).
+// Which apply task owns a cell: a hash of its address's 4 KB page (fixed while the cell lives;
+// neighbours in memory go to the same task, which writes their cache lines alone).
 size_t RayCaster::Owner(Cell_handle c, size_t parts) {
-  const uint64_t h = (reinterpret_cast<uintptr_t>(&*c) >> 4) * 0x9E3779B97F4A7C15ull;
+  const uint64_t h = (reinterpret_cast<uintptr_t>(&*c) >> 12) * 0x9E3779B97F4A7C15ull;
   return static_cast<size_t>(((h >> 32) * parts) >> 32);  // in [0, parts) without a division
 }
 
@@ -249,7 +250,8 @@ bool RayCaster::Trace(const BatchRay& r, std::vector<Cell_handle>* out) const {
 // Walks every ray of the batch (in parallel), then calls apply(ray, cell, part) for each cell
 // each ray crosses, once per ray and cell, in batch order per cell; returns the parts.
 template <class Apply>
-std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& rays, Apply&& apply) {
+std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& rays,
+                                                      bool split_apply, Apply&& apply) {
   util::ThreadPool& tp = Pool();
   const size_t workers = static_cast<size_t>(tp.size());
   walk_cells_.resize(workers);
@@ -257,7 +259,10 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
   constexpr size_t kChunk = 32;
   const size_t chunks = (rays.size() + kChunk - 1) / kChunk;
   tp.Run(chunks, [&](size_t chunk, int worker) {
-    std::vector<Cell_handle>& out = walk_cells_[static_cast<size_t>(worker)];
+    // The buffer taken out of walk_cells_ for the chunk: the workers' vector headers share a
+    // cache line there, and a push_back per cell writes one.
+    std::vector<Cell_handle> out;
+    out.swap(walk_cells_[static_cast<size_t>(worker)]);
     for (size_t i = chunk * kChunk; i < std::min(rays.size(), (chunk + 1) * kChunk); ++i) {
       BatchRay& r = rays[i];
       r.worker = static_cast<uint32_t>(worker);
@@ -273,8 +278,9 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
       r.count = static_cast<uint32_t>(out.size() - r.offset);
       if (r.list_to) s_.points[r.point].ray_list[r.k] = {r.worker, r.offset, r.count};
     }
+    out.swap(walk_cells_[static_cast<size_t>(worker)]);
   });
-  const size_t parts = rays.size() < 64 ? 1 : workers;
+  const size_t parts = rays.size() < 64 || !split_apply ? 1 : workers;
   std::vector<BatchPart> part(parts);
   const uint64_t base = s_.stamp + 1;
   s_.stamp += rays.size();
@@ -326,7 +332,7 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     rays.back().list_to = true;
   }
   const std::vector<BatchPart> parts =
-      RunBatch(rays, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+      RunBatch(rays, /*split_apply=*/true, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
         if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
         p.ledger += static_cast<uint64_t>(s_.unit[0]);
         ++p.cells;
@@ -351,7 +357,7 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     ++rec.ray_gen[k];
     ++s_.stats.rays_cast_backward;
   }
-  MergeParts(RunBatch(rays, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+  auto take_out = [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
     CellInfo& info = c->info();
     if (!r.listed && !Holds(info, {r.k, r.point, r.gen})) {
       ++p.mismatches;
@@ -359,7 +365,8 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     }
     info.weight -= s_.unit[0];
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
-  }));
+  };
+  MergeParts(RunBatch(rays, /*split_apply=*/false, take_out));
 }
 
 TetPlanes RayCaster::PlanesOf(Cell_handle c) {
