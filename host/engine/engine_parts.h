@@ -377,7 +377,18 @@ class RayCaster {
     bool list_to = false;    // cast: its walk lists the ray
     bool from_list = false;  // its cells are in EngineState::list_cells, not walk_cells_
     uint32_t worker = 0, offset = 0, count = 0;  // its cells in walk_cells_[worker]
+    int32_t end_slot = -1;   // its camera in batch_ends_ (-1: walked with CGAL)
     bool truncated = false;
+    bool exact_walk = false;  // walked with CGAL's traverser (FilteredTrace could not decide)
+    bool walk_differs = false;  // check_invariants: FilteredTrace's cells are not CGAL's
+  };
+  // Where a batch's walks end: the cell strictly holding a camera centre (located once per
+  // batch with exact predicates), or none when the centre is outside the hull (the walks stop
+  // there). usable is false when the centre lies on a facet, edge or vertex: those rays are
+  // walked with CGAL.
+  struct WalkEnd {
+    Cell_handle cell;
+    bool usable = false;
   };
   struct alignas(64) BatchPart {  // what one apply task changed besides the cells (a cache
                                   // line each: the tasks count every cell)
@@ -408,6 +419,13 @@ class RayCaster {
   util::ThreadPool& Pool();
   static size_t Owner(Cell_handle c, size_t parts);
   bool Trace(const BatchRay& r, std::vector<Cell_handle>* out) const;
+  // The walk of Trace with double-precision tests on terms cached per vertex of the ray, for a
+  // ray that starts at its point's vertex and ends in a cell that strictly holds its camera
+  // (or outside the hull): kUndecided when a test is within rounding (the caller walks with
+  // CGAL from the start), else the same cells as Trace.
+  enum class Walked { kDone, kTruncated, kUndecided };
+  Walked FilteredTrace(const BatchRay& r, Cell_handle end, std::vector<Cell_handle>* out) const;
+  void LocateEnds(std::vector<BatchRay>& rays);
   // split_apply: the apply runs as one task per thread, each on the cells it owns (every task
   // scans all the batch's cells: worth it when applying costs more than scanning, as a cast's
   // list entries do; an un-cast's weight decrement does not).
@@ -423,6 +441,8 @@ class RayCaster {
   std::vector<Cell_handle> given_;    // RefillHole: new cells given the ray being walked.
   std::unique_ptr<util::ThreadPool> pool_;
   std::vector<std::vector<Cell_handle>> walk_cells_;  // per worker
+  std::vector<WalkEnd> batch_ends_;       // the batch's cameras (LocateEnds)
+  std::vector<int32_t> camera_end_slot_;  // per camera: its slot in batch_ends_, or -1
   std::vector<uint64_t> point_hole_mark_;  // per point: the hole that lists its rays
   std::vector<uint32_t> point_hole_head_;  // per point: its first ray in that hole's list
   uint64_t hole_count_ = 0;

@@ -117,6 +117,42 @@ TEST(ThreadsTest, SameMeshAndWeightsForOneTwoAndFourThreads) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Exact mode's batches walk rays with double-precision tests (filtered_walk), CGAL's exact walk
+// where a test is within rounding: every filtered walk is compared with CGAL's walk of the same
+// ray under check_invariants (a difference counts as a ray mismatch), most rays take the filtered
+// walk, and the mesh and weights are those of CGAL's walk for every ray.
+TEST(FilteredWalkTest, SameCellsAsCgalsWalk) {
+  for (SceneKind scene : {SceneKind::kStreet, SceneKind::kRoom, SceneKind::kPlane}) {
+    const synthetic::StreamOptions so = SmallStream(scene, 7);
+    Mesh meshes[2];
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[2];
+    for (int filtered : {0, 1}) {
+      synthetic::SyntheticStream stream(so);
+      EngineOptions eo;
+      eo.filtered_walk = filtered == 1;
+      eo.check_invariants = filtered == 1;
+      Engine engine(eo, nullptr);
+      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok());
+      const EngineStats& st = engine.Stats();
+      const std::string what = synthetic::ToString(scene) + (filtered ? ", filtered" : ", CGAL");
+      EXPECT_GT(st.points_moved, 50) << what;
+      EXPECT_EQ(st.ray_mismatches, 0) << what;
+      EXPECT_EQ(st.rays_truncated, 0) << what;
+      const int64_t batch_walks = st.rays_cast + st.rays_cast_backward - st.rays_uncast_listed;
+      if (filtered) EXPECT_LT(st.rays_walked_exact * 20, batch_walks) << what;
+      else EXPECT_GE(st.rays_walked_exact, batch_walks) << what;
+      meshes[filtered] = engine.ExtractMesh();
+      weights[filtered] = engine.CellWeights();
+    }
+    const std::string what = synthetic::ToString(scene);
+    ASSERT_FALSE(meshes[0].faces.empty()) << what;
+    EXPECT_EQ(meshes[0].vertices, meshes[1].vertices) << what;
+    EXPECT_EQ(meshes[0].faces, meshes[1].faces) << what;
+    EXPECT_EQ(weights[0], weights[1]) << what;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Exact mode un-casts a moving point's rays from the cells their cast listed, without walking
 // them: the same cells and weights as the walk, so the same mesh as an engine whose lists are
 // dropped before each keyframe. Between the cast and the un-cast, removals destroy cells that

@@ -263,6 +263,8 @@ TEST_P(SmallSceneTest, CoplanarCollinearAndDuplicatePoints) {
 }
 
 TEST_P(SmallSceneTest, PointAtCameraCentreAndRaysThroughVertices) {
+  options_.check_invariants = true;  // exact mode: each filtered walk compared with CGAL's
+  engine_ = std::make_unique<Engine>(options_, policy_.get());
   ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 5)).ok());
   KeyframeUpdate u;
   // A point exactly at camera 1's centre: its ray from camera 1 has zero length.
@@ -318,6 +320,10 @@ TEST_P(SmallSceneTest, PointAtCameraCentreAndRaysThroughVertices) {
         }
       }
     EXPECT_EQ(engine_->CellWeights(), before);
+    // The rays through vertices and along Steiner edges are within rounding of a test: walked
+    // with CGAL's exact predicates, the same cells on every walk.
+    EXPECT_GT(engine_->Stats().rays_walked_exact, 0);
+    EXPECT_EQ(engine_->Stats().ray_mismatches, 0);
   }
   EXPECT_EQ(engine_->Stats().rays_truncated, 0);
 }

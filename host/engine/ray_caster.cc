@@ -247,6 +247,142 @@ bool RayCaster::Trace(const BatchRay& r, std::vector<Cell_handle>* out) const {
   return true;
 }
 
+namespace {
+
+// A vertex met by a filtered walk, its terms relative to the ray a + t d: r = p - a, w = d x r,
+// and m = max |r_i|. The side of the ray's line against the edge (u, v) is
+// S(u, v) = d . (r_u x r_v) = w_u . r_v (CGAL's orientation(a, u, v, b)), computed in double
+// with a rounding bound of kWalkErr |d|_1 m_u m_v (the error is below 16 epsilon times
+// |d|_1 * 2 m_u m_v, the permanent of the determinant: about 2e-15 of it; 1e-14 leaves margin).
+struct WalkVertex {
+  const void* v = nullptr;
+  double r[3], w[3], m;
+};
+constexpr double kWalkErr = 1e-14;
+
+}  // namespace
+
+// The cell strictly holding each camera the batch's walks end at (one exact location per
+// camera and batch, serial: the walks then stop by comparing cells, not with a test per cell).
+void RayCaster::LocateEnds(std::vector<BatchRay>& rays) {
+  batch_ends_.clear();
+  if (!s_.opt.filtered_walk || s_.dt.dimension() != 3) return;
+  if (camera_end_slot_.size() < s_.cameras.size()) camera_end_slot_.resize(s_.cameras.size(), -1);
+  std::vector<uint32_t> used;
+  for (BatchRay& r : rays) {
+    if (r.listed || r.from == Vertex_handle() || r.from->point() != r.a) continue;
+    const uint32_t cam = s_.points[r.point].cameras[r.k];
+    int32_t& slot = camera_end_slot_[cam];
+    if (slot < 0) {
+      WalkEnd e;
+      Dt::Locate_type lt = Dt::OUTSIDE_AFFINE_HULL;
+      int li = 0, lj = 0;
+      e.cell = s_.dt.locate(r.b, lt, li, lj, r.hint);
+      if (lt == Dt::CELL) e.usable = true;
+      else if (lt == Dt::OUTSIDE_CONVEX_HULL) e.usable = true, e.cell = Cell_handle();
+      slot = static_cast<int32_t>(batch_ends_.size());
+      batch_ends_.push_back(e);
+      used.push_back(cam);
+    }
+    if (batch_ends_[static_cast<size_t>(slot)].usable) r.end_slot = slot;
+  }
+  for (uint32_t cam : used) camera_end_slot_[cam] = -1;
+}
+
+// CGAL's regular step (Triangulation_segment_cell_iterator_3::walk_to_next_3, a cell entered
+// through facet i, the new vertex q = vertex i): with (j0, j1, j2) = vertex_triple_index(i, .),
+// S(q, j0) > 0 and S(q, j1) < 0 -> leave through facet j2; S(q, j0) > 0 and S(q, j1) > 0 -> j0;
+// S(q, j0) < 0 and S(q, j2) > 0 -> j1; S(q, j0) < 0 and S(q, j2) < 0 -> j0; a zero sign is
+// its degenerate case (an edge or a vertex on the line): here, any sign within rounding gives
+// the ray back to CGAL. Its test of the camera against the exit facet becomes end == cell.
+RayCaster::Walked RayCaster::FilteredTrace(const BatchRay& r, Cell_handle end,
+                                           std::vector<Cell_handle>* out) const {
+  const Vertex_handle s = r.from;
+  const Point& a = r.a;
+  const double d[3] = {r.b.x() - a.x(), r.b.y() - a.y(), r.b.z() - a.z()};
+  const double err = kWalkErr * (std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]));
+  auto make = [&](Vertex_handle vh, WalkVertex* o) {
+    const Point& p = vh->point();
+    o->v = &*vh;
+    o->r[0] = p.x() - a.x(), o->r[1] = p.y() - a.y(), o->r[2] = p.z() - a.z();
+    o->w[0] = d[1] * o->r[2] - d[2] * o->r[1];
+    o->w[1] = d[2] * o->r[0] - d[0] * o->r[2];
+    o->w[2] = d[0] * o->r[1] - d[1] * o->r[0];
+    o->m = std::max(std::fabs(o->r[0]), std::max(std::fabs(o->r[1]), std::fabs(o->r[2])));
+  };
+  // S(u, v) as +1 / -1, 0 when within rounding.
+  auto side = [&](const WalkVertex& u, const WalkVertex& v) {
+    const double x = u.w[0] * v.r[0] + u.w[1] * v.r[1] + u.w[2] * v.r[2];
+    const double t = err * u.m * v.m;
+    return x > t ? 1 : (x < -t ? -1 : 0);
+  };
+  // The terms of the current cell's vertices, by index, taken from the previous cell's where
+  // shared (a step computes only its new vertex's).
+  WalkVertex terms[2][4];
+  WalkVertex* cur = terms[0];
+  WalkVertex* prev = terms[1];
+  auto fill = [&](Cell_handle c) {
+    std::swap(cur, prev);
+    for (int k = 0; k < 4; ++k) {
+      const Vertex_handle vh = c->vertex(k);
+      const void* id = &*vh;
+      int h = 0;
+      while (h < 4 && prev[h].v != id) ++h;
+      if (h < 4) cur[k] = prev[h];
+      else make(vh, &cur[k]);
+    }
+  };
+
+  // The start: the cell of s's star that the ray enters, found by walking around s (its
+  // facet opposite s, as (j0, j1, j2), has S < 0 on its three edges when the ray enters the
+  // cell from s: the ray leaves the cell through that facet). s's own terms are 0.
+  Cell_handle c = s->cell();
+  int inf = 0;
+  if (c->has_vertex(s_.dt.infinite_vertex(), inf)) c = c->neighbor(inf);
+  int i = 0;
+  for (int step = 0;; ++step) {
+    if (step > 64 || s_.dt.is_infinite(c)) return Walked::kUndecided;
+    i = c->index(s);
+    fill(c);
+    const int j0 = Dt::vertex_triple_index(i, 0), j1 = Dt::vertex_triple_index(i, 1),
+              j2 = Dt::vertex_triple_index(i, 2);
+    const int s01 = side(cur[j0], cur[j1]), s12 = side(cur[j1], cur[j2]),
+              s20 = side(cur[j2], cur[j0]);
+    if (s01 == 0 || s12 == 0 || s20 == 0) return Walked::kUndecided;
+    if (s01 < 0 && s12 < 0 && s20 < 0) break;
+    // The ray is on the far side of the plane through s and an edge (u, v) with S > 0: cross
+    // the facet of s on that plane.
+    c = c->neighbor(s01 > 0 ? j2 : (s12 > 0 ? j0 : j1));
+  }
+
+  int exit = i;
+  int steps = 0;
+  for (;;) {
+    if (++steps > s_.opt.max_cells_per_ray) return Walked::kTruncated;
+    out->push_back(c);
+    if (c == end) return Walked::kDone;
+    const Cell_handle n = c->neighbor(exit);
+    if (s_.dt.is_infinite(n)) return Walked::kDone;
+    const int e = n->index(c);
+    fill(n);
+    const int j0 = Dt::vertex_triple_index(e, 0), j1 = Dt::vertex_triple_index(e, 1),
+              j2 = Dt::vertex_triple_index(e, 2);
+    const int t0 = side(cur[e], cur[j0]);
+    if (t0 > 0) {
+      const int t1 = side(cur[e], cur[j1]);
+      if (t1 == 0) return Walked::kUndecided;
+      exit = t1 < 0 ? j2 : j0;
+    } else if (t0 < 0) {
+      const int t2 = side(cur[e], cur[j2]);
+      if (t2 == 0) return Walked::kUndecided;
+      exit = t2 > 0 ? j1 : j0;
+    } else {
+      return Walked::kUndecided;
+    }
+    c = n;
+  }
+}
+
 // Walks every ray of the batch (in parallel), then calls apply(ray, cell, part) for each cell
 // each ray crosses, once per ray and cell, in batch order per cell; returns the parts.
 template <class Apply>
@@ -254,6 +390,7 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
                                                       bool split_apply, Apply&& apply) {
   util::ThreadPool& tp = Pool();
   const size_t workers = static_cast<size_t>(tp.size());
+  LocateEnds(rays);
   walk_cells_.resize(workers);
   for (auto& w : walk_cells_) w.clear();
   constexpr size_t kChunk = 32;
@@ -273,8 +410,26 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
         r.worker = l.worker, r.offset = l.offset, r.count = l.count;
         continue;
       }
-      if (r.listed) s_.ForEachListed(r.point, r.k, [&](Cell_handle c) { out.push_back(c); });
-      else r.truncated = !Trace(r, &out);
+      if (r.listed) {
+        s_.ForEachListed(r.point, r.k, [&](Cell_handle c) { out.push_back(c); });
+      } else {
+        Walked w = Walked::kUndecided;
+        if (r.end_slot >= 0)
+          w = FilteredTrace(r, batch_ends_[static_cast<size_t>(r.end_slot)].cell, &out);
+        if (w == Walked::kUndecided) {
+          out.resize(r.offset);
+          r.exact_walk = true;
+          r.truncated = !Trace(r, &out);
+        } else {
+          r.truncated = w == Walked::kTruncated;
+          if (s_.opt.check_invariants) {  // the same cells as CGAL's walk
+            std::vector<Cell_handle> cgal;
+            const bool whole = Trace(r, &cgal);
+            r.walk_differs = whole == r.truncated || cgal.size() != out.size() - r.offset ||
+                             !std::equal(cgal.begin(), cgal.end(), out.begin() + r.offset);
+          }
+        }
+      }
       r.count = static_cast<uint32_t>(out.size() - r.offset);
       if (r.list_to) s_.points[r.point].ray_list[r.k] = {r.worker, r.offset, r.count};
     }
@@ -300,7 +455,11 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
       }
     }
   });
-  for (const BatchRay& r : rays) s_.stats.rays_truncated += r.truncated ? 1 : 0;
+  for (const BatchRay& r : rays) {
+    s_.stats.rays_truncated += r.truncated ? 1 : 0;
+    s_.stats.rays_walked_exact += r.exact_walk ? 1 : 0;
+    s_.stats.ray_mismatches += r.walk_differs ? 1 : 0;
+  }
   return part;
 }
 

@@ -30,6 +30,7 @@ json StatsJson(const engine::EngineStats& s) {
           {"rays_uncast_listed", s.rays_uncast_listed},
           {"rays_rewalked", s.rays_rewalked},
           {"rays_rewalked_exact", s.rays_rewalked_exact},
+          {"rays_walked_exact", s.rays_walked_exact},
           {"cells_rewalked", s.cells_rewalked},
           {"ray_mismatches", s.ray_mismatches},
           {"cells_traversed", s.cells_traversed},
