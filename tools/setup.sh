@@ -13,6 +13,8 @@ PACKAGES=(
   nlohmann-json3-dev libassimp-dev
   # SHA-256 of inputs and outputs (host/util/sha256.cc: OpenSSL's libcrypto)
   libssl-dev
+  # the imr executable's allocator (host/cli/CMakeLists.txt: 8-10 % of the engine's time)
+  libjemalloc-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # the cross-check of `imr evaluate` (tests/evaluate_test: CloudCompare's cloud-to-mesh distance)
