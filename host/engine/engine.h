@@ -117,10 +117,10 @@ struct EngineOptions {
   int max_cells_per_ray = 200000;     // Safety bound on one traversal (never an endless walk).
   bool check_invariants = false;      // Run the full dO check after every update (slow; tests;
                                       // the job key of the same name).
-  bool filtered_walk = true;          // kExact batches walk rays from their vertex with
-                                      // double-precision tests on terms cached per vertex,
-                                      // CGAL's exact walk where a test is within rounding: the
-                                      // same cells as CGAL's walk. false: CGAL's walk for all.
+  bool filtered_walk = true;          // Rays are walked from their vertex with double-precision
+                                      // tests on terms cached per vertex, CGAL's exact walk
+                                      // where a test is within rounding: the same cells as
+                                      // CGAL's walk. false: CGAL's walk for every ray.
   int num_threads = 0;                // Threads casting rays (kExact): 0 = every core of the
                                       // process's affinity mask. The mesh is the same for any
                                       // number (results are applied in one fixed order).
@@ -190,8 +190,9 @@ struct EngineStats {
   int64_t rays_rewalked = 0;          // kExact: rays walked again through the new cells of a hole.
   int64_t rays_rewalked_exact = 0;    // kExact: of those, walked with exact predicates (near an
                                       // edge or vertex, or no entry facet known).
-  int64_t rays_walked_exact = 0;      // kExact batches: rays walked with CGAL's traverser (the
-                                      // filtered walk undecided, or not starting at a vertex).
+  int64_t rays_walked_exact = 0;      // Rays walked with CGAL's traverser rather than the
+                                      // filtered walk (undecided, not starting at their vertex,
+                                      // the camera on a facet; or filtered_walk off).
   int64_t cells_rewalked = 0;         // kExact: new cells those walks gave a ray.
   int64_t ray_mismatches = 0;         // kExact: a ray not found where a walk expected it (or
                                       // found where no walk reaches): degenerate traversals.

@@ -340,10 +340,36 @@ class RayCaster {
   }
 
   // Walks the segment a -> b through the cells it crosses (BeginWalk), calling visit(cell) once
-  // per finite cell. Stops at the hull or after max_cells_per_ray cells.
+  // per finite cell. Stops at the hull or after max_cells_per_ray cells. A ray of a point from
+  // camera `camera` (b its centre) is walked with FilteredTrace when it can be (the same cells).
   template <class Visit>
-  void Walk(const Point& a, const Point& b, Cell_handle hint, Vertex_handle from, Visit&& visit) {
+  void Walk(const Point& a, const Point& b, Cell_handle hint, Vertex_handle from, Visit&& visit,
+            int64_t camera = -1) {
     ++s_.stamp;
+    if (camera >= 0 && s_.opt.filtered_walk && from != Vertex_handle() && from->point() == a) {
+      const WalkEnd e = CameraEnd(static_cast<uint32_t>(camera), b, hint);
+      single_cells_.clear();
+      const Walked w = e.usable ? FilteredTrace(a, b, from, e.cell, &single_cells_)
+                                : Walked::kUndecided;
+      if (w != Walked::kUndecided) {
+        if (s_.opt.check_invariants) {  // the same cells as CGAL's walk
+          BatchRay r{};
+          r.a = a, r.b = b, r.hint = hint, r.from = from;
+          std::vector<Cell_handle> cgal;
+          const bool whole = Trace(r, &cgal);
+          if (whole == (w == Walked::kTruncated) || cgal != single_cells_)
+            ++s_.stats.ray_mismatches;
+        }
+        for (Cell_handle c : single_cells_) {
+          if (c->info().stamp == s_.stamp) continue;
+          c->info().stamp = s_.stamp;
+          visit(c);
+        }
+        if (w == Walked::kTruncated) ++s_.stats.rays_truncated;
+        return;
+      }
+    }
+    if (camera >= 0) ++s_.stats.rays_walked_exact;
     int steps = 0;
     try {
       auto it = BeginWalk(a, b, hint, from);
@@ -424,8 +450,12 @@ class RayCaster {
   // (or outside the hull): kUndecided when a test is within rounding (the caller walks with
   // CGAL from the start), else the same cells as Trace.
   enum class Walked { kDone, kTruncated, kUndecided };
-  Walked FilteredTrace(const BatchRay& r, Cell_handle end, std::vector<Cell_handle>* out) const;
+  Walked FilteredTrace(const Point& a, const Point& b, Vertex_handle from, Cell_handle end,
+                       std::vector<Cell_handle>* out) const;
   void LocateEnds(std::vector<BatchRay>& rays);
+  // Walk's end for a camera: the cell that held its centre last time while it still does (a
+  // cell of the triangulation, holding the centre strictly: exact test), else located again.
+  WalkEnd CameraEnd(uint32_t camera, const Point& b, Cell_handle hint);
   // split_apply: the apply runs as one task per thread, each on the cells it owns (every task
   // scans all the batch's cells: worth it when applying costs more than scanning, as a cast's
   // list entries do; an un-cast's weight decrement does not).
@@ -443,6 +473,8 @@ class RayCaster {
   std::vector<std::vector<Cell_handle>> walk_cells_;  // per worker
   std::vector<WalkEnd> batch_ends_;       // the batch's cameras (LocateEnds)
   std::vector<int32_t> camera_end_slot_;  // per camera: its slot in batch_ends_, or -1
+  std::vector<Cell_handle> camera_cell_;  // per camera: CameraEnd's last cell (may be gone)
+  std::vector<Cell_handle> single_cells_;  // Walk's filtered walk
   std::vector<uint64_t> point_hole_mark_;  // per point: the hole that lists its rays
   std::vector<uint32_t> point_hole_head_;  // per point: its first ray in that hole's list
   uint64_t hole_count_ = 0;

@@ -152,6 +152,39 @@ TEST(FilteredWalkTest, SameCellsAsCgalsWalk) {
   }
 }
 
+// The weights and rays modes cast one ray at a time (Walk): the filtered walk there too, each
+// walk compared with CGAL's under check_invariants, the same mesh and weights as CGAL's walk.
+TEST(FilteredWalkTest, SingleRaysInTheWeightsAndRaysModes) {
+  for (const std::string mode : {"nearest", "rays5"}) {
+    const synthetic::StreamOptions so = SmallStream(SceneKind::kStreet, 7);
+    Mesh meshes[2];
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[2];
+    for (int filtered : {0, 1}) {
+      synthetic::SyntheticStream stream(so);
+      EngineOptions eo;
+      std::unique_ptr<WeightTransferPolicy> policy;
+      ASSERT_TRUE(testing::ConfigureMode(mode, &eo, &policy));
+      eo.filtered_walk = filtered == 1;
+      eo.check_invariants = filtered == 1;
+      Engine engine(eo, policy.get());
+      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok());
+      const EngineStats& st = engine.Stats();
+      const std::string what = mode + (filtered ? ", filtered" : ", CGAL");
+      EXPECT_GT(st.points_moved, 50) << what;
+      EXPECT_EQ(st.ray_mismatches, 0) << what;
+      const int64_t walks = st.rays_cast + st.rays_cast_backward;
+      if (filtered) EXPECT_LT(st.rays_walked_exact * 20, walks) << what;
+      else EXPECT_EQ(st.rays_walked_exact, walks) << what;
+      meshes[filtered] = engine.ExtractMesh();
+      weights[filtered] = engine.CellWeights();
+    }
+    ASSERT_FALSE(meshes[0].faces.empty()) << mode;
+    EXPECT_EQ(meshes[0].vertices, meshes[1].vertices) << mode;
+    EXPECT_EQ(meshes[0].faces, meshes[1].faces) << mode;
+    EXPECT_EQ(weights[0], weights[1]) << mode;
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Exact mode un-casts a moving point's rays from the cells their cast listed, without walking
 // them: the same cells and weights as the walk, so the same mesh as an engine whose lists are

@@ -58,10 +58,13 @@ void RayCaster::CastWeights(uint32_t cam, uint32_t pt, int sign) {
   // T: the walk from the point's own vertex (no point location, ~15x faster than a walk from an
   // arbitrary cell), to the cell holding the camera, the hull or max_cells_per_ray cells. N1 and
   // N2 are found with the walk's stamp.
-  Walk(a, b, rec.vertex->cell(), rec.vertex, [&](Cell_handle c) {
-    ring_[0].push_back(c);
-    weigh(c, 0);
-  });
+  Walk(
+      a, b, rec.vertex->cell(), rec.vertex,
+      [&](Cell_handle c) {
+        ring_[0].push_back(c);
+        weigh(c, 0);
+      },
+      cam);
   s_.stats.cells_traversed += static_cast<int64_t>(ring_[0].size());
   int64_t weighted = static_cast<int64_t>(ring_[0].size());
   for (int level = 1; level < 3; ++level)
@@ -159,10 +162,13 @@ void RayCaster::ExactCast(uint32_t pt, size_t k) {
   int64_t n = 0;
   rec.ray_cast[k] = PointRecord::kCast;
   rec.ray_end[k] = a;
-  Walk(a, b, rec.vertex->cell(), rec.vertex, [&](Cell_handle c) {
-    AddRay(c, pt, static_cast<uint32_t>(k));
-    ++n;
-  });
+  Walk(
+      a, b, rec.vertex->cell(), rec.vertex,
+      [&](Cell_handle c) {
+        AddRay(c, pt, static_cast<uint32_t>(k));
+        ++n;
+      },
+      cam);
   s_.stats.cells_traversed += n;
   s_.stats.cells_weighted += n;
 }
@@ -192,15 +198,18 @@ void RayCaster::ExactUncast(uint32_t pt, size_t k) {
     return;
   }
   const uint32_t cam = rec.cameras[k];
-  Walk(rec.ray_end[k], s_.cameras[cam], WalkHint(rec), StartVertex(rec), [&](Cell_handle c) {
-    const int64_t before = c->info().weight;
-    if (!Holds(c->info(), mine)) {
-      ++s_.stats.ray_mismatches;
-      return;
-    }
-    c->info().weight -= s_.unit[0];
-    s_.Ledger(before, c->info().weight);
-  });
+  Walk(
+      rec.ray_end[k], s_.cameras[cam], WalkHint(rec), StartVertex(rec),
+      [&](Cell_handle c) {
+        const int64_t before = c->info().weight;
+        if (!Holds(c->info(), mine)) {
+          ++s_.stats.ray_mismatches;
+          return;
+        }
+        c->info().weight -= s_.unit[0];
+        s_.Ledger(before, c->info().weight);
+      },
+      cam);
 }
 
 // Whether an un-cast may take the ray `mine` off the cell (see ExactUncast).
@@ -289,17 +298,37 @@ void RayCaster::LocateEnds(std::vector<BatchRay>& rays) {
   for (uint32_t cam : used) camera_end_slot_[cam] = -1;
 }
 
+RayCaster::WalkEnd RayCaster::CameraEnd(uint32_t camera, const Point& b, Cell_handle hint) {
+  WalkEnd e;
+  if (s_.dt.dimension() != 3) return e;
+  if (camera_cell_.size() < s_.cameras.size()) camera_cell_.resize(s_.cameras.size());
+  Cell_handle& last = camera_cell_[camera];
+  Dt::Locate_type lt = Dt::OUTSIDE_AFFINE_HULL;
+  int li = 0, lj = 0;
+  // A destroyed cell stays in CGAL's container, marked free (or reused for another cell).
+  if (last != Cell_handle() && s_.dt.tds().cells().is_used(last) && !s_.dt.is_infinite(last) &&
+      s_.dt.side_of_cell(b, last, lt, li, lj) == CGAL::ON_BOUNDED_SIDE && lt == Dt::CELL) {
+    e.cell = last, e.usable = true;
+    return e;
+  }
+  last = s_.dt.locate(b, lt, li, lj, hint);
+  if (lt == Dt::CELL) {
+    e.cell = last, e.usable = true;
+  } else {
+    last = Cell_handle();
+  }
+  return e;
+}
+
 // CGAL's regular step (Triangulation_segment_cell_iterator_3::walk_to_next_3, a cell entered
 // through facet i, the new vertex q = vertex i): with (j0, j1, j2) = vertex_triple_index(i, .),
 // S(q, j0) > 0 and S(q, j1) < 0 -> leave through facet j2; S(q, j0) > 0 and S(q, j1) > 0 -> j0;
 // S(q, j0) < 0 and S(q, j2) > 0 -> j1; S(q, j0) < 0 and S(q, j2) < 0 -> j0; a zero sign is
 // its degenerate case (an edge or a vertex on the line): here, any sign within rounding gives
 // the ray back to CGAL. Its test of the camera against the exit facet becomes end == cell.
-RayCaster::Walked RayCaster::FilteredTrace(const BatchRay& r, Cell_handle end,
-                                           std::vector<Cell_handle>* out) const {
-  const Vertex_handle s = r.from;
-  const Point& a = r.a;
-  const double d[3] = {r.b.x() - a.x(), r.b.y() - a.y(), r.b.z() - a.z()};
+RayCaster::Walked RayCaster::FilteredTrace(const Point& a, const Point& b, Vertex_handle s,
+                                           Cell_handle end, std::vector<Cell_handle>* out) const {
+  const double d[3] = {b.x() - a.x(), b.y() - a.y(), b.z() - a.z()};
   const double err = kWalkErr * (std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]));
   auto make = [&](Vertex_handle vh, WalkVertex* o) {
     const Point& p = vh->point();
@@ -415,7 +444,8 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
       } else {
         Walked w = Walked::kUndecided;
         if (r.end_slot >= 0)
-          w = FilteredTrace(r, batch_ends_[static_cast<size_t>(r.end_slot)].cell, &out);
+          w = FilteredTrace(r.a, r.b, r.from, batch_ends_[static_cast<size_t>(r.end_slot)].cell,
+                            &out);
         if (w == Walked::kUndecided) {
           out.resize(r.offset);
           r.exact_walk = true;

@@ -121,9 +121,9 @@ std::vector<EngineOption> MakeTable() {
       Option("check_invariants", &E::check_invariants, kNone, "",
              "full manifold check after every keyframe (slow)"),
       Option("filtered_walk", &E::filtered_walk, kNone, "",
-             "exact mode: rays are walked with double-precision tests on terms cached per "
-             "vertex, CGAL's exact walk where a test is within rounding (the same cells); "
-             "false: CGAL's walk for every ray"),
+             "rays are walked with double-precision tests on terms cached per vertex, CGAL's "
+             "exact walk where a test is within rounding (the same cells); false: CGAL's walk "
+             "for every ray"),
       Option("threads", &E::num_threads, json{{"minimum", 0}, {"maximum", 1024}}, "threads",
              "threads casting rays (exact mode); 0: every core the process may run on (its "
              "affinity mask: taskset, Slurm's --cpus-per-task); the mesh is the same for any "
