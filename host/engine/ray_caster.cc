@@ -261,8 +261,10 @@ namespace {
 // A vertex met by a filtered walk, its terms relative to the ray a + t d: r = p - a, w = d x r,
 // and m = max |r_i|. The side of the ray's line against the edge (u, v) is
 // S(u, v) = d . (r_u x r_v) = w_u . r_v (CGAL's orientation(a, u, v, b)), computed in double
-// with a rounding bound of kWalkErr |d|_1 m_u m_v (the error is below 16 epsilon times
-// |d|_1 * 2 m_u m_v, the permanent of the determinant: about 2e-15 of it; 1e-14 leaves margin).
+// with a rounding bound of kWalkErr |d|_1 m_u m_v: each of the determinant's six terms
+// d_j r_uk r_vi carries at most eight roundings (d, r_u, r_v, the cross product, the dot
+// product), so the error is below 8 * 2^-53 (1 + tiny) times their absolute sum, which is at
+// most 2 |d|_1 m_u m_v: 1.8e-15 |d|_1 m_u m_v; 1e-14 leaves a factor 5.
 struct WalkVertex {
   const void* v = nullptr;
   double r[3], w[3], m;
