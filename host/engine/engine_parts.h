@@ -352,12 +352,11 @@ class RayCaster {
       const Walked w = e.usable ? FilteredTrace(a, b, from, e.cell, &single_cells_)
                                 : Walked::kUndecided;
       if (w != Walked::kUndecided) {
-        if (s_.opt.check_invariants) {  // the same cells as CGAL's walk
+        if (s_.opt.check_invariants) {
           BatchRay r{};
           r.a = a, r.b = b, r.hint = hint, r.from = from;
-          std::vector<Cell_handle> cgal;
-          const bool whole = Trace(r, &cgal);
-          if (whole == (w == Walked::kTruncated) || cgal != single_cells_)
+          if (DiffersFromCgal(r, single_cells_.data(), single_cells_.size(),
+                              w == Walked::kTruncated))
             ++s_.stats.ray_mismatches;
         }
         for (Cell_handle c : single_cells_) {
@@ -408,10 +407,9 @@ class RayCaster {
     bool exact_walk = false;  // walked with CGAL's traverser (FilteredTrace could not decide)
     bool walk_differs = false;  // check_invariants: FilteredTrace's cells are not CGAL's
   };
-  // Where a batch's walks end: the cell strictly holding a camera centre (located once per
-  // batch with exact predicates), or none when the centre is outside the hull (the walks stop
-  // there). usable is false when the centre lies on a facet, edge or vertex: those rays are
-  // walked with CGAL.
+  // Where walks to a camera end: the cell strictly holding its centre (exact predicates), or
+  // none when the centre is outside the hull (the walks stop there). usable is false when the
+  // centre lies on a facet, edge or vertex: those rays are walked with CGAL.
   struct WalkEnd {
     Cell_handle cell;
     bool usable = false;
@@ -453,9 +451,12 @@ class RayCaster {
   Walked FilteredTrace(const Point& a, const Point& b, Vertex_handle from, Cell_handle end,
                        std::vector<Cell_handle>* out) const;
   void LocateEnds(std::vector<BatchRay>& rays);
-  // Walk's end for a camera: the cell that held its centre last time while it still does (a
-  // cell of the triangulation, holding the centre strictly: exact test), else located again.
+  // Where walks to a camera end: the cell that held its centre last time while it still does
+  // (a cell of the triangulation, holding the centre strictly: exact test), else located again;
+  // no cell (usable) when the centre is outside the hull.
   WalkEnd CameraEnd(uint32_t camera, const Point& b, Cell_handle hint);
+  bool DiffersFromCgal(const BatchRay& r, const Cell_handle* cells, size_t count,
+                       bool truncated) const;
   // split_apply: the apply runs as one task per thread, each on the cells it owns (every task
   // scans all the batch's cells: worth it when applying costs more than scanning, as a cast's
   // list entries do; an un-cast's weight decrement does not).

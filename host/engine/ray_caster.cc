@@ -273,8 +273,8 @@ constexpr double kWalkErr = 1e-14;
 
 }  // namespace
 
-// The cell strictly holding each camera the batch's walks end at (one exact location per
-// camera and batch, serial: the walks then stop by comparing cells, not with a test per cell).
+// The cell strictly holding each camera the batch's walks end at (CameraEnd once per camera
+// and batch, serial: the walks then stop by comparing cells, not with a test per cell).
 void RayCaster::LocateEnds(std::vector<BatchRay>& rays) {
   batch_ends_.clear();
   if (!s_.opt.filtered_walk || s_.dt.dimension() != 3) return;
@@ -285,14 +285,8 @@ void RayCaster::LocateEnds(std::vector<BatchRay>& rays) {
     const uint32_t cam = s_.points[r.point].cameras[r.k];
     int32_t& slot = camera_end_slot_[cam];
     if (slot < 0) {
-      WalkEnd e;
-      Dt::Locate_type lt = Dt::OUTSIDE_AFFINE_HULL;
-      int li = 0, lj = 0;
-      e.cell = s_.dt.locate(r.b, lt, li, lj, r.hint);
-      if (lt == Dt::CELL) e.usable = true;
-      else if (lt == Dt::OUTSIDE_CONVEX_HULL) e.usable = true, e.cell = Cell_handle();
       slot = static_cast<int32_t>(batch_ends_.size());
-      batch_ends_.push_back(e);
+      batch_ends_.push_back(CameraEnd(cam, r.b, r.hint));
       used.push_back(cam);
     }
     if (batch_ends_[static_cast<size_t>(slot)].usable) r.end_slot = slot;
@@ -318,8 +312,18 @@ RayCaster::WalkEnd RayCaster::CameraEnd(uint32_t camera, const Point& b, Cell_ha
     e.cell = last, e.usable = true;
   } else {
     last = Cell_handle();
+    e.usable = lt == Dt::OUTSIDE_CONVEX_HULL;  // the walks stop at the hull
   }
   return e;
+}
+
+// check_invariants: whether a filtered walk's cells (or its truncation) differ from CGAL's walk
+// of the same ray.
+bool RayCaster::DiffersFromCgal(const BatchRay& r, const Cell_handle* cells, size_t count,
+                                bool truncated) const {
+  std::vector<Cell_handle> cgal;
+  const bool whole = Trace(r, &cgal);
+  return whole == truncated || cgal.size() != count || !std::equal(cgal.begin(), cgal.end(), cells);
 }
 
 // CGAL's regular step (Triangulation_segment_cell_iterator_3::walk_to_next_3, a cell entered
@@ -454,12 +458,9 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
           r.truncated = !Trace(r, &out);
         } else {
           r.truncated = w == Walked::kTruncated;
-          if (s_.opt.check_invariants) {  // the same cells as CGAL's walk
-            std::vector<Cell_handle> cgal;
-            const bool whole = Trace(r, &cgal);
-            r.walk_differs = whole == r.truncated || cgal.size() != out.size() - r.offset ||
-                             !std::equal(cgal.begin(), cgal.end(), out.begin() + r.offset);
-          }
+          if (s_.opt.check_invariants)
+            r.walk_differs = DiffersFromCgal(r, out.data() + r.offset, out.size() - r.offset,
+                                             r.truncated);
         }
       }
       r.count = static_cast<uint32_t>(out.size() - r.offset);
