@@ -4,6 +4,7 @@
 #include "host/engine/engine_parts.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace imr::engine::detail {
@@ -422,9 +423,46 @@ RayCaster::Walked RayCaster::FilteredTrace(const Point& a, const Point& b, Verte
 // each ray crosses, once per ray and cell, in batch order per cell; returns the parts.
 template <class Apply>
 std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& rays,
-                                                      bool split_apply, Apply&& apply) {
+                                                      bool split_apply, bool apply_pushes,
+                                                      Apply&& apply) {
   util::ThreadPool& tp = Pool();
   const size_t workers = static_cast<size_t>(tp.size());
+  const size_t parts = rays.size() < 64 || !split_apply ? 1 : workers;
+  std::vector<BatchPart> part(parts);
+  const uint64_t base = s_.stamp + 1;
+  s_.stamp += rays.size();
+  // Ray i's cells to the apply task t of `parts` (one stamp per ray: a cell once per ray). In
+  // pieces: first the task's own cells (without a branch per cell: which task owns a cell is a
+  // coin toss), then applied with the cells a few places ahead, and their ray lists' ends,
+  // fetched: each is a cache miss, the walk that found them long past. (Applying each ray
+  // right after its walk on one thread was no faster.)
+  auto apply_ray = [&](size_t i, const Cell_handle* cells, size_t t) {
+    constexpr uint32_t kPiece = 256, kAhead = 16, kListAhead = 8;
+    std::array<Tds::Cell*, kPiece> mine;
+    const BatchRay& r = rays[i];
+    BatchPart& p = part[t];
+    const uint64_t s = base + i;
+    for (uint32_t j0 = 0; j0 < r.count; j0 += kPiece) {
+      const uint32_t j1 = std::min(r.count, j0 + kPiece);
+      uint32_t n = 0;
+      for (uint32_t j = j0; j < j1; ++j) {
+        const Cell_handle c = cells[j];
+        mine[n] = c.operator->();  // null for a destroyed cell: not counted
+        n += c != Cell_handle() && (parts == 1 || Owner(c, parts) == t) ? 1 : 0;
+      }
+      for (uint32_t j = 0; j < n; ++j) {
+        if (j + kAhead < n) __builtin_prefetch(&mine[j + kAhead]->info(), 1);
+        if (apply_pushes && j + kListAhead < n) {
+          const std::vector<RayEntry>& l = mine[j + kListAhead]->info().rays;
+          __builtin_prefetch(l.data() + l.size(), 1);
+        }
+        const Cell_handle c = Tds::Cell_handle(mine[j]);
+        if (c->info().stamp == s) continue;
+        c->info().stamp = s;
+        apply(r, c, p);
+      }
+    }
+  };
   LocateEnds(rays);
   walk_cells_.resize(workers);
   for (auto& w : walk_cells_) w.clear();
@@ -468,24 +506,10 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
     }
     out.swap(walk_cells_[static_cast<size_t>(worker)]);
   });
-  const size_t parts = rays.size() < 64 || !split_apply ? 1 : workers;
-  std::vector<BatchPart> part(parts);
-  const uint64_t base = s_.stamp + 1;
-  s_.stamp += rays.size();
   tp.Run(parts, [&](size_t t, int) {
-    BatchPart& p = part[t];
     for (size_t i = 0; i < rays.size(); ++i) {
       const BatchRay& r = rays[i];
-      const Cell_handle* cells =
-          (r.from_list ? s_.list_cells : walk_cells_)[r.worker].data() + r.offset;
-      const uint64_t s = base + i;
-      for (uint32_t j = 0; j < r.count; ++j) {
-        const Cell_handle c = cells[j];
-        if (c == Cell_handle()) continue;
-        if ((parts > 1 && Owner(c, parts) != t) || c->info().stamp == s) continue;
-        c->info().stamp = s;
-        apply(r, c, p);
-      }
+      apply_ray(i, (r.from_list ? s_.list_cells : walk_cells_)[r.worker].data() + r.offset, t);
     }
   });
   for (const BatchRay& r : rays) {
@@ -524,11 +548,12 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     rays.back().list_to = true;
   }
   const std::vector<BatchPart> parts =
-      RunBatch(rays, /*split_apply=*/true, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
-        if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
-        p.ledger += static_cast<uint64_t>(s_.unit[0]);
-        ++p.cells;
-      });
+      RunBatch(rays, /*split_apply=*/true, /*apply_pushes=*/true,
+               [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+                 if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
+                 p.ledger += static_cast<uint64_t>(s_.unit[0]);
+                 ++p.cells;
+               });
   MergeParts(parts);
   for (const BatchPart& p : parts)
     s_.stats.cells_traversed += p.cells, s_.stats.cells_weighted += p.cells;
@@ -558,7 +583,7 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     info.weight -= s_.unit[0];
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
   };
-  MergeParts(RunBatch(rays, /*split_apply=*/false, take_out));
+  MergeParts(RunBatch(rays, /*split_apply=*/false, /*apply_pushes=*/false, take_out));
 }
 
 TetPlanes RayCaster::PlanesOf(Cell_handle c) {
