@@ -1074,7 +1074,9 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& u) {
   auto timed_batch = [&](auto&& fn) {  // the batches are ray casting
     const auto a = Clock::now();
     fn();
-    s.stats.time.cast += SecondsSince(a);
+    const double dt = SecondsSince(a);
+    s.stats.time.cast += dt;
+    s.stats.time.threaded += dt;
   };
   FindShortMoves(u);
   if (exact && s.opt.check_invariants) {

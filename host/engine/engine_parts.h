@@ -459,11 +459,9 @@ class RayCaster {
                        bool truncated) const;
   // split_apply: the apply runs as one task per thread, each on the cells it owns (every task
   // scans all the batch's cells: worth it when applying costs more than scanning, as a cast's
-  // list entries do; an un-cast's weight decrement does not). apply_pushes: apply appends to
-  // the cell's ray list (its end is fetched ahead, as the cell is).
+  // list entries do; an un-cast's weight decrement does not).
   template <class Apply>
-  std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, bool split_apply,
-                                  bool apply_pushes, Apply&& apply);
+  std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, bool split_apply, Apply&& apply);
   void MergeParts(const std::vector<BatchPart>& parts);
 
   static TetPlanes PlanesOf(Cell_handle c);

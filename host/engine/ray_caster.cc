@@ -423,21 +423,18 @@ RayCaster::Walked RayCaster::FilteredTrace(const Point& a, const Point& b, Verte
 // each ray crosses, once per ray and cell, in batch order per cell; returns the parts.
 template <class Apply>
 std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& rays,
-                                                      bool split_apply, bool apply_pushes,
-                                                      Apply&& apply) {
+                                                      bool split_apply, Apply&& apply) {
   util::ThreadPool& tp = Pool();
   const size_t workers = static_cast<size_t>(tp.size());
   const size_t parts = rays.size() < 64 || !split_apply ? 1 : workers;
   std::vector<BatchPart> part(parts);
   const uint64_t base = s_.stamp + 1;
   s_.stamp += rays.size();
-  // Ray i's cells to the apply task t of `parts` (one stamp per ray: a cell once per ray). In
-  // pieces: first the task's own cells (without a branch per cell: which task owns a cell is a
-  // coin toss), then applied with the cells a few places ahead, and their ray lists' ends,
-  // fetched: each is a cache miss, the walk that found them long past. (Applying each ray
-  // right after its walk on one thread was no faster.)
+  // Ray i's cells to the apply task t of `parts` (one stamp per ray: a cell once per ray), in
+  // pieces: the task's own cells picked first without a branch per cell (which task owns a
+  // cell is a coin toss: a mispredicted branch for every other cell), then applied.
   auto apply_ray = [&](size_t i, const Cell_handle* cells, size_t t) {
-    constexpr uint32_t kPiece = 256, kAhead = 16, kListAhead = 8;
+    constexpr uint32_t kPiece = 256;
     std::array<Tds::Cell*, kPiece> mine;
     const BatchRay& r = rays[i];
     BatchPart& p = part[t];
@@ -451,11 +448,6 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
         n += c != Cell_handle() && (parts == 1 || Owner(c, parts) == t) ? 1 : 0;
       }
       for (uint32_t j = 0; j < n; ++j) {
-        if (j + kAhead < n) __builtin_prefetch(&mine[j + kAhead]->info(), 1);
-        if (apply_pushes && j + kListAhead < n) {
-          const std::vector<RayEntry>& l = mine[j + kListAhead]->info().rays;
-          __builtin_prefetch(l.data() + l.size(), 1);
-        }
         const Cell_handle c = Tds::Cell_handle(mine[j]);
         if (c->info().stamp == s) continue;
         c->info().stamp = s;
@@ -548,12 +540,11 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     rays.back().list_to = true;
   }
   const std::vector<BatchPart> parts =
-      RunBatch(rays, /*split_apply=*/true, /*apply_pushes=*/true,
-               [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
-                 if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
-                 p.ledger += static_cast<uint64_t>(s_.unit[0]);
-                 ++p.cells;
-               });
+      RunBatch(rays, /*split_apply=*/true, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+        if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
+        p.ledger += static_cast<uint64_t>(s_.unit[0]);
+        ++p.cells;
+      });
   MergeParts(parts);
   for (const BatchPart& p : parts)
     s_.stats.cells_traversed += p.cells, s_.stats.cells_weighted += p.cells;
@@ -583,7 +574,7 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     info.weight -= s_.unit[0];
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
   };
-  MergeParts(RunBatch(rays, /*split_apply=*/false, /*apply_pushes=*/false, take_out));
+  MergeParts(RunBatch(rays, /*split_apply=*/false, take_out));
 }
 
 TetPlanes RayCaster::PlanesOf(Cell_handle c) {

@@ -19,8 +19,9 @@ json StatsJson(const engine::EngineStats& s) {
   const auto& t = s.time;
   // Every counter engine::EngineStats keeps (REPORT.md lists them).
   return {{"seconds", {{"steiner", t.steiner}, {"shrink", t.shrink}, {"move", t.move},
-                       {"insert", t.insert}, {"cast", t.cast}, {"scan", t.scan},
-                       {"grow", t.grow}, {"extract", t.extract}, {"total", t.total}}},
+                       {"insert", t.insert}, {"cast", t.cast}, {"threaded", t.threaded},
+                       {"scan", t.scan}, {"grow", t.grow}, {"extract", t.extract},
+                       {"total", t.total}}},
           {"keyframes", s.updates},
           {"rays_cast", s.rays_cast},
           {"rays_cast_backward", s.rays_cast_backward},
