@@ -185,6 +185,12 @@ TEST_P(SmallSceneTest, WallIsCarvedAndMovesKeepTheManifold) {
   ASSERT_TRUE(engine_->ApplyUpdate(u).ok());
   ExpectManifold();
   EXPECT_GT(engine_->Stats().points_moved, 40);
+  // The threaded batches (report.json's engine.seconds.threaded) are part of casting, and only
+  // exact mode has them.
+  const PhaseTimes& t = engine_->Stats().time;
+  EXPECT_LE(t.threaded, t.cast);
+  if (options_.visibility_mode == VisibilityMode::kExact) EXPECT_GT(t.threaded, 0.0);
+  else EXPECT_EQ(t.threaded, 0.0);
   // Remove a few.
   KeyframeUpdate r;
   r.removed_points = {1, 2, 3, 40};
