@@ -426,35 +426,6 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
                                                       bool split_apply, Apply&& apply) {
   util::ThreadPool& tp = Pool();
   const size_t workers = static_cast<size_t>(tp.size());
-  const size_t parts = rays.size() < 64 || !split_apply ? 1 : workers;
-  std::vector<BatchPart> part(parts);
-  const uint64_t base = s_.stamp + 1;
-  s_.stamp += rays.size();
-  // Ray i's cells to the apply task t of `parts` (one stamp per ray: a cell once per ray), in
-  // pieces: the task's own cells picked first without a branch per cell (which task owns a
-  // cell is a coin toss: a mispredicted branch for every other cell), then applied.
-  auto apply_ray = [&](size_t i, const Cell_handle* cells, size_t t) {
-    constexpr uint32_t kPiece = 256;
-    std::array<Tds::Cell*, kPiece> mine;
-    const BatchRay& r = rays[i];
-    BatchPart& p = part[t];
-    const uint64_t s = base + i;
-    for (uint32_t j0 = 0; j0 < r.count; j0 += kPiece) {
-      const uint32_t j1 = std::min(r.count, j0 + kPiece);
-      uint32_t n = 0;
-      for (uint32_t j = j0; j < j1; ++j) {
-        const Cell_handle c = cells[j];
-        mine[n] = c.operator->();  // null for a destroyed cell: not counted
-        n += c != Cell_handle() && (parts == 1 || Owner(c, parts) == t) ? 1 : 0;
-      }
-      for (uint32_t j = 0; j < n; ++j) {
-        const Cell_handle c = Tds::Cell_handle(mine[j]);
-        if (c->info().stamp == s) continue;
-        c->info().stamp = s;
-        apply(r, c, p);
-      }
-    }
-  };
   LocateEnds(rays);
   walk_cells_.resize(workers);
   for (auto& w : walk_cells_) w.clear();
@@ -498,10 +469,37 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
     }
     out.swap(walk_cells_[static_cast<size_t>(worker)]);
   });
+  const size_t parts = rays.size() < 64 || !split_apply ? 1 : workers;
+  std::vector<BatchPart> part(parts);
+  const uint64_t base = s_.stamp + 1;
+  s_.stamp += rays.size();
   tp.Run(parts, [&](size_t t, int) {
+    BatchPart& p = part[t];
+    // A ray's cells in pieces: the task's own picked first without a branch per cell (which
+    // task owns a cell is a coin toss: a mispredicted branch for every other cell), then
+    // applied, each once per ray (its stamp).
+    constexpr uint32_t kPiece = 256;
+    std::array<Tds::Cell*, kPiece> mine;
     for (size_t i = 0; i < rays.size(); ++i) {
       const BatchRay& r = rays[i];
-      apply_ray(i, (r.from_list ? s_.list_cells : walk_cells_)[r.worker].data() + r.offset, t);
+      const Cell_handle* cells =
+          (r.from_list ? s_.list_cells : walk_cells_)[r.worker].data() + r.offset;
+      const uint64_t s = base + i;
+      for (uint32_t j0 = 0; j0 < r.count; j0 += kPiece) {
+        const uint32_t j1 = std::min(r.count, j0 + kPiece);
+        uint32_t n = 0;
+        for (uint32_t j = j0; j < j1; ++j) {
+          const Cell_handle c = cells[j];
+          mine[n] = c.operator->();  // null for a destroyed cell: not counted
+          n += c != Cell_handle() && (parts == 1 || Owner(c, parts) == t) ? 1 : 0;
+        }
+        for (uint32_t j = 0; j < n; ++j) {
+          const Cell_handle c = Tds::Cell_handle(mine[j]);
+          if (c->info().stamp == s) continue;
+          c->info().stamp = s;
+          apply(r, c, p);
+        }
+      }
     }
   });
   for (const BatchRay& r : rays) {
