@@ -171,7 +171,8 @@ void Carving::SetInO(Cell_handle c, bool in) {
 // shrink: remove from O, lowest weight first and keeping dO manifold, the cells of an enclosing
 // set E of D (D plus the cells around D's vertices near the affected points). Returns whether
 // D no longer meets O.
-bool Carving::Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>& centres) {
+bool Carving::Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>& centres,
+                     const std::vector<Cell_handle>* planned_e) {
   auto meets_o = [&]() {
     for (Cell_handle c : d)
       if (c->info().in_o) return true;
@@ -179,41 +180,53 @@ bool Carving::Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>
   };
   if (!meets_o()) return true;
   const auto t0 = Clock::now();
-  // E: D, plus the cells around every vertex of D (all of them when the vertex lies within
-  // shrink_radius of an affected point, else only the cells of D's facet neighbours).
-  // E as a list, its members marked with a stamp (no hash set: this runs at every move).
+  if (!planned_e) {
+    EnclosingSetInO(s_, d, centres.data(), centres.size(), &e_seen_, &star_seen_, &star_, &e_);
+    planned_e = &e_;
+  }
+  // Cells leave O only while a keyframe's points move and enter: a cell of O now was one when
+  // E was planned, and the rest of E does not matter.
   const uint32_t in_e = NewRegion();
-  std::vector<Cell_handle> e;
-  auto add = [&](Cell_handle c) {
-    if (c->info().region == in_e) return;
-    c->info().region = in_e;
-    e.push_back(c);
-  };
-  std::vector<Vertex_handle> verts;
-  for (Cell_handle c : d) {
-    add(c);
-    for (int i = 0; i < 4; ++i) {
-      add(c->neighbor(i));
-      if (!s_.dt.is_infinite(c->vertex(i))) verts.push_back(c->vertex(i));
-    }
-  }
-  std::sort(verts.begin(), verts.end());
-  verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
-  const double r2 = s_.opt.shrink_radius * s_.opt.shrink_radius;
-  std::vector<Cell_handle> inc;
-  for (Vertex_handle v : verts) {
-    bool near = false;
-    for (const Point& p : centres) near = near || CGAL::squared_distance(v->point(), p) <= r2;
-    if (!near) continue;
-    inc.clear();
-    s_.dt.incident_cells(v, std::back_inserter(inc));
-    for (Cell_handle c : inc) add(c);
-  }
+  for (Cell_handle c : *planned_e) c->info().region = in_e;
   const bool ok = PeelFromO(
-      e, [&](Cell_handle n) { return n->info().region == in_e; }, [&] { return !meets_o(); }) ||
-                  !meets_o();
+      *planned_e, [&](Cell_handle n) { return n->info().region == in_e; },
+      [&] { return !meets_o(); }) || !meets_o();
   s_.stats.time.shrink += SecondsSince(t0);
   return ok;
+}
+
+// E: D, its facet neighbours, and the cells around every vertex of D that lies within
+// shrink_radius of an affected point; of them, those in O (shrink peels nothing else).
+void Carving::EnclosingSetInO(const EngineState& s, const std::vector<Cell_handle>& d,
+                              const Point* centres, size_t n_centres, ScratchMap<uint8_t>* seen,
+                              ScratchMap<uint8_t>* star_seen, std::vector<Cell_handle>* star,
+                              std::vector<Cell_handle>* e) {
+  seen->Clear();
+  e->clear();
+  auto add = [&](Cell_handle c) {
+    if (c->info().in_o && seen->Insert(ScratchMap<uint8_t>::Key(&*c), 1).second) e->push_back(c);
+  };
+  for (Cell_handle c : d) {
+    add(c);
+    for (int i = 0; i < 4; ++i) add(c->neighbor(i));
+  }
+  const double r2 = s.opt.shrink_radius * s.opt.shrink_radius;
+  std::vector<Vertex_handle> verts;
+  for (Cell_handle c : d)
+    for (int i = 0; i < 4; ++i) {
+      const Vertex_handle v = c->vertex(i);
+      if (!s.dt.is_infinite(v) && v->info().o_cells > 0) verts.push_back(v);
+    }
+  std::sort(verts.begin(), verts.end());
+  verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+  for (Vertex_handle v : verts) {
+    bool near = false;
+    for (size_t k = 0; k < n_centres; ++k)
+      near = near || CGAL::squared_distance(v->point(), centres[k]) <= r2;
+    if (!near) continue;
+    StarOf(v, star_seen, star);
+    for (Cell_handle c : *star) add(c);
+  }
 }
 
 // A fresh region mark (all cells' marks reset when the counter wraps).
@@ -248,7 +261,8 @@ bool Carving::PeelFromO(const Cells& region, InRegion in_region, Done done) {
   std::priority_queue<Item> q;
   uint64_t order = 0;
   for (const auto& s : start) q.push({s.second->info().weight, order++, s.second});
-  int64_t budget = static_cast<int64_t>(start.size()) * 4 * s_.opt.shrink_passes + 16;
+  const size_t start_size = q.size();
+  int64_t budget = static_cast<int64_t>(start_size) * 4 * s_.opt.shrink_passes + 16;
   while (!q.empty() && budget-- > 0) {
     Cell_handle c = q.top().cell;
     q.pop();
@@ -256,7 +270,7 @@ bool Carving::PeelFromO(const Cells& region, InRegion in_region, Done done) {
     SetInO(c, false);
     ++s_.stats.cells_shrunk;
     s_.MarkDirty(c);
-    for (int i = 0; i < 4; ++i) {
+    for (int i : s_.CanonicalFacets(c)) {
       Cell_handle n = c->neighbor(i);
       s_.MarkDirty(n);
       if (n->info().in_o && in_region(n)) q.push({n->info().weight, order++, n});
@@ -315,10 +329,16 @@ void Carving::Grow() {
     return !s_.dt.is_infinite(c) && !c->info().in_o && s_.IsFree(c) && !s_.HullAdjacent(c);
   };
   if (s_.cells_in_o == 0) {
+    // The highest weight; among equal ones the smallest CellKey (not the container's order).
     Cell_handle best;
-    for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c)
-      if (candidate(c) && (best == Cell_handle() || c->info().weight > best->info().weight))
-        best = c;
+    std::array<int64_t, 4> best_key{};
+    for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c) {
+      if (!candidate(c)) continue;
+      if (best != Cell_handle() && c->info().weight < best->info().weight) continue;
+      const std::array<int64_t, 4> key = s_.CellKey(c);
+      if (best == Cell_handle() || c->info().weight > best->info().weight || key < best_key)
+        best = c, best_key = key;
+    }
     if (best != Cell_handle()) q.push({best->info().weight, order++, best});
   } else {
     // Deterministic seed order: by weight, then by the ids of the vertices.
@@ -338,7 +358,7 @@ void Carving::Grow() {
     if (!ToggleKeepsManifold(c)) continue;
     SetInO(c, true);
     ++s_.stats.cells_grown;
-    for (int i = 0; i < 4; ++i) {
+    for (int i : s_.CanonicalFacets(c)) {
       Cell_handle n = c->neighbor(i);
       if (candidate(n)) q.push({n->info().weight, order++, n});
     }
@@ -491,7 +511,8 @@ bool Finite(const Vec3& p) {
 }  // namespace
 
 Engine::Impl::Impl(const EngineOptions& o, WeightTransferPolicy* p)
-    : s(o), caster(s), transfer(s, p, caster), carving(s), steiner(s.opt) {
+    : s(o), caster(s), transfer(s, p, caster), carving(s), steiner(s.opt),
+      planner(s, caster, carving) {
   if (const std::string error = s.opt.Check(); !error.empty()) {
     init = Status::Error("invalid engine options: " + error);
   } else if (s.opt.visibility_mode == VisibilityMode::kWeights && p == nullptr) {
@@ -852,6 +873,138 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   ++s.stats.points_moved;
 }
 
+// kExact: the update's moves, planned ahead on the engine's threads in batches and committed
+// one by one in the update's order (MovePlanner). A plan an earlier commit of its batch made
+// stale is made again at its turn; plans do not depend on when they are made, so the cells,
+// weights and mesh are the same for any number of threads (on one, each move is planned just
+// before its commit).
+void Engine::Impl::ExactMoves(const KeyframeUpdate& u) {
+  const size_t n = u.moved_points.size();
+  MoveOrder(u);
+  util::ThreadPool& tp = s.Pool();
+  const int threads = tp.size();
+  if (threads <= 1 || !s.opt.planned_moves) {
+    for (size_t i : move_order_) MoveOne(u, i);
+    return;
+  }
+  planner.Workers(threads);
+  if (plans_.size() < kMoveStrata) plans_.resize(kMoveStrata);
+  for (size_t i0 = 0; i0 < n; i0 += kMoveStrata) {
+    const size_t i1 = std::min(n, i0 + kMoveStrata);
+    const auto t0 = Clock::now();
+    tp.Run(i1 - i0, [&](size_t j, int worker) {
+      PlanMove(u, move_order_[i0 + j], worker, &plans_[j]);
+    });
+    s.stats.time.threaded += SecondsSince(t0);
+    s.stats.moves_planned_ahead += static_cast<int64_t>(i1 - i0);
+    for (size_t j = i0; j < i1; ++j) {
+      detail::MovePlan& plan = plans_[j - i0];
+      if (!planner.Valid(plan)) {
+        ++s.stats.moves_replanned;
+        PlanMove(u, move_order_[j], 0, &plan);
+      }
+      CommitMove(u, move_order_[j], plan);
+    }
+  }
+}
+
+// The order of a keyframe's moves (kExact), the same for any number of threads: along a
+// Morton curve over the points' positions, dealt out in turn from kMoveStrata stretches of it,
+// so that the moves planned together lie far apart and seldom change one another's cells.
+void Engine::Impl::MoveOrder(const KeyframeUpdate& u) {
+  const size_t n = u.moved_points.size();
+  std::vector<std::array<double, 3>> at(n);
+  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  for (size_t i = 0; i < n; ++i) {
+    const PointRecord& rec = s.points[s.point_index.at(u.moved_points[i].id)];
+    const Vec3& p = rec.position;
+    at[i] = rec.in_triangulation
+                ? std::array<double, 3>{rec.vertex->point().x(), rec.vertex->point().y(),
+                                        rec.vertex->point().z()}
+                : std::array<double, 3>{p[0], p[1], p[2]};
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = i == 0 ? at[i][k] : std::min(lo[k], at[i][k]);
+      hi[k] = i == 0 ? at[i][k] : std::max(hi[k], at[i][k]);
+    }
+  }
+  std::vector<std::pair<uint64_t, size_t>> keyed(n);
+  for (size_t i = 0; i < n; ++i) {
+    uint64_t code = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double span = hi[k] - lo[k];
+      const double f = span > 0.0 && std::isfinite(span) ? (at[i][k] - lo[k]) / span : 0.0;
+      const uint64_t q = static_cast<uint64_t>(std::clamp(f, 0.0, 1.0) * 2097151.0);
+      for (int b = 0; b < 21; ++b) code |= ((q >> b) & 1u) << (3 * b + k);
+    }
+    keyed[i] = {code, i};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  const size_t stretch = (n + kMoveStrata - 1) / kMoveStrata;
+  move_order_.clear();
+  for (size_t j = 0; j < stretch; ++j)
+    for (size_t b = 0; b < kMoveStrata; ++b)
+      if (b * stretch + j < n) move_order_.push_back(keyed[b * stretch + j].second);
+}
+
+// Move i of the update, made at once (a move shorter than min_move_fraction keeps the vertex).
+void Engine::Impl::MoveOne(const KeyframeUpdate& u, size_t i) {
+  const MovedPoint& m = u.moved_points[i];
+  const uint32_t pt = s.point_index.at(m.id);
+  if (!short_move_[i] || !s.points[pt].in_triangulation) {
+    MovePoint(pt, m);
+    return;
+  }
+  // The vertex stays: what is left of the move is adding its new cameras.
+  MovedPoint held = m;
+  const Point& v = s.points[pt].vertex->point();
+  held.position = {v.x(), v.y(), v.z()};
+  MovePoint(pt, held);
+  s.points[pt].position = m.position;
+  ++s.stats.moves_below_min;
+}
+
+// Move i of the update planned (a move shorter than min_move_fraction keeps the vertex).
+void Engine::Impl::PlanMove(const KeyframeUpdate& u, size_t i, int worker,
+                            detail::MovePlan* plan) {
+  const MovedPoint& m = u.moved_points[i];
+  const uint32_t pt = s.point_index.at(m.id);
+  const PointRecord& rec = s.points[pt];
+  const Point p = short_move_[i] && rec.in_triangulation ? rec.vertex->point() : ToPoint(m.position);
+  planner.Plan(pt, p, worker, plan);
+}
+
+void Engine::Impl::CommitMove(const KeyframeUpdate& u, size_t i, detail::MovePlan& plan) {
+  using Kind = detail::MovePlan::Kind;
+  const MovedPoint& m = u.moved_points[i];
+  const uint32_t pt = plan.pt;
+  const bool held = short_move_[i] && s.points[pt].in_triangulation;
+  MovedPoint kept;
+  const MovedPoint* made = &m;
+  if (held) {  // the vertex stays: what is left of the move is adding its new cameras
+    kept = m;
+    const Point& v = s.points[pt].vertex->point();
+    kept.position = {v.x(), v.y(), v.z()};
+    made = &kept;
+  }
+  if (plan.kind == Kind::kSerial) {
+    ExactMovePoint(pt, *made);
+  } else {
+    PointRecord& rec = s.points[pt];
+    rec.position = made->position;
+    AddCameras(rec, made->camera_ids, nullptr);
+    if (plan.kind == Kind::kDuplicate) {
+      ++s.stats.moves_duplicate;
+      ++s.stats.moves_skipped;
+    } else if (plan.kind != Kind::kKeep) {
+      planner.Commit(plan);
+    }
+  }
+  if (held) {
+    s.points[pt].position = m.position;
+    ++s.stats.moves_below_min;
+  }
+}
+
 // Move p_old -> p_new (paper §3): backward cast over the last W cameras, remove, transfer,
 // insert, transfer, forward cast; or, in kRays mode, the Refinement Event Handler of Lovi et al.
 void Engine::Impl::MovePoint(uint32_t pt, const MovedPoint& m) {
@@ -1087,21 +1240,11 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& u) {
   }
   if (exact) timed_batch([&] { UncastMoving(u); });
   timed(&s.stats.time.move, [&] {
-    for (size_t i = 0; i < u.moved_points.size(); ++i) {
-      const MovedPoint& m = u.moved_points[i];
-      const uint32_t pt = s.point_index.at(m.id);
-      if (!short_move_[i] || !s.points[pt].in_triangulation) {
-        MovePoint(pt, m);
-        continue;
-      }
-      // The vertex stays: what is left of the move is adding its new cameras.
-      MovedPoint held = m;
-      const Point& v = s.points[pt].vertex->point();
-      held.position = {v.x(), v.y(), v.z()};
-      MovePoint(pt, held);
-      s.points[pt].position = m.position;
-      ++s.stats.moves_below_min;
+    if (exact) {
+      ExactMoves(u);
+      return;
     }
+    for (size_t i = 0; i < u.moved_points.size(); ++i) MoveOne(u, i);
   });
   timed(&s.stats.time.insert, [&] {
     for (const NewPoint& p : u.new_points) InsertNewPoint(p);

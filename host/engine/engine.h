@@ -121,6 +121,10 @@ struct EngineOptions {
                                       // tests on terms cached per vertex, CGAL's exact walk
                                       // where a test is within rounding: the same cells as
                                       // CGAL's walk. false: CGAL's walk for every ray.
+  bool planned_moves = true;          // kExact: a keyframe's moves are planned on the engine's
+                                      // threads (what each does to its cells, read only) and
+                                      // committed in order; false: each made with CGAL's vertex
+                                      // removal and insertion (the same cells and weights).
   int num_threads = 0;                // Threads casting rays (kExact): 0 = every core of the
                                       // process's affinity mask. The mesh is the same for any
                                       // number (results are applied in one fixed order).
@@ -208,6 +212,10 @@ struct EngineStats {
   int64_t moves_duplicate = 0;        // Move onto an existing vertex: refused (moves_skipped).
   int64_t moves_in_place = 0;         // kExact moves that kept the cells (the vertex stayed inside
                                       // its star and no facet flipped): no re-insertion.
+  int64_t moves_planned_ahead = 0;    // kExact: moves planned on the engine's threads ahead of
+                                      // their turn (planned_moves, more than one thread).
+  int64_t moves_replanned = 0;        // Of those, planned again at their turn: an earlier move of
+                                      // the same batch had changed their cells.
   int64_t moves_below_min = 0;        // Moves shorter than min_move_fraction of the local
                                       // spacing: not made.
   int64_t points_reentered = 0;       // Points refused at insertion that entered at a later move.

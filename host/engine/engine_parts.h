@@ -1,13 +1,15 @@
 // The engine's named parts over one Delaunay triangulation (paper sections 2-3). Private to
 // host/engine: it includes CGAL, and only the engine's CGAL translation units include it
-// (engine.cc, ray_caster.cc, engine_checks.cc). Engine::Impl conducts a keyframe through them;
-// each part is a class over the shared EngineState:
+// (engine.cc, ray_caster.cc, move_planner.cc, engine_checks.cc). Engine::Impl conducts a
+// keyframe through them; each part is a class over the shared EngineState:
 //   RayCaster         viewing rays (paper §2.1): T, N1 and N2 weighted by one ray (weights and
 //                     rays modes); the exact mode's ray sets, cast in batches on the thread pool,
 //                     and the holes a change of the triangulation opens in them (ray_caster.cc)
 //   WeightTransfer    the weights of the cells a change makes, from those it destroys (§3.2)
 //   Carving           O, the outside cells: the manifold test, shrink, peel and grow (§2.2)
 //   SteinerGrid       the Steiner points around each camera
+//   MovePlanner       exact mode's moves planned on the thread pool and made in order
+//                     (move_planner.cc)
 //   InvariantChecker  dO closed, oriented and manifold; the weights against their ledger
 //                     (engine_checks.cc)
 // The benchmark and diagnostic hooks (engine_internal.h, engine_checks.cc) keep their state in
@@ -27,6 +29,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -59,6 +62,11 @@ struct VertexInfo {
                         // shrink takes them out of O before the triangulation changes).
 };
 
+// Serial numbers of cells (CellInfo::serial): unique within the process, so that a cell made
+// where another was destroyed never passes for it.
+inline std::atomic<uint64_t> g_next_cell_serial{1};
+inline uint64_t NextCellSerial() { return g_next_cell_serial.fetch_add(1, std::memory_order_relaxed); }
+
 struct CellInfo {
   int64_t weight = 0;     // In units of EngineOptions::weight_unit.
   uint64_t stamp = 0;     // Ray stamp: a cell joins T, N1 or N2 once per ray.
@@ -70,6 +78,8 @@ struct CellInfo {
                           // the manifold test uses while the region is peeled.
   std::vector<RayEntry> rays;  // kRays: at most K rays that raised this cell's weight; kExact:
                                // every ray that crosses it (and stale entries, see RayEntry).
+  uint64_t serial = NextCellSerial();  // Which cell this is: new for each cell made, and renewed
+                                       // when a move reshapes it (MovePlan's validity).
 };
 
 using Vb = CGAL::Triangulation_vertex_base_with_info_3<VertexInfo, K>;
@@ -202,6 +212,12 @@ struct EngineState {
   uint64_t weight_ledger = 0;
   EngineStats stats;
   std::unique_ptr<Hooks> hooks;  // null unless a benchmark or a test asked for them
+  // The engine's threads (num_threads; kExact: the batches of rays and the moves' plans).
+  util::ThreadPool& Pool() {
+    if (!pool) pool = std::make_unique<util::ThreadPool>(util::ResolveThreads(opt.num_threads));
+    return *pool;
+  }
+  std::unique_ptr<util::ThreadPool> pool;
 
   int64_t ToUnits(double w) const {
     if (!std::isfinite(w)) return 0;
@@ -243,6 +259,19 @@ struct EngineState {
     std::sort(k.begin(), k.end());
     return k;
   }
+  // A cell's facets in the order of the ids of the vertices they are opposite (ids are unique):
+  // where the order in which neighbours are visited decides something (growing and peeling O
+  // among equal weights), it then depends on the triangulation, not on the order CGAL keeps a
+  // cell's vertices in, which differs with the history of the cell.
+  std::array<int, 4> CanonicalFacets(Cell_handle c) const {
+    std::array<int64_t, 4> k;
+    for (int i = 0; i < 4; ++i)
+      k[i] = dt.is_infinite(c->vertex(i)) ? std::numeric_limits<int64_t>::min()
+                                          : c->vertex(i)->info().id;
+    std::array<int, 4> order = {0, 1, 2, 3};
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return k[a] < k[b]; });
+    return order;
+  }
   // kExact: is a cell's entry the current cast of its ray?
   bool Live(const RayEntry& e) const {
     const PointRecord& rec = points[e.point];
@@ -260,6 +289,91 @@ struct EngineState {
     return std::vector<uint32_t>(begin, rec.cameras.end());
   }
 };
+
+// -------------------------------------------------------------------------------------------------
+// A map from 64-bit keys (addresses, or ray keys) to values, emptied in O(1) by a new generation:
+// the scratch of code that may not mark the cells it visits (several threads read them).
+template <class Value>
+class ScratchMap {
+ public:
+  void Clear() {
+    size_ = 0;
+    if (++gen_ == 0) {  // the generation wrapped: forget every slot
+      for (Slot& x : slots_) x.gen = 0;
+      gen_ = 1;
+    }
+  }
+  // The value of `key`, inserting `init` when absent; the bool says whether it was absent.
+  std::pair<Value*, bool> Insert(uint64_t key, const Value& init) {
+    if (2 * (size_ + 1) > slots_.size()) Rehash();
+    for (size_t i = Home(key);; i = (i + 1) & mask_) {
+      Slot& x = slots_[i];
+      if (x.gen != gen_) {
+        x.gen = gen_, x.key = key, x.value = init;
+        ++size_;
+        return {&x.value, true};
+      }
+      if (x.key == key) return {&x.value, false};
+    }
+  }
+  Value* Find(uint64_t key) {
+    if (slots_.empty()) return nullptr;
+    for (size_t i = Home(key);; i = (i + 1) & mask_) {
+      Slot& x = slots_[i];
+      if (x.gen != gen_) return nullptr;
+      if (x.key == key) return &x.value;
+    }
+  }
+  bool Contains(uint64_t key) { return Find(key) != nullptr; }
+  static uint64_t Key(const void* p) { return static_cast<uint64_t>(reinterpret_cast<uintptr_t>(p)); }
+
+ private:
+  struct Slot {
+    uint64_t key = 0;
+    uint32_t gen = 0;
+    Value value{};
+  };
+  size_t Home(uint64_t key) const {
+    return static_cast<size_t>(((key >> 4) * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+  void Rehash() {
+    std::vector<Slot> old;
+    old.swap(slots_);
+    const size_t n = old.empty() ? 256 : 2 * old.size();
+    slots_.assign(n, Slot());
+    mask_ = n - 1;
+    shift_ = 64;
+    for (size_t m = n; m > 1; m >>= 1) --shift_;
+    const uint32_t old_gen = gen_;
+    gen_ = 1;
+    size_ = 0;
+    for (const Slot& x : old)
+      if (x.gen == old_gen) Insert(x.key, x.value);
+  }
+  std::vector<Slot> slots_;
+  uint32_t gen_ = 1;
+  size_t size_ = 0, mask_ = 0;
+  int shift_ = 64;
+};
+
+// The cells incident to v (its star, infinite cells included), without marking them: a walk
+// across the facets that contain v. `seen` is the walk's scratch (cleared here).
+inline void StarOf(Vertex_handle v, ScratchMap<uint8_t>* seen, std::vector<Cell_handle>* out) {
+  seen->Clear();
+  out->clear();
+  const Cell_handle first = v->cell();
+  seen->Insert(ScratchMap<uint8_t>::Key(&*first), 1);
+  out->push_back(first);
+  for (size_t i = 0; i < out->size(); ++i) {
+    const Cell_handle c = (*out)[i];
+    const int iv = c->index(v);
+    for (int k = 0; k < 4; ++k) {
+      if (k == iv) continue;
+      const Cell_handle n = c->neighbor(k);
+      if (seen->Insert(ScratchMap<uint8_t>::Key(&*n), 1).second) out->push_back(n);
+    }
+  }
+}
 
 // -------------------------------------------------------------------------------------------------
 // kExact: the rays held by cells about to be destroyed, each with the part of its segment
@@ -284,6 +398,22 @@ struct TetPlanes {
   double n[4][3];
   double off[4];
 };
+TetPlanes PlanesOf(const Point& p0, const Point& p1, const Point& p2, const Point& p3);
+inline TetPlanes PlanesOf(Cell_handle c) {
+  return PlanesOf(c->vertex(0)->point(), c->vertex(1)->point(), c->vertex(2)->point(),
+                  c->vertex(3)->point());
+}
+// The part t in [lo, hi] of segment a + t d (t in [0, 1]) inside a tetrahedron, the faces that
+// bound it (-1: the segment's own end), and whether another face bounds it within rounding
+// (the segment passes through an edge or a vertex there: the caller walks with exact
+// predicates instead).
+struct Clip {
+  double lo = 0.0, hi = 1.0;
+  int lo_face = -1, hi_face = -1;
+  bool lo_tie = false, hi_tie = false;
+  bool grazing = false;  // the segment runs within rounding of a face's plane
+};
+bool ClipSegment(const TetPlanes& t, const double a[3], const double d[3], Clip* out);
 
 // Casting of viewing rays (paper §2.1). kWeights and kRays: one ray weights the cells
 // it traverses (T), their neighbours (N1) and theirs (N2), each cell once per ray. kExact: every
@@ -313,6 +443,10 @@ class RayCaster {
   void CollectHole(const std::vector<Cell_handle>& cells, Hole* hole);
   // kExact, after the new cells exist: each ray of the hole walked again through them.
   void RefillHole(const std::vector<Cell_handle>& added, const Hole& hole);
+  // kExact: ray k of point pt walked whole with exact predicates, added to the cells marked
+  // fresh that it crosses, except those in `given` (a planned walk gave it those already).
+  void RefillExact(uint32_t pt, uint32_t k, const std::vector<Cell_handle>& given,
+                   Cell_handle hint);
   // kRays: the whole-triangulation scan of Lovi et al., taking point pt's rays out of every cell.
   void ScanRemoveRays(uint32_t pt);
   // kRays: re-casts the rays of U, skipping points no longer in the triangulation and, if given,
@@ -420,17 +554,6 @@ class RayCaster {
     int64_t cells = 0, mismatches = 0;
     std::vector<Cell_handle> became_free;
   };
-  // The part t in [lo, hi] of segment a + t d (t in [0, 1]) inside a tetrahedron, the faces that
-  // bound it (-1: the segment's own end), and whether another face bounds it within rounding
-  // (the segment passes through an edge or a vertex there: the caller walks with exact
-  // predicates instead).
-  struct Clip {
-    double lo = 0.0, hi = 1.0;
-    int lo_face = -1, hi_face = -1;
-    bool lo_tie = false, hi_tie = false;
-    bool grazing = false;  // the segment runs within rounding of a face's plane
-  };
-
   void CastWeights(uint32_t cam, uint32_t pt, int sign);  // kWeights and kRays
   void ExactCast(uint32_t pt, size_t k);
   bool RaySegment(const Point& p, const Point& cam, Point* start);
@@ -440,7 +563,6 @@ class RayCaster {
   bool Holds(const CellInfo& info, const RayEntry& mine) const;
   static constexpr size_t kSearchUncastBelow = 32;
 
-  util::ThreadPool& Pool();
   static size_t Owner(Cell_handle c, size_t parts);
   bool Trace(const BatchRay& r, std::vector<Cell_handle>* out) const;
   // The walk of Trace with double-precision tests on terms cached per vertex of the ray, for a
@@ -464,13 +586,9 @@ class RayCaster {
   std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, bool split_apply, Apply&& apply);
   void MergeParts(const std::vector<BatchPart>& parts);
 
-  static TetPlanes PlanesOf(Cell_handle c);
-  static bool ClipSegment(const TetPlanes& t, const double a[3], const double d[3], Clip* out);
-
   EngineState& s_;
   std::vector<Cell_handle> ring_[2];  // T and N1 of the ray being cast.
   std::vector<Cell_handle> given_;    // RefillHole: new cells given the ray being walked.
-  std::unique_ptr<util::ThreadPool> pool_;
   std::vector<std::vector<Cell_handle>> walk_cells_;  // per worker
   std::vector<WalkEnd> batch_ends_;       // the batch's cameras (LocateEnds)
   std::vector<int32_t> camera_end_slot_;  // per camera: its slot in batch_ends_, or -1
@@ -531,8 +649,17 @@ class Carving {
   bool ToggleKeepsManifoldByLinks(Cell_handle c);
   void SetInO(Cell_handle c, bool in);
   // shrink: removes from O the cells of an enclosing set E of D; returns whether D no longer
-  // meets O.
-  bool Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>& centres);
+  // meets O. `planned_e`: E's cells in O as EnclosingSetInO found them earlier in the keyframe's
+  // moves, none destroyed since (null: found here).
+  bool Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>& centres,
+              const std::vector<Cell_handle>* planned_e = nullptr);
+  // The cells of O in E for D (D, its facet neighbours, and the cells around each vertex of D
+  // within shrink_radius of a centre). Reads only (the sets are the caller's scratch), so
+  // several threads may find them at once while nothing changes.
+  static void EnclosingSetInO(const EngineState& s, const std::vector<Cell_handle>& d,
+                              const Point* centres, size_t n_centres, ScratchMap<uint8_t>* seen,
+                              ScratchMap<uint8_t>* star_seen, std::vector<Cell_handle>* star,
+                              std::vector<Cell_handle>* e);
   // Takes out of O every cell with a vertex within `radius` of one of the given vertices.
   void PeelAround(const std::vector<Vertex_handle>& centres, double radius);
   // grow: the free cells touching dO join O, highest weight first, while dO stays manifold.
@@ -548,7 +675,8 @@ class Carving {
 
   EngineState& s_;
   std::vector<Cell_handle> incident_;  // scratch
-  std::vector<Cell_handle> star_;      // scratch
+  std::vector<Cell_handle> star_, e_;  // scratch
+  ScratchMap<uint8_t> e_seen_, star_seen_;
 };
 
 // -------------------------------------------------------------------------------------------------
@@ -563,6 +691,89 @@ class SteinerGrid {
  private:
   const EngineOptions& opt_;
   std::unordered_set<uint64_t> keys_;  // nodes placed
+};
+
+// -------------------------------------------------------------------------------------------------
+// kExact moves planned ahead. A move (paper §3; exact mode: the point's vertex taken out and put
+// back at its new position, and the rays of the cells that change walked again through the
+// cells that replace them) changes D only, the vertex's star and the new position's conflict
+// zone. What it does to D is a function of D and the cells around it: the plan computes it
+// without writing anything shared (the cells that fill D from a small Delaunay triangulation of
+// D's vertices, the rays each of them holds, the enclosing set for shrink), so the moves of a
+// keyframe are planned on the engine's threads and committed one by one, in the update's order,
+// on one. A plan names the cells it read (D and its facet neighbours) with their serials; when
+// an earlier commit changed one of them, the move is planned again at its turn. Plans never
+// depend on when they were made, so the result is the same for any number of threads.
+struct MovePlan {
+  enum class Kind : uint8_t {
+    kKeep,       // the new position is the vertex's: only cameras are added
+    kDuplicate,  // another vertex sits at the new position: refused
+    kInPlace,    // D is the star, reshaped: the cells stay (DelaunayAfterMove)
+    kHole,       // D re-triangulated around the new position
+    kSerial,     // made at its turn by ExactMovePoint (the hull, a point not in the triangulation)
+  };
+  // A cell that fills D (kHole), or a cell of D as reshaped (kInPlace): its vertices (>= 0: an
+  // index in `verts`; -1: the moving point's vertex) and neighbours (>= 0: another such cell;
+  // < 0: the facet -(n + 1) of `outer`).
+  struct NewCell {
+    int32_t v[4];
+    int32_t n[4];
+  };
+  struct Listed {  // a listed ray held by a cell of D: its list loses the cell
+    uint32_t point, k, cell;
+  };
+  struct Deferred {  // a ray the plan could not walk: walked with exact predicates at commit
+    uint32_t point, k;
+    uint32_t given_begin, given_count;  // the cells (indices in `cells`) it was given already
+  };
+
+  Kind kind = Kind::kSerial;
+  uint32_t pt = 0;
+  Vertex_handle v;
+  Point p_old, p_new;
+  std::vector<Cell_handle> d;      // in CellKey order
+  std::vector<Facet> outer;        // D's boundary facets, seen from the cells outside D
+  std::vector<uint64_t> serials;   // of d's cells, then of outer's cells
+  std::vector<Vertex_handle> verts;
+  std::vector<NewCell> cells;      // kInPlace: cells[i] is d[i]
+  std::vector<uint32_t> ray_begin;  // cells[i] holds rays[ray_begin[i] .. ray_begin[i + 1])
+  std::vector<RayEntry> rays;
+  std::vector<Listed> listed;
+  std::vector<Deferred> deferred;
+  std::vector<int32_t> given;
+  int64_t rays_rewalked = 0;
+  bool e_planned = false;  // D met O when planned: e holds E's cells in O then
+  std::vector<Cell_handle> e;
+  std::vector<uint64_t> e_serials;
+};
+
+class MovePlanner {
+ public:
+  MovePlanner(EngineState& s, RayCaster& caster, Carving& carving);
+  ~MovePlanner();
+
+  // Plans moving point pt to p_new. Reads only: calls with distinct workers may run at once
+  // while nothing changes the engine's state.
+  void Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* plan) const;
+  // Whether a plan made earlier still holds (its cells unchanged since).
+  bool Valid(const MovePlan& plan) const;
+  // Makes a kInPlace or kHole move: shrink, then D's cells replaced or reshaped. False when D
+  // could not leave O (the move is refused).
+  bool Commit(MovePlan& plan);
+  // Scratch for n workers (before plans are made on them).
+  void Workers(int n) const;
+
+ private:
+  struct Scratch;
+  bool InPlaceOk(Vertex_handle v, const Point& p, const std::vector<Cell_handle>& star) const;
+  bool FillHole(MovePlan* plan, Scratch& sc) const;
+  void WalkRays(MovePlan* plan, Scratch& sc) const;
+
+  EngineState& s_;
+  RayCaster& caster_;
+  Carving& carving_;
+  mutable std::vector<std::unique_ptr<Scratch>> scratch_;  // per worker (Workers)
+  std::vector<Cell_handle> made_, given_, e_live_;          // Commit's scratch
 };
 
 // dO's facets: between a cell of O and a cell outside O, oriented toward the O cell.
@@ -612,6 +823,7 @@ struct Engine::Impl {
   detail::WeightTransfer transfer;
   detail::Carving carving;
   detail::SteinerGrid steiner;
+  detail::MovePlanner planner;
   Status init;
 
  private:
@@ -631,6 +843,11 @@ struct Engine::Impl {
   bool ShrinkMoveRegion(Vertex_handle v, const Point& p_old, const Point& p_new,
                         std::vector<Cell_handle>* d);
   void ExactMovePoint(uint32_t pt, const MovedPoint& m);
+  void ExactMoves(const KeyframeUpdate& u);
+  void MoveOrder(const KeyframeUpdate& u);
+  void MoveOne(const KeyframeUpdate& u, size_t i);
+  void PlanMove(const KeyframeUpdate& u, size_t i, int worker, detail::MovePlan* plan);
+  void CommitMove(const KeyframeUpdate& u, size_t i, detail::MovePlan& plan);
   void MovePoint(uint32_t pt, const MovedPoint& m);
   void InsertNewPoint(const NewPoint& np);
   bool Enter(uint32_t pt, bool again);
@@ -643,6 +860,9 @@ struct Engine::Impl {
   int64_t steiner_count_ = 0;
   std::vector<uint32_t> entered_;  // kExact: points that entered during this update
   std::vector<uint8_t> short_move_;  // per moved point of the update: too short to make
+  static constexpr size_t kMoveStrata = 16;  // moves planned together (MoveOrder)
+  std::vector<size_t> move_order_;          // the keyframe's moves in the order they are made
+  std::vector<detail::MovePlan> plans_;     // ExactMoves: one batch of plans
 };
 
 }  // namespace imr::engine

@@ -226,11 +226,6 @@ bool RayCaster::Holds(const CellInfo& info, const RayEntry& mine) const {
 // The walks only read the triangulation; what they found is then applied cell by cell, each
 // cell by one thread and its rays in batch order, so weights, ray lists and all that follows
 // are the same for any number of threads.
-util::ThreadPool& RayCaster::Pool() {
-  if (!pool_) pool_ = std::make_unique<util::ThreadPool>(util::ResolveThreads(s_.opt.num_threads));
-  return *pool_;
-}
-
 // Which apply task owns a cell: a hash of its address's 4 KB page (fixed while the cell lives;
 // neighbours in memory go to the same task, which writes their cache lines alone).
 size_t RayCaster::Owner(Cell_handle c, size_t parts) {
@@ -424,7 +419,7 @@ RayCaster::Walked RayCaster::FilteredTrace(const Point& a, const Point& b, Verte
 template <class Apply>
 std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& rays,
                                                       bool split_apply, Apply&& apply) {
-  util::ThreadPool& tp = Pool();
+  util::ThreadPool& tp = s_.Pool();
   const size_t workers = static_cast<size_t>(tp.size());
   LocateEnds(rays);
   walk_cells_.resize(workers);
@@ -575,13 +570,14 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
   MergeParts(RunBatch(rays, /*split_apply=*/false, take_out));
 }
 
-TetPlanes RayCaster::PlanesOf(Cell_handle c) {
+TetPlanes PlanesOf(const Point& c0, const Point& c1, const Point& c2, const Point& c3) {
+  const Point* corner[4] = {&c0, &c1, &c2, &c3};
   TetPlanes t;
   for (int i = 0; i < 4; ++i) {
-    const Point& p0 = c->vertex((i + 1) & 3)->point();
-    const Point& p1 = c->vertex((i + 2) & 3)->point();
-    const Point& p2 = c->vertex((i + 3) & 3)->point();
-    const Point& q = c->vertex(i)->point();
+    const Point& p0 = *corner[(i + 1) & 3];
+    const Point& p1 = *corner[(i + 2) & 3];
+    const Point& p2 = *corner[(i + 3) & 3];
+    const Point& q = *corner[i];
     const double u[3] = {p1.x() - p0.x(), p1.y() - p0.y(), p1.z() - p0.z()};
     const double v[3] = {p2.x() - p0.x(), p2.y() - p0.y(), p2.z() - p0.z()};
     double* n = t.n[i];
@@ -598,7 +594,7 @@ TetPlanes RayCaster::PlanesOf(Cell_handle c) {
   return t;
 }
 
-bool RayCaster::ClipSegment(const TetPlanes& t, const double a[3], const double d[3], Clip* out) {
+bool ClipSegment(const TetPlanes& t, const double a[3], const double d[3], Clip* out) {
   Clip c;
   const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
   const double eps = 1e-9;  // in t: well below any cell a ray crosses
@@ -788,6 +784,18 @@ void RayCaster::RefillHole(const std::vector<Cell_handle>& added, const Hole& h)
     }
   }
   for (Cell_handle c : added) c->info().fresh = false;
+}
+
+void RayCaster::RefillExact(uint32_t pt, uint32_t k, const std::vector<Cell_handle>& given,
+                            Cell_handle hint) {
+  const PointRecord& rec = s_.points[pt];
+  ++s_.stats.rays_rewalked_exact;
+  Walk(rec.ray_end[k], s_.cameras[rec.cameras[k]], rec.in_triangulation ? WalkHint(rec) : hint,
+       StartVertex(rec), [&](Cell_handle x) {
+         if (!x->info().fresh || std::find(given.begin(), given.end(), x) != given.end()) return;
+         AddRay(x, pt, k);
+         ++s_.stats.cells_rewalked;
+       });
 }
 
 // kRays: the whole-triangulation scan of Lovi et al. - remove from every cell the rays ending

@@ -124,6 +124,10 @@ std::vector<EngineOption> MakeTable() {
              "rays are walked with double-precision tests on terms cached per vertex, CGAL's "
              "exact walk where a test is within rounding (the same cells); false: CGAL's walk "
              "for every ray"),
+      Option("planned_moves", &E::planned_moves, kNone, "",
+             "exact mode on more than one thread: a keyframe's moves are planned on the "
+             "threads and made in order (the same cells as false, which makes each with "
+             "CGAL's vertex removal and insertion)"),
       Option("threads", &E::num_threads, json{{"minimum", 0}, {"maximum", 1024}}, "threads",
              "threads casting rays (exact mode); 0: every core the process may run on (its "
              "affinity mask: taskset, Slurm's --cpus-per-task); the mesh is the same for any "

@@ -43,6 +43,8 @@ json StatsJson(const engine::EngineStats& s) {
           {"points_duplicate", s.points_duplicate},
           {"moves_duplicate", s.moves_duplicate},
           {"moves_in_place", s.moves_in_place},
+          {"moves_planned_ahead", s.moves_planned_ahead},
+          {"moves_replanned", s.moves_replanned},
           {"moves_below_min", s.moves_below_min},
           {"points_reentered", s.points_reentered},
           {"points_removed", s.points_removed},
