@@ -219,13 +219,49 @@ void Carving::EnclosingSetInO(const EngineState& s, const std::vector<Cell_handl
     }
   std::sort(verts.begin(), verts.end());
   verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+  // The cells of O around a vertex are joined across facets that contain it (dO is a manifold:
+  // they are the cone over one disk of the vertex's link), and there are o_cells of them: a
+  // walk around the vertex to the first of them, then through them alone.
+  std::vector<Cell_handle>& todo = *star;
   for (Vertex_handle v : verts) {
     bool near = false;
     for (size_t k = 0; k < n_centres; ++k)
       near = near || CGAL::squared_distance(v->point(), centres[k]) <= r2;
     if (!near) continue;
-    StarOf(v, star_seen, star);
-    for (Cell_handle c : *star) add(c);
+    star_seen->Clear();
+    todo.assign(1, v->cell());
+    star_seen->Insert(ScratchMap<uint8_t>::Key(&*v->cell()), 1);
+    Cell_handle first;
+    while (!todo.empty() && first == Cell_handle()) {
+      const Cell_handle c = todo.back();
+      todo.pop_back();
+      if (c->info().in_o) {
+        first = c;
+        break;
+      }
+      const int iv = c->index(v);
+      for (int k = 0; k < 4; ++k) {
+        const Cell_handle n = c->neighbor(k);
+        if (k != iv && star_seen->Insert(ScratchMap<uint8_t>::Key(&*n), 1).second)
+          todo.push_back(n);
+      }
+    }
+    if (first == Cell_handle()) continue;
+    star_seen->Clear();
+    todo.assign(1, first);
+    star_seen->Insert(ScratchMap<uint8_t>::Key(&*first), 1);
+    for (int32_t found = 0; !todo.empty() && found < v->info().o_cells;) {
+      const Cell_handle c = todo.back();
+      todo.pop_back();
+      add(c);
+      ++found;
+      const int iv = c->index(v);
+      for (int k = 0; k < 4; ++k) {
+        const Cell_handle n = c->neighbor(k);
+        if (k != iv && n->info().in_o && star_seen->Insert(ScratchMap<uint8_t>::Key(&*n), 1).second)
+          todo.push_back(n);
+      }
+    }
   }
 }
 

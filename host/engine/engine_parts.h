@@ -599,6 +599,7 @@ class RayCaster {
   uint64_t hole_count_ = 0;
   std::vector<TetPlanes> fresh_planes_;    // planes of the cells being made, by their slot
   std::vector<std::pair<uint32_t, uint32_t>> listed_;  // rays listed by the last cast batch
+  std::vector<std::pair<uint32_t, uint32_t>> uncast_listed_;  // UncastBatch's scratch
 };
 
 // -------------------------------------------------------------------------------------------------

@@ -452,6 +452,10 @@ std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& ray
           out.resize(r.offset);
           r.exact_walk = true;
           r.truncated = !Trace(r, &out);
+          // CGAL's walk may meet a cell twice (through an edge or a vertex); a list holds each
+          // cell once (the un-cast batch takes a unit off each listed cell).
+          std::sort(out.begin() + r.offset, out.end());
+          out.erase(std::unique(out.begin() + r.offset, out.end()), out.end());
         } else {
           r.truncated = w == Walked::kTruncated;
           if (s_.opt.check_invariants)
@@ -518,6 +522,7 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
   if (s_.dt.dimension() != 3) return;
   DropLists();  // the walks below become the lists
   std::vector<BatchRay> rays;
+  rays.reserve(todo.size());
   for (const auto& [pt, k] : todo) {
     PointRecord& rec = s_.points[pt];
     if (!rec.in_triangulation || rec.ray_cast[k]) continue;
@@ -547,27 +552,43 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
 // Takes the rays (point, k) that are cast out of their cells (as ExactUncast does, together).
 void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo) {
   std::vector<BatchRay> rays;
+  std::vector<std::pair<uint32_t, uint32_t>>& listed = uncast_listed_;
+  listed.clear();
   for (const auto& [pt, k] : todo) {
     PointRecord& rec = s_.points[pt];
     if (!rec.ray_cast[k]) continue;
-    rays.push_back({pt, k, rec.ray_gen[k], rec.ray_end[k], s_.cameras[rec.cameras[k]],
-                    WalkHint(rec), StartVertex(rec)});
-    rays.back().listed = rec.Listed(k);
-    s_.stats.rays_uncast_listed += rec.Listed(k) ? 1 : 0;
+    if (rec.Listed(k)) {
+      listed.push_back({pt, k});
+      ++s_.stats.rays_uncast_listed;
+    } else {
+      rays.push_back({pt, k, rec.ray_gen[k], rec.ray_end[k], s_.cameras[rec.cameras[k]],
+                      WalkHint(rec), StartVertex(rec)});
+    }
     rec.ray_cast[k] = 0;  // and no longer listed (DropLists forgets the lists' storage)
     ++rec.ray_gen[k];
     ++s_.stats.rays_cast_backward;
   }
+  // A listed ray's cells are known, each once: a unit off each, on this thread (split among
+  // the threads, the subtractions would have to be atomic, as rays of different threads share
+  // cells: twice as slow on two threads as one plain pass, measured).
+  uint64_t taken = 0;
+  const int64_t unit = s_.unit[0];
+  for (const auto& [pt, k] : listed)
+    s_.ForEachListed(pt, k, [&](Cell_handle c) {
+      c->info().weight -= unit;
+      ++taken;
+    });
+  s_.weight_ledger -= taken * static_cast<uint64_t>(unit);
   auto take_out = [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
     CellInfo& info = c->info();
-    if (!r.listed && !Holds(info, {r.k, r.point, r.gen})) {
+    if (!Holds(info, {r.k, r.point, r.gen})) {
       ++p.mismatches;
       return;
     }
     info.weight -= s_.unit[0];
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
   };
-  MergeParts(RunBatch(rays, /*split_apply=*/false, take_out));
+  if (!rays.empty()) MergeParts(RunBatch(rays, /*split_apply=*/false, take_out));
 }
 
 TetPlanes PlanesOf(const Point& c0, const Point& c1, const Point& c2, const Point& c3) {

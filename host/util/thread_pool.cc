@@ -3,6 +3,7 @@
 #include <sched.h>
 
 #include <algorithm>
+#include <chrono>
 
 namespace imr::util {
 
@@ -53,6 +54,16 @@ void ThreadPool::Drain(int worker) {
 void ThreadPool::Work(int worker) {
   unsigned long seen = 0;
   for (;;) {
+    // Spin up to 200 us for the next round before sleeping until it is announced.
+    const auto spin_end = std::chrono::steady_clock::now() + std::chrono::microseconds(200);
+    for (int i = 0; round_.load(std::memory_order_acquire) == seen &&
+                    !stop_.load(std::memory_order_acquire);
+         ++i) {
+      if ((i & 63) == 63 && std::chrono::steady_clock::now() > spin_end) break;
+#if defined(__x86_64__) || defined(__i386__)
+      __builtin_ia32_pause();
+#endif
+    }
     {
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait(lock, [&] { return stop_ || round_ != seen; });

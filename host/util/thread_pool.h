@@ -3,6 +3,7 @@
 // and starting threads for each would cost more than some of them.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <exception>
@@ -48,8 +49,11 @@ class ThreadPool {
   std::size_t tasks_ = 0;
   std::size_t next_ = 0;      // next task to hand out (under mutex_)
   int busy_ = 0;              // workers inside the current round
-  unsigned long round_ = 0;
-  bool stop_ = false;
+  // Written under mutex_; a worker waits for the next round spinning on them for a while first
+  // (a keyframe's parallel phases come every few hundred microseconds while points move, and
+  // waking a sleeping thread takes about as long as one of them).
+  std::atomic<unsigned long> round_{0};
+  std::atomic<bool> stop_{false};
   std::exception_ptr error_;
 };
 
