@@ -379,13 +379,14 @@ void Carving::Grow() {
   } else {
     // Deterministic seed order: by weight, then by the ids of the vertices.
     std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> seeds;
-    for (Cell_handle c : s_.dirty)
+    s_.TakeDirty([&](Cell_handle c) {
       if (candidate(c) && s_.TouchesO(c)) seeds.push_back({s_.CellKey(c), c});
+    });
     std::sort(seeds.begin(), seeds.end(),
               [](const auto& a, const auto& b) { return a.first < b.first; });
     for (const auto& s : seeds) q.push({s.second->info().weight, order++, s.second});
   }
-  s_.dirty.clear();
+  s_.TakeDirty([](Cell_handle) {});
   while (!q.empty()) {
     Cell_handle c = q.top().cell;
     q.pop();
@@ -407,8 +408,8 @@ void Carving::Grow() {
 void WeightTransfer::CollectRemoved(const std::vector<Cell_handle>& cells, Removed* r) {
   if (s_.opt.visibility_mode == VisibilityMode::kExact) caster_.CollectHole(cells, &r->hole);
   for (Cell_handle c : cells) {
-    s_.dirty.erase(c);
-    s_.Ledger(c->info().weight, 0);  // the cell is about to be destroyed
+    c->info().dirty = false;         // out of the set: the cell is about to be destroyed
+    s_.Ledger(c->info().weight, 0);
     if (s_.dt.is_infinite(c)) continue;
     if (s_.opt.visibility_mode == VisibilityMode::kRays) {
       r->rays.insert(r->rays.end(), c->info().rays.begin(), c->info().rays.end());

@@ -454,7 +454,7 @@ void EngineInternals::Regrow(Engine& e) {
   Engine::Impl& m = *e.impl_;
   for (auto c = m.s.dt.all_cells_begin(); c != m.s.dt.all_cells_end(); ++c)
     m.carving.SetInO(c, false);
-  m.s.dirty.clear();
+  m.s.TakeDirty([](Cell_handle) {});
   m.carving.Grow();
 }
 
@@ -468,10 +468,10 @@ void EngineInternals::RecastAllAndRegrow(Engine& e) {
   }
   m.caster.DropLists();
   for (auto& rec : m.s.points) std::fill(rec.ray_cast.begin(), rec.ray_cast.end(), 0);
-  m.s.dirty.clear();
+  m.s.TakeDirty([](Cell_handle) {});
   for (uint32_t pt = 0; pt < m.s.points.size(); ++pt)
     for (uint32_t cam : m.s.points[pt].cameras) m.caster.Cast(cam, pt, +1);
-  m.s.dirty.clear();
+  m.s.TakeDirty([](Cell_handle) {});
   m.carving.Grow();
 }
 

@@ -72,6 +72,7 @@ struct CellInfo {
   uint64_t stamp = 0;     // Ray stamp: a cell joins T, N1 or N2 once per ray.
   bool in_o = false;      // Member of O (outside, the manifold part of free space).
   bool fresh = false;     // kExact: made by the triangulation change being processed.
+  bool dirty = false;     // In EngineState::dirty (and not taken out since).
   uint32_t slot = 0;      // kExact: index of the cell among those being made (scratch).
   uint32_t region = 0;    // Member of the region being peeled (Shrink's E, PeelAround's)
                           // when equal to EngineState::region_mark; apart from `stamp`, which
@@ -187,8 +188,10 @@ struct EngineState {
 
   uint64_t stamp = 0;        // CellInfo::stamp of the current walk or star visit.
   uint32_t region_mark = 0;  // CellInfo::region of the region being peeled.
-  // Cells whose state changed this keyframe (became free, created, shrunk): growing seeds.
-  std::unordered_set<Cell_handle> dirty;
+  // Cells whose state changed this keyframe (became free, created, shrunk): growing seeds. A
+  // cell is in the set while its `dirty` flag is up; the list may also hold cells destroyed
+  // since (their slots free, or another cell's whose flag is down) and repeats.
+  std::vector<Cell_handle> dirty;
   int64_t cells_in_o = 0;
   // kExact: the cells of the rays the last cast batch listed (PointRecord::ray_list), kept from
   // that batch to the next keyframe's un-cast batch: the batch's walks as they were, per worker,
@@ -248,7 +251,19 @@ struct EngineState {
                           c->vertex(3)->point());
   }
   void MarkDirty(Cell_handle c) {
-    if (!dt.is_infinite(c) && !c->info().in_o) dirty.insert(c);
+    if (dt.is_infinite(c) || c->info().in_o || c->info().dirty) return;
+    c->info().dirty = true;
+    dirty.push_back(c);
+  }
+  // The cells in the dirty set, which is then empty.
+  template <class Visit>
+  void TakeDirty(Visit&& visit) {
+    for (Cell_handle c : dirty) {
+      if (!dt.tds().cells().is_used(c) || !c->info().dirty) continue;
+      c->info().dirty = false;
+      visit(c);
+    }
+    dirty.clear();
   }
   // The cell's vertex ids, sorted: a key that does not depend on memory addresses.
   std::array<int64_t, 4> CellKey(Cell_handle c) const {
@@ -600,6 +615,7 @@ class RayCaster {
   std::vector<TetPlanes> fresh_planes_;    // planes of the cells being made, by their slot
   std::vector<std::pair<uint32_t, uint32_t>> listed_;  // rays listed by the last cast batch
   std::vector<std::pair<uint32_t, uint32_t>> uncast_listed_;  // UncastBatch's scratch
+  std::vector<BatchRay> batch_rays_;                          // a batch's rays
 };
 
 // -------------------------------------------------------------------------------------------------
@@ -742,6 +758,11 @@ struct MovePlan {
   std::vector<Listed> listed;
   std::vector<Deferred> deferred;
   std::vector<int32_t> given;
+  struct Extra {  // a listed ray's new cells (EngineState::list_extra): extra_cells[begin, +count)
+    uint32_t point, k, begin, count;
+  };
+  std::vector<Extra> extra;
+  std::vector<int32_t> extra_cells;
   int64_t rays_rewalked = 0;
   bool e_planned = false;  // D met O when planned: e holds E's cells in O then
   std::vector<Cell_handle> e;

@@ -99,6 +99,7 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
   m.v = Vertex_handle();
   m.d.clear(), m.outer.clear(), m.serials.clear(), m.verts.clear(), m.cells.clear();
   m.ray_begin.clear(), m.rays.clear(), m.listed.clear(), m.deferred.clear(), m.given.clear();
+  m.extra.clear(), m.extra_cells.clear();
   m.e.clear(), m.e_serials.clear();
   m.rays_rewalked = 0;
   m.e_planned = false;
@@ -471,6 +472,12 @@ void MovePlanner::WalkRays(MovePlan* plan, Scratch& sc) const {
       }
       c = next;
     }
+    if (rec.Listed(r.k) && sc.adds.size() > given_begin) {
+      m.extra.push_back({r.point, r.k, static_cast<uint32_t>(m.extra_cells.size()),
+                         static_cast<uint32_t>(sc.adds.size() - given_begin)});
+      for (size_t i = given_begin; i < sc.adds.size(); ++i)
+        m.extra_cells.push_back(static_cast<int32_t>(sc.adds[i].first));
+    }
     if (exact) {
       MovePlan::Deferred df{r.point, r.k, static_cast<uint32_t>(m.given.size()), 0};
       for (size_t i = given_begin; i < sc.adds.size(); ++i)
@@ -517,7 +524,7 @@ bool MovePlanner::Commit(MovePlan& m) {
   }
   // What D's cells held leaves the ledger and the ray lists (CollectRemoved, CollectHole).
   for (Cell_handle c : m.d) {
-    s_.dirty.erase(c);
+    c->info().dirty = false;
     s_.Ledger(c->info().weight, 0);
   }
   for (const MovePlan::Listed& l : m.listed) {
@@ -574,15 +581,16 @@ bool MovePlanner::Commit(MovePlan& m) {
   for (size_t i = 0; i < made.size(); ++i) {
     const Cell_handle c = made[i];
     CellInfo& info = c->info();
-    for (uint32_t j = m.ray_begin[i]; j < m.ray_begin[i + 1]; ++j) {
-      const RayEntry& e = m.rays[j];
-      info.rays.push_back(e);
-      info.weight += s_.unit[0];
-      if (s_.points[e.point].Listed(e.camera))
-        s_.list_extra[EngineState::RayKey(e.point, e.camera)].push_back(c);
-    }
+    const auto first = m.rays.begin() + m.ray_begin[i], last = m.rays.begin() + m.ray_begin[i + 1];
+    info.rays.assign(first, last);
+    info.weight = s_.unit[0] * static_cast<int64_t>(last - first);
     s_.Ledger(0, info.weight);
     if (s_.IsFree(c)) s_.MarkDirty(c);
+  }
+  for (const MovePlan::Extra& x : m.extra) {
+    std::vector<Cell_handle>& cells_of = s_.list_extra[EngineState::RayKey(x.point, x.k)];
+    for (uint32_t j = 0; j < x.count; ++j)
+      cells_of.push_back(made[static_cast<size_t>(m.extra_cells[x.begin + j])]);
   }
   s_.stats.rays_rewalked += m.rays_rewalked;
   s_.stats.cells_rewalked += static_cast<int64_t>(m.rays.size());

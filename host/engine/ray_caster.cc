@@ -521,8 +521,8 @@ void RayCaster::MergeParts(const std::vector<BatchPart>& parts) {
 void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo) {
   if (s_.dt.dimension() != 3) return;
   DropLists();  // the walks below become the lists
-  std::vector<BatchRay> rays;
-  rays.reserve(todo.size());
+  std::vector<BatchRay>& rays = batch_rays_;  // kept: a batch's worth of memory, touched once
+  rays.clear();
   for (const auto& [pt, k] : todo) {
     PointRecord& rec = s_.points[pt];
     if (!rec.in_triangulation || rec.ray_cast[k]) continue;
@@ -551,7 +551,8 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
 
 // Takes the rays (point, k) that are cast out of their cells (as ExactUncast does, together).
 void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo) {
-  std::vector<BatchRay> rays;
+  std::vector<BatchRay>& rays = batch_rays_;
+  rays.clear();
   std::vector<std::pair<uint32_t, uint32_t>>& listed = uncast_listed_;
   listed.clear();
   for (const auto& [pt, k] : todo) {
