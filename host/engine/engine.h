@@ -174,8 +174,9 @@ struct PhaseTimes {
   double move = 0.0;     // Moves, without their ray casting.
   double insert = 0.0;   // Insertions and removals of points, without ray casting.
   double cast = 0.0;     // All ray casting (forward, backward, re-casting).
-  double threaded = 0.0;  // Of cast, kExact: the keyframe's two batches, which run on the
-                          // engine's threads (the rest of a keyframe runs on one).
+  double threaded = 0.0;  // Of cast and move, kExact: the keyframe's two ray batches and the
+                          // moves' plans, which run on the engine's threads (the rest of a
+                          // keyframe runs on one).
   double scan = 0.0;     // kRays: whole-triangulation scans removing a moved point's rays.
   double grow = 0.0;
   double extract = 0.0;  // ExtractMesh.

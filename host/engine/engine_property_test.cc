@@ -117,6 +117,46 @@ TEST(ThreadsTest, SameMeshAndWeightsForOneTwoAndFourThreads) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// On more than one thread exact mode's moves are planned (planned_moves: the cells that fill a
+// move's region made by Delaunay wrapping, its rays walked through them, all read-only on the
+// threads) and committed in order; each plan must give the cells, weights and mesh of CGAL's
+// vertex removal and insertion, with the full invariant check (a valid Delaunay triangulation,
+// every cell's rays) after each keyframe, and plans made stale by an earlier commit of their
+// batch must be made again.
+TEST(PlannedMovesTest, SameCellsAndMeshAsCgalsRemovalAndInsertion) {
+  for (SceneKind scene : {SceneKind::kStreet, SceneKind::kRoom, SceneKind::kPlane}) {
+    synthetic::StreamOptions so = SmallStream(scene, 3);
+    so.frames = 60;
+    Mesh meshes[2];
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[2];
+    for (int planned = 0; planned < 2; ++planned) {
+      synthetic::SyntheticStream stream(so);
+      EngineOptions eo;
+      eo.num_threads = 2;
+      eo.planned_moves = planned == 1;
+      eo.check_invariants = true;
+      Engine engine(eo, nullptr);
+      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok()) << synthetic::ToString(scene);
+      const EngineStats& st = engine.Stats();
+      EXPECT_GT(st.points_moved, 50);
+      EXPECT_EQ(st.ray_mismatches, 0);
+      if (planned == 1) {
+        EXPECT_GE(st.moves_planned_ahead, st.points_moved) << synthetic::ToString(scene);
+        EXPECT_LT(st.moves_replanned, st.moves_planned_ahead / 2) << synthetic::ToString(scene);
+      } else {
+        EXPECT_EQ(st.moves_planned_ahead, 0);
+      }
+      meshes[planned] = engine.ExtractMesh();
+      weights[planned] = engine.CellWeights();
+      ASSERT_FALSE(meshes[planned].faces.empty());
+    }
+    EXPECT_EQ(meshes[1].vertices, meshes[0].vertices) << synthetic::ToString(scene);
+    EXPECT_EQ(meshes[1].faces, meshes[0].faces) << synthetic::ToString(scene);
+    EXPECT_EQ(weights[1], weights[0]) << synthetic::ToString(scene);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Exact mode's batches walk rays with double-precision tests (filtered_walk), CGAL's exact walk
 // where a test is within rounding: every filtered walk is compared with CGAL's walk of the same
 // ray under check_invariants (a difference counts as a ray mismatch), most rays take the filtered
