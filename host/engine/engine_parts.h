@@ -879,7 +879,7 @@ struct Engine::Impl {
   void UncastMoving(const KeyframeUpdate& u);
   void CastUpdated(const KeyframeUpdate& u);
 
-  int64_t steiner_count_ = 0;
+  int64_t steiner_nodes_ = 0;  // grid nodes tried, placed or refused: names the next one
   std::vector<uint32_t> entered_;  // kExact: points that entered during this update
   std::vector<uint8_t> short_move_;  // per moved point of the update: too short to make
   static constexpr size_t kMoveStrata = 16;  // moves planned together (MoveOrder)
