@@ -189,11 +189,12 @@ bool Carving::Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>
   }
   // Cells leave O only while a keyframe's points move and enter: a cell of O now was one when
   // E was planned, and the rest of E does not matter.
+  const bool sorted = planned_e != &e_;
   const uint32_t in_e = NewRegion();
   for (Cell_handle c : *planned_e) c->info().region = in_e;
   const bool ok = PeelFromO(
       *planned_e, [&](Cell_handle n) { return n->info().region == in_e; },
-      [&] { return !meets_o(); }) || !meets_o();
+      [&] { return !meets_o(); }, sorted) || !meets_o();
   s_.stats.time.shrink += SecondsSince(t0);
   return ok;
 }
@@ -282,7 +283,7 @@ uint32_t Carving::NewRegion() {
 // the region, `in_region`), up to shrink_passes tries per cell. Stops early, returning true,
 // once `done()` holds after a cell left O; false when the queue or the budget ran out.
 template <typename Cells, typename InRegion, typename Done>
-bool Carving::PeelFromO(const Cells& region, InRegion in_region, Done done) {
+bool Carving::PeelFromO(const Cells& region, InRegion in_region, Done done, bool sorted) {
   struct Item {
     int64_t weight;
     uint64_t order;
@@ -292,14 +293,19 @@ bool Carving::PeelFromO(const Cells& region, InRegion in_region, Done done) {
     }
   };
   // Canonical order (CellKey), so equal weights peel the same way whatever the container.
-  std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> start;
-  for (Cell_handle c : region)
-    if (c->info().in_o) start.push_back({s_.CellKey(c), c});
-  std::sort(start.begin(), start.end(),
-            [](const auto& a, const auto& b) { return a.first < b.first; });
   std::priority_queue<Item> q;
   uint64_t order = 0;
-  for (const auto& s : start) q.push({s.second->info().weight, order++, s.second});
+  if (sorted) {
+    for (Cell_handle c : region)
+      if (c->info().in_o) q.push({c->info().weight, order++, c});
+  } else {
+    std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> start;
+    for (Cell_handle c : region)
+      if (c->info().in_o) start.push_back({s_.CellKey(c), c});
+    std::sort(start.begin(), start.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& s : start) q.push({s.second->info().weight, order++, s.second});
+  }
   const size_t start_size = q.size();
   int64_t budget = static_cast<int64_t>(start_size) * 4 * s_.opt.shrink_passes + 16;
   while (!q.empty() && budget-- > 0) {

@@ -667,7 +667,7 @@ class Carving {
   void SetInO(Cell_handle c, bool in);
   // shrink: removes from O the cells of an enclosing set E of D; returns whether D no longer
   // meets O. `planned_e`: E's cells in O as EnclosingSetInO found them earlier in the keyframe's
-  // moves, none destroyed since (null: found here).
+  // moves, none destroyed since, in CellKey order (null: found here).
   bool Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>& centres,
               const std::vector<Cell_handle>* planned_e = nullptr);
   // The cells of O in E for D (D, its facet neighbours, and the cells around each vertex of D
@@ -687,8 +687,9 @@ class Carving {
   bool VertexTouchesSide(Cell_handle c, int i, bool adding);
   bool EdgeTouchesSide(Cell_handle c, int i, int j, bool adding) const;
   uint32_t NewRegion();
+  // `sorted`: the region is in CellKey order already (a plan sorted it on its thread).
   template <typename Cells, typename InRegion, typename Done>
-  bool PeelFromO(const Cells& region, InRegion in_region, Done done);
+  bool PeelFromO(const Cells& region, InRegion in_region, Done done, bool sorted = false);
 
   EngineState& s_;
   std::vector<Cell_handle> incident_;  // scratch
@@ -765,7 +766,7 @@ struct MovePlan {
   std::vector<int32_t> extra_cells;
   int64_t rays_rewalked = 0;
   bool e_planned = false;  // D met O when planned: e holds E's cells in O then
-  std::vector<Cell_handle> e;
+  std::vector<Cell_handle> e;  // in CellKey order (shrink peels in that order)
   std::vector<uint64_t> e_serials;
 };
 

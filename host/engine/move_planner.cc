@@ -27,7 +27,7 @@ struct MovePlanner::Scratch {
   ScratchMap<int32_t> d_index, vert_index, facet_index;
   ScratchMap<uint32_t> hole_index;
   std::vector<Cell_handle> star, stack, e_star;
-  std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> keyed;
+  std::vector<std::pair<std::array<int64_t, 4>, Cell_handle>> keyed, e_keyed;
   std::vector<int32_t> outer_of;    // per facet of D's cells (4 i + f): its index in outer, or -1
   std::vector<int32_t> outer_cell;  // per facet of outer: the local cell behind it, inside D
   struct Part {                     // a ray's part in D (CollectHole's HoleRay)
@@ -261,6 +261,12 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
   if (meets_o) {
     const Point centres[2] = {m.p_old, m.p_new};
     Carving::EnclosingSetInO(s_, d, centres, 2, &sc.e_seen, &sc.e_star_seen, &sc.e_star, &m.e);
+    // In CellKey order, the order shrink peels equal weights in: sorted here, on the threads.
+    sc.e_keyed.clear();
+    for (Cell_handle c : m.e) sc.e_keyed.push_back({s_.CellKey(c), c});
+    std::sort(sc.e_keyed.begin(), sc.e_keyed.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (size_t i = 0; i < m.e.size(); ++i) m.e[i] = sc.e_keyed[i].second;
     for (Cell_handle c : m.e) m.e_serials.push_back(c->info().serial);
     m.e_planned = true;
   }
