@@ -3,17 +3,25 @@
 # speed drifts between runs: A on core 0 and B on core 1 at the same time, then swapped, for
 # each round; then, if --two-cores, A and B alternating on both cores. Prints the engine's
 # seconds per phase from each run's report.json and the means, and checks that every mesh is
-# the same bytes.
+# the same bytes (--mesh-may-differ: every mesh of each build, for a change that alters the mesh
+# on purpose).
 #
-#   tools/bench/paired_speed.sh OLD/bin/imr build/bin/imr [ROUNDS] [--two-cores]
+#   tools/bench/paired_speed.sh OLD/bin/imr build/bin/imr [ROUNDS] [--two-cores] [--mesh-may-differ]
 #
 # The stream: $IMR_SHARED_DIR/data/street-stream (default ../shared beside the checkout).
 set -euo pipefail
 if [ $# -lt 2 ]; then
-  echo "usage: $0 A_IMR B_IMR [ROUNDS] [--two-cores]" >&2
+  echo "usage: $0 A_IMR B_IMR [ROUNDS] [--two-cores] [--mesh-may-differ]" >&2
   exit 2
 fi
-A=$(realpath "$1"); B=$(realpath "$2"); ROUNDS=${3:-2}; TWO=${4:-}
+A=$(realpath "$1"); B=$(realpath "$2"); ROUNDS=${3:-2}; TWO=""; EACH=""
+for flag in "${@:4}"; do
+  case $flag in
+    --two-cores) TWO=$flag ;;
+    --mesh-may-differ) EACH=1 ;;
+    *) echo "paired_speed: unknown option $flag" >&2; exit 2 ;;
+  esac
+done
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 STREAM=${IMR_SHARED_DIR:-$ROOT/../shared}/data/street-stream/slam.json
 if [ ! -f "$STREAM" ]; then
@@ -42,10 +50,11 @@ run() {  # run CORES IMR NAME
     { echo "paired_speed: $2 failed, see $WORK/$3/log" >&2; exit 1; }
 }
 job A 1; job B 1
-REF="$WORK/first.ply"
-same() {  # every mesh against the first one
-  [ -f "$REF" ] || cp "$WORK/$1/out/mesh.ply" "$REF"
-  cmp -s "$REF" "$WORK/$1/out/mesh.ply" || { echo "paired_speed: $1's mesh differs" >&2; exit 1; }
+same() {  # every mesh against the first one (of its build, with --mesh-may-differ)
+  local ref="$WORK/first.ply"
+  [ -n "$EACH" ] && ref="$WORK/first-${1:0:1}.ply"
+  [ -f "$ref" ] || cp "$WORK/$1/out/mesh.ply" "$ref"
+  cmp -s "$ref" "$WORK/$1/out/mesh.ply" || { echo "paired_speed: $1's mesh differs" >&2; exit 1; }
 }
 echo "one core each, at the same time (A = $A, B = $B)"
 for r in $(seq 1 "$ROUNDS"); do
@@ -62,8 +71,10 @@ if [ "$TWO" = "--two-cores" ]; then
     run 0,1 "$B" B2; report B2 "B two cores"; same B2
   done | tee "$WORK/two.txt"
 fi
-python3 - "$WORK" <<'PY'
+python3 - "$WORK" "$EACH" <<'PY'
 import re, sys, os
+same = "every mesh of each build the same bytes (A's and B's may differ)" if sys.argv[2] else \
+    "every mesh the same bytes"
 for f in ("one.txt", "two.txt"):
     p = os.path.join(sys.argv[1], f)
     if not os.path.exists(p): continue
@@ -73,7 +84,7 @@ for f in ("one.txt", "two.txt"):
         if m: t.setdefault(m.group(1), []).append(float(m.group(2)))
     if "A" in t and "B" in t:
         a, b = sum(t["A"]) / len(t["A"]), sum(t["B"]) / len(t["B"])
-        print("%s: mean A %.2f s, B %.2f s (B/A %.3f); every mesh the same bytes" %
-              ("one core" if f == "one.txt" else "two cores", a, b, b / a))
+        print("%s: mean A %.2f s, B %.2f s (B/A %.3f); %s" %
+              ("one core" if f == "one.txt" else "two cores", a, b, b / a, same))
 PY
 rm -rf "$WORK"
