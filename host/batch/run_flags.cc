@@ -56,8 +56,9 @@ std::vector<RunFlag> MakeFlags() {
          return std::to_string(o.check_invariants_every);
        }},
       {"threads", "N",
-       "threads casting rays in the engine (default: the job's engine.threads, else every core "
-       "the process may run on; with --jobs J, the cores / J); the mesh is the same for any N",
+       "threads casting rays and planning moves in the engine (default: the job's "
+       "engine.threads, else every core the process may run on; with --jobs J, the cores / J); "
+       "the mesh is the same for any N",
        [](const std::string& text, RunOptions* o) -> std::string {
          int n = 0;
          if (!ParseWholeInteger(text, &n) || n < 1 || n > 1024)

@@ -129,9 +129,9 @@ std::vector<EngineOption> MakeTable() {
              "threads and made in order (the same cells as false, which makes each with "
              "CGAL's vertex removal and insertion)"),
       Option("threads", &E::num_threads, json{{"minimum", 0}, {"maximum", 1024}}, "threads",
-             "threads casting rays (exact mode); 0: every core the process may run on (its "
-             "affinity mask: taskset, Slurm's --cpus-per-task); the mesh is the same for any "
-             "number"),
+             "threads casting rays and planning moves (exact mode); 0: every core the process "
+             "may run on (its affinity mask: taskset, Slurm's --cpus-per-task); the mesh is the "
+             "same for any number"),
   };
   // Not a field of the engine: the pipeline scales the lengths before the engine starts.
   EngineOption scale;
