@@ -798,35 +798,6 @@ void Engine::Impl::ExactRemovePoint(uint32_t pt) {
   }
 }
 
-// Whether moving v to p keeps the triangulation Delaunay with the same cells: its star stays
-// positively oriented and every facet of the star stays locally Delaunay (CGAL's perturbed
-// in-sphere test, as its insertions decide ties). Not for a star on the hull.
-bool Engine::Impl::DelaunayAfterMove(Vertex_handle v, const Point& p,
-                                     const std::vector<Cell_handle>& star) {
-  for (Cell_handle c : star)
-    if (s.dt.is_infinite(c)) return false;
-  const Point old = v->point();
-  v->set_point(p);
-  bool ok = true;
-  for (size_t i = 0; i < star.size() && ok; ++i) {
-    const Cell_handle c = star[i];
-    ok = CGAL::orientation(c->vertex(0)->point(), c->vertex(1)->point(), c->vertex(2)->point(),
-                           c->vertex(3)->point()) == CGAL::POSITIVE;
-  }
-  for (size_t i = 0; i < star.size() && ok; ++i) {
-    const Cell_handle c = star[i];
-    const int iv = c->index(v);
-    for (int j = 0; j < 4 && ok; ++j) {
-      const Cell_handle n = c->neighbor(j);
-      if (j != iv && &*n < &*c) continue;  // a facet between two star cells: tested once
-      ok = !s.dt.is_infinite(n) &&
-           s.dt.side_of_sphere(n, c->vertex(j)->point(), true) == CGAL::ON_UNBOUNDED_SIDE;
-    }
-  }
-  v->set_point(old);
-  return ok;
-}
-
 // D of a move p_old -> p_new: the old vertex's star (given in *d) and the conflict zone of the
 // new position, taken out of O. False (counted as skipped) when a vertex sits at p_new already
 // or D cannot leave O while dO stays manifold.
@@ -850,11 +821,11 @@ bool Engine::Impl::ShrinkMoveRegion(Vertex_handle v, const Point& p_old, const P
   return true;
 }
 
-// kExact move: in place when the cells stay (DelaunayAfterMove), else the vertex removed and
-// re-inserted at the new position, the region both change taken as one hole. Its rays are not
-// touched here: ApplyUpdate un-casts the window's rays of every moving point before the moves
-// and casts them again after (UncastMoving, CastUpdated), so the holes of the moves carry fewer
-// rays.
+// kExact move: in place when the cells stay (MovePlanner::StarStaysDelaunay), else the vertex
+// removed and re-inserted at the new position, the region both change taken as one hole. Its rays
+// are not touched here: ApplyUpdate un-casts the window's rays of every moving point before the
+// moves and casts them again after (UncastMoving, CastUpdated), so the holes of the moves carry
+// fewer rays.
 void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   PointRecord& rec = s.points[pt];
   if (!rec.in_triangulation) {
@@ -868,7 +839,7 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   if (p_new == p_old) return;
   std::vector<Cell_handle> d;
   s.dt.incident_cells(rec.vertex, std::back_inserter(d));
-  if (DelaunayAfterMove(rec.vertex, p_new, d)) {
+  if (detail::MovePlanner::StarStaysDelaunay(s.dt, rec.vertex, p_new, d)) {
     // The same cells, reshaped: only the star's rays are walked again.
     if (!carving.Shrink(d, {p_old, p_new})) {
       ++s.stats.moves_skipped;
@@ -927,11 +898,11 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   ++s.stats.points_moved;
 }
 
-// kExact: the update's moves, planned ahead on the engine's threads in batches and committed
-// one by one in the update's order (MovePlanner). A plan an earlier commit of its batch made
+// kExact: the update's moves in MoveOrder's order, planned ahead on the engine's threads in
+// batches and committed one by one (MovePlanner). A plan an earlier commit of its batch made
 // stale is made again at its turn; plans do not depend on when they are made, so the cells,
-// weights and mesh are the same for any number of threads (on one, each move is planned just
-// before its commit).
+// weights and mesh are the same for any number of threads. On one thread (or planned_moves
+// false) each move is made with CGAL's removal and insertion: the same cells.
 void Engine::Impl::ExactMoves(const KeyframeUpdate& u) {
   const size_t n = u.moved_points.size();
   MoveOrder(u);
@@ -1000,52 +971,58 @@ void Engine::Impl::MoveOrder(const KeyframeUpdate& u) {
       if (b * stretch + j < n) move_order_.push_back(keyed[b * stretch + j].second);
 }
 
-// Move i of the update, made at once (a move shorter than min_move_fraction keeps the vertex).
-void Engine::Impl::MoveOne(const KeyframeUpdate& u, size_t i) {
+// Move i of the update as it is made: one shorter than min_move_fraction is held, the vertex
+// kept where it is (what is left of the move is adding its new cameras; EndHeldMove after).
+// Returns the update's move, or *kept when held.
+const MovedPoint& Engine::Impl::MoveAsMade(const KeyframeUpdate& u, size_t i, MovedPoint* kept,
+                                           bool* held) const {
   const MovedPoint& m = u.moved_points[i];
-  const uint32_t pt = s.point_index.at(m.id);
-  if (!short_move_[i] || !s.points[pt].in_triangulation) {
-    MovePoint(pt, m);
-    return;
-  }
-  // The vertex stays: what is left of the move is adding its new cameras.
-  MovedPoint held = m;
-  const Point& v = s.points[pt].vertex->point();
-  held.position = {v.x(), v.y(), v.z()};
-  MovePoint(pt, held);
+  const PointRecord& rec = s.points[s.point_index.at(m.id)];
+  *held = short_move_[i] && rec.in_triangulation;
+  if (!*held) return m;
+  *kept = m;
+  const Point& v = rec.vertex->point();
+  kept->position = {v.x(), v.y(), v.z()};
+  return *kept;
+}
+
+// A held move made: the point's position is the update's, its vertex where it was.
+void Engine::Impl::EndHeldMove(const MovedPoint& m, uint32_t pt) {
   s.points[pt].position = m.position;
   ++s.stats.moves_below_min;
 }
 
-// Move i of the update planned (a move shorter than min_move_fraction keeps the vertex).
+// Move i of the update, made at once.
+void Engine::Impl::MoveOne(const KeyframeUpdate& u, size_t i) {
+  MovedPoint kept;
+  bool held = false;
+  const MovedPoint& made = MoveAsMade(u, i, &kept, &held);
+  const uint32_t pt = s.point_index.at(made.id);
+  MovePoint(pt, made);
+  if (held) EndHeldMove(u.moved_points[i], pt);
+}
+
+// Move i of the update planned.
 void Engine::Impl::PlanMove(const KeyframeUpdate& u, size_t i, int worker,
                             detail::MovePlan* plan) {
-  const MovedPoint& m = u.moved_points[i];
-  const uint32_t pt = s.point_index.at(m.id);
-  const PointRecord& rec = s.points[pt];
-  const Point p = short_move_[i] && rec.in_triangulation ? rec.vertex->point() : ToPoint(m.position);
-  planner.Plan(pt, p, worker, plan);
+  MovedPoint kept;
+  bool held = false;
+  const MovedPoint& made = MoveAsMade(u, i, &kept, &held);
+  planner.Plan(s.point_index.at(made.id), ToPoint(made.position), worker, plan);
 }
 
 void Engine::Impl::CommitMove(const KeyframeUpdate& u, size_t i, detail::MovePlan& plan) {
   using Kind = detail::MovePlan::Kind;
-  const MovedPoint& m = u.moved_points[i];
-  const uint32_t pt = plan.pt;
-  const bool held = short_move_[i] && s.points[pt].in_triangulation;
   MovedPoint kept;
-  const MovedPoint* made = &m;
-  if (held) {  // the vertex stays: what is left of the move is adding its new cameras
-    kept = m;
-    const Point& v = s.points[pt].vertex->point();
-    kept.position = {v.x(), v.y(), v.z()};
-    made = &kept;
-  }
+  bool held = false;
+  const MovedPoint& made = MoveAsMade(u, i, &kept, &held);
+  const uint32_t pt = plan.pt;
   if (plan.kind == Kind::kSerial) {
-    ExactMovePoint(pt, *made);
+    ExactMovePoint(pt, made);
   } else {
     PointRecord& rec = s.points[pt];
-    rec.position = made->position;
-    AddCameras(rec, made->camera_ids, nullptr);
+    rec.position = made.position;
+    AddCameras(rec, made.camera_ids, nullptr);
     if (plan.kind == Kind::kDuplicate) {
       ++s.stats.moves_duplicate;
       ++s.stats.moves_skipped;
@@ -1053,10 +1030,7 @@ void Engine::Impl::CommitMove(const KeyframeUpdate& u, size_t i, detail::MovePla
       planner.Commit(plan);
     }
   }
-  if (held) {
-    s.points[pt].position = m.position;
-    ++s.stats.moves_below_min;
-  }
+  if (held) EndHeldMove(u.moved_points[i], pt);
 }
 
 // Move p_old -> p_new (paper §3): backward cast over the last W cameras, remove, transfer,

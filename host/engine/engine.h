@@ -125,9 +125,10 @@ struct EngineOptions {
                                       // threads (what each does to its cells, read only) and
                                       // committed in order; false: each made with CGAL's vertex
                                       // removal and insertion (the same cells and weights).
-  int num_threads = 0;                // Threads casting rays (kExact): 0 = every core of the
-                                      // process's affinity mask. The mesh is the same for any
-                                      // number (results are applied in one fixed order).
+  int num_threads = 0;                // Threads casting rays and planning moves (kExact): 0 =
+                                      // every core of the process's affinity mask. The mesh is
+                                      // the same for any number (results are applied in one
+                                      // fixed order).
 
   // Empty when every field is usable; otherwise which field and why (the validator shape of
   // every options struct of imr).

@@ -209,6 +209,17 @@ struct EngineState {
     if (auto it = list_extra.find(RayKey(pt, k)); it != list_extra.end())
       for (Cell_handle c : it->second) visit(c);
   }
+  // A cell about to be destroyed leaves listed ray k of point pt (its cells after are listed by
+  // whoever walks the ray through them).
+  void Unlist(uint32_t pt, size_t k, Cell_handle c) {
+    const PointRecord::RayList& l = points[pt].ray_list[k];
+    Cell_handle* at = list_cells[l.worker].data() + l.offset;
+    std::replace(at, at + l.count, c, Cell_handle());
+    if (auto it = list_extra.find(RayKey(pt, k)); it != list_extra.end()) {
+      std::vector<Cell_handle>& x = it->second;
+      x.erase(std::remove(x.begin(), x.end(), c), x.end());
+    }
+  }
   // Sum of every cell's weight (finite and infinite), kept by each change of a weight and of the
   // cells: CheckInvariants compares it with the cells' own sum, so a weight changed or a cell made
   // or destroyed outside casting and transfer shows. Modulo 2^64 (unsigned wrap is exact).
@@ -716,17 +727,18 @@ class SteinerGrid {
 // back at its new position, and the rays of the cells that change walked again through the
 // cells that replace them) changes D only, the vertex's star and the new position's conflict
 // zone. What it does to D is a function of D and the cells around it: the plan computes it
-// without writing anything shared (the cells that fill D from a small Delaunay triangulation of
-// D's vertices, the rays each of them holds, the enclosing set for shrink), so the moves of a
-// keyframe are planned on the engine's threads and committed one by one, in the update's order,
-// on one. A plan names the cells it read (D and its facet neighbours) with their serials; when
-// an earlier commit changed one of them, the move is planned again at its turn. Plans never
-// depend on when they were made, so the result is the same for any number of threads.
+// without writing anything shared (the cells that fill D, grown from its boundary by Delaunay
+// wrapping; the rays each of them holds; the enclosing set for shrink), so the moves of a
+// keyframe are planned on the engine's threads and committed one by one, in the keyframe's move
+// order (Engine::Impl::MoveOrder), on one. A plan names the cells it read (D and its facet
+// neighbours) with their serials; when an earlier commit changed one of them, the move is
+// planned again at its turn. Plans never depend on when they were made, so the result is the
+// same for any number of threads.
 struct MovePlan {
   enum class Kind : uint8_t {
     kKeep,       // the new position is the vertex's: only cameras are added
     kDuplicate,  // another vertex sits at the new position: refused
-    kInPlace,    // D is the star, reshaped: the cells stay (DelaunayAfterMove)
+    kInPlace,    // D is the star, reshaped: the cells stay (StarStaysDelaunay)
     kHole,       // D re-triangulated around the new position
     kSerial,     // made at its turn by ExactMovePoint (the hull, a point not in the triangulation)
   };
@@ -785,10 +797,13 @@ class MovePlanner {
   bool Commit(MovePlan& plan);
   // Scratch for n workers (before plans are made on them).
   void Workers(int n) const;
+  // Whether v can move to p keeping its cells (a move in place): its star finite, and with v at
+  // p still positively oriented and Delaunay. Reads only.
+  static bool StarStaysDelaunay(const Dt& dt, Vertex_handle v, const Point& p,
+                                const std::vector<Cell_handle>& star);
 
  private:
   struct Scratch;
-  bool InPlaceOk(Vertex_handle v, const Point& p, const std::vector<Cell_handle>& star) const;
   bool FillHole(MovePlan* plan, Scratch& sc) const;
   void WalkRays(MovePlan* plan, Scratch& sc) const;
 
@@ -862,12 +877,14 @@ struct Engine::Impl {
   void TimedScan(uint32_t pt);
   void RemovePoint(uint32_t pt);
   void ExactRemovePoint(uint32_t pt);
-  bool DelaunayAfterMove(Vertex_handle v, const Point& p, const std::vector<Cell_handle>& star);
   bool ShrinkMoveRegion(Vertex_handle v, const Point& p_old, const Point& p_new,
                         std::vector<Cell_handle>* d);
   void ExactMovePoint(uint32_t pt, const MovedPoint& m);
   void ExactMoves(const KeyframeUpdate& u);
   void MoveOrder(const KeyframeUpdate& u);
+  const MovedPoint& MoveAsMade(const KeyframeUpdate& u, size_t i, MovedPoint* kept,
+                               bool* held) const;
+  void EndHeldMove(const MovedPoint& m, uint32_t pt);
   void MoveOne(const KeyframeUpdate& u, size_t i);
   void PlanMove(const KeyframeUpdate& u, size_t i, int worker, detail::MovePlan* plan);
   void CommitMove(const KeyframeUpdate& u, size_t i, detail::MovePlan& plan);

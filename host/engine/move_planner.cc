@@ -1,5 +1,6 @@
 // kExact moves planned ahead (engine_parts.h, MovePlanner): what a move does to D, its cells,
-// computed from the triangulation without writing to it, then committed in the update's order.
+// computed from the triangulation without writing to it, then committed in the keyframe's move
+// order.
 #include "host/engine/engine_parts.h"
 
 #include <algorithm>
@@ -66,11 +67,14 @@ void MovePlanner::Workers(int n) const {
   while (scratch_.size() < static_cast<size_t>(n)) scratch_.push_back(std::make_unique<Scratch>());
 }
 
-// DelaunayAfterMove's test without moving the vertex: the star with v at p stays positively
-// oriented and every facet of it locally Delaunay (CGAL's perturbed in-sphere test).
-bool MovePlanner::InPlaceOk(Vertex_handle v, const Point& p,
-                            const std::vector<Cell_handle>& star) const {
+// Whether v can move to p keeping its cells: no cell of its star infinite, the star with v at p
+// positively oriented, and every facet of it locally Delaunay (CGAL's perturbed in-sphere
+// test). Reads only: v is not moved to test it.
+bool MovePlanner::StarStaysDelaunay(const Dt& dt, Vertex_handle v, const Point& p,
+                                    const std::vector<Cell_handle>& star) {
   auto at = [&](Vertex_handle u) -> const Point& { return u == v ? p : u->point(); };
+  for (Cell_handle c : star)
+    if (dt.is_infinite(c)) return false;
   for (Cell_handle c : star)
     if (CGAL::orientation(at(c->vertex(0)), at(c->vertex(1)), at(c->vertex(2)),
                           at(c->vertex(3))) != CGAL::POSITIVE)
@@ -80,9 +84,9 @@ bool MovePlanner::InPlaceOk(Vertex_handle v, const Point& p,
     for (int j = 0; j < 4; ++j) {
       const Cell_handle n = c->neighbor(j);
       if (j != iv && &*n < &*c) continue;  // a facet between two star cells: tested once
-      if (s_.dt.is_infinite(n)) return false;
+      if (dt.is_infinite(n)) return false;
       const Point q = at(c->vertex(j));
-      if (DtPredicates::SideOfSphere(s_.dt, at(n->vertex(0)), at(n->vertex(1)), at(n->vertex(2)),
+      if (DtPredicates::SideOfSphere(dt, at(n->vertex(0)), at(n->vertex(1)), at(n->vertex(2)),
                                      at(n->vertex(3)), q) != CGAL::ON_UNBOUNDED_SIDE)
         return false;
     }
@@ -119,7 +123,7 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
   for (Cell_handle c : sc.star) hull = hull || s_.dt.is_infinite(c);
   std::vector<Cell_handle>& d = m.d;
   d = sc.star;
-  if (!hull && InPlaceOk(v, p_new, sc.star)) {
+  if (!hull && StarStaysDelaunay(s_.dt, v, p_new, sc.star)) {
     m.kind = MovePlan::Kind::kInPlace;
   } else {
     Dt::Locate_type lt;
@@ -533,18 +537,8 @@ bool MovePlanner::Commit(MovePlan& m) {
     c->info().dirty = false;
     s_.Ledger(c->info().weight, 0);
   }
-  for (const MovePlan::Listed& l : m.listed) {
-    if (!s_.points[l.point].Listed(l.k)) continue;
-    const Cell_handle c = m.d[l.cell];
-    const PointRecord::RayList& list = s_.points[l.point].ray_list[l.k];
-    Cell_handle* at = s_.list_cells[list.worker].data() + list.offset;
-    std::replace(at, at + list.count, c, Cell_handle());
-    const auto extra = s_.list_extra.find(EngineState::RayKey(l.point, l.k));
-    if (extra != s_.list_extra.end()) {
-      std::vector<Cell_handle>& x = extra->second;
-      x.erase(std::remove(x.begin(), x.end(), c), x.end());
-    }
-  }
+  for (const MovePlan::Listed& l : m.listed)
+    if (s_.points[l.point].Listed(l.k)) s_.Unlist(l.point, l.k, m.d[l.cell]);
   std::vector<Cell_handle>& made = made_;
   if (m.kind == MovePlan::Kind::kInPlace) {
     for (Cell_handle c : m.d) {

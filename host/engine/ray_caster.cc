@@ -658,16 +658,7 @@ void RayCaster::CollectHole(const std::vector<Cell_handle>& cells, Hole* hole) {
       if (!s_.Live(e)) continue;  // a stale entry: dropped with the cell
       PointRecord& rec = s_.points[e.point];
       const size_t k = e.camera;
-      if (rec.Listed(k)) {  // the cell leaves the ray's list (RefillHole lists the new ones)
-        const PointRecord::RayList& l = rec.ray_list[k];
-        Cell_handle* at = s_.list_cells[l.worker].data() + l.offset;
-        std::replace(at, at + l.count, c, Cell_handle());
-        const auto extra = s_.list_extra.find(EngineState::RayKey(e.point, k));
-        if (extra != s_.list_extra.end()) {
-          std::vector<Cell_handle>& x = extra->second;
-          x.erase(std::remove(x.begin(), x.end(), c), x.end());
-        }
-      }
+      if (rec.Listed(k)) s_.Unlist(e.point, k, c);  // RefillHole lists the new cells
       const Point& end = rec.ray_end[k];
       const Point& cam = s_.cameras[rec.cameras[k]];
       const double a[3] = {end.x(), end.y(), end.z()};
