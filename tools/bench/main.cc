@@ -51,9 +51,10 @@ const std::vector<Subcommand>& Subcommands() {
        "surface quality per input (completeness, precision, F, distances,\n"
        "manifold, time, memory) beside the Piazza mesher and COLMAP",
        &RunQualityBench},
-      {"speed", "[--views-per-keyframe N] [--work DIR]",
+      {"speed", "[--views-per-keyframe N] [--rounds N] [--work DIR]",
        "the engine on the street stream with every view a keyframe, one core\n"
-       "and two (issue 18's targets), with the time per phase",
+       "and two, the fastest of N rounds each (issue 18's targets), with the\n"
+       "time per phase",
        &RunSpeedBench},
       {"evaluate", "[--points N] [--triangles N] [--threads N] [--quick]",
        "imr evaluate's distances: 1 M points against a 500 k-triangle mesh", &RunEvaluateBench},
