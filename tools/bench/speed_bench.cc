@@ -12,7 +12,6 @@
 // throughput of one (the limit is then the engine's serial part, which the bench prints: the
 // two-core run's steps outside the threaded parts, the bound they set, and each phase's
 // speed-up). Prints the targets, then one JSON object as the last line.
-#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -43,6 +42,7 @@ struct SpeedRow {
   std::string note;
   std::string name;             // its output folder under the work directory
   std::vector<double> engines;  // every round's engine seconds (the row is the fastest)
+  int failed = 0;               // rounds that failed (their logs kept with --work)
 };
 
 }  // namespace
@@ -163,10 +163,12 @@ int RunSpeedBench(int argc, char** argv) {
     }
     SpeedRow& row = rows[run.row];
     std::vector<double> engines = std::move(row.engines);
+    const int failed = row.failed + (r.ok ? 0 : 1);
     if (r.ok) engines.push_back(r.engine);
     // The row is its fastest round (a failed round only when none succeeds).
     if (!row.ok || (r.ok && r.engine < row.engine)) row = r;
     row.engines = std::move(engines);
+    row.failed = failed;
   }
 
   std::printf("\nstreet stream, %zu views, views_per_keyframe %d (a keyframe every %d view(s); "
@@ -200,6 +202,7 @@ int RunSpeedBench(int argc, char** argv) {
         std::snprintf(b, sizeof b, "%s%.2f", t.empty() ? "" : ", ", e);
         t += b;
       }
+      if (r.failed > 0) t += (t.empty() ? "" : ", ") + std::to_string(r.failed) + " failed";
       return t;
     };
     std::printf("\nengine s of each round (the rows above are the fastest; one core on cores 0 and "
