@@ -333,6 +333,14 @@ int64_t EngineInternals::ManifoldTestMismatches(const Engine& e) {
   return m.s.hooks ? m.s.hooks->manifold_test_mismatches : 0;
 }
 
+void EngineInternals::ExactFillOnly(Engine& e, bool on) { H(e.impl_->s).exact_fill_only = on; }
+
+std::array<int64_t, 2> EngineInternals::FillCounts(const Engine& e) {
+  const Hooks* h = e.impl_->s.hooks.get();
+  if (!h) return {0, 0};
+  return {h->fills_fast.load(), h->fills_exact.load()};
+}
+
 int64_t EngineInternals::ShrinkAround(Engine& e, const Vec3& centre, double radius) {
   Engine::Impl& m = *e.impl_;
   const Point p = ToPoint(centre);

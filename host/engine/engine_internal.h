@@ -67,6 +67,12 @@ class EngineInternals {
   static void CrossCheckManifoldTest(Engine& e, bool on);
   static int64_t ManifoldTestMismatches(const Engine& e);
 
+  // --- Planned moves. ---
+  // While on, every planned fill takes the exact apexes (no floating-point fill first).
+  static void ExactFillOnly(Engine& e, bool on);
+  // Fills made so far: {floating-point fills that passed the check, exact fills}.
+  static std::array<int64_t, 2> FillCounts(const Engine& e);
+
   // --- Growing. ---
   // Takes out of O (keeping dO manifold) the cells with a vertex within `radius` of `centre`;
   // they and their neighbours become seeds of the next grow. Returns the cells taken out.

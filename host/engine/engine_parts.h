@@ -167,6 +167,10 @@ struct Hooks {
   size_t record_limit = 0;
   std::vector<internal::RecordedTransfer> recorded;
   std::vector<Cell_handle> probe_cells;
+  // Planned moves' fills (MovePlanner::FillHole): exact_fill_only skips the floating-point
+  // apexes; the counters (bumped on the planning threads) say how fills were made.
+  bool exact_fill_only = false;
+  std::atomic<int64_t> fills_fast{0}, fills_exact{0};
 };
 
 // What the parts share: the triangulation with its cells' weights and O, the points and cameras,
@@ -804,7 +808,11 @@ class MovePlanner {
 
  private:
   struct Scratch;
-  bool FillHole(MovePlan* plan, Scratch& sc) const;
+  // fast: each open facet's apex is the point whose sphere's centre lies nearest the facet on
+  // its open side, in floating point (a few flops a point instead of an exact in-sphere test);
+  // the result is then only a candidate for FillIsDelaunay.
+  bool FillHole(MovePlan* plan, Scratch& sc, bool fast) const;
+  bool FillIsDelaunay(const MovePlan& plan, Scratch& sc) const;
   void WalkRays(MovePlan* plan, Scratch& sc) const;
 
   EngineState& s_;

@@ -122,37 +122,52 @@ TEST(ThreadsTest, SameMeshAndWeightsForOneTwoAndFourThreads) {
 // threads) and committed in order; each plan must give the cells, weights and mesh of CGAL's
 // vertex removal and insertion, with the full invariant check (a valid Delaunay triangulation,
 // every cell's rays) after each keyframe, and plans made stale by an earlier commit of their
-// batch must be made again.
+// batch must be made again. A plan fills a region with apexes found in floating point and
+// checked (locally Delaunay, every point used), the exact wrapping when the check fails: both
+// fills are run, the second with the floating-point one switched off.
 TEST(PlannedMovesTest, SameCellsAndMeshAsCgalsRemovalAndInsertion) {
   for (SceneKind scene : {SceneKind::kStreet, SceneKind::kRoom, SceneKind::kPlane}) {
     synthetic::StreamOptions so = SmallStream(scene, 3);
     so.frames = 60;
-    Mesh meshes[2];
-    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[2];
-    for (int planned = 0; planned < 2; ++planned) {
+    Mesh meshes[3];
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[3];
+    for (int run = 0; run < 3; ++run) {  // CGAL's moves, planned, planned with exact fills
       synthetic::SyntheticStream stream(so);
       EngineOptions eo;
       eo.num_threads = 2;
-      eo.planned_moves = planned == 1;
+      eo.planned_moves = run >= 1;
       eo.check_invariants = true;
       Engine engine(eo, nullptr);
-      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok()) << synthetic::ToString(scene);
+      internal::EngineInternals::ExactFillOnly(engine, run == 2);
+      const std::string what = synthetic::ToString(scene) + ", run " + std::to_string(run);
+      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok()) << what;
       const EngineStats& st = engine.Stats();
       EXPECT_GT(st.points_moved, 50);
       EXPECT_EQ(st.ray_mismatches, 0);
-      if (planned == 1) {
-        EXPECT_GE(st.moves_planned_ahead, st.points_moved) << synthetic::ToString(scene);
-        EXPECT_LT(st.moves_replanned, st.moves_planned_ahead / 2) << synthetic::ToString(scene);
+      const std::array<int64_t, 2> fills = internal::EngineInternals::FillCounts(engine);
+      if (run >= 1) {
+        EXPECT_GE(st.moves_planned_ahead, st.points_moved) << what;
+        EXPECT_LT(st.moves_replanned, st.moves_planned_ahead / 2) << what;
+        EXPECT_GT(fills[0] + fills[1], 10) << what;
       } else {
         EXPECT_EQ(st.moves_planned_ahead, 0);
       }
-      meshes[planned] = engine.ExtractMesh();
-      weights[planned] = engine.CellWeights();
-      ASSERT_FALSE(meshes[planned].faces.empty());
+      if (run == 1) {
+        EXPECT_GT(fills[0], 10 * fills[1]) << what;  // the floating-point fill holds
+      }
+      if (run == 2) {
+        EXPECT_EQ(fills[0], 0) << what;
+      }
+      meshes[run] = engine.ExtractMesh();
+      weights[run] = engine.CellWeights();
+      ASSERT_FALSE(meshes[run].faces.empty());
     }
-    EXPECT_EQ(meshes[1].vertices, meshes[0].vertices) << synthetic::ToString(scene);
-    EXPECT_EQ(meshes[1].faces, meshes[0].faces) << synthetic::ToString(scene);
-    EXPECT_EQ(weights[1], weights[0]) << synthetic::ToString(scene);
+    for (int run = 1; run < 3; ++run) {
+      const std::string what = synthetic::ToString(scene) + ", run " + std::to_string(run);
+      EXPECT_EQ(meshes[run].vertices, meshes[0].vertices) << what;
+      EXPECT_EQ(meshes[run].faces, meshes[0].faces) << what;
+      EXPECT_EQ(weights[run], weights[0]) << what;
+    }
   }
 }
 

@@ -48,6 +48,8 @@ struct MovePlanner::Scratch {
   std::vector<TetPlanes> planes;  // per local cell
   std::vector<std::pair<uint32_t, RayEntry>> adds;
   std::vector<int32_t> given;
+  std::vector<uint8_t> used;  // FillIsDelaunay: per point of V, whether a cell has it
+  std::vector<double> xyz;    // FillHole (fast): V's points, x y z each
   // FillHole's open facets: the vertices in the order that makes the cell on the open side
   // positive with its fourth vertex last, and who holds the facet.
   struct Open {
@@ -253,9 +255,19 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
       }
       m.cells.push_back(nc);
     }
-  } else if (!FillHole(&m, sc)) {
-    m.kind = MovePlan::Kind::kSerial;  // CGAL's removal and insertion decide (never seen)
-    return;
+  } else {
+    // The floating-point fill, checked; the exact one when the check fails (rare: ties, or
+    // points within rounding of a facet's plane).
+    Hooks* hooks = s_.hooks.get();
+    const bool fast = !(hooks && hooks->exact_fill_only);
+    if (fast && FillHole(&m, sc, true) && FillIsDelaunay(m, sc)) {
+      if (hooks) ++hooks->fills_fast;
+    } else if (FillHole(&m, sc, false)) {
+      if (hooks) ++hooks->fills_exact;
+    } else {
+      m.kind = MovePlan::Kind::kSerial;  // CGAL's removal and insertion decide (never seen)
+      return;
+    }
   }
   WalkRays(&m, sc);
 
@@ -284,7 +296,14 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
 // through a facet totally, so the first point no later one falls inside is that one); its other
 // facets are glued to open facets with the same vertices or left open. It ends when no facet is
 // open. False when that fails (never seen; the move is then left to CGAL).
-bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc) const {
+//
+// fast: the apex picked in floating point instead (the sphere through the facet and a point q
+// on its open side has its centre at c + t(q) n, c the facet's circumcentre and n its normal;
+// a point lies inside q's sphere when its t is smaller, so the apex has the smallest t). Rounding
+// and ties (cospherical points, which CGAL's perturbation orders) can pick another point; the
+// caller checks the result with FillIsDelaunay and fills again exactly when it fails. A fill that
+// passes is the exact one cell for cell, in the same order: each facet's apex is unique.
+bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc, bool fast) const {
   MovePlan& m = *plan;
   const int32_t n_verts = static_cast<int32_t>(m.verts.size());
   auto point = [&](int32_t i) -> const Point& {
@@ -322,6 +341,14 @@ bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc) const {
   sc.outer_cell.assign(m.outer.size(), -1);
   m.cells.clear();
   const size_t max_cells = 8 * m.outer.size() + 64;
+  if (fast) {  // V's points side by side: p_new, then verts
+    sc.xyz.resize(3 * (static_cast<size_t>(n_verts) + 1));
+    for (int32_t q = -1; q < n_verts; ++q) {
+      const Point& p = point(q);
+      double* x = sc.xyz.data() + 3 * static_cast<size_t>(q + 1);
+      x[0] = p.x(), x[1] = p.y(), x[2] = p.z();
+    }
+  }
   for (size_t next = 0; next < open.size(); ++next) {
     if (!open[next].open) continue;
     const Open f = open[next];
@@ -338,7 +365,33 @@ bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc) const {
     const double m_uw = std::max({std::fabs(u[0]), std::fabs(u[1]), std::fabs(u[2])}) *
                         std::max({std::fabs(w[0]), std::fabs(w[1]), std::fabs(w[2])});
     int32_t best = INT32_MIN;
-    for (int32_t q = -1; q < n_verts; ++q) {
+    if (fast) {
+      // The circumcentre relative to a, (|u|^2 (w x n) + |w|^2 (n x u)) / (2 |n|^2); t(q) as
+      // num / side with num = |r|^2 - 2 centre . r, compared without dividing (sides > 0).
+      const double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+      const double ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+      const double nn2 = 2.0 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      const double wxn[3] = {w[1] * n[2] - w[2] * n[1], w[2] * n[0] - w[0] * n[2],
+                             w[0] * n[1] - w[1] * n[0]};
+      const double nxu[3] = {n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2],
+                             n[0] * u[1] - n[1] * u[0]};
+      double c2[3];
+      for (int k = 0; k < 3; ++k) c2[k] = (uu * wxn[k] + ww * nxu[k]) / nn2 * 2.0;
+      if (!std::isfinite(c2[0] + c2[1] + c2[2])) return false;  // a flat facet: the exact fill
+      double best_num = 0.0, best_side = 0.0;
+      const double* xyz = sc.xyz.data();
+      const double ax = a.x(), ay = a.y(), az = a.z();
+      for (int32_t q = -1; q < n_verts; ++q) {
+        const double* pq = xyz + 3 * static_cast<size_t>(q + 1);
+        const double r0 = pq[0] - ax, r1 = pq[1] - ay, r2 = pq[2] - az;
+        const double side = n[0] * r0 + n[1] * r1 + n[2] * r2;
+        const double num = r0 * r0 + r1 * r1 + r2 * r2 - (c2[0] * r0 + c2[1] * r1 + c2[2] * r2);
+        if (side > 0.0 && (best == INT32_MIN || num * best_side < best_num * side) &&
+            q != f.v[0] && q != f.v[1] && q != f.v[2])
+          best = q, best_num = num, best_side = side;
+      }
+    }
+    for (int32_t q = -1; q < n_verts && !fast; ++q) {
       if (q == f.v[0] || q == f.v[1] || q == f.v[2]) continue;
       const Point& pq = point(q);
       const double r[3] = {pq.x() - a.x(), pq.y() - a.y(), pq.z() - a.z()};
@@ -386,6 +439,46 @@ bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc) const {
   }
   for (const int32_t x : sc.outer_cell)
     if (x < 0) return false;
+  return true;
+}
+
+// Whether a fill (FillHole) is the Delaunay one: every point of V a vertex of it, every cell
+// positively oriented (CGAL's exact test), and every facet of its cells locally Delaunay, across a new facet and across D's boundary (CGAL's
+// perturbed in-sphere test). Outside D neither the cells nor their points changed, so the whole
+// triangulation is then one of all the points and locally Delaunay, hence the Delaunay
+// triangulation, which the perturbation makes unique.
+bool MovePlanner::FillIsDelaunay(const MovePlan& m, Scratch& sc) const {
+  auto point = [&](int32_t i) -> const Point& {
+    return i < 0 ? m.p_new : m.verts[static_cast<size_t>(i)]->point();
+  };
+  sc.used.assign(m.verts.size() + 1, 0);
+  for (const MovePlan::NewCell& c : m.cells)
+    for (int k = 0; k < 4; ++k) sc.used[static_cast<size_t>(c.v[k] + 1)] = 1;
+  for (const uint8_t u : sc.used)
+    if (!u) return false;
+  for (size_t i = 0; i < m.cells.size(); ++i) {
+    const MovePlan::NewCell& c = m.cells[i];
+    if (CGAL::orientation(point(c.v[0]), point(c.v[1]), point(c.v[2]), point(c.v[3])) !=
+        CGAL::POSITIVE)
+      return false;
+    for (int k = 0; k < 4; ++k) {
+      const Point* q = nullptr;
+      if (c.n[k] >= 0) {
+        if (static_cast<size_t>(c.n[k]) < i) continue;  // tested from the other cell
+        const MovePlan::NewCell& o = m.cells[static_cast<size_t>(c.n[k])];
+        for (int j = 0; j < 4; ++j)
+          if (o.n[j] == static_cast<int32_t>(i)) q = &point(o.v[j]);
+      } else {
+        const Facet& f = m.outer[static_cast<size_t>(-c.n[k] - 1)];
+        if (s_.dt.is_infinite(f.first)) continue;  // a hull facet, not changed by the move
+        q = &f.first->vertex(f.second)->point();
+      }
+      if (q == nullptr ||
+          DtPredicates::SideOfSphere(s_.dt, point(c.v[0]), point(c.v[1]), point(c.v[2]),
+                                     point(c.v[3]), *q) != CGAL::ON_UNBOUNDED_SIDE)
+        return false;
+    }
+  }
   return true;
 }
 
