@@ -443,10 +443,10 @@ bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc, bool fast) const {
 }
 
 // Whether a fill (FillHole) is the Delaunay one: every point of V a vertex of it, every cell
-// positively oriented (CGAL's exact test), and every facet of its cells locally Delaunay, across a new facet and across D's boundary (CGAL's
-// perturbed in-sphere test). Outside D neither the cells nor their points changed, so the whole
-// triangulation is then one of all the points and locally Delaunay, hence the Delaunay
-// triangulation, which the perturbation makes unique.
+// positively oriented (CGAL's exact test), and every facet of its cells locally Delaunay, across
+// a new facet and across D's boundary (CGAL's perturbed in-sphere test). Outside D neither the
+// cells nor their points changed, so the whole triangulation is then one of all the points and
+// locally Delaunay, hence the Delaunay triangulation, which the perturbation makes unique.
 bool MovePlanner::FillIsDelaunay(const MovePlan& m, Scratch& sc) const {
   auto point = [&](int32_t i) -> const Point& {
     return i < 0 ? m.p_new : m.verts[static_cast<size_t>(i)]->point();

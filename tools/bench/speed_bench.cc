@@ -268,12 +268,15 @@ int RunSpeedBench(int argc, char** argv) {
     auto phase = [](const SpeedRow& r, const char* k) { return r.phases.value(k, 0.0); };
     const char* keys[3] = {"cast", "move", "shrink"};
     double one_s[4], two_s[4];
-    for (int i = 0; i < 3; ++i) one_s[i] = phase(rows[0], keys[i]), two_s[i] = phase(rows[1], keys[i]);
+    for (int i = 0; i < 3; ++i) {
+      one_s[i] = phase(rows[0], keys[i]);
+      two_s[i] = phase(rows[1], keys[i]);
+    }
     one_s[3] = total1 - one_s[0] - one_s[1] - one_s[2];
     two_s[3] = total2 - two_s[0] - two_s[1] - two_s[2];
     auto x = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
-    std::printf("phase by phase, one core -> two cores: cast (the un-cast and cast batches) %.2f -> "
-                "%.2f s (%.2fx); moves without their shrink %.2f -> %.2f s (%.2fx: on two cores "
+    std::printf("phase by phase, one core -> two cores: cast (the un-cast and cast batches) "
+                "%.2f -> %.2f s (%.2fx); moves without their shrink %.2f -> %.2f s (%.2fx: on two cores "
                 "planned on both threads, committed in order on one); shrink %.2f -> %.2f s "
                 "(%.2fx); the rest (insertions, Steiner points, growing) %.2f -> %.2f s (%.2fx)\n",
                 one_s[0], two_s[0], x(one_s[0], two_s[0]), one_s[1], two_s[1],
