@@ -276,8 +276,8 @@ int RunSpeedBench(int argc, char** argv) {
     two_s[3] = total2 - two_s[0] - two_s[1] - two_s[2];
     auto x = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
     std::printf("phase by phase, one core -> two cores: cast (the un-cast and cast batches) "
-                "%.2f -> %.2f s (%.2fx); moves without their shrink %.2f -> %.2f s (%.2fx: on two cores "
-                "planned on both threads, committed in order on one); shrink %.2f -> %.2f s "
+                "%.2f -> %.2f s (%.2fx); moves without their shrink %.2f -> %.2f s (%.2fx: on two "
+                "cores planned on both threads, committed in order on one); shrink %.2f -> %.2f s "
                 "(%.2fx); the rest (insertions, Steiner points, growing) %.2f -> %.2f s (%.2fx)\n",
                 one_s[0], two_s[0], x(one_s[0], two_s[0]), one_s[1], two_s[1],
                 x(one_s[1], two_s[1]), one_s[2], two_s[2], x(one_s[2], two_s[2]), one_s[3],
