@@ -769,6 +769,10 @@ struct MovePlan {
   std::vector<Facet> outer;        // D's boundary facets, seen from the cells outside D
   std::vector<uint64_t> serials;   // of d's cells, then of outer's cells
   std::vector<Vertex_handle> verts;
+  // A NewCell's vertex as a point: -1 is the moved vertex at p_new, i >= 0 verts[i].
+  const Point& PointOf(int32_t i) const {
+    return i < 0 ? p_new : verts[static_cast<size_t>(i)]->point();
+  }
   std::vector<NewCell> cells;      // kInPlace: cells[i] is d[i]
   std::vector<uint32_t> ray_begin;  // cells[i] holds rays[ray_begin[i] .. ray_begin[i + 1])
   std::vector<RayEntry> rays;

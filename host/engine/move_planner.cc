@@ -306,9 +306,7 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
 bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc, bool fast) const {
   MovePlan& m = *plan;
   const int32_t n_verts = static_cast<int32_t>(m.verts.size());
-  auto point = [&](int32_t i) -> const Point& {
-    return i < 0 ? m.p_new : m.verts[static_cast<size_t>(i)]->point();
-  };
+  auto point = [&](int32_t i) -> const Point& { return m.PointOf(i); };
   using Open = Scratch::Open;
   std::vector<Open>& open = sc.open;
   open.clear();
@@ -355,15 +353,11 @@ bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc, bool fast) const {
     const Point& a = point(f.v[0]);
     const Point& b = point(f.v[1]);
     const Point& c = point(f.v[2]);
-    // The side of the facet's plane as n . (q - a), n = (b - a) x (c - a), with a rounding
-    // bound (each of the determinant's six terms carries at most eight roundings: below
-    // 9e-16 of it, and their sum is at most 6 m_u m_v m_w); CGAL's test within it.
+    // The side of the facet's plane a point q is on: n . (q - a), n = (b - a) x (c - a).
     const double u[3] = {b.x() - a.x(), b.y() - a.y(), b.z() - a.z()};
     const double w[3] = {c.x() - a.x(), c.y() - a.y(), c.z() - a.z()};
     const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
                          u[0] * w[1] - u[1] * w[0]};
-    const double m_uw = std::max({std::fabs(u[0]), std::fabs(u[1]), std::fabs(u[2])}) *
-                        std::max({std::fabs(w[0]), std::fabs(w[1]), std::fabs(w[2])});
     int32_t best = INT32_MIN;
     if (fast) {
       // The circumcentre relative to a, (|u|^2 (w x n) + |w|^2 (n x u)) / (2 |n|^2); t(q) as
@@ -390,21 +384,27 @@ bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc, bool fast) const {
             q != f.v[0] && q != f.v[1] && q != f.v[2])
           best = q, best_num = num, best_side = side;
       }
-    }
-    for (int32_t q = -1; q < n_verts && !fast; ++q) {
-      if (q == f.v[0] || q == f.v[1] || q == f.v[2]) continue;
-      const Point& pq = point(q);
-      const double r[3] = {pq.x() - a.x(), pq.y() - a.y(), pq.z() - a.z()};
-      const double side = n[0] * r[0] + n[1] * r[1] + n[2] * r[2];
-      const double bound =
-          1e-14 * m_uw * std::max({std::fabs(r[0]), std::fabs(r[1]), std::fabs(r[2])});
-      if (side <= -bound) continue;
-      if ((side <= bound || bound < 1e-280) &&
-          CGAL::orientation(a, b, c, pq) != CGAL::POSITIVE)
-        continue;
-      if (best == INT32_MIN ||
-          DtPredicates::SideOfSphere(s_.dt, a, b, c, point(best), pq) == CGAL::ON_BOUNDED_SIDE)
-        best = q;
+    } else {
+      // The side with a rounding bound (each of the determinant's six terms carries at most
+      // eight roundings: below 9e-16 of it, and their sum is at most 6 m_u m_v m_w); CGAL's
+      // test within it.
+      const double m_uw = std::max({std::fabs(u[0]), std::fabs(u[1]), std::fabs(u[2])}) *
+                          std::max({std::fabs(w[0]), std::fabs(w[1]), std::fabs(w[2])});
+      for (int32_t q = -1; q < n_verts; ++q) {
+        if (q == f.v[0] || q == f.v[1] || q == f.v[2]) continue;
+        const Point& pq = point(q);
+        const double r[3] = {pq.x() - a.x(), pq.y() - a.y(), pq.z() - a.z()};
+        const double side = n[0] * r[0] + n[1] * r[1] + n[2] * r[2];
+        const double bound =
+            1e-14 * m_uw * std::max({std::fabs(r[0]), std::fabs(r[1]), std::fabs(r[2])});
+        if (side <= -bound) continue;
+        if ((side <= bound || bound < 1e-280) &&
+            CGAL::orientation(a, b, c, pq) != CGAL::POSITIVE)
+          continue;
+        if (best == INT32_MIN ||
+            DtPredicates::SideOfSphere(s_.dt, a, b, c, point(best), pq) == CGAL::ON_BOUNDED_SIDE)
+          best = q;
+      }
     }
     if (best == INT32_MIN || m.cells.size() >= max_cells) return false;
     // The new cell (a, b, c, best): facet 3 is f, the others open or glued.
@@ -448,9 +448,7 @@ bool MovePlanner::FillHole(MovePlan* plan, Scratch& sc, bool fast) const {
 // cells nor their points changed, so the whole triangulation is then one of all the points and
 // locally Delaunay, hence the Delaunay triangulation, which the perturbation makes unique.
 bool MovePlanner::FillIsDelaunay(const MovePlan& m, Scratch& sc) const {
-  auto point = [&](int32_t i) -> const Point& {
-    return i < 0 ? m.p_new : m.verts[static_cast<size_t>(i)]->point();
-  };
+  auto point = [&](int32_t i) -> const Point& { return m.PointOf(i); };
   sc.used.assign(m.verts.size() + 1, 0);
   for (const MovePlan::NewCell& c : m.cells)
     for (int k = 0; k < 4; ++k) sc.used[static_cast<size_t>(c.v[k] + 1)] = 1;
@@ -490,13 +488,11 @@ bool MovePlanner::FillIsDelaunay(const MovePlan& m, Scratch& sc) const {
 void MovePlanner::WalkRays(MovePlan* plan, Scratch& sc) const {
   MovePlan& m = *plan;
   const size_t n_cells = m.cells.size();
-  auto point_of = [&](int32_t i) -> const Point& {
-    return i < 0 ? m.p_new : m.verts[static_cast<size_t>(i)]->point();
-  };
   sc.planes.resize(n_cells);
   for (size_t i = 0; i < n_cells; ++i) {
     const MovePlan::NewCell& c = m.cells[i];
-    sc.planes[i] = PlanesOf(point_of(c.v[0]), point_of(c.v[1]), point_of(c.v[2]), point_of(c.v[3]));
+    sc.planes[i] = PlanesOf(m.PointOf(c.v[0]), m.PointOf(c.v[1]), m.PointOf(c.v[2]),
+                            m.PointOf(c.v[3]));
   }
   constexpr double kPad = 1e-6;
   sc.adds.clear();
