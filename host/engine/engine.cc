@@ -630,9 +630,8 @@ void Engine::Impl::AddCameras(PointRecord& rec, const std::vector<uint64_t>& ids
     if (std::find(rec.cameras.begin(), rec.cameras.end(), c) != rec.cameras.end()) continue;
     rec.cameras.push_back(c);
     if (s.opt.visibility_mode == VisibilityMode::kExact) {
-      rec.ray_cast.push_back(0);
-      rec.ray_gen.push_back(0);
-      rec.ray_end.push_back(Point(0, 0, 0));
+      rec.ray_state.push_back(0);
+      rec.ray_end.push_back({Point(0, 0, 0), c});
       rec.ray_list.emplace_back();
     }
     if (added) added->push_back(c);

@@ -42,7 +42,7 @@ std::string InvariantChecker::CheckRayLists() const {
   std::vector<Cell_handle> listed, held;
   for (uint32_t pt = 0; pt < s_.points.size(); ++pt) {
     const PointRecord& rec = s_.points[pt];
-    for (uint32_t k = 0; k < rec.ray_cast.size(); ++k) {
+    for (uint32_t k = 0; k < rec.ray_state.size(); ++k) {
       if (!rec.Listed(k)) continue;
       listed.clear();
       s_.ForEachListed(pt, k, [&](Cell_handle c) { listed.push_back(c); });
@@ -434,9 +434,9 @@ std::string EngineInternals::CheckRaySets(Engine& e) {
   for (uint32_t pt = 0; pt < m.s.points.size(); ++pt) {
     const auto& rec = m.s.points[pt];
     for (size_t k = 0; k < rec.cameras.size(); ++k) {
-      if (!rec.ray_cast[k]) continue;
+      if (!rec.Cast(k)) continue;
       std::string missing;
-      m.caster.Walk(rec.ray_end[k], m.s.cameras[rec.cameras[k]], m.caster.WalkHint(rec),
+      m.caster.Walk(rec.ray_end[k].end, m.s.cameras[rec.cameras[k]], m.caster.WalkHint(rec),
                     m.caster.StartVertex(rec), [&](Cell_handle c) {
                       ++visits;
                       bool held = false;
@@ -475,7 +475,8 @@ void EngineInternals::RecastAllAndRegrow(Engine& e) {
     c->info().rays.clear();
   }
   m.caster.DropLists();
-  for (auto& rec : m.s.points) std::fill(rec.ray_cast.begin(), rec.ray_cast.end(), 0);
+  for (auto& rec : m.s.points)
+    for (uint32_t& state : rec.ray_state) state &= ~uint32_t{3};
   m.s.TakeDirty([](Cell_handle) {});
   for (uint32_t pt = 0; pt < m.s.points.size(); ++pt)
     for (uint32_t cam : m.s.points[pt].cameras) m.caster.Cast(cam, pt, +1);

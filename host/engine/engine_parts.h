@@ -142,20 +142,32 @@ struct PointRecord {
                                // at insertion (duplicate, dropped) tries again when it moves.
   Vec3 position{};             // Latest estimate received.
   std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
-  // kExact, parallel to cameras: whether the ray is cast (kCast, and kListed, see ray_list), and
-  // where it ended when it was (the point's position then; a ray older than the window keeps its
-  // end when the point moves).
-  static constexpr uint8_t kCast = 1, kListed = 2;
-  std::vector<uint8_t> ray_cast;
-  std::vector<uint32_t> ray_gen;  // generation: +1 at each un-cast (entries made before: stale)
-  std::vector<Point> ray_end;
-  // kExact, parallel to cameras: when ray_cast has kListed, where the cells that hold the ray
-  // are listed (EngineState::list_cells), so that un-casting it needs no walk.
+  // kExact, parallel to cameras: each ray's state, its generation (+1 at each un-cast: entries
+  // made before are stale) << 2 with kCast (and kListed, see ray_list) while it is cast. One word
+  // a ray: a cell's entries are tested one by one (EngineState::Live) for rays scattered over
+  // the points, and a point's rays then share a cache line (one struct of all a ray's fields
+  // measured 20 % more L2 misses: cachegrind, 512 KB LL, 2026-11-27).
+  static constexpr uint32_t kCast = 1, kListed = 2;
+  std::vector<uint32_t> ray_state;
+  // Where the ray ended when it was cast (the point's position then; a ray older than the window
+  // keeps its end when the point moves), with its camera: read together for each ray clipped.
+  struct RayEnd {
+    Point end;
+    uint32_t camera;  // cameras[k]
+  };
+  std::vector<RayEnd> ray_end;
+  // When ray_state has kListed, where the cells that hold the ray are listed
+  // (EngineState::list_cells), so that un-casting it needs no walk.
   struct RayList {
     uint32_t worker = 0, offset = 0, count = 0;
   };
   std::vector<RayList> ray_list;
-  bool Listed(size_t k) const { return (ray_cast[k] & kListed) != 0; }
+  bool Cast(size_t k) const { return (ray_state[k] & kCast) != 0; }
+  bool Listed(size_t k) const { return (ray_state[k] & kListed) != 0; }
+  uint32_t Gen(size_t k) const { return ray_state[k] >> 2; }
+  void SetFlags(size_t k, uint32_t flags) { ray_state[k] = (ray_state[k] & ~uint32_t{3}) | flags; }
+  // Un-cast: the flags down, the generation up (30 bits: a billion un-casts of one ray).
+  void Uncast(size_t k) { ray_state[k] = (ray_state[k] & ~uint32_t{3}) + 4; }
 };
 
 // The state of the benchmark and diagnostic hooks (engine_internal.h).
@@ -305,8 +317,9 @@ struct EngineState {
   // kExact: is a cell's entry the current cast of its ray?
   bool Live(const RayEntry& e) const {
     const PointRecord& rec = points[e.point];
-    return e.camera < rec.ray_cast.size() && rec.ray_cast[e.camera] &&
-           rec.ray_gen[e.camera] == e.level;
+    if (e.camera >= rec.ray_state.size()) return false;
+    const uint32_t state = rec.ray_state[e.camera];
+    return (state & PointRecord::kCast) && (state >> 2) == e.level;
   }
   // Where a point's last W cameras start in its list: the rays a move re-casts.
   size_t WindowBegin(const PointRecord& rec) const {

@@ -208,8 +208,8 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
       const PointRecord& owner = s_.points[e.point];
       const uint32_t k = e.camera;
       if (owner.Listed(k)) m.listed.push_back({e.point, k, static_cast<uint32_t>(i)});
-      const Point& end = owner.ray_end[k];
-      const Point& cam = s_.cameras[owner.cameras[k]];
+      const Point& end = owner.ray_end[k].end;
+      const Point& cam = s_.cameras[owner.ray_end[k].camera];
       const double a[3] = {end.x(), end.y(), end.z()};
       const double dir[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
       Scratch::Part part{e.point, k, 0.0, 1.0, -1, -1, -1};
@@ -498,12 +498,12 @@ void MovePlanner::WalkRays(MovePlan* plan, Scratch& sc) const {
   sc.adds.clear();
   for (const Scratch::Part& r : sc.hole) {
     const PointRecord& rec = s_.points[r.point];
-    const Point& e = rec.ray_end[r.k];
-    const Point& cam = s_.cameras[rec.cameras[r.k]];
+    const Point& e = rec.ray_end[r.k].end;
+    const Point& cam = s_.cameras[rec.ray_end[r.k].camera];
     const double a[3] = {e.x(), e.y(), e.z()};
     const double dir[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
     const double t_end = std::min(1.0, r.t1 + kPad);
-    const RayEntry entry{r.k, r.point, rec.ray_gen[r.k]};
+    const RayEntry entry{r.k, r.point, rec.Gen(r.k)};
     ++m.rays_rewalked;
     const size_t given_begin = sc.adds.size();
     int32_t c = -1;

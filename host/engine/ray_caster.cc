@@ -93,7 +93,7 @@ size_t RayCaster::RayIndex(const PointRecord& rec, uint32_t cam) {
 void RayCaster::AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
   PointRecord& rec = s_.points[pt];
   const int64_t before = c->info().weight;
-  if (PushRay(&c->info(), {k, pt, rec.ray_gen[k]})) s_.MarkDirty(c);
+  if (PushRay(&c->info(), {k, pt, rec.Gen(k)})) s_.MarkDirty(c);
   s_.Ledger(before, c->info().weight);
   if (rec.Listed(k)) s_.list_extra[EngineState::RayKey(pt, k)].push_back(c);
 }
@@ -103,7 +103,7 @@ void RayCaster::AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
 void RayCaster::DropLists() {
   for (const auto& [pt, k] : listed_) {  // an un-cast ray lost its flag with its cast
     PointRecord& rec = s_.points[pt];
-    if (k < rec.ray_cast.size()) rec.ray_cast[k] &= static_cast<uint8_t>(~PointRecord::kListed);
+    if (k < rec.ray_state.size()) rec.ray_state[k] &= ~uint32_t{PointRecord::kListed};
   }
   listed_.clear();
   for (size_t w = 0; w < s_.list_cells.size(); ++w) {
@@ -154,15 +154,15 @@ bool RayCaster::RaySegment(const Point& p, const Point& cam, Point* start) {
 // Ray k of point pt, cast from the point's current position.
 void RayCaster::ExactCast(uint32_t pt, size_t k) {
   PointRecord& rec = s_.points[pt];
-  if (!rec.in_triangulation || rec.ray_cast[k] || s_.dt.dimension() != 3) return;
+  if (!rec.in_triangulation || rec.Cast(k) || s_.dt.dimension() != 3) return;
   const uint32_t cam = rec.cameras[k];
   const Point& b = s_.cameras[cam];
   Point a;
   if (!RaySegment(rec.vertex->point(), b, &a)) return;
   ++s_.stats.rays_cast;
   int64_t n = 0;
-  rec.ray_cast[k] = PointRecord::kCast;
-  rec.ray_end[k] = a;
+  rec.SetFlags(k, PointRecord::kCast);
+  rec.ray_end[k].end = a;
   Walk(
       a, b, rec.vertex->cell(), rec.vertex,
       [&](Cell_handle c) {
@@ -181,11 +181,10 @@ void RayCaster::ExactCast(uint32_t pt, size_t k) {
 // space, is not: that would cost more than all the rest.
 void RayCaster::ExactUncast(uint32_t pt, size_t k) {
   PointRecord& rec = s_.points[pt];
-  if (!rec.ray_cast[k]) return;
-  const RayEntry mine{static_cast<uint32_t>(k), pt, rec.ray_gen[k]};
+  if (!rec.Cast(k)) return;
+  const RayEntry mine{static_cast<uint32_t>(k), pt, rec.Gen(k)};
   const bool listed = rec.Listed(k);
-  rec.ray_cast[k] = 0;
-  ++rec.ray_gen[k];
+  rec.Uncast(k);
   ++s_.stats.rays_cast_backward;
   if (listed) {  // its cells are known: no walk
     ++s_.stats.rays_uncast_listed;
@@ -200,7 +199,7 @@ void RayCaster::ExactUncast(uint32_t pt, size_t k) {
   }
   const uint32_t cam = rec.cameras[k];
   Walk(
-      rec.ray_end[k], s_.cameras[cam], WalkHint(rec), StartVertex(rec),
+      rec.ray_end[k].end, s_.cameras[cam], WalkHint(rec), StartVertex(rec),
       [&](Cell_handle c) {
         const int64_t before = c->info().weight;
         if (!Holds(c->info(), mine)) {
@@ -525,16 +524,16 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
   rays.clear();
   for (const auto& [pt, k] : todo) {
     PointRecord& rec = s_.points[pt];
-    if (!rec.in_triangulation || rec.ray_cast[k]) continue;
-    const Point& b = s_.cameras[rec.cameras[k]];
+    if (!rec.in_triangulation || rec.Cast(k)) continue;
+    const Point& b = s_.cameras[rec.ray_end[k].camera];
     Point a;
     if (!RaySegment(rec.vertex->point(), b, &a)) continue;
     ++s_.stats.rays_cast;
     // Its walk is its list (each thread writes the list places of its own rays).
-    rec.ray_cast[k] = PointRecord::kCast | PointRecord::kListed;
-    rec.ray_end[k] = a;
+    rec.SetFlags(k, PointRecord::kCast | PointRecord::kListed);
+    rec.ray_end[k].end = a;
     listed_.push_back({pt, k});
-    rays.push_back({pt, k, rec.ray_gen[k], a, b, rec.vertex->cell(), rec.vertex});
+    rays.push_back({pt, k, rec.Gen(k), a, b, rec.vertex->cell(), rec.vertex});
     rays.back().list_to = true;
   }
   const std::vector<BatchPart> parts =
@@ -557,16 +556,15 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
   listed.clear();
   for (const auto& [pt, k] : todo) {
     PointRecord& rec = s_.points[pt];
-    if (!rec.ray_cast[k]) continue;
+    if (!rec.Cast(k)) continue;
     if (rec.Listed(k)) {
       listed.push_back({pt, k});
       ++s_.stats.rays_uncast_listed;
     } else {
-      rays.push_back({pt, k, rec.ray_gen[k], rec.ray_end[k], s_.cameras[rec.cameras[k]],
+      rays.push_back({pt, k, rec.Gen(k), rec.ray_end[k].end, s_.cameras[rec.ray_end[k].camera],
                       WalkHint(rec), StartVertex(rec)});
     }
-    rec.ray_cast[k] = 0;  // and no longer listed (DropLists forgets the lists' storage)
-    ++rec.ray_gen[k];
+    rec.Uncast(k);  // and no longer listed (DropLists forgets the lists' storage)
     ++s_.stats.rays_cast_backward;
   }
   // A listed ray's cells are known, each once: a unit off each, on this thread (split among
@@ -659,8 +657,8 @@ void RayCaster::CollectHole(const std::vector<Cell_handle>& cells, Hole* hole) {
       PointRecord& rec = s_.points[e.point];
       const size_t k = e.camera;
       if (rec.Listed(k)) s_.Unlist(e.point, k, c);  // RefillHole lists the new cells
-      const Point& end = rec.ray_end[k];
-      const Point& cam = s_.cameras[rec.cameras[k]];
+      const Point& end = rec.ray_end[k].end;
+      const Point& cam = s_.cameras[rec.ray_end[k].camera];
       const double a[3] = {end.x(), end.y(), end.z()};
       const double d[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
       Clip cl;
@@ -738,8 +736,8 @@ void RayCaster::RefillHole(const std::vector<Cell_handle>& added, const Hole& h)
   for (const HoleRay& r : hole) {
     const PointRecord& rec = s_.points[r.point];
     const size_t k = r.camera;  // the ray's index among its point's s_.cameras
-    const Point& e = rec.ray_end[k];
-    const Point& cam = s_.cameras[rec.cameras[k]];
+    const Point& e = rec.ray_end[k].end;
+    const Point& cam = s_.cameras[rec.ray_end[k].camera];
     given.clear();
     const double a[3] = {e.x(), e.y(), e.z()};
     const double d[3] = {cam.x() - a[0], cam.y() - a[1], cam.z() - a[2]};
@@ -803,7 +801,8 @@ void RayCaster::RefillExact(uint32_t pt, uint32_t k, const std::vector<Cell_hand
                             Cell_handle hint) {
   const PointRecord& rec = s_.points[pt];
   ++s_.stats.rays_rewalked_exact;
-  Walk(rec.ray_end[k], s_.cameras[rec.cameras[k]], rec.in_triangulation ? WalkHint(rec) : hint,
+  const PointRecord::RayEnd& r = rec.ray_end[k];
+  Walk(r.end, s_.cameras[r.camera], rec.in_triangulation ? WalkHint(rec) : hint,
        StartVertex(rec), [&](Cell_handle x) {
          if (!x->info().fresh || std::find(given.begin(), given.end(), x) != given.end()) return;
          AddRay(x, pt, k);
