@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Cache misses of two imr builds on the street stream (issue 18), counted by valgrind's
-# cachegrind instead of timed: the same count on every run, where this shared machine's timings
-# drift by 30 % between runs and hide a change of a few percent. The last level is modelled as
+# cachegrind instead of timed: counts that repeat within 0.3 % (valgrind interleaves the two
+# threads a little differently each run), where this shared machine's timings drift by 30 %
+# between runs and hide a change of a few percent. The last level is modelled as
 # a 512 KB L2 (--LL), the cache a walk or a plan misses when it reaches for a cell, a vertex or a
 # ray's state far away; the L3 of the machine holds the whole triangulation of the stream, so
 # cachegrind's default (the host's L3) counts almost no misses. Both builds run at once, one per
