@@ -15,8 +15,8 @@ PACKAGES=(
   libssl-dev
   # the imr executable's allocator (host/cli/CMakeLists.txt: 8-10 % of the engine's time)
   libjemalloc-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests and benchmarks (valgrind: tools/bench/cache_misses.sh counts cache misses with it)
+  libgtest-dev libgmock-dev libbenchmark-dev valgrind
   # the cross-check of `imr evaluate` (tests/evaluate_test: CloudCompare's cloud-to-mesh distance)
   cloudcompare
   # tests/slurm_test: a one-node Slurm cluster started on localhost (imr submit, array jobs)

@@ -13,8 +13,8 @@
 #
 # Prints, for each build, the instructions (Ir), L1 data read misses (D1mr) and modelled-L2
 # read misses (DLmr) of the whole run and of the FUNCTIONS functions with the most DLmr
-# (default 8), and whether the meshes are the same bytes. Needs valgrind (apt-get install
-# valgrind). The stream: $IMR_SHARED_DIR/data/street-stream (default ../shared beside the
+# (default 8), and whether the meshes are the same bytes. Needs valgrind (tools/setup.sh
+# installs it). The stream: $IMR_SHARED_DIR/data/street-stream (default ../shared beside the
 # checkout).
 set -euo pipefail
 if [ $# -lt 2 ]; then
