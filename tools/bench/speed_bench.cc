@@ -11,7 +11,8 @@
 // two one-core runs at once, one per core: whether the machine gives two engines twice the
 // throughput of one (the limit is then the engine's serial part, which the bench prints: the
 // two-core run's steps outside the threaded parts, Amdahl's bound they set on two perfect cores
-// and at the machine's ratio, and each phase's speed-up). Prints the targets, then one JSON object as the last line.
+// and at the machine's ratio, and each phase's speed-up). Prints the targets, then one JSON
+// object as the last line.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
