@@ -23,20 +23,10 @@ if [ $# -lt 2 ]; then
 fi
 A=$(realpath "$1"); B=$(realpath "$2"); TOP=${3:-8}
 command -v valgrind >/dev/null || { echo "cache_misses: valgrind not found" >&2; exit 2; }
-ROOT=$(cd "$(dirname "$0")/../.." && pwd)
-STREAM=${IMR_SHARED_DIR:-$ROOT/../shared}/data/street-stream/slam.json
-if [ ! -f "$STREAM" ]; then
-  echo "cache_misses: $STREAM not found (set IMR_SHARED_DIR); nothing measured" >&2
-  exit 2
-fi
-WORK=$(mktemp -d /tmp/imr-cache-XXXXXX)
+source "$(dirname "$0")/common/street_job.sh"
+street_setup cache_misses
 run() {  # run NAME IMR CORE
-  mkdir -p "$WORK/$1"
-  cat > "$WORK/$1/job.json" <<J
-{"sequences":["$STREAM"],"input":{"format":"slam_json","options":{"views_per_keyframe":1}},
- "engine":{"threads":2},"pipeline":[{"kind":"exporter","plugin":"org.imr.exporter.assimp"}],
- "output":{"directory":"$WORK/$1/out","formats":["ply"]}}
-J
+  street_job "$1" 2
   # imr run makes a child process per sequence: the engine's counts are the child's.
   taskset -c "$3" valgrind --tool=cachegrind --trace-children=yes --cache-sim=yes \
     --D1=32768,8,64 --LL=524288,8,64 --cachegrind-out-file="$WORK/$1/cg.%p.out" \

@@ -22,21 +22,9 @@ for flag in "${@:4}"; do
     *) echo "paired_speed: unknown option $flag" >&2; exit 2 ;;
   esac
 done
-ROOT=$(cd "$(dirname "$0")/../.." && pwd)
-STREAM=${IMR_SHARED_DIR:-$ROOT/../shared}/data/street-stream/slam.json
-if [ ! -f "$STREAM" ]; then
-  echo "paired_speed: $STREAM not found (set IMR_SHARED_DIR); nothing measured" >&2
-  exit 2
-fi
-WORK=$(mktemp -d /tmp/imr-paired-XXXXXX)
-job() {  # job NAME THREADS
-  mkdir -p "$WORK/$1"
-  cat > "$WORK/$1/job.json" <<J
-{"sequences":["$STREAM"],"input":{"format":"slam_json","options":{"views_per_keyframe":1}},
- "engine":{"threads":$2},"pipeline":[{"kind":"exporter","plugin":"org.imr.exporter.assimp"}],
- "output":{"directory":"$WORK/$1/out","formats":["ply"]}}
-J
-}
+source "$(dirname "$0")/common/street_job.sh"
+street_setup paired_speed
+job() { street_job "$@"; }  # job NAME THREADS
 report() {  # report NAME LABEL
   python3 - "$WORK/$1/out/report.json" "$2" <<'PY'
 import json, sys
