@@ -476,7 +476,7 @@ void EngineInternals::RecastAllAndRegrow(Engine& e) {
   }
   m.caster.DropLists();
   for (auto& rec : m.s.points)
-    for (uint32_t& state : rec.ray_state) state &= ~uint32_t{3};
+    for (uint32_t& state : rec.ray_state) state &= ~detail::PointRecord::kFlags;
   m.s.TakeDirty([](Cell_handle) {});
   for (uint32_t pt = 0; pt < m.s.points.size(); ++pt)
     for (uint32_t cam : m.s.points[pt].cameras) m.caster.Cast(cam, pt, +1);
