@@ -1325,9 +1325,67 @@ Mesh Engine::Impl::ToMesh(const std::vector<Triangle>& tris, SteinerExportRule r
       m.faces.push_back(it->second);
     }
   }
-  if (rule != SteinerExportRule::kNone) SplitPinchedVertices(&m);
   CanonicalizeMesh(&m);
   return m;
+}
+
+// The triangles as a SurfacePart: through the Steiner filter, in a canonical order (the vertices'
+// internal ids, which do not depend on CGAL's storage: the same part for any number of threads),
+// each vertex with its key (given here when the vertex is named for the first time).
+SurfacePart Engine::Impl::MakePart(std::vector<Triangle> tris) {
+  const SteinerExportRule rule = s.opt.steiner_export;
+  using Ids = std::array<int64_t, 3>;
+  std::vector<std::pair<Ids, Triangle>> kept;
+  kept.reserve(tris.size());
+  for (const Triangle& t : tris) {
+    int steiner_vertices = 0;
+    for (Vertex_handle v : t.v) steiner_vertices += v->info().id < 0 ? 1 : 0;
+    if (rule == SteinerExportRule::kAllSteiner && steiner_vertices == 3) continue;
+    if (rule == SteinerExportRule::kAnySteiner && steiner_vertices > 0) continue;
+    // Rotated to start at its smallest id, orientation kept.
+    int first = 0;
+    for (int k = 1; k < 3; ++k)
+      if (t.v[k]->info().id < t.v[first]->info().id) first = k;
+    Triangle r;
+    for (int k = 0; k < 3; ++k) r.v[k] = t.v[(first + k) % 3];
+    kept.push_back({{r.v[0]->info().id, r.v[1]->info().id, r.v[2]->info().id}, r});
+  }
+  std::sort(kept.begin(), kept.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  SurfacePart part;
+  part.update = s.stats.updates;
+  std::unordered_map<Vertex_handle, uint32_t> index;
+  for (const auto& [ids, t] : kept)
+    for (Vertex_handle v : t.v) {
+      auto [it, inserted] = index.emplace(v, static_cast<uint32_t>(index.size()));
+      if (inserted) {
+        const Point& p = v->point();
+        part.vertices.insert(part.vertices.end(), {p.x(), p.y(), p.z()});
+        if (v->info().key < 0) {
+          v->info().key = next_key_++;
+          open_keys_.push_back(v->info().key);
+        }
+        part.keys.push_back(v->info().key);
+        const int64_t id = v->info().id;
+        part.point_ids.push_back(id >= 0 ? static_cast<int64_t>(s.points[id].id) : -1);
+      }
+      part.faces.push_back(it->second);
+    }
+  return part;
+}
+
+std::vector<SurfacePart> Engine::TakeFinalParts() {
+  std::vector<SurfacePart> out;
+  out.swap(impl_->final_parts_);
+  return out;
+}
+
+SurfacePart Engine::FinishSurface() {
+  SurfacePart part = impl_->MakePart(Boundary(impl_->s));
+  // Every vertex named so far is complete now, this part's included.
+  part.completed.swap(impl_->open_keys_);
+  std::sort(part.completed.begin(), part.completed.end());
+  return part;
 }
 
 // -------------------------------------------------------------------------------------------------
@@ -1351,12 +1409,7 @@ Status Engine::ApplyUpdate(const KeyframeUpdate& update) {
 Mesh Engine::ExtractMesh() const {
   const auto t0 = Clock::now();
   Mesh m = impl_->ToMesh(Boundary(impl_->s), impl_->s.opt.steiner_export);
-  const EngineOptions& o = impl_->s.opt;
-  if (o.fill_holes_perimeter > 0.0 || o.smoothing_iterations > 0) {
-    FillSmallHoles(&m, o.fill_holes_perimeter);
-    SmoothTaubin(&m, o.smoothing_iterations);
-    CanonicalizeMesh(&m);
-  }
+  FinishExportedMesh(&m, impl_->s.opt);
   impl_->s.stats.time.extract += SecondsSince(t0);
   return m;
 }

@@ -125,6 +125,17 @@ struct EngineOptions {
                                       // threads (what each does to its cells, read only) and
                                       // committed in order; false: each made with CGAL's vertex
                                       // removal and insertion (the same cells and weights).
+  bool forget = false;                // Long drives (DESIGN.md section 10): the part of the
+                                      // triangulation that no live camera, ray or point can
+                                      // reach any more is final: its part of dO is handed out
+                                      // (TakeFinalParts) and its cells, rays and points are
+                                      // freed, so memory stays flat in the drive's length.
+  double forget_distance = 0.0;       // A cell is final once it lies this far (metres) behind
+                                      // every camera of the last `window` updates; 0: derived
+                                      // from the options (ForgetDistance).
+  double forget_step = 0.0;           // Forgetting runs each time the newest camera has moved
+                                      // this far (metres) since it last ran; 0: derived
+                                      // (2 x steiner_spacing).
   int num_threads = 0;                // Threads casting rays and planning moves (kExact): 0 =
                                       // every core of the process's affinity mask. The mesh is
                                       // the same for any number (results are applied in one
@@ -133,6 +144,12 @@ struct EngineOptions {
   // Empty when every field is usable; otherwise which field and why (the validator shape of
   // every options struct of imr).
   std::string Check() const;
+  // forget_distance, or when 0 what a live change can reach behind the cameras: a ray carves
+  // max_ray_length, the Steiner grid reaches steiner_margin further, shrink takes cells within
+  // shrink_radius of a point, and a cell spans about a grid step.
+  double ForgetDistance() const;
+  // forget_step, or when 0 two grid steps.
+  double ForgetStep() const;
 };
 
 struct Camera {
@@ -167,6 +184,26 @@ struct Mesh {
   std::vector<double> vertices;    // Packed xyz.
   std::vector<uint32_t> faces;     // 3 per triangle, oriented: normals toward free space (O).
   std::vector<int64_t> point_ids;  // Per vertex: the point id, -1 for a Steiner point.
+};
+
+// A piece of the exported surface, handed out while the run goes on (EngineOptions::forget,
+// DESIGN.md section 10): triangles of dO that can no longer change, through the Steiner filter
+// (steiner_export), with the vertices they use. Holes are not filled and pinched vertices not
+// split here: both need a vertex's whole fan, which the consumer has once the vertex is completed.
+// Parts share their seam vertices by key, never by index: the union of every part of a run (the
+// last from Engine::FinishSurface), vertices merged by key, is the run's filtered dO, and after
+// SplitPinchedVertices, FillSmallHoles and SmoothTaubin it is what ExtractMesh would return.
+struct SurfacePart {
+  std::vector<double> vertices;    // Packed xyz, per vertex of this part.
+  std::vector<int64_t> keys;       // Per vertex: its key, unique within the run, the same (at the
+                                   // same position) in every part that names the vertex.
+  std::vector<int64_t> point_ids;  // Per vertex: the point id, -1 for a Steiner point.
+  std::vector<uint32_t> faces;     // 3 per triangle, indices into this part's vertices, oriented
+                                   // as Mesh::faces (normals toward free space).
+  std::vector<int64_t> completed;  // Keys of vertices that no later part names (every triangle
+                                   // around them, filtered or not, has been handed out), among
+                                   // the vertices this part or an earlier one named.
+  int64_t update = 0;              // Updates applied when it was handed out.
 };
 
 struct PhaseTimes {
@@ -265,6 +302,14 @@ class Engine {
   // dO itself, unfiltered (a closed 2-manifold).
   Mesh ExtractBoundary() const;
 
+  // The parts of the surface that became final since the last call (SurfacePart; empty unless
+  // options().forget), in the order they became final.
+  std::vector<SurfacePart> TakeFinalParts();
+  // The rest of the surface, as the run's last part: every triangle of the filtered dO not handed
+  // out yet, every vertex completed. Without forgetting it is the whole filtered dO. Call it once,
+  // after the last update.
+  SurfacePart FinishSurface();
+
   const EngineStats& Stats() const;
   const EngineOptions& options() const;
 
@@ -301,6 +346,14 @@ int FillSmallHoles(Mesh* mesh, double max_perimeter, int max_edges = 64);
 // is smoothed without the shrinking of plain Laplacian steps. Boundary vertices stay; faces and
 // topology are unchanged.
 void SmoothTaubin(Mesh* mesh, int iterations, double lambda = 0.5, double mu = -0.53);
+
+// What ExtractMesh does after taking dO through the Steiner filter: pinched vertices split (unless
+// the rule is kNone), small holes filled and Taubin smoothing as the options say, canonical order.
+void FinishExportedMesh(Mesh* mesh, const EngineOptions& options);
+// The union of a run's parts (SurfacePart) as one mesh, vertices merged by key, before
+// FinishExportedMesh. Empty string, or why the parts do not fit together (a key at two positions,
+// a face index out of range).
+std::string MergeSurfaceParts(const std::vector<SurfacePart>& parts, Mesh* merged);
 
 // Checks an exported mesh: every edge in one or two triangles (two with opposite orientation),
 // every vertex one closed or open fan. closed = true also requires every edge in two triangles.

@@ -74,6 +74,12 @@ std::string EngineOptions::Check() const {
   if (!finite_positive(max_ray_length)) e << "max_ray_length must be > 0; ";
   if (rays_per_cell < 1) e << "rays_per_cell must be >= 1; ";
   if (!std::isfinite(shrink_radius) || shrink_radius < 0.0) e << "shrink_radius must be >= 0; ";
+  if (!std::isfinite(forget_distance) || forget_distance < 0.0)
+    e << "forget_distance must be >= 0; ";
+  if (!std::isfinite(forget_step) || forget_step < 0.0) e << "forget_step must be >= 0; ";
+  if (forget && visibility_mode == VisibilityMode::kRays)
+    e << "forget needs visibility_mode 'exact' or 'weights' (the rays mode is the paper's "
+         "baseline, kept whole); ";
   if (shrink_passes < 1) e << "shrink_passes must be >= 1; ";
   if (!finite_positive(weight_unit) || weight_unit > 0.1) e << "weight_unit must be in (0, 0.1]; ";
   if (finite_positive(weight_unit) && std::isfinite(free_threshold) &&
@@ -83,6 +89,15 @@ std::string EngineOptions::Check() const {
   if (num_threads < 0 || num_threads > 1024) e << "num_threads must be in [0, 1024] (0: all cores); ";
   const std::string s = e.str();
   return s.empty() ? s : s.substr(0, s.size() - 2);
+}
+
+double EngineOptions::ForgetDistance() const {
+  if (forget_distance > 0.0) return forget_distance;
+  return max_ray_length + steiner_margin + shrink_radius + steiner_spacing;
+}
+
+double EngineOptions::ForgetStep() const {
+  return forget_step > 0.0 ? forget_step : 2.0 * steiner_spacing;
 }
 
 }  // namespace imr::engine

@@ -60,6 +60,8 @@ struct VertexInfo {
   int64_t id = -1;     // >= 0: internal point index; < 0: Steiner point number -(k + 1).
   int32_t o_cells = 0;  // Incident cells in O (kept by SetInO: cells of O are never destroyed,
                         // shrink takes them out of O before the triangulation changes).
+  int64_t key = -1;     // SurfacePart::keys: given when a part first names the vertex (a vertex
+                        // handed out never moves again), -1 before.
 };
 
 // Serial numbers of cells (CellInfo::serial): unique within the process, so that a cell made
@@ -880,6 +882,12 @@ struct Engine::Impl {
 
   Status ApplyUpdate(const KeyframeUpdate& u);
   Mesh ToMesh(const std::vector<detail::Triangle>& tris, SteinerExportRule rule) const;
+  // The surface handed out in parts (SurfacePart): the triangles given as a part, its vertices
+  // keyed (VertexInfo::key, the next from next_key_).
+  SurfacePart MakePart(std::vector<detail::Triangle> tris);
+  std::vector<SurfacePart> final_parts_;  // made since the last TakeFinalParts
+  int64_t next_key_ = 0;
+  std::vector<int64_t> open_keys_;  // handed out, not completed yet
 
   detail::EngineState s;
   detail::RayCaster caster;

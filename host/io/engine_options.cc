@@ -128,6 +128,16 @@ std::vector<EngineOption> MakeTable() {
              "exact mode on more than one thread: a keyframe's moves are planned on the "
              "threads and made in order (the same cells as false, which makes each with "
              "CGAL's vertex removal and insertion)"),
+      Option("forget", &E::forget, kNone, "",
+             "long drives: the part of the scene the cameras have left behind (forget_distance "
+             "behind every camera of the last `window` keyframes) is final: its surface is "
+             "handed out (tiles) and its cells, rays and points leave memory"),
+      Option("forget_distance", &E::forget_distance, Min(0.0), "m",
+             "forget: how far behind the cameras a cell is final; 0: max_ray_length + "
+             "steiner_margin + shrink_radius + steiner_spacing (which engine.scale auto scales)"),
+      Option("forget_step", &E::forget_step, Min(0.0), "m",
+             "forget: forgetting runs each time the newest camera has moved this far; 0: 2 x "
+             "steiner_spacing"),
       Option("threads", &E::num_threads, json{{"minimum", 0}, {"maximum", 1024}}, "threads",
              "threads casting rays and planning moves (exact mode); 0: every core the process "
              "may run on (its affinity mask: taskset, Slurm's --cpus-per-task); the mesh is the "
