@@ -1419,6 +1419,44 @@ Mesh Engine::ExtractBoundary() const {
 }
 
 const EngineStats& Engine::Stats() const { return impl_->s.stats; }
+
+EngineMemory Engine::Memory() const {
+  const detail::EngineState& s = impl_->s;
+  // A hash map's node: the value, the next pointer and the cached hash (libstdc++).
+  auto map_bytes = [](size_t size, size_t value, size_t buckets) {
+    return static_cast<int64_t>(size * (value + 2 * sizeof(void*)) + buckets * sizeof(void*));
+  };
+  EngineMemory m;
+  m.cells = static_cast<int64_t>(s.dt.tds().cells().capacity() * sizeof(detail::Tds::Cell));
+  m.vertices = static_cast<int64_t>(s.dt.tds().vertices().capacity() * sizeof(detail::Tds::Vertex));
+  for (auto c = s.dt.all_cells_begin(); c != s.dt.all_cells_end(); ++c) {
+    const auto& rays = c->info().rays;
+    m.ray_entries += static_cast<int64_t>(rays.capacity() * sizeof(detail::RayEntry));
+    m.ray_entries_used += static_cast<int64_t>(rays.size());
+    if (s.opt.visibility_mode == VisibilityMode::kExact)
+      for (const detail::RayEntry& e : rays) m.ray_entries_live += s.Live(e) ? 1 : 0;
+  }
+  m.points = static_cast<int64_t>(s.points.capacity() * sizeof(PointRecord)) +
+             map_bytes(s.point_index.size(), sizeof(std::pair<uint64_t, uint32_t>),
+                       s.point_index.bucket_count());
+  for (const PointRecord& r : s.points)
+    m.points += static_cast<int64_t>(
+        r.cameras.capacity() * sizeof(uint32_t) + r.ray_state.capacity() * sizeof(uint32_t) +
+        r.ray_end.capacity() * sizeof(PointRecord::RayEnd) +
+        r.ray_list.capacity() * sizeof(PointRecord::RayList));
+  for (const auto& l : s.list_cells)
+    m.ray_batch_lists += static_cast<int64_t>(l.capacity() * sizeof(detail::Cell_handle));
+  for (const auto& [key, cells] : s.list_extra)
+    m.ray_batch_lists += static_cast<int64_t>(cells.capacity() * sizeof(detail::Cell_handle));
+  m.ray_batch_lists += map_bytes(s.list_extra.size(), sizeof(uint64_t) + 3 * sizeof(void*),
+                                 s.list_extra.bucket_count());
+  m.steiner_nodes = impl_->steiner.MemoryBytes();
+  m.cameras = static_cast<int64_t>(s.cameras.capacity() * sizeof(detail::Point) +
+                                   s.camera_ids.capacity() * sizeof(uint64_t)) +
+              map_bytes(s.camera_index.size(), sizeof(std::pair<uint64_t, uint32_t>),
+                        s.camera_index.bucket_count());
+  return m;
+}
 const EngineOptions& Engine::options() const { return impl_->s.opt; }
 ManifoldCheckResult Engine::CheckInvariants() const {
   return detail::InvariantChecker(impl_->s).Check();

@@ -270,6 +270,23 @@ struct EngineStats {
   int64_t cells_in_o = 0;
 };
 
+// Where the engine's memory is (Engine::Memory), in bytes: the sizes of its structures and the
+// capacities of their containers, without the allocator's own overhead (RSS is larger).
+struct EngineMemory {
+  int64_t cells = 0;             // CGAL's cell storage with the cells' infos (capacity).
+  int64_t vertices = 0;          // CGAL's vertex storage (capacity).
+  int64_t ray_entries = 0;       // kExact, kRays: the cells' ray lists (capacity).
+  int64_t ray_entries_used = 0;  // Of those, entries held (live or stale).
+  int64_t ray_entries_live = 0;  // kExact: of those, the current casts of their rays.
+  int64_t points = 0;            // Point records with their per-ray vectors, and the id index.
+  int64_t ray_batch_lists = 0;   // kExact: the last cast batch's cell lists (un-cast next).
+  int64_t steiner_nodes = 0;     // The Steiner grid's placed nodes.
+  int64_t cameras = 0;           // Cameras and their index.
+  int64_t Total() const {
+    return cells + vertices + ray_entries + points + ray_batch_lists + steiner_nodes + cameras;
+  }
+};
+
 struct ManifoldCheckResult {
   bool ok = true;
   std::string message;          // First problem found, empty when ok.
@@ -311,6 +328,8 @@ class Engine {
   SurfacePart FinishSurface();
 
   const EngineStats& Stats() const;
+  // What the engine's structures take now (walks every cell: milliseconds on a large scene).
+  EngineMemory Memory() const;
   const EngineOptions& options() const;
 
   // Full check of dO (not the local test): every edge in exactly two boundary triangles with

@@ -735,6 +735,11 @@ class SteinerGrid {
   explicit SteinerGrid(const EngineOptions& opt) : opt_(opt) {}
   // The grid's points within reach of a camera that were not placed before, in placement order.
   std::vector<Point> NewPoints(const Point& camera);
+  // Bytes its record of placed nodes takes.
+  int64_t MemoryBytes() const {
+    return static_cast<int64_t>(keys_.size() * (sizeof(uint64_t) + 2 * sizeof(void*)) +
+                                keys_.bucket_count() * sizeof(void*));
+  }
 
  private:
   const EngineOptions& opt_;

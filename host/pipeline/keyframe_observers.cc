@@ -3,8 +3,7 @@
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
-
-#include <unistd.h>
+#include "host/util/process_memory.h"
 
 #include <cstdio>
 #include <stdexcept>
@@ -12,18 +11,6 @@
 namespace imr::pipeline {
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-namespace {
-
-// This process's resident memory (bytes), from /proc/self/statm; 0 when unreadable.
-uint64_t ResidentBytes() {
-  std::ifstream statm("/proc/self/statm");
-  uint64_t pages_total = 0, pages_resident = 0;
-  if (!(statm >> pages_total >> pages_resident)) return 0;
-  return pages_resident * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
-}
-
-}  // namespace
 
 void InvariantCheck::OnKeyframe(KeyframeEvent& e) {
   if (every_ <= 0 || e.keyframes % every_ != 0) return;

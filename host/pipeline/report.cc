@@ -187,6 +187,20 @@ json BuildReport(const ReportInputs& in) {
   // N_mov, needs a second run with frozen points: imr-bench paper measures it.
   report["engine"]["move_seconds_per_moved_point"] =
       stats.points_moved > 0 ? stats.time.move / static_cast<double>(stats.points_moved) : 0.0;
+  const engine::EngineMemory& m = in.engine_memory;
+  report["memory"] = {{"peak_rss_bytes", in.peak_rss_bytes},
+                      {"final_rss_bytes", in.final_rss_bytes},
+                      {"engine_bytes",
+                       {{"total", m.Total()},
+                        {"cells", m.cells},
+                        {"vertices", m.vertices},
+                        {"ray_entries", m.ray_entries},
+                        {"points", m.points},
+                        {"ray_batch_lists", m.ray_batch_lists},
+                        {"steiner_nodes", m.steiner_nodes},
+                        {"cameras", m.cameras}}},
+                      {"ray_entries",
+                       {{"held", m.ray_entries_used}, {"live", m.ray_entries_live}}}};
   report["mesh"] = {{"vertices", mesh.vertices.size() / 3},
                     {"faces", mesh.faces.size() / 3},
                     {"manifold", in.mesh_check.ok},

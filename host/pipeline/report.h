@@ -50,6 +50,8 @@ struct ReportInputs {
   ScaleEstimate scale;
   std::set<std::string> explicit_keys;
   const engine::EngineStats* stats = nullptr;
+  engine::EngineMemory engine_memory;  // at the end of the run
+  uint64_t peak_rss_bytes = 0, final_rss_bytes = 0;  // the process's (one sequence per process in a batch)
   const engine::Mesh* mesh = nullptr;
   engine::ManifoldCheckResult boundary_check, mesh_check;
   nlohmann::json accuracy, accuracy_known_scene;  // null: none

@@ -19,6 +19,7 @@
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
+#include "host/util/process_memory.h"
 #include "host/util/thread_pool.h"
 
 #include <chrono>
@@ -471,6 +472,9 @@ void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>
   report_.scale = scale_;
   report_.explicit_keys = explicit_keys_;
   report_.stats = &engine_->Stats();
+  report_.engine_memory = engine_->Memory();
+  report_.peak_rss_bytes = PeakResidentBytes();
+  report_.final_rss_bytes = ResidentBytes();
   report_.mesh = &mesh;
   report_.engine_seconds = engine_seconds_;
   report_.keyframe_images = !export_context_.image_paths.empty();
