@@ -311,7 +311,7 @@ bool Carving::PeelFromO(const Cells& region, InRegion in_region, Done done, bool
   while (!q.empty() && budget-- > 0) {
     Cell_handle c = q.top().cell;
     q.pop();
-    if (!c->info().in_o || !ToggleKeepsManifold(c)) continue;
+    if (!c->info().in_o || c->info().final || !ToggleKeepsManifold(c)) continue;
     SetInO(c, false);
     ++s_.stats.cells_shrunk;
     s_.MarkDirty(c);
@@ -371,7 +371,8 @@ void Carving::Grow() {
   std::priority_queue<Item> q;
   uint64_t order = 0;
   auto candidate = [&](Cell_handle c) {
-    return !s_.dt.is_infinite(c) && !c->info().in_o && s_.IsFree(c) && !s_.HullAdjacent(c);
+    return !s_.dt.is_infinite(c) && !c->info().in_o && !c->info().final && s_.IsFree(c) &&
+           !s_.HullAdjacent(c);
   };
   if (s_.cells_in_o == 0) {
     // The highest weight; among equal ones the smallest CellKey (not the container's order).
@@ -517,13 +518,29 @@ std::vector<Point> SteinerGrid::NewPoints(const Point& camera) {
   return out;
 }
 
+// Node (i, j, k) of a key: 21 bits an axis, two's complement.
+void SteinerGrid::Forget(const std::function<bool(const Point&)>& gone) {
+  const double s = opt_.steiner_spacing;
+  auto axis = [](uint64_t key, int shift) {
+    const int64_t v = static_cast<int64_t>((key >> shift) & 0x1FFFFF);
+    return v >= (int64_t{1} << 20) ? v - (int64_t{1} << 21) : v;
+  };
+  for (auto it = keys_.begin(); it != keys_.end();) {
+    const Point node((static_cast<double>(axis(*it, 42)) + opt_.steiner_origin[0]) * s,
+                     (static_cast<double>(axis(*it, 21)) + opt_.steiner_origin[1]) * s,
+                     (static_cast<double>(axis(*it, 0)) + opt_.steiner_origin[2]) * s);
+    it = gone(node) ? keys_.erase(it) : std::next(it);
+  }
+}
+
 // dO: facets between a cell of O and a cell outside O, oriented toward the O cell (free space).
-std::vector<Triangle> Boundary(const EngineState& s) {
+std::vector<Triangle> Boundary(const EngineState& s, bool live) {
   std::vector<Triangle> out;
   for (auto c = s.dt.finite_cells_begin(); c != s.dt.finite_cells_end(); ++c) {
     if (!c->info().in_o) continue;
     for (int i = 0; i < 4; ++i) {
       if (c->neighbor(i)->info().in_o) continue;
+      if (live && c->info().final && c->neighbor(i)->info().final) continue;
       // vertex_triple_index(i, .) orders facet i so that its normal points toward vertex i,
       // i.e. into this cell of O.
       out.push_back({{c->vertex(Dt::vertex_triple_index(i, 0)),
@@ -558,7 +575,7 @@ bool Finite(const Vec3& p) {
 
 Engine::Impl::Impl(const EngineOptions& o, WeightTransferPolicy* p)
     : s(o), caster(s), transfer(s, p, caster), carving(s), steiner(s.opt),
-      planner(s, caster, carving) {
+      planner(s, caster, carving), forgetting(s, caster, steiner) {
   if (const std::string error = s.opt.Check(); !error.empty()) {
     init = Status::Error("invalid engine options: " + error);
   } else if (s.opt.visibility_mode == VisibilityMode::kWeights && p == nullptr) {
@@ -604,18 +621,23 @@ Status Engine::Impl::Validate(const KeyframeUpdate& u) const {
   };
   std::unordered_set<uint64_t> new_ids;
   for (const NewPoint& p : u.new_points) {
-    const bool taken = s.point_index.count(p.id) || !new_ids.insert(p.id).second;
-    const Status st = check_point("new", p.id, p.position, p.camera_ids,
-                                  taken ? "uses an id that is already known" : nullptr);
+    const char* taken = nullptr;
+    if (s.point_index.count(p.id) || !new_ids.insert(p.id).second)
+      taken = "uses an id that is already known";
+    else if (forgetting.Retired(p.id))
+      taken = "uses the id of a point that was forgotten (engine.forget): ids must not be reused";
+    const Status st = check_point("new", p.id, p.position, p.camera_ids, taken);
     if (!st.ok()) return st;
   }
+  // A retired point (forget) may still be named: its update is ignored (WithoutRetired).
+  auto known = [&](uint64_t id) { return s.point_index.count(id) || forgetting.Retired(id); };
   for (const MovedPoint& p : u.moved_points) {
-    const Status st = check_point("moved", p.id, p.position, p.camera_ids,
-                                  s.point_index.count(p.id) ? nullptr : "is unknown");
+    const Status st =
+        check_point("moved", p.id, p.position, p.camera_ids, known(p.id) ? nullptr : "is unknown");
     if (!st.ok()) return st;
   }
   for (uint64_t id : u.removed_points)
-    if (!s.point_index.count(id)) {
+    if (!known(id)) {
       std::ostringstream m;
       m << "removed point " << id << " is unknown";
       return Status::Error(m.str());
@@ -671,7 +693,7 @@ Engine::Impl::Vertex_handle Engine::Impl::InsertPoint(const Point& p, int64_t ve
   Facet boundary;
   s.dt.find_conflicts(p, loc, CGAL::Oneset_iterator<Facet>(boundary),
                       std::back_inserter(conflicts));
-  if (!carving.Shrink(conflicts, {p})) return Vertex_handle();
+  if (s.TouchesFinal(conflicts) || !carving.Shrink(conflicts, {p})) return Vertex_handle();
   Removed removed;
   transfer.CollectRemoved(conflicts, &removed);
   Vertex_handle v =
@@ -753,7 +775,7 @@ void Engine::Impl::RemovePoint(uint32_t pt) {
   }
   std::vector<Cell_handle> inc;
   s.dt.incident_cells(rec.vertex, std::back_inserter(inc));
-  if (!carving.Shrink(inc, {rec.vertex->point()})) {
+  if (s.TouchesFinal(inc) || !carving.Shrink(inc, {rec.vertex->point()})) {
     ++s.stats.moves_skipped;  // Cannot be removed without breaking dO; keep it.
     return;
   }
@@ -779,7 +801,7 @@ void Engine::Impl::ExactRemovePoint(uint32_t pt) {
   if (rec.in_triangulation) {
     std::vector<Cell_handle> inc;
     s.dt.incident_cells(rec.vertex, std::back_inserter(inc));
-    if (!carving.Shrink(inc, {rec.vertex->point()})) {
+    if (s.TouchesFinal(inc) || !carving.Shrink(inc, {rec.vertex->point()})) {
       ++s.stats.moves_skipped;  // Cannot be removed without breaking dO; keep it.
       return;
     }
@@ -813,7 +835,7 @@ bool Engine::Impl::ShrinkMoveRegion(Vertex_handle v, const Point& p_old, const P
   s.dt.find_conflicts(p_new, loc, CGAL::Emptyset_iterator(), std::back_inserter(*d));
   std::sort(d->begin(), d->end());
   d->erase(std::unique(d->begin(), d->end()), d->end());
-  if (!carving.Shrink(*d, {p_old, p_new})) {
+  if (s.TouchesFinal(*d) || !carving.Shrink(*d, {p_old, p_new})) {
     ++s.stats.moves_skipped;
     return false;
   }
@@ -840,7 +862,7 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   s.dt.incident_cells(rec.vertex, std::back_inserter(d));
   if (detail::MovePlanner::StarStaysDelaunay(s.dt, rec.vertex, p_new, d)) {
     // The same cells, reshaped: only the star's rays are walked again.
-    if (!carving.Shrink(d, {p_old, p_new})) {
+    if (s.TouchesFinal(d) || !carving.Shrink(d, {p_old, p_new})) {
       ++s.stats.moves_skipped;
       return;
     }
@@ -1113,6 +1135,7 @@ void Engine::Impl::InsertNewPoint(const NewPoint& np) {
   s.points.push_back({});
   PointRecord& rec0 = s.points.back();
   rec0.id = np.id;
+  rec0.named = s.stats.updates;
   rec0.position = np.position;
   AddCameras(rec0, np.camera_ids, nullptr);
   Enter(pt, /*again=*/false);
@@ -1222,20 +1245,27 @@ void Engine::Impl::CastUpdated(const KeyframeUpdate& u) {
   caster.CastBatch(rays);
 }
 
-Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& u) {
+Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   if (!init.ok()) return init;
-  const Status valid = Validate(u);
+  const Status valid = Validate(update);
   if (!valid.ok()) return valid;
+  const std::unique_ptr<KeyframeUpdate> filtered = WithoutRetired(update);
+  const KeyframeUpdate& u = filtered ? *filtered : update;
   const auto t0 = Clock::now();
+  for (const MovedPoint& m : u.moved_points) s.points[s.point_index.at(m.id)].named = s.stats.updates;
+  for (uint64_t id : u.removed_points) s.points[s.point_index.at(id)].named = s.stats.updates;
+  std::vector<Point> centres;
   for (const Camera& c : u.cameras) {
     if (s.camera_index.count(c.id)) continue;
     s.camera_index[c.id] = static_cast<uint32_t>(s.cameras.size());
     s.cameras.push_back(ToPoint(c.center));
     s.camera_ids.push_back(c.id);
+    centres.push_back(s.cameras.back());
     const auto ts = Clock::now();
     PlaceSteinerPoints(s.cameras.back());
     s.stats.time.steiner += SecondsSince(ts);
   }
+  if (s.opt.forget) forgetting.AddUpdateCameras(std::move(centres));
   // Removals and insertions are charged to "insert", moves to "move"; both without their ray
   // casting and shrinking, which have their own timers.
   auto timed = [&](double* phase, auto&& fn) {
@@ -1266,6 +1296,8 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& u) {
     if (!lists.empty()) return Status::Error("invariant broken before the un-cast batch: " + lists);
   }
   if (exact) timed_batch([&] { UncastMoving(u); });
+  // Between the batches no ray lists are kept: the triangulation may be rebuilt.
+  if (s.opt.forget && forgetting.Due()) Forget();
   timed(&s.stats.time.move, [&] {
     if (exact) {
       ExactMoves(u);
@@ -1361,10 +1393,7 @@ SurfacePart Engine::Impl::MakePart(std::vector<Triangle> tris) {
       if (inserted) {
         const Point& p = v->point();
         part.vertices.insert(part.vertices.end(), {p.x(), p.y(), p.z()});
-        if (v->info().key < 0) {
-          v->info().key = next_key_++;
-          open_keys_.push_back(v->info().key);
-        }
+        if (v->info().key < 0) v->info().key = next_key_++;
         part.keys.push_back(v->info().key);
         const int64_t id = v->info().id;
         part.point_ids.push_back(id >= 0 ? static_cast<int64_t>(s.points[id].id) : -1);
@@ -1374,6 +1403,51 @@ SurfacePart Engine::Impl::MakePart(std::vector<Triangle> tris) {
   return part;
 }
 
+// A facet of dO between two final cells was handed out when the second became final (or, next
+// to a forgotten cell, lies where forgotten vertices were: never a surface).
+std::vector<Triangle> Engine::Impl::LiveBoundary() const { return Boundary(s, /*live=*/true); }
+
+std::unique_ptr<KeyframeUpdate> Engine::Impl::WithoutRetired(const KeyframeUpdate& u) {
+  if (!s.opt.forget || forgetting.retired().runs() == 0) return nullptr;
+  auto retired = [&](uint64_t id) { return !s.point_index.count(id); };  // Validate: retired
+  const int64_t moves = std::count_if(u.moved_points.begin(), u.moved_points.end(),
+                                      [&](const MovedPoint& m) { return retired(m.id); });
+  const int64_t removals = std::count_if(u.removed_points.begin(), u.removed_points.end(), retired);
+  if (moves + removals == 0) return nullptr;
+  s.stats.updates_of_forgotten_points += moves + removals;
+  auto out = std::make_unique<KeyframeUpdate>();
+  out->cameras = u.cameras;
+  out->new_points = u.new_points;
+  for (const MovedPoint& m : u.moved_points)
+    if (!retired(m.id)) out->moved_points.push_back(m);
+  for (uint64_t id : u.removed_points)
+    if (!retired(id)) out->removed_points.push_back(id);
+  return out;
+}
+
+// What became final since the last step, handed out; its vertices that nothing can change any
+// more are completed.
+void Engine::Impl::Forget() {
+  const auto t0 = Clock::now();
+  std::vector<Triangle> facets;
+  std::vector<Vertex_handle> deep;
+  forgetting.Freeze(&facets, &deep);
+  SurfacePart part = MakePart(std::move(facets));
+  for (Vertex_handle v : deep)
+    if (v->info().key >= 0) part.completed.push_back(v->info().key);
+  std::sort(part.completed.begin(), part.completed.end());
+  if (!part.faces.empty() || !part.completed.empty()) {
+    ++s.stats.parts;
+    s.stats.part_triangles += static_cast<int64_t>(part.faces.size() / 3);
+    final_parts_.push_back(std::move(part));
+  }
+  forgetting.MaybeRebuild();
+  s.stats.live_samples.push_back(
+      {s.stats.updates, static_cast<int64_t>(s.dt.number_of_cells()) - s.stats.cells_final,
+       static_cast<int64_t>(s.points.size()), static_cast<int64_t>(s.dt.number_of_vertices())});
+  s.stats.time.forget += SecondsSince(t0);
+}
+
 std::vector<SurfacePart> Engine::TakeFinalParts() {
   std::vector<SurfacePart> out;
   out.swap(impl_->final_parts_);
@@ -1381,10 +1455,14 @@ std::vector<SurfacePart> Engine::TakeFinalParts() {
 }
 
 SurfacePart Engine::FinishSurface() {
-  SurfacePart part = impl_->MakePart(Boundary(impl_->s));
-  // Every vertex named so far is complete now, this part's included.
-  part.completed.swap(impl_->open_keys_);
+  Impl& m = *impl_;
+  SurfacePart part = m.MakePart(m.LiveBoundary());
+  // Every vertex named so far and not completed by a step is complete now, this part's too.
+  for (auto v = m.s.dt.finite_vertices_begin(); v != m.s.dt.finite_vertices_end(); ++v)
+    if (v->info().key >= 0 && !v->info().deep) part.completed.push_back(v->info().key);
   std::sort(part.completed.begin(), part.completed.end());
+  ++m.s.stats.parts;
+  m.s.stats.part_triangles += static_cast<int64_t>(part.faces.size() / 3);
   return part;
 }
 
@@ -1408,7 +1486,7 @@ Status Engine::ApplyUpdate(const KeyframeUpdate& update) {
 
 Mesh Engine::ExtractMesh() const {
   const auto t0 = Clock::now();
-  Mesh m = impl_->ToMesh(Boundary(impl_->s), impl_->s.opt.steiner_export);
+  Mesh m = impl_->ToMesh(impl_->LiveBoundary(), impl_->s.opt.steiner_export);
   FinishExportedMesh(&m, impl_->s.opt);
   impl_->s.stats.time.extract += SecondsSince(t0);
   return m;

@@ -218,6 +218,7 @@ struct PhaseTimes {
   double scan = 0.0;     // kRays: whole-triangulation scans removing a moved point's rays.
   double grow = 0.0;
   double extract = 0.0;  // ExtractMesh.
+  double forget = 0.0;   // forget: finding what became final, handing it out, rebuilding.
   double total = 0.0;    // ApplyUpdate wall time.
 };
 
@@ -268,6 +269,26 @@ struct EngineStats {
   int64_t vertices = 0;               // Current finite vertices (points + Steiner).
   int64_t cells = 0;                  // Current finite cells.
   int64_t cells_in_o = 0;
+  // forget (EngineOptions::forget):
+  int64_t forget_steps = 0;           // Steps run (the newest camera moved forget_step).
+  int64_t cells_finalized = 0;        // Cells that became final.
+  int64_t cells_final = 0;            // Current cells that are final (finite and infinite).
+  int64_t rebuilds = 0;               // Triangulations rebuilt without forgotten vertices.
+  int64_t rebuilds_abandoned = 0;     // Rebuilds dropped: a live cell was not in the rebuilt
+                                      // triangulation (not expected: a degenerate case).
+  int64_t vertices_forgotten = 0;     // Vertices the rebuilds left out.
+  int64_t points_forgotten = 0;       // Points retired (their updates are ignored since).
+  int64_t point_records_freed = 0;    // Of those, records freed (no live cell held their rays).
+  int64_t updates_of_forgotten_points = 0;  // Moves and removals of retired points: ignored.
+  int64_t changes_refused_final = 0;  // Insertions, moves and removals refused: they would
+                                      // have destroyed or reshaped a final cell.
+  int64_t parts = 0;                  // SurfaceParts handed out (FinishSurface's included).
+  int64_t part_triangles = 0;         // Their triangles.
+  // At each step: the update, the live (not final) cells, the points kept, the vertices.
+  struct LiveSample {
+    int64_t update = 0, live_cells = 0, points = 0, vertices = 0;
+  };
+  std::vector<LiveSample> live_samples;
 };
 
 // Where the engine's memory is (Engine::Memory), in bytes: the sizes of its structures and the

@@ -45,7 +45,9 @@ std::string InvariantChecker::CheckRayLists() const {
     for (uint32_t k = 0; k < rec.ray_state.size(); ++k) {
       if (!rec.Listed(k)) continue;
       listed.clear();
-      s_.ForEachListed(pt, k, [&](Cell_handle c) { listed.push_back(c); });
+      s_.ForEachListed(pt, k, [&](Cell_handle c) {
+        if (!c->info().final) listed.push_back(c);  // a cast skips final cells (forget)
+      });
       std::sort(listed.begin(), listed.end());
       listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
       held.clear();  // holders are sorted by (point, ray) as this loop visits them
@@ -75,7 +77,8 @@ void InvariantChecker::CheckWeights(const std::function<void(const std::string&)
            " < 0 although nonnegative_weights is on (a weight-transfer policy returned a "
            "negative weight?)");
     }
-    if (s_.opt.visibility_mode == VisibilityMode::kExact && !s_.dt.is_infinite(c)) {
+    // A final cell (forget) kept its weight and let its ray list go.
+    if (s_.opt.visibility_mode == VisibilityMode::kExact && !s_.dt.is_infinite(c) && !info.final) {
       // The count is the number of live entries, each ray at most once.
       std::vector<std::pair<uint32_t, uint32_t>> live;
       for (const RayEntry& e : info.rays)
@@ -167,16 +170,20 @@ ManifoldCheckResult InvariantChecker::Check() const {
   auto edge_name = [&](int64_t a, int64_t b) {
     return "the edge from " + DescribeVertex(handle.at(a)) + " to " + DescribeVertex(handle.at(b));
   };
+  // forget: around a deep vertex the cells may have been rebuilt (forgotten vertices) and dO
+  // there is not the surface any more (that was handed out when the vertex became deep); every
+  // vertex with a live cell, and every edge with such a vertex, is checked.
   std::vector<std::pair<int64_t, int64_t>> directed;
   std::vector<std::array<int64_t, 3>> corners;  // vertex, then its opposite edge (link edge)
   directed.reserve(3 * tris.size());
   corners.reserve(3 * tris.size());
   for (const Triangle& t : tris) {
     int64_t id[3];
-    for (int k = 0; k < 3; ++k) id[k] = t.v[k]->info().id;
+    bool deep[3];
+    for (int k = 0; k < 3; ++k) id[k] = t.v[k]->info().id, deep[k] = t.v[k]->info().deep;
     for (int k = 0; k < 3; ++k) {
-      directed.push_back({id[k], id[(k + 1) % 3]});
-      corners.push_back({id[k], id[(k + 1) % 3], id[(k + 2) % 3]});
+      if (!deep[k] || !deep[(k + 1) % 3]) directed.push_back({id[k], id[(k + 1) % 3]});
+      if (!deep[k]) corners.push_back({id[k], id[(k + 1) % 3], id[(k + 2) % 3]});
     }
   }
   auto remember = [&](int64_t id) {

@@ -10,6 +10,9 @@
 //   SteinerGrid       the Steiner points around each camera
 //   MovePlanner       exact mode's moves planned on the thread pool and made in order
 //                     (move_planner.cc)
+//   Forgetting        long drives (EngineOptions::forget): what no live change can reach is
+//                     final, its part of dO handed out, its cells, rays and points freed
+//                     (forget.cc)
 //   InvariantChecker  dO closed, oriented and manifold; the weights against their ledger
 //                     (engine_checks.cc)
 // The benchmark and diagnostic hooks (engine_internal.h, engine_checks.cc) keep their state in
@@ -33,8 +36,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <limits>
+#include <map>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -62,6 +67,8 @@ struct VertexInfo {
                         // shrink takes them out of O before the triangulation changes).
   int64_t key = -1;     // SurfacePart::keys: given when a part first names the vertex (a vertex
                         // handed out never moves again), -1 before.
+  bool deep = false;    // forget: every incident cell is final, so nothing around the vertex
+                        // changes again (its surface is complete: SurfacePart::completed).
 };
 
 // Serial numbers of cells (CellInfo::serial): unique within the process, so that a cell made
@@ -75,6 +82,11 @@ struct CellInfo {
   bool in_o = false;      // Member of O (outside, the manifold part of free space).
   bool fresh = false;     // kExact: made by the triangulation change being processed.
   bool dirty = false;     // In EngineState::dirty (and not taken out since).
+  bool final = false;     // forget: no live change may touch it any more: never destroyed,
+                          // toggled or weighted again (its ray list is freed); its facets of dO
+                          // with other final cells were handed out (Forgetting).
+  bool forgotten = false;  // forget: made by a rebuild where forgotten vertices were: final,
+                           // never in O, its facets never handed out.
   uint32_t slot = 0;      // kExact: index of the cell among those being made (scratch).
   uint32_t region = 0;    // Member of the region being peeled (Shrink's E, PeelAround's)
                           // when equal to EngineState::region_mark; apart from `stamp`, which
@@ -142,6 +154,10 @@ struct PointRecord {
   bool in_triangulation = false;
   bool removed = false;        // Removed by an update (never enters again); a point refused
                                // at insertion (duplicate, dropped) tries again when it moves.
+  bool retired = false;        // forget: its vertex was forgotten (or it never had one and lies
+                               // where everything is final): its updates are ignored; the record
+                               // stays only while a live cell holds one of its rays.
+  int64_t named = 0;           // The update (EngineStats::updates before it) that last named it.
   Vec3 position{};             // Latest estimate received.
   std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
   // kExact, parallel to cameras: each ray's state, its generation (+1 at each un-cast: entries
@@ -283,6 +299,17 @@ struct EngineState {
     if (dt.is_infinite(c) || c->info().in_o || c->info().dirty) return;
     c->info().dirty = true;
     dirty.push_back(c);
+  }
+  // forget: whether a change that destroys or reshapes these cells must be refused (one of
+  // them is final); counted.
+  bool TouchesFinal(const std::vector<Cell_handle>& cells) {
+    if (!opt.forget) return false;
+    for (Cell_handle c : cells)
+      if (c->info().final) {
+        ++stats.changes_refused_final;
+        return true;
+      }
+    return false;
   }
   // The cells in the dirty set, which is then empty.
   template <class Visit>
@@ -484,6 +511,13 @@ class RayCaster {
   void CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
   void UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
   void DropLists();
+  // forget: the triangulation was rebuilt (Forgetting): the cells and points remembered for
+  // the next walks are gone.
+  void ForgetCells() {
+    camera_cell_.clear();
+    point_hole_mark_.clear();
+    point_hole_head_.clear();
+  }
   // kExact, before cells are destroyed: the rays they hold and where.
   void CollectHole(const std::vector<Cell_handle>& cells, Hole* hole);
   // kExact, after the new cells exist: each ray of the hole walked again through them.
@@ -740,10 +774,79 @@ class SteinerGrid {
     return static_cast<int64_t>(keys_.size() * (sizeof(uint64_t) + 2 * sizeof(void*)) +
                                 keys_.bucket_count() * sizeof(void*));
   }
+  // forget: drops the record of the placed nodes for which gone(node position) holds (where
+  // everything is final: a camera that reaches there again finds its cells final and places
+  // nothing).
+  void Forget(const std::function<bool(const Point&)>& gone);
 
  private:
   const EngineOptions& opt_;
   std::unordered_set<uint64_t> keys_;  // nodes placed
+};
+
+// -------------------------------------------------------------------------------------------------
+// The external ids of points forgotten (Forgetting): an update may still name them (a late move
+// of a point far behind), which is then ignored, not an error. Kept as runs of consecutive ids:
+// a stream's ids mostly come in order, so this stays small however long the drive.
+class RetiredIds {
+ public:
+  void Add(uint64_t id);
+  bool Contains(uint64_t id) const;
+  size_t runs() const { return runs_.size(); }
+
+ private:
+  std::map<uint64_t, uint64_t> runs_;  // first id -> last id of each run
+};
+
+// Long drives (EngineOptions::forget, DESIGN.md section 10). At each step, the cells that no live
+// change can reach any more become final: those lying forget_distance (ForgetDistance) from
+// every camera of the last `window` updates and behind the newest camera (on the side it came
+// from), with no vertex of a point named in those updates. A final cell is never destroyed (an
+// insertion or a move that would is refused: EngineState::TouchesFinal), toggled or weighted
+// again, and its ray list is freed; a facet of dO between two final cells is final (handed out
+// as a SurfacePart). A vertex whose cells are all final is deep; a deep vertex whose neighbours
+// are all deep can leave the triangulation without a live cell noticing (the cells it takes
+// with it, and those that fill their place, touch deep vertices only). When enough such
+// vertices have gathered the triangulation is rebuilt without them: cells whose four vertices
+// stay are cells of the new triangulation (Delaunay: a subset keeps them) and keep their infos;
+// the others fill the place of the forgotten vertices, final and forgotten.
+struct Triangle;
+
+class Forgetting {
+ public:
+  Forgetting(EngineState& s, RayCaster& caster, SteinerGrid& steiner)
+      : s_(s), caster_(caster), steiner_(steiner) {}
+
+  // The centres of the cameras an update adds (every update calls it, before its points).
+  void AddUpdateCameras(std::vector<Point> centres);
+  // Whether a step is due: the newest camera moved forget_step since the last step.
+  bool Due() const;
+  // One step: the cells that became final, the facets of dO that did (between two final
+  // cells, oriented toward the cell in O), and the vertices that became deep.
+  void Freeze(std::vector<Triangle>* facets, std::vector<Vertex_handle>* deep);
+  // Rebuilds the triangulation without the vertices that can go when enough can (a third of
+  // all: a rebuild costs about what the vertices it keeps cost to insert). Only while no ray
+  // lists are kept (between a keyframe's un-cast batch and its cast batch).
+  void MaybeRebuild();
+  bool Retired(uint64_t id) const { return retired_.Contains(id); }
+  const RetiredIds& retired() const { return retired_; }
+
+ private:
+  bool BecomesFinal(Cell_handle c) const;
+  bool FarBehind(const Point& p, double radius) const;
+  void Rebuild(const std::vector<Vertex_handle>& gone);
+
+  EngineState& s_;
+  RayCaster& caster_;
+  SteinerGrid& steiner_;
+  std::deque<std::vector<Point>> recent_;  // the cameras of the last `window` updates
+  std::vector<Point> live_;                // recent_'s cameras at the step, thinned
+  double live_radius_ = 0.0;               // each stands for those this close to it
+  Point newest_, last_step_;
+  bool have_camera_ = false, stepped_ = false, moving_ = false;
+  double behind_[3] = {0, 0, 0};  // at the step: unit direction the cameras came from
+  RetiredIds retired_;
+  int64_t deep_since_rebuild_ = 0;  // vertices that became deep since the last rebuild
 };
 
 // -------------------------------------------------------------------------------------------------
@@ -850,7 +953,8 @@ class MovePlanner {
 struct Triangle {
   Vertex_handle v[3];
 };
-std::vector<Triangle> Boundary(const EngineState& s);
+// live: without the facets between two final cells (forget: handed out already).
+std::vector<Triangle> Boundary(const EngineState& s, bool live = false);
 
 // -------------------------------------------------------------------------------------------------
 // The invariants (Engine::CheckInvariants): O's counters, dO closed, oriented and manifold, the
@@ -890,9 +994,10 @@ struct Engine::Impl {
   // The surface handed out in parts (SurfacePart): the triangles given as a part, its vertices
   // keyed (VertexInfo::key, the next from next_key_).
   SurfacePart MakePart(std::vector<detail::Triangle> tris);
+  // The facets of dO not handed out yet: those with a cell that is not final.
+  std::vector<detail::Triangle> LiveBoundary() const;
   std::vector<SurfacePart> final_parts_;  // made since the last TakeFinalParts
   int64_t next_key_ = 0;
-  std::vector<int64_t> open_keys_;  // handed out, not completed yet
 
   detail::EngineState s;
   detail::RayCaster caster;
@@ -900,6 +1005,7 @@ struct Engine::Impl {
   detail::Carving carving;
   detail::SteinerGrid steiner;
   detail::MovePlanner planner;
+  detail::Forgetting forgetting;
   Status init;
 
  private:
@@ -934,6 +1040,10 @@ struct Engine::Impl {
   void FindShortMoves(const KeyframeUpdate& u);
   void UncastMoving(const KeyframeUpdate& u);
   void CastUpdated(const KeyframeUpdate& u);
+  // forget: the update without the moves and removals of retired points (null: none).
+  std::unique_ptr<KeyframeUpdate> WithoutRetired(const KeyframeUpdate& u);
+  // forget: a step (Forgetting): what became final handed out as a part, then maybe a rebuild.
+  void Forget();
 
   int64_t steiner_nodes_ = 0;  // grid nodes tried, placed or refused: names the next one
   std::vector<uint32_t> entered_;  // kExact: points that entered during this update

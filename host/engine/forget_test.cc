@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+#include <set>
+
 #include "host/engine/testing/run_stream.h"
 
 namespace imr::engine {
@@ -38,6 +41,82 @@ TEST(SurfacePartsTest, FinishSurfaceWithoutForgettingIsTheExportedMesh) {
   EXPECT_EQ(merged.vertices, whole.vertices);
   EXPECT_EQ(merged.faces, whole.faces);
   EXPECT_EQ(merged.point_ids, whole.point_ids);
+}
+
+// A run with forgetting: every part collected, then the rest.
+struct ForgetRun {
+  std::vector<SurfacePart> parts;
+  Mesh merged;        // the union of the parts, before FinishExportedMesh
+  std::string merge;  // MergeSurfaceParts' answer
+  EngineStats stats;
+  EngineMemory memory;
+};
+
+ForgetRun RunForgetting(const synthetic::StreamOptions& so, EngineOptions eo) {
+  synthetic::SyntheticStream stream(so);
+  Engine engine(eo, nullptr);
+  ForgetRun r;
+  const Status s = testing::RunStream(&stream, &engine, [&](const synthetic::StreamKeyframe&) {
+    for (SurfacePart& p : engine.TakeFinalParts()) r.parts.push_back(std::move(p));
+    return true;
+  });
+  EXPECT_TRUE(s.ok()) << s.message();
+  r.parts.push_back(engine.FinishSurface());
+  r.merge = MergeSurfaceParts(r.parts, &r.merged);
+  r.stats = engine.Stats();
+  r.memory = engine.Memory();
+  return r;
+}
+
+EngineOptions Forgetting(bool on) {
+  EngineOptions eo;
+  eo.num_threads = 1;
+  eo.forget = on;
+  eo.check_invariants = true;  // the full check after every keyframe (ApplyUpdate fails else)
+  return eo;
+}
+
+// A drive long enough for a good part of it to be left behind: parts are handed out while it
+// goes, the triangulation is rebuilt without what was forgotten, the full invariant check holds
+// after every keyframe, and the union of the parts is a surface with each vertex and each
+// triangle once: a 2-manifold with boundary once its pinched vertices are split.
+TEST(ForgettingTest, PartsMakeOneManifoldSurface) {
+  const ForgetRun r = RunForgetting(Street(450), Forgetting(true));
+  ASSERT_EQ(r.merge, "");
+  EXPECT_GT(r.parts.size(), 3u);
+  EXPECT_GT(r.stats.forget_steps, 10);
+  EXPECT_GT(r.stats.rebuilds, 0);
+  EXPECT_EQ(r.stats.rebuilds_abandoned, 0);
+  EXPECT_GT(r.stats.vertices_forgotten, 1000);
+  EXPECT_GT(r.stats.point_records_freed, 100);
+  // Each vertex once (keys at distinct positions) and each triangle once.
+  std::set<std::array<double, 3>> at;
+  for (size_t i = 0; i < r.merged.vertices.size(); i += 3)
+    at.insert({r.merged.vertices[i], r.merged.vertices[i + 1], r.merged.vertices[i + 2]});
+  EXPECT_EQ(at.size(), r.merged.vertices.size() / 3);
+  std::set<std::array<uint32_t, 3>> tris;
+  for (size_t i = 0; i < r.merged.faces.size(); i += 3) {
+    std::array<uint32_t, 3> t = {r.merged.faces[i], r.merged.faces[i + 1], r.merged.faces[i + 2]};
+    std::sort(t.begin(), t.end());
+    tris.insert(t);
+  }
+  EXPECT_EQ(tris.size(), r.merged.faces.size() / 3);
+  Mesh finished = r.merged;
+  FinishExportedMesh(&finished, Forgetting(true));
+  const ManifoldCheckResult m = CheckMesh(finished, /*closed=*/false);
+  EXPECT_TRUE(m.ok) << m.message;
+  // Every key named is completed once, by the part that names it or a later one.
+  std::map<int64_t, int> completed;
+  std::set<int64_t> named;
+  for (const SurfacePart& p : r.parts) {
+    for (int64_t k : p.keys) {
+      named.insert(k);
+      EXPECT_EQ(completed.count(k), 0u) << "key " << k << " named after it was completed";
+    }
+    for (int64_t k : p.completed) ++completed[k];
+  }
+  EXPECT_EQ(completed.size(), named.size());
+  for (const auto& [k, n] : completed) EXPECT_EQ(n, 1) << "key " << k;
 }
 
 TEST(SurfacePartsTest, MergeRefusesAKeyAtTwoPositions) {

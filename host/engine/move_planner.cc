@@ -156,6 +156,11 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
     }
     m.kind = MovePlan::Kind::kHole;
   }
+  for (Cell_handle c : d)
+    if (c->info().final) {
+      m.kind = MovePlan::Kind::kSerial;  // forget: made at its turn, which refuses it
+      return;
+    }
 
   // D in CellKey order, its boundary facets, and the serials of both.
   sc.keyed.clear();

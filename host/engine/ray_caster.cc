@@ -38,6 +38,7 @@ void RayCaster::CastWeights(uint32_t cam, uint32_t pt, int sign) {
   // only T and N1 are kept, to find the next ring.
   auto weigh = [&](Cell_handle c, int level) {
     CellInfo& info = c->info();
+    if (info.final) return;  // forget: nothing changes a final cell
     const int64_t before = info.weight;
     const bool was_free = before > s_.threshold;
     if (rays_mode) {
@@ -91,6 +92,7 @@ size_t RayCaster::RayIndex(const PointRecord& rec, uint32_t cam) {
 // Adds ray k of point pt (its current generation) to a cell. A cell's list keeps stale entries
 // until it is destroyed or holds twice as many entries as rays: then it is compacted.
 void RayCaster::AddRay(Cell_handle c, uint32_t pt, uint32_t k) {
+  if (c->info().final) return;  // forget: nothing changes a final cell
   PointRecord& rec = s_.points[pt];
   const int64_t before = c->info().weight;
   if (PushRay(&c->info(), {k, pt, rec.Gen(k)})) s_.MarkDirty(c);
@@ -190,7 +192,7 @@ void RayCaster::ExactUncast(uint32_t pt, size_t k) {
     ++s_.stats.rays_uncast_listed;
     ++s_.stamp;
     s_.ForEachListed(pt, k, [&](Cell_handle c) {
-      if (c->info().stamp == s_.stamp) return;
+      if (c->info().stamp == s_.stamp || c->info().final) return;
       c->info().stamp = s_.stamp;
       s_.Ledger(c->info().weight, c->info().weight - s_.unit[0]);
       c->info().weight -= s_.unit[0];
@@ -201,6 +203,7 @@ void RayCaster::ExactUncast(uint32_t pt, size_t k) {
   Walk(
       rec.ray_end[k].end, s_.cameras[cam], WalkHint(rec), StartVertex(rec),
       [&](Cell_handle c) {
+        if (c->info().final) return;  // it kept the ray's unit when it became final
         const int64_t before = c->info().weight;
         if (!Holds(c->info(), mine)) {
           ++s_.stats.ray_mismatches;
@@ -538,6 +541,7 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
   }
   const std::vector<BatchPart> parts =
       RunBatch(rays, /*split_apply=*/true, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+        if (c->info().final) return;  // forget: nothing changes a final cell
         if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
         p.ledger += static_cast<uint64_t>(s_.unit[0]);
         ++p.cells;
@@ -574,12 +578,14 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
   const int64_t unit = s_.unit[0];
   for (const auto& [pt, k] : listed)
     s_.ForEachListed(pt, k, [&](Cell_handle c) {
+      if (c->info().final) return;  // the cast skipped it
       c->info().weight -= unit;
       ++taken;
     });
   s_.weight_ledger -= taken * static_cast<uint64_t>(unit);
   auto take_out = [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
     CellInfo& info = c->info();
+    if (info.final) return;  // it kept the ray's unit when it became final
     if (!Holds(info, {r.k, r.point, r.gen})) {
       ++p.mismatches;
       return;

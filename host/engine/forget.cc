@@ -1,0 +1,396 @@
+// Long drives (EngineOptions::forget, DESIGN.md section 10): what no live change can reach is
+// final; its part of dO is handed out, its rays freed at once, and its vertices leave the
+// triangulation when enough of them have gathered (engine_parts.h, Forgetting).
+#include "host/engine/engine_parts.h"
+
+#include <unordered_map>
+
+namespace imr::engine::detail {
+
+void RetiredIds::Add(uint64_t id) {
+  auto next = runs_.upper_bound(id);  // the first run starting after id
+  if (next != runs_.begin()) {
+    auto prev = std::prev(next);
+    if (id <= prev->second) return;  // already in
+    if (id == prev->second + 1) {    // extends the run before it, maybe up to the next one
+      prev->second = id;
+      if (next != runs_.end() && next->first == id + 1) {
+        prev->second = next->second;
+        runs_.erase(next);
+      }
+      return;
+    }
+  }
+  if (next != runs_.end() && next->first == id + 1) {  // extends the run after it
+    const uint64_t last = next->second;
+    runs_.erase(next);
+    runs_.emplace(id, last);
+    return;
+  }
+  runs_.emplace(id, id);
+}
+
+bool RetiredIds::Contains(uint64_t id) const {
+  auto next = runs_.upper_bound(id);
+  return next != runs_.begin() && id <= std::prev(next)->second;
+}
+
+void Forgetting::AddUpdateCameras(std::vector<Point> centres) {
+  if (!centres.empty()) {
+    newest_ = centres.back();
+    if (!have_camera_) last_step_ = centres.front();  // the first step measures from here
+    have_camera_ = true;
+  }
+  recent_.push_back(std::move(centres));
+  while (recent_.size() > static_cast<size_t>(s_.opt.window)) recent_.pop_front();
+}
+
+bool Forgetting::Due() const {
+  return have_camera_ &&
+         CGAL::squared_distance(newest_, last_step_) >= s_.opt.ForgetStep() * s_.opt.ForgetStep();
+}
+
+// Entirely (a ball of `radius` around p) behind the newest camera, on the side the cameras came
+// from, and forget_distance beyond every live camera.
+bool Forgetting::FarBehind(const Point& p, double radius) const {
+  const double along = (p.x() - newest_.x()) * behind_[0] + (p.y() - newest_.y()) * behind_[1] +
+                       (p.z() - newest_.z()) * behind_[2];
+  if (along <= radius) return false;
+  const double reach = s_.opt.ForgetDistance() + radius + live_radius_;
+  for (const Point& c : live_)
+    if (CGAL::squared_distance(p, c) <= reach * reach) return false;
+  return true;
+}
+
+// A cell becomes final when the ball around its vertices is far behind (FarBehind) and none of
+// them is a point named by the last `window` updates (a point still tracked may move).
+bool Forgetting::BecomesFinal(Cell_handle c) const {
+  // Most cells are on the newest camera's side of the plane: one vertex there says no.
+  for (int i = 0; i < 4; ++i) {
+    const Vertex_handle v = c->vertex(i);
+    if (s_.dt.is_infinite(v)) continue;
+    const Point& p = v->point();
+    if ((p.x() - newest_.x()) * behind_[0] + (p.y() - newest_.y()) * behind_[1] +
+            (p.z() - newest_.z()) * behind_[2] <= 0.0)
+      return false;
+  }
+  double m[3] = {0, 0, 0};
+  const Point* p[4];
+  int n = 0;
+  for (int i = 0; i < 4; ++i) {
+    const Vertex_handle v = c->vertex(i);
+    if (s_.dt.is_infinite(v)) continue;
+    const int64_t id = v->info().id;
+    if (id >= 0 && s_.points[static_cast<size_t>(id)].named + s_.opt.window > s_.stats.updates)
+      return false;
+    p[n++] = &v->point();
+    m[0] += v->point().x(), m[1] += v->point().y(), m[2] += v->point().z();
+  }
+  const Point g(m[0] / n, m[1] / n, m[2] / n);
+  double r2 = 0.0;
+  for (int i = 0; i < n; ++i) r2 = std::max(r2, CGAL::squared_distance(g, *p[i]));
+  return FarBehind(g, std::sqrt(r2));
+}
+
+void Forgetting::Freeze(std::vector<Triangle>* facets, std::vector<Vertex_handle>* deep) {
+  facets->clear();
+  deep->clear();
+  last_step_ = newest_;
+  ++s_.stats.forget_steps;
+  // The live cameras, thinned: one stands for those within live_radius_ of it (a ball test
+  // against it, widened by that radius, is the test against each).
+  live_radius_ = 0.25 * s_.opt.steiner_spacing;
+  live_.clear();
+  const Point* oldest = nullptr;
+  for (const auto& update : recent_)
+    for (const Point& c : update) {
+      if (!oldest) oldest = &c;
+      if (live_.empty() || CGAL::squared_distance(live_.back(), c) > live_radius_ * live_radius_)
+        live_.push_back(c);
+    }
+  // The direction the cameras came from: from the newest to the oldest live camera. Standing
+  // still (less than a grid step over the window) nothing is behind.
+  if (!oldest) return;
+  const double d[3] = {oldest->x() - newest_.x(), oldest->y() - newest_.y(),
+                       oldest->z() - newest_.z()};
+  const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  if (len < s_.opt.steiner_spacing) return;
+  for (int k = 0; k < 3; ++k) behind_[k] = d[k] / len;
+
+  std::vector<Cell_handle> now;
+  for (auto c = s_.dt.all_cells_begin(); c != s_.dt.all_cells_end(); ++c)
+    if (!c->info().final && BecomesFinal(c)) now.push_back(c);
+  const uint64_t mark = ++s_.stamp;  // stamps are only compared for equality
+  for (Cell_handle c : now) {
+    CellInfo& info = c->info();
+    info.final = true;
+    info.dirty = false;  // out of the growing seeds (its entry in the list is skipped)
+    info.stamp = mark;
+    std::vector<RayEntry>().swap(info.rays);
+  }
+  s_.stats.cells_finalized += static_cast<int64_t>(now.size());
+  s_.stats.cells_final += static_cast<int64_t>(now.size());
+
+  // The facets of dO between a cell final now and a final cell, each once, oriented toward the
+  // cell in O. A cell made final by a rebuild (forgotten) never meets one final now: its
+  // neighbours were all final when it was made.
+  for (Cell_handle c : now) {
+    if (s_.dt.is_infinite(c)) continue;
+    for (int i = 0; i < 4; ++i) {
+      const Cell_handle n = c->neighbor(i);
+      const CellInfo& ni = n->info();
+      if (!ni.final || ni.forgotten || s_.dt.is_infinite(n)) continue;
+      if (ni.stamp == mark && &*n < &*c) continue;  // both final now: the lower one hands it out
+      if (ni.in_o == c->info().in_o) continue;
+      const Cell_handle o = c->info().in_o ? c : n;
+      const int j = o == c ? i : n->index(c);
+      facets->push_back({{o->vertex(Dt::vertex_triple_index(j, 0)),
+                          o->vertex(Dt::vertex_triple_index(j, 1)),
+                          o->vertex(Dt::vertex_triple_index(j, 2))}});
+    }
+  }
+
+  // The vertices of those cells whose every cell is final now.
+  std::vector<Vertex_handle> candidates;
+  for (Cell_handle c : now)
+    for (int i = 0; i < 4; ++i)
+      if (!s_.dt.is_infinite(c->vertex(i)) && !c->vertex(i)->info().deep)
+        candidates.push_back(c->vertex(i));
+  std::sort(candidates.begin(), candidates.end());
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  std::vector<Cell_handle> star;
+  for (Vertex_handle v : candidates) {
+    star.clear();
+    s_.dt.incident_cells(v, std::back_inserter(star));
+    bool all = true;
+    for (Cell_handle c : star) all = all && c->info().final;
+    if (!all) continue;
+    v->info().deep = true;
+    deep->push_back(v);
+  }
+  deep_since_rebuild_ += static_cast<int64_t>(deep->size());
+}
+
+void Forgetting::MaybeRebuild() {
+  const int64_t vertices = static_cast<int64_t>(s_.dt.number_of_vertices());
+  if (3 * deep_since_rebuild_ < vertices) return;
+  // The vertices that can go: deep, and every neighbour deep (or the infinite vertex); a
+  // point's only when no update of the window named it (a move of this update may follow).
+  std::vector<Vertex_handle> gone, around;
+  int64_t deep = 0;
+  for (auto v = s_.dt.finite_vertices_begin(); v != s_.dt.finite_vertices_end(); ++v) {
+    if (!v->info().deep) continue;
+    ++deep;
+    const int64_t id = v->info().id;
+    if (id >= 0 && s_.points[static_cast<size_t>(id)].named + s_.opt.window > s_.stats.updates)
+      continue;
+    around.clear();
+    s_.dt.adjacent_vertices(v, std::back_inserter(around));
+    bool all = true;
+    for (Vertex_handle u : around) all = all && (s_.dt.is_infinite(u) || u->info().deep);
+    if (all) gone.push_back(v);
+  }
+  // The deep vertices that stay count toward the next rebuild.
+  deep_since_rebuild_ = deep - static_cast<int64_t>(gone.size());
+  if (3 * static_cast<int64_t>(gone.size()) < vertices) return;
+  Rebuild(gone);
+}
+
+namespace {
+
+struct KeyHash {
+  size_t operator()(const std::array<int64_t, 4>& k) const {
+    uint64_t h = 0x9E3779B97F4A7C15ull;
+    for (int64_t x : k) {
+      h ^= static_cast<uint64_t>(x) + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
+      h *= 0xBF58476D1CE4E5B9ull;
+    }
+    return static_cast<size_t>(h ^ (h >> 31));
+  }
+};
+
+}  // namespace
+
+// The triangulation of every vertex but `gone`; cells whose vertices all stay keep their infos,
+// the rest are final and forgotten. Points whose vertex goes are retired (and those never in
+// the triangulation that lie far behind); their records are freed unless a live cell still
+// holds one of their rays, and the records that stay are numbered again, in the same order (the
+// canonical orders of growing and peeling read the numbers: they see the same order as before).
+void Forgetting::Rebuild(const std::vector<Vertex_handle>& gone) {
+  std::vector<Vertex_handle> gone_sorted = gone;
+  std::sort(gone_sorted.begin(), gone_sorted.end());
+  auto goes = [&](Vertex_handle v) {
+    return std::binary_search(gone_sorted.begin(), gone_sorted.end(), v);
+  };
+
+  // Which points retire, which records go, and the new numbers.
+  const size_t n_points = s_.points.size();
+  std::vector<uint8_t> retire(n_points, 0), held(n_points, 0);
+  for (size_t pt = 0; pt < n_points; ++pt) {
+    const PointRecord& rec = s_.points[pt];
+    if (rec.retired) {
+      retire[pt] = 1;
+    } else if (rec.in_triangulation) {
+      retire[pt] = goes(rec.vertex) ? 1 : 0;
+    } else {
+      retire[pt] = rec.named + s_.opt.window <= s_.stats.updates &&
+                   FarBehind(ToPoint(rec.position), 0.0);
+    }
+  }
+  if (s_.opt.visibility_mode == VisibilityMode::kExact)
+    for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c)
+      if (!c->info().final)
+        for (const RayEntry& e : c->info().rays)
+          if (retire[e.point] && s_.Live(e)) held[e.point] = 1;
+  constexpr uint32_t kFreed = ~0u;
+  std::vector<uint32_t> number(n_points, kFreed);
+  uint32_t next = 0;
+  for (size_t pt = 0; pt < n_points; ++pt)
+    if (!retire[pt] || held[pt]) number[pt] = next++;
+  auto new_id = [&](Vertex_handle v) -> int64_t {
+    if (s_.dt.is_infinite(v)) return std::numeric_limits<int64_t>::min();
+    const int64_t id = v->info().id;
+    return id < 0 ? id : static_cast<int64_t>(number[static_cast<size_t>(id)]);
+  };
+
+  // The new triangulation.
+  std::vector<std::pair<Point, VertexInfo>> kept;
+  kept.reserve(s_.dt.number_of_vertices() - gone.size());
+  for (auto v = s_.dt.finite_vertices_begin(); v != s_.dt.finite_vertices_end(); ++v) {
+    if (goes(v)) continue;
+    VertexInfo info = v->info();
+    info.id = new_id(v);
+    info.o_cells = 0;  // counted again below
+    kept.emplace_back(v->point(), info);
+  }
+  Dt dt;
+  dt.insert(kept.begin(), kept.end());
+  if (dt.number_of_vertices() != kept.size() || dt.dimension() != 3) {
+    ++s_.stats.rebuilds_abandoned;
+    return;
+  }
+
+  // Old cells whose vertices all stay, by their vertices' new ids; each new cell finds its own.
+  using Key = std::array<int64_t, 4>;
+  auto key_of = [](auto ids) {
+    std::sort(ids.begin(), ids.end());
+    return ids;
+  };
+  std::unordered_map<Key, Cell_handle, KeyHash> old_cells;
+  old_cells.reserve(s_.dt.number_of_cells());
+  int64_t live_kept = 0;
+  for (auto c = s_.dt.all_cells_begin(); c != s_.dt.all_cells_end(); ++c) {
+    bool stays = true;
+    Key k;
+    for (int i = 0; i < 4; ++i) {
+      stays = stays && !goes(c->vertex(i));
+      k[i] = new_id(c->vertex(i));
+    }
+    if (!stays) continue;
+    old_cells.emplace(key_of(k), c);
+    live_kept += c->info().final ? 0 : 1;
+  }
+  // Every live cell must be found, and every new cell touch deep vertices only (what the
+  // choice of `gone` promises); else the old triangulation stays (counted: not expected).
+  std::vector<std::pair<Cell_handle, Cell_handle>> matched;  // (new, old)
+  matched.reserve(old_cells.size());
+  int64_t live_found = 0;
+  bool new_cells_deep = true;
+  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
+    Key k;
+    for (int i = 0; i < 4; ++i)
+      k[i] = dt.is_infinite(c->vertex(i)) ? std::numeric_limits<int64_t>::min()
+                                          : c->vertex(i)->info().id;
+    const auto it = old_cells.find(key_of(k));
+    if (it == old_cells.end()) {
+      for (int i = 0; i < 4; ++i)
+        new_cells_deep = new_cells_deep && (dt.is_infinite(c->vertex(i)) || c->vertex(i)->info().deep);
+      continue;
+    }
+    matched.push_back({c, it->second});
+    live_found += it->second->info().final ? 0 : 1;
+  }
+  if (live_found != live_kept || !new_cells_deep) {
+    ++s_.stats.rebuilds_abandoned;
+    return;
+  }
+  old_cells = {};
+
+  // Cell infos move over; the new cells where the forgotten vertices were are final.
+  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
+    CellInfo& info = c->info();
+    info.final = info.forgotten = true;
+  }
+  for (auto& [c, old] : matched) {
+    c->info() = std::move(old->info());
+    std::vector<RayEntry>& rays = c->info().rays;
+    if (rays.empty()) continue;
+    // Entries of freed records are stale (a live cell held none of their current rays).
+    rays.erase(std::remove_if(rays.begin(), rays.end(),
+                              [&](const RayEntry& e) { return number[e.point] == kFreed; }),
+               rays.end());
+    for (RayEntry& e : rays) e.point = number[e.point];
+  }
+  matched = {};
+
+  // The points: retired ids out of the index, records freed or numbered again.
+  int64_t retired_now = 0, freed = 0;
+  std::vector<PointRecord> points;
+  points.reserve(next);
+  for (size_t pt = 0; pt < n_points; ++pt) {
+    PointRecord& rec = s_.points[pt];
+    if (retire[pt] && !rec.retired) {
+      rec.retired = true;
+      ++retired_now;
+      retired_.Add(rec.id);
+      s_.point_index.erase(rec.id);
+    }
+    if (number[pt] == kFreed) {
+      ++freed;
+      continue;
+    }
+    if (rec.retired) rec.in_triangulation = false, rec.vertex = Vertex_handle();
+    if (!rec.retired) s_.point_index[rec.id] = number[pt];
+    points.push_back(std::move(rec));
+  }
+  s_.points.swap(points);
+  points = {};
+
+  // The new triangulation in place (the old one is freed on leaving), and what pointed into
+  // the old one.
+  s_.dt.swap(dt);
+  s_.last_vertex = Vertex_handle();
+  s_.cells_in_o = 0;
+  s_.stats.cells_final = 0;
+  s_.weight_ledger = 0;
+  s_.dirty.clear();
+  for (auto c = s_.dt.all_cells_begin(); c != s_.dt.all_cells_end(); ++c) {
+    const CellInfo& info = c->info();
+    s_.weight_ledger += static_cast<uint64_t>(info.weight);
+    s_.stats.cells_final += info.final ? 1 : 0;
+    if (info.dirty) s_.dirty.push_back(c);
+    if (!info.in_o) continue;
+    ++s_.cells_in_o;
+    for (int i = 0; i < 4; ++i) ++c->vertex(i)->info().o_cells;
+  }
+  for (auto v = s_.dt.finite_vertices_begin(); v != s_.dt.finite_vertices_end(); ++v) {
+    const int64_t id = v->info().id;
+    if (id < 0) continue;
+    PointRecord& rec = s_.points[static_cast<size_t>(id)];
+    rec.vertex = v;
+    s_.last_vertex = v;
+  }
+  caster_.ForgetCells();
+  if (s_.hooks) s_.hooks->probe_cells.clear();
+  // The Steiner grid forgets the nodes that no camera to come can place again: beyond a
+  // camera's reach (its cube's corner) behind the final region.
+  const double corner = std::sqrt(3.0) * (s_.opt.max_ray_length + s_.opt.steiner_margin);
+  steiner_.Forget([&](const Point& node) { return FarBehind(node, corner); });
+
+  ++s_.stats.rebuilds;
+  s_.stats.vertices_forgotten += static_cast<int64_t>(gone.size());
+  s_.stats.points_forgotten += retired_now;
+  s_.stats.point_records_freed += freed;
+}
+
+}  // namespace imr::engine::detail
