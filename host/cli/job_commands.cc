@@ -94,7 +94,7 @@ int CmdOptions(const std::vector<std::string>& args) {
   po::options_description opts("imr options options");
   opts.add_options()("only", po::value<std::string>()->value_name("SECTION"),
                      "one section: engine, input, evaluation or plugins")(
-      "markdown", "Markdown tables (README.md's engine table is `--only engine --markdown`)");
+      "markdown", "Markdown tables (docs/engine.md's engine table is `--only engine --markdown`)");
   AddPluginPathFlag(opts);
   po::positional_options_description pos;
   po::variables_map vm;

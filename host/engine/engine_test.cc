@@ -24,7 +24,7 @@ TEST(EngineOptionsTest, DefaultsAreValid) {
   EXPECT_EQ(o.free_threshold, 1.0);
   EXPECT_EQ(o.window, 15);
   EXPECT_EQ(o.rays_per_cell, 5);
-  // Where imr's measured best differs (README, Surface quality).
+  // Where imr's measured best differs (docs/benchmarks.md, Surface quality).
   EXPECT_EQ(o.visibility_mode, VisibilityMode::kExact);
   EXPECT_EQ(o.exact_min_rays, 2);
   EXPECT_EQ(o.steiner_export, SteinerExportRule::kAnySteiner);

@@ -1,4 +1,4 @@
-// Camera geometry shared by the SfM/SLAM readers and writers (README, Meshes from SfM/SLAM output), in ONE convention:
+// Camera geometry shared by the SfM/SLAM readers and writers (docs/interop.md), in ONE convention:
 //
 //   x_cam = R * X_world + t        R: world -> camera rotation (row-major 3x3), t: translation,
 //   C = -R^T t                     C: the camera centre in world coordinates,

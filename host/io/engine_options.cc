@@ -95,7 +95,7 @@ std::vector<EngineOption> MakeTable() {
       Option("min_move_fraction", &E::min_move_fraction, {{"minimum", 0.0}, {"maximum", 1.0}}, "",
              "a move shorter than this fraction of the distance from the point to its nearest "
              "neighbouring vertex is not made (the vertex and its rays stay); 0: every move "
-             "(trade-off measured in the README, Engine speed)"),
+             "(trade-off measured in docs/engine.md)"),
       Option("steiner_export", &E::steiner_export, kNone, "",
              "which triangles touching Steiner points the exported mesh drops"),
       Option("fill_holes_perimeter", &E::fill_holes_perimeter, Min(0.0), "m",

@@ -1,7 +1,7 @@
 // The job's "engine" object <-> imr::engine::EngineOptions, declared once: one table of options
 // (name, member, type, bounds, unit, default, description) gives the schema that `imr validate`
 // checks a job's "engine" against, the reading of a job (EngineOptionsFromJson), the writing of
-// a report (EngineOptionsToJson) and the listing of `imr options` (README's table is its output).
+// a report (EngineOptionsToJson) and the listing of `imr options` (docs/engine.md's table is its output).
 #pragma once
 
 #include "host/engine/engine.h"

@@ -1,5 +1,5 @@
 // The engine options table drives the schema, the reading and the writing of the job's "engine"
-// object, and the README's list is its output.
+// object, and docs/engine.md's list is its output.
 #include "host/io/engine_options.h"
 
 #include <gtest/gtest.h>
@@ -53,19 +53,19 @@ TEST(EngineOptionTable, CheckInvariantsIsTheFieldOfTheSameName) {
   EXPECT_TRUE(o.check_invariants);
 }
 
-TEST(EngineOptionTable, TheReadmeListsExactlyTheTable) {
-  std::ifstream in(std::string(IMR_SOURCE_DIR) + "/README.md");
-  ASSERT_TRUE(in) << "README.md not found";
+TEST(EngineOptionTable, TheEngineDocListsExactlyTheTable) {
+  std::ifstream in(std::string(IMR_SOURCE_DIR) + "/docs/engine.md");
+  ASSERT_TRUE(in) << "docs/engine.md not found";
   std::stringstream ss;
   ss << in.rdbuf();
-  const std::string readme = ss.str();
+  const std::string doc = ss.str();
   const std::string begin = "<!-- engine-options:begin -->\n", end = "<!-- engine-options:end -->";
-  const auto b = readme.find(begin), e = readme.find(end);
+  const auto b = doc.find(begin), e = doc.find(end);
   ASSERT_NE(b, std::string::npos);
   ASSERT_NE(e, std::string::npos);
-  EXPECT_EQ(readme.substr(b + begin.size(), e - b - begin.size()),
+  EXPECT_EQ(doc.substr(b + begin.size(), e - b - begin.size()),
             SchemaMarkdown(EngineOptionsSchema()))
-      << "README.md's engine options differ from the table: paste the output of "
+      << "docs/engine.md's engine options differ from the table: paste the output of "
          "`imr options --markdown --only engine` between the markers";
 }
 

@@ -1,4 +1,4 @@
-// Image sequences with known camera poses (README, Meshes from image sequences): what the image front end reads. Each
+// Image sequences with known camera poses (docs/interop.md, KITTI and Middlebury): what the image front end reads. Each
 // layout reader (KITTI odometry, KITTI raw, Middlebury) converts to ONE convention, the one of
 // camera_model.h:
 //

@@ -41,7 +41,7 @@ nlohmann::json WithDefaults(const nlohmann::json& schema, const nlohmann::json& 
 std::string Describe(const nlohmann::json& value);
 
 // A listing of every key of `schema`: what it accepts (type, bounds, enum), its default, unit and
-// description. Markdown: one table row per key (the README's tables are this output); text: a
+// description. Markdown: one table row per key (docs/engine.md's table is this output); text: a
 // block per key for a terminal, each line after the first indented by `indent`.
 std::string SchemaMarkdown(const nlohmann::json& schema);
 std::string SchemaText(const nlohmann::json& schema, const std::string& indent = "  ");

@@ -1,5 +1,5 @@
 // The incremental SLAM JSON of the real-time manifold mesher of Piazza et al. 2018
-// (slam_data_version 0.3; README, Meshes from SfM/SLAM output), read as a keyframe stream and written by --export-stream.
+// (slam_data_version 0.3; docs/interop.md), read as a keyframe stream and written by --export-stream.
 //
 //   {"slam_data_version": "0.3", "root_path": "...",
 //    "intrinsics": [{"intrinsicId": 0, "value": {"polymorphic_name": "pinhole",

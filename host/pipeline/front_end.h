@@ -1,4 +1,4 @@
-// The image front end (README, Meshes from image sequences): an image sequence with known poses, driven frame by frame
+// The image front end (docs/user-guide.md, Image sequences): an image sequence with known poses, driven frame by frame
 // through a features plugin (2D tracks) and a refiner plugin (3D points), becomes the engine's
 // keyframe updates. It is a KeyframeSource like the SfM readers, so the pipeline downstream does
 // not know whether points came from images or from a file.

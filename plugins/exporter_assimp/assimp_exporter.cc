@@ -1,4 +1,4 @@
-// The assimp exporter (README, Colour, texture and upright glTF): writes the output surface as OBJ, binary
+// The assimp exporter (docs/user-guide.md, Colour, texture and upright glTF): writes the output surface as OBJ, binary
 // PLY, glTF 2.0 or GLB, with per-vertex normals and, where the format has a place for them, the
 // per-vertex point ids that trace the mesh back to its 3D points (host/engine/engine.h, `Mesh`).
 // Since SDK 1.1 it colours the surface from the keyframe images (vertex colours, a texture atlas:

@@ -1,5 +1,5 @@
 // Edge-point features tracked with pyramidal Lucas-Kanade (paper section 2.1, "Sparse point
-// cloud"; README, Meshes from image sequences). Edge points are Canny edge pixels, one per grid cell (the
+// cloud"; docs/user-guide.md, Image sequences). Edge points are Canny edge pixels, one per grid cell (the
 // strongest gradient of the cell), so they spread over the image; Shi-Tomasi corners are the
 // alternative detector. Tracks are followed frame to frame and kept only when tracking the new
 // position back lands near the old one (forward-backward check); new tracks start on the first

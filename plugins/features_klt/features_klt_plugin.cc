@@ -1,4 +1,4 @@
-// The edge-point KLT features plugin (README, Meshes from image sequences): images in, 2D tracks out.
+// The edge-point KLT features plugin (docs/user-guide.md, Image sequences): images in, 2D tracks out.
 #include <imr/sdk/plugin.hpp>
 
 #include <opencv2/imgproc.hpp>

@@ -1,5 +1,5 @@
-// Incremental sparse point cloud from 2D tracks and known cameras (paper section 2.1; README,
-// Meshes from image sequences). Every frame's observations are stored per track; at each keyframe, tracks with new
+// Incremental sparse point cloud from 2D tracks and known cameras (paper section 2.1; docs/user-guide.md,
+// Image sequences). Every frame's observations are stored per track; at each keyframe, tracks with new
 // observations are triangulated (DLT, once they are seen in enough keyframes with enough
 // parallax) and refined (Ceres, reprojection error, poses fixed), outliers are dropped, and the
 // changes since the previous keyframe are reported: new, moved and removed points.

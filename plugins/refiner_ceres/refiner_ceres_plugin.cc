@@ -1,4 +1,4 @@
-// The Ceres refiner plugin (README, Meshes from image sequences): 2D tracks + cameras in; new, moved and removed
+// The Ceres refiner plugin (docs/user-guide.md, Image sequences): 2D tracks + cameras in; new, moved and removed
 // 3D points out, at each keyframe.
 #include <imr/sdk/plugin.hpp>
 
