@@ -359,7 +359,7 @@ void Carving::PeelAround(const std::vector<Vertex_handle>& centres, double radiu
 
 // grow: a priority queue by weight (highest first). Seeds: the highest-weight free cell when O is
 // empty, else the free cells outside O touching dO among those that changed this keyframe.
-void Carving::Grow() {
+void Carving::Grow(Cell_handle new_component) {
   struct Item {
     int64_t weight;
     uint64_t order;
@@ -397,6 +397,16 @@ void Carving::Grow() {
     for (const auto& s : seeds) q.push({s.second->info().weight, order++, s.second});
   }
   s_.TakeDirty([](Cell_handle) {});
+  if (new_component != Cell_handle() && candidate(new_component) &&
+      !s_.TouchesO(new_component) && ToggleKeepsManifold(new_component)) {
+    SetInO(new_component, true);
+    ++s_.stats.cells_grown;
+    ++s_.stats.components_started;
+    for (int i : s_.CanonicalFacets(new_component)) {
+      Cell_handle n = new_component->neighbor(i);
+      if (candidate(n)) q.push({n->info().weight, order++, n});
+    }
+  }
   while (!q.empty()) {
     Cell_handle c = q.top().cell;
     q.pop();
@@ -419,6 +429,7 @@ void WeightTransfer::CollectRemoved(const std::vector<Cell_handle>& cells, Remov
   if (s_.opt.visibility_mode == VisibilityMode::kExact) caster_.CollectHole(cells, &r->hole);
   for (Cell_handle c : cells) {
     c->info().dirty = false;         // out of the set: the cell is about to be destroyed
+    if (c->info().final) --s_.stats.cells_final, ++s_.stats.final_cells_replaced;
     s_.Ledger(c->info().weight, 0);
     if (s_.dt.is_infinite(c)) continue;
     if (s_.opt.visibility_mode == VisibilityMode::kRays) {
@@ -693,7 +704,7 @@ Engine::Impl::Vertex_handle Engine::Impl::InsertPoint(const Point& p, int64_t ve
   Facet boundary;
   s.dt.find_conflicts(p, loc, CGAL::Oneset_iterator<Facet>(boundary),
                       std::back_inserter(conflicts));
-  if (s.TouchesFinal(conflicts) || !carving.Shrink(conflicts, {p})) return Vertex_handle();
+  if (s.BlockedByFinal(conflicts) || !carving.Shrink(conflicts, {p})) return Vertex_handle();
   Removed removed;
   transfer.CollectRemoved(conflicts, &removed);
   Vertex_handle v =
@@ -702,6 +713,7 @@ Engine::Impl::Vertex_handle Engine::Impl::InsertPoint(const Point& p, int64_t ve
   s.last_vertex = v;
   std::vector<Cell_handle> added;
   s.dt.incident_cells(v, std::back_inserter(added));
+  s.BornFinal(added);
   transfer.AssignNewCells(added, removed, with_policy);
   if (rays) *rays = std::move(removed.rays);
   return v;
@@ -716,6 +728,7 @@ void Engine::Impl::RemoveVertex(Vertex_handle v, std::vector<RayEntry>* rays) {
   if (s.last_vertex == v) s.last_vertex = Vertex_handle();
   std::vector<Cell_handle> added;
   s.dt.remove_and_give_new_cells(v, std::back_inserter(added));
+  s.BornFinal(added);
   transfer.AssignNewCells(added, removed, true);
   if (rays) *rays = std::move(removed.rays);
 }
@@ -775,7 +788,7 @@ void Engine::Impl::RemovePoint(uint32_t pt) {
   }
   std::vector<Cell_handle> inc;
   s.dt.incident_cells(rec.vertex, std::back_inserter(inc));
-  if (s.TouchesFinal(inc) || !carving.Shrink(inc, {rec.vertex->point()})) {
+  if (s.BlockedByFinal(inc) || !carving.Shrink(inc, {rec.vertex->point()})) {
     ++s.stats.moves_skipped;  // Cannot be removed without breaking dO; keep it.
     return;
   }
@@ -801,7 +814,7 @@ void Engine::Impl::ExactRemovePoint(uint32_t pt) {
   if (rec.in_triangulation) {
     std::vector<Cell_handle> inc;
     s.dt.incident_cells(rec.vertex, std::back_inserter(inc));
-    if (s.TouchesFinal(inc) || !carving.Shrink(inc, {rec.vertex->point()})) {
+    if (s.BlockedByFinal(inc) || !carving.Shrink(inc, {rec.vertex->point()})) {
       ++s.stats.moves_skipped;  // Cannot be removed without breaking dO; keep it.
       return;
     }
@@ -835,7 +848,7 @@ bool Engine::Impl::ShrinkMoveRegion(Vertex_handle v, const Point& p_old, const P
   s.dt.find_conflicts(p_new, loc, CGAL::Emptyset_iterator(), std::back_inserter(*d));
   std::sort(d->begin(), d->end());
   d->erase(std::unique(d->begin(), d->end()), d->end());
-  if (s.TouchesFinal(*d) || !carving.Shrink(*d, {p_old, p_new})) {
+  if (s.BlockedByFinal(*d) || !carving.Shrink(*d, {p_old, p_new})) {
     ++s.stats.moves_skipped;
     return false;
   }
@@ -862,7 +875,7 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   s.dt.incident_cells(rec.vertex, std::back_inserter(d));
   if (detail::MovePlanner::StarStaysDelaunay(s.dt, rec.vertex, p_new, d)) {
     // The same cells, reshaped: only the star's rays are walked again.
-    if (s.TouchesFinal(d) || !carving.Shrink(d, {p_old, p_new})) {
+    if (s.BlockedByFinal(d, /*strict=*/true) || !carving.Shrink(d, {p_old, p_new})) {
       ++s.stats.moves_skipped;
       return;
     }
@@ -905,6 +918,7 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   if (conflicts.empty()) {
     rec.in_triangulation = false;
     rec.vertex = Vertex_handle();
+    s.BornFinal(added);
     transfer.AssignNewCells(added, removed, false);
     ++s.stats.points_dropped;  // Cannot happen: counted if it ever does.
     return;
@@ -915,6 +929,7 @@ void Engine::Impl::ExactMovePoint(uint32_t pt, const MovedPoint& m) {
   s.last_vertex = v;
   rec.vertex = v;
   s.dt.incident_cells(v, std::back_inserter(added));
+  s.BornFinal(added);
   transfer.AssignNewCells(added, removed, false);
   ++s.stats.points_moved;
 }
@@ -1322,7 +1337,7 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
     }
     carving.PeelAround(changed, s.opt.regrow_radius);
   }
-  carving.Grow();
+  carving.Grow(s.opt.forget ? CameraCell() : Cell_handle());
   s.stats.time.grow += SecondsSince(tg);
   const double dt_s = SecondsSince(t0);
   s.stats.time.total += dt_s;
@@ -1446,6 +1461,35 @@ void Engine::Impl::Forget() {
       {s.stats.updates, static_cast<int64_t>(s.dt.number_of_cells()) - s.stats.cells_final,
        static_cast<int64_t>(s.points.size()), static_cast<int64_t>(s.dt.number_of_vertices())});
   s.stats.time.forget += SecondsSince(t0);
+}
+
+// The cell holding the newest camera when the cameras are back where they were long ago
+// (Forgetting::Returned) and no cell of O lies within two grid steps of it: the O that was there
+// is forgotten, and O must start there again.
+Engine::Impl::Cell_handle Engine::Impl::CameraCell() {
+  if (s.cameras.empty() || s.dt.dimension() != 3 || s.cells_in_o == 0 || !forgetting.Returned())
+    return Cell_handle();
+  const Point& camera = s.cameras.back();
+  Dt::Locate_type lt;
+  int li, lj;
+  const Cell_handle c = s.dt.locate(camera, lt, li, lj,
+                                    s.last_vertex != Vertex_handle() ? s.last_vertex->cell()
+                                                                     : Cell_handle());
+  if (lt != Dt::CELL || s.dt.is_infinite(c) || c->info().in_o) return Cell_handle();
+  const double r = 2.0 * s.opt.steiner_spacing;
+  const uint64_t seen = ++s.stamp;  // stamps are only compared for equality
+  std::vector<Cell_handle> todo = {c};
+  c->info().stamp = seen;
+  for (size_t i = 0; i < todo.size(); ++i) {
+    for (int k = 0; k < 4; ++k) {
+      const Cell_handle n = todo[i]->neighbor(k);
+      if (n->info().stamp == seen || s.dt.is_infinite(n)) continue;
+      n->info().stamp = seen;
+      if (n->info().in_o) return Cell_handle();
+      if (CGAL::squared_distance(s.Centroid(n), camera) <= r * r) todo.push_back(n);
+    }
+  }
+  return c;
 }
 
 std::vector<SurfacePart> Engine::TakeFinalParts() {

@@ -281,7 +281,13 @@ struct EngineStats {
   int64_t point_records_freed = 0;    // Of those, records freed (no live cell held their rays).
   int64_t updates_of_forgotten_points = 0;  // Moves and removals of retired points: ignored.
   int64_t changes_refused_final = 0;  // Insertions, moves and removals refused: they would
-                                      // have destroyed or reshaped a final cell.
+                                      // have destroyed or reshaped a final cell in O or next
+                                      // to O.
+  int64_t components_started = 0;     // Components of O grown from a camera's cell that
+                                      // touched no O (the cameras came back where O was
+                                      // forgotten).
+  int64_t final_cells_replaced = 0;   // Final cells with no part in the surface destroyed by a
+                                      // change (a grid growing sideways at a bend).
   int64_t parts = 0;                  // SurfaceParts handed out (FinishSurface's included).
   int64_t part_triangles = 0;         // Their triangles.
   // At each step: the update, the live (not final) cells, the points kept, the vertices.

@@ -300,17 +300,41 @@ struct EngineState {
     c->info().dirty = true;
     dirty.push_back(c);
   }
-  // forget: whether a change that destroys or reshapes these cells must be refused (one of
-  // them is final); counted.
-  bool TouchesFinal(const std::vector<Cell_handle>& cells) {
+  // forget: whether a change that destroys these cells must be refused: one of them is final
+  // and not inert (in O, or next to a cell of O: a facet of the surface handed out, or to be);
+  // counted. An inert final cell may go: nothing of the surface was or will be made of it, and
+  // the cells made in its place are final where they touch a deep vertex (BornFinal).
+  // `strict`: any final cell refuses (a move in place reshapes the cells it keeps).
+  bool BlockedByFinal(const std::vector<Cell_handle>& cells, bool strict = false) {
     if (!opt.forget) return false;
-    for (Cell_handle c : cells)
-      if (c->info().final) {
+    for (Cell_handle c : cells) {
+      if (!c->info().final) continue;
+      bool inert = !strict && !c->info().in_o;
+      for (int i = 0; i < 4 && inert; ++i) inert = !c->neighbor(i)->info().in_o;
+      if (!inert) {
         ++stats.changes_refused_final;
         return true;
       }
+    }
     return false;
   }
+  // forget: cells just made (before any ray reaches them) that touch a deep vertex are final:
+  // nothing around a deep vertex changes (it was completed), and inert final cells are all
+  // that a change there may have destroyed.
+  void BornFinal(const std::vector<Cell_handle>& made) {
+    if (!opt.forget) return;
+    for (Cell_handle c : made) {
+      bool deep = false;
+      for (int i = 0; i < 4 && !deep; ++i)
+        deep = !dt.is_infinite(c->vertex(i)) && c->vertex(i)->info().deep;
+      if (!deep || c->info().final) continue;
+      c->info().final = true;
+      ++stats.cells_final;
+      ++stats.cells_finalized;
+      born_final.push_back(c);
+    }
+  }
+  std::vector<Cell_handle> born_final;  // since the last step: their vertices may be deep now
   // The cells in the dirty set, which is then empty.
   template <class Visit>
   void TakeDirty(Visit&& visit) {
@@ -744,7 +768,9 @@ class Carving {
   // Takes out of O every cell with a vertex within `radius` of one of the given vertices.
   void PeelAround(const std::vector<Vertex_handle>& centres, double radius);
   // grow: the free cells touching dO join O, highest weight first, while dO stays manifold.
-  void Grow();
+  // `new_component`: a free cell that may start a component of O of its own (forget: where
+  // the cameras come back to space that was forgotten, O is no longer there to grow from).
+  void Grow(Cell_handle new_component = Cell_handle());
 
  private:
   bool VertexRegular(Vertex_handle v, Cell_handle toggled);
@@ -830,6 +856,9 @@ class Forgetting {
   void MaybeRebuild();
   bool Retired(uint64_t id) const { return retired_.Contains(id); }
   const RetiredIds& retired() const { return retired_; }
+  // Whether the newest camera is back where the cameras were forget_distance away from (a
+  // place left behind: what was made there may be forgotten, and O must start again there).
+  bool Returned() const;
 
  private:
   bool BecomesFinal(Cell_handle c) const;
@@ -847,6 +876,11 @@ class Forgetting {
   double behind_[3] = {0, 0, 0};  // at the step: unit direction the cameras came from
   RetiredIds retired_;
   int64_t deep_since_rebuild_ = 0;  // vertices that became deep since the last rebuild
+  // The path, one point every 2 grid steps: the recent stretch, and the places left behind as
+  // voxels of that size (a few bytes a metre of the drive).
+  static uint64_t Voxel(const Point& p, double size);
+  std::deque<Point> path_;
+  std::unordered_set<uint64_t> left_;
 };
 
 // -------------------------------------------------------------------------------------------------
@@ -1044,6 +1078,8 @@ struct Engine::Impl {
   std::unique_ptr<KeyframeUpdate> WithoutRetired(const KeyframeUpdate& u);
   // forget: a step (Forgetting): what became final handed out as a part, then maybe a rebuild.
   void Forget();
+  // forget: the cell holding the newest camera (null when it is outside the hull or none).
+  Cell_handle CameraCell();
 
   int64_t steiner_nodes_ = 0;  // grid nodes tried, placed or refused: names the next one
   std::vector<uint32_t> entered_;  // kExact: points that entered during this update

@@ -35,11 +35,38 @@ bool RetiredIds::Contains(uint64_t id) const {
   return next != runs_.begin() && id <= std::prev(next)->second;
 }
 
+uint64_t Forgetting::Voxel(const Point& p, double size) {
+  auto axis = [&](double x) { return static_cast<uint64_t>(std::floor(x / size)) & 0x1FFFFF; };
+  return axis(p.x()) << 42 | axis(p.y()) << 21 | axis(p.z());
+}
+
+bool Forgetting::Returned() const {
+  if (!have_camera_ || left_.empty()) return false;
+  const double size = 2.0 * s_.opt.steiner_spacing;
+  // The voxel of the camera and its neighbours: within a voxel of a place left.
+  for (int dx = -1; dx <= 1; ++dx)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dz = -1; dz <= 1; ++dz)
+        if (left_.count(Voxel(Point(newest_.x() + dx * size, newest_.y() + dy * size,
+                                    newest_.z() + dz * size),
+                              size)))
+          return true;
+  return false;
+}
+
 void Forgetting::AddUpdateCameras(std::vector<Point> centres) {
   if (!centres.empty()) {
     newest_ = centres.back();
     if (!have_camera_) last_step_ = centres.front();  // the first step measures from here
     have_camera_ = true;
+  }
+  const double size = 2.0 * s_.opt.steiner_spacing, d = s_.opt.ForgetDistance();
+  for (const Point& c : centres)
+    if (path_.empty() || CGAL::squared_distance(path_.back(), c) >= size * size)
+      path_.push_back(c);
+  while (!path_.empty() && CGAL::squared_distance(path_.front(), newest_) > d * d) {
+    left_.insert(Voxel(path_.front(), size));
+    path_.pop_front();
   }
   recent_.push_back(std::move(centres));
   while (recent_.size() > static_cast<size_t>(s_.opt.window)) recent_.pop_front();
@@ -85,6 +112,12 @@ bool Forgetting::BecomesFinal(Cell_handle c) const {
       return false;
     p[n++] = &v->point();
     m[0] += v->point().x(), m[1] += v->point().y(), m[2] += v->point().z();
+  }
+  if (n == 4) {
+    // A finite cell: its circumsphere, where a point must fall to destroy it (a flat cell on a
+    // grid plane has one of kilometres: it stays live, and is soon destroyed as the grid grows).
+    const Point cc = CGAL::circumcenter(*p[0], *p[1], *p[2], *p[3]);
+    return FarBehind(cc, std::sqrt(CGAL::squared_distance(cc, *p[0])));
   }
   const Point g(m[0] / n, m[1] / n, m[2] / n);
   double r2 = 0.0;
@@ -150,12 +183,18 @@ void Forgetting::Freeze(std::vector<Triangle>* facets, std::vector<Vertex_handle
     }
   }
 
-  // The vertices of those cells whose every cell is final now.
+  // The vertices of those cells (and of the cells born final since the last step that are
+  // still there) whose every cell is final now.
   std::vector<Vertex_handle> candidates;
-  for (Cell_handle c : now)
+  auto candidate = [&](Cell_handle c) {
     for (int i = 0; i < 4; ++i)
       if (!s_.dt.is_infinite(c->vertex(i)) && !c->vertex(i)->info().deep)
         candidates.push_back(c->vertex(i));
+  };
+  for (Cell_handle c : now) candidate(c);
+  for (Cell_handle c : s_.born_final)
+    if (s_.dt.tds().cells().is_used(c) && c->info().final) candidate(c);
+  s_.born_final.clear();
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   std::vector<Cell_handle> star;
