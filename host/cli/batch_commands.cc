@@ -357,6 +357,12 @@ int CmdSubmit(const std::vector<std::string>& args) {
   if (!ParseCommand("submit", synopsis, opts, pos, args, &vm, &status,
                     {{"job", "needs a job file: imr submit JOB.json --tasks N"}}))
     return status;
+  // An option given with an empty value is a mistake, not "the default".
+  for (const char* name : {"partition", "time", "mem", "account", "qos"})
+    if (vm.count(name) && vm[name].as<std::string>().empty()) {
+      std::cerr << "imr submit: --" << name << ": expected a value, got ''\n";
+      return kExitUsage;
+    }
   imr::batch::SubmitOptions o;
   o.tasks = vm["tasks"].as<int>();
   o.cpus_per_task = vm["cpus-per-task"].as<int>();
@@ -385,6 +391,10 @@ int CmdSubmit(const std::vector<std::string>& args) {
   if (!LoadRunnableJob("submit", job, vm, run_options, batch_check, &registry, &v))
     return kExitUsage;
   const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  if (const std::string e = imr::batch::CheckScriptPaths(batch_dir); !e.empty()) {
+    std::cerr << "imr submit: " << e << "\n";
+    return kExitUsage;
+  }
   try {
     imr::EnsureWritableDirectory(batch_dir / imr::batch::kBatchSubdir);
   } catch (const std::exception& e) {
