@@ -36,6 +36,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
@@ -732,11 +733,32 @@ class SteinerGrid {
  public:
   explicit SteinerGrid(const EngineOptions& opt) : opt_(opt) {}
   // The grid's points within reach of a camera that were not placed before, in placement order.
-  std::vector<Point> NewPoints(const Point& camera);
+  // `stop` is polled as the nodes are walked (throws Stopped when it says so); throws
+  // std::runtime_error when the camera is too far from the origin for the grid's node numbers.
+  std::vector<Point> NewPoints(const Point& camera, const std::function<bool()>& stop);
 
  private:
+  // A node by its integer coordinates, exactly (packing them in 64 bits would alias nodes
+  // 2^21 steps apart).
+  struct Node {
+    int64_t i, j, k;
+    bool operator==(const Node& o) const { return i == o.i && j == o.j && k == o.k; }
+  };
+  struct NodeHash {
+    size_t operator()(const Node& n) const {
+      uint64_t h = static_cast<uint64_t>(n.i) * 0x9E3779B97F4A7C15ull;
+      h ^= static_cast<uint64_t>(n.j) + 0x7F4A7C159E3779B9ull + (h << 6) + (h >> 2);
+      h ^= static_cast<uint64_t>(n.k) + 0x94D049BB133111EBull + (h << 6) + (h >> 2);
+      return static_cast<size_t>(h);
+    }
+  };
   const EngineOptions& opt_;
-  std::unordered_set<uint64_t> keys_;  // nodes placed
+  std::unordered_set<Node, NodeHash> nodes_;  // nodes placed
+};
+
+// Thrown from a long loop when the engine's stop check says so (Engine::SetStopCheck).
+struct Stopped : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 
 // -------------------------------------------------------------------------------------------------
@@ -888,6 +910,7 @@ struct Engine::Impl {
   detail::SteinerGrid steiner;
   detail::MovePlanner planner;
   Status init;
+  std::function<bool()> stop_requested;  // Engine::SetStopCheck
 
  private:
   Status Validate(const KeyframeUpdate& u) const;

@@ -2,6 +2,7 @@
 
 #include "host/io/engine_options.h"
 #include "host/io/input_formats.h"
+#include "host/pipeline/scale.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 
@@ -259,7 +260,17 @@ ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry
       ExpandSequences(*format, &v);
     }
   }
-  io::EngineOptionsFromJson(v.job.engine, &v.engine_options, &v.problems);
+  if (io::EngineOptionsFromJson(v.job.engine, &v.engine_options, &v.problems)) {
+    // The Steiner grid's size, once its lengths are known: in metric mode, or when the job gives
+    // all three; auto scaling sets the others per sequence, and the run checks them then.
+    bool known = ScaleModeOf(v.job.engine, v.job.input.format) == ScaleMode::kMetric;
+    if (!known && v.job.engine.is_object())
+      known = v.job.engine.contains("steiner_spacing") && v.job.engine.contains("steiner_margin") &&
+              v.job.engine.contains("max_ray_length");
+    if (known)
+      if (const std::string grid = v.engine_options.CheckSteinerGrid(); !grid.empty())
+        v.problems.push_back({"engine", grid});
+  }
   if (!v.job.evaluation.is_null()) {
     io::ValidateAgainstSchema(EvaluationSchema(), v.job.evaluation, "evaluation", &v.problems);
     v.evaluation = io::WithDefaults(EvaluationSchema(), v.job.evaluation);

@@ -109,6 +109,9 @@ class SequenceRun {
   // which call plugins through it.
   StageWatch watch_;
   std::vector<WatchedStage> watched_;  // per stage of the job
+  // The engine's work on one keyframe, watched under --stage-timeout too: a runaway update
+  // (a grid or loop too large to finish) fails the sequence like a hung plugin.
+  WatchedStage engine_stage_;
   std::size_t policy_stage_ = 0, features_stage_ = 0, refiner_stage_ = 0;
 
   // The source.
@@ -261,7 +264,9 @@ void SequenceRun::StartEngine() {
                  std::to_string(scale_.keyframes) + " keyframes; the metric defaults are kept");
     } else {
       engine_options_ = ScaledOptions(v_.engine_options, scale_, explicit_keys_);
-      if (const std::string error = engine_options_.Check(); !error.empty())
+      std::string error = engine_options_.Check();
+      if (error.empty()) error = engine_options_.CheckSteinerGrid();
+      if (!error.empty())
         throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale_.median_ray) +
                                  ") gives unusable options: " + error +
                                  "; set the engine's lengths in the job, or engine.scale \"metric\"");
@@ -272,6 +277,10 @@ void SequenceRun::StartEngine() {
   engine_.emplace(engine_options_, watched_policy_ ? &*watched_policy_ : nullptr);
   if (!engine_->init_status().ok())
     throw std::runtime_error("engine: " + engine_->init_status().message());
+  // A signal (Ctrl-C, SIGTERM) reaches the engine's long loops, not only the keyframe loop.
+  engine_->SetStopCheck([] { return plugin::CancelRequested(); });
+  if (options_.stage_timeout > 0.0)
+    engine_stage_ = {"engine", "", "engine", options_.stage_timeout, "--stage-timeout"};
 }
 
 // What runs after every keyframe, in this order (the trace writes the check's time).
@@ -316,7 +325,10 @@ void SequenceRun::ProcessKeyframes() {
     canonical_.Apply(&update);
     watch_.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
     const auto engine_start = std::chrono::steady_clock::now();
-    const engine::Status st = engine_->ApplyUpdate(update);
+    const engine::Status st = [&] {
+      const StageWatch::Call call = watch_.Enter(engine_stage_);
+      return engine_->ApplyUpdate(update);
+    }();
     KeyframeEvent event{update, kf};
     event.engine_seconds = SecondsSince(engine_start);
     engine_seconds_ += event.engine_seconds;

@@ -98,8 +98,9 @@ void StageWatch::Run() {
       const auto at = positions_.find(due->thread);
       const std::string position = at == positions_.end() ? std::string() : at->second;
       const std::string message =
-          "stage \"" + s.kind + "\" (" + s.json_path + ", plugin " + s.plugin +
-          ") did not return within " + Seconds(s.timeout_seconds) +
+          "stage \"" + s.kind + "\" (" + s.json_path +
+          (s.plugin.empty() ? std::string() : ", plugin " + s.plugin) + ") did not return within " +
+          Seconds(s.timeout_seconds) +
           (position.empty() ? std::string() : " (" + position + ")") + "; the limit is " +
           s.limit_source;
       due->reported = true;
