@@ -6,6 +6,7 @@
 #include "host/batch/slurm.h"
 #include "host/batch/summary.h"
 #include "host/cli/command.h"
+#include "host/io/batch_folder.h"
 #include "host/io/input_formats.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
@@ -51,7 +52,9 @@ const char* kRunNotes =
     "(SIGKILL 10 s later) and count as interrupted, and the summary is written.\n"
     "Exit status: 0 every sequence ok or up to date; else the number of sequences that failed,\n"
     "were interrupted or did not run (1..63; 63 means 63 or more); 64 bad usage or job; 73 the\n"
-    "batch folder cannot be created; 75 another imr run holds it (each case: nothing ran).\n";
+    "batch folder cannot be created or holds a summary.md, summary.json, index.html, assets/ or\n"
+    "imr-batch/ that imr did not write; 75 another imr run holds it (each case: nothing ran); 73\n"
+    "also when the batch summary could not be written after the run.\n";
 
 bool ParseSize(const po::variables_map& vm, const char* cmd, uint64_t* bytes) {
   if (!vm.count("max-rss")) return true;
@@ -141,6 +144,11 @@ int CmdRun(const std::vector<std::string>& args) {
   if (!LoadRunnableJob("run", job, vm, run_options, batch, &registry, &v)) return kExitUsage;
   // The batch folder, and this run's hold on it: an environment problem, not a failure.
   const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  if (const std::string foreign = io::ForeignBatchFiles(batch_dir, batch.viewer_page);
+      !foreign.empty()) {
+    std::cerr << "imr run: " << foreign << "\n";
+    return imr::kExitCantCreate;
+  }
   std::shared_ptr<imr::batch::BatchLock> lock;
   try {
     lock = imr::batch::LockBatchFolder(batch_dir, batch.shard);
@@ -193,6 +201,9 @@ int CmdRun(const std::vector<std::string>& args) {
                 result.viewer_page.string().c_str());
   else
     std::printf("\n");
+  // The summary is the batch's result: not writing it is the batch folder's failure (its error
+  // is on stderr), whatever the sequences did.
+  if (!batch.shard.active() && !result.summary_written) return imr::kExitCantCreate;
   return imr::ExitStatusForFailures(failed);
 }
 
@@ -395,6 +406,11 @@ int CmdSubmit(const std::vector<std::string>& args) {
     std::cerr << "imr submit: " << e << "\n";
     return kExitUsage;
   }
+  // The reduce job writes the summary and the viewer page: refuse now, not hours later.
+  if (const std::string foreign = io::ForeignBatchFiles(batch_dir, true); !foreign.empty()) {
+    std::cerr << "imr submit: " << foreign << "\n";
+    return imr::kExitCantCreate;
+  }
   try {
     imr::EnsureWritableDirectory(batch_dir / imr::batch::kBatchSubdir);
   } catch (const std::exception& e) {
@@ -457,6 +473,10 @@ int CmdReport(const std::vector<std::string>& args) {
     }
     dir = imr::batch::BatchDirectory(parsed.job);
   }
+  if (const std::string foreign = io::ForeignBatchFiles(dir, false); !foreign.empty()) {
+    std::cerr << "imr report: " << foreign << "\n";
+    return imr::kExitCantCreate;
+  }
   nlohmann::json summary;
   try {
     summary = imr::batch::WriteSummary(dir, "imr report");
@@ -465,13 +485,21 @@ int CmdReport(const std::vector<std::string>& args) {
     return kExitUsage;
   }
   // The page is a view of the summary: if it cannot be written, the summary still stands.
-  try {
-    const auto page = imr::report::WriteBatchPage(dir, summary);
-    for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
-    std::printf("viewer page: %s (%d mesh%s in 3D)\n", page.page.string().c_str(),
-                page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es");
-  } catch (const std::exception& e) {
-    imr::LogWarning(std::string("viewer page not written: ") + e.what());
+  std::string foreign_page;
+  for (const char* entry : {"index.html", "assets"})
+    if (foreign_page.empty()) foreign_page = io::ForeignBatchEntry(dir, entry);
+  if (!foreign_page.empty()) {
+    imr::LogWarning("viewer page not written: " + foreign_page +
+                    ": imr does not overwrite a file it did not write");
+  } else {
+    try {
+      const auto page = imr::report::WriteBatchPage(dir, summary);
+      for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
+      std::printf("viewer page: %s (%d mesh%s in 3D)\n", page.page.string().c_str(),
+                  page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es");
+    } catch (const std::exception& e) {
+      imr::LogWarning(std::string("viewer page not written: ") + e.what());
+    }
   }
   for (const auto& r : summary["sequences"]) {
     const std::string st = r["status"].get<std::string>();
