@@ -17,6 +17,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -217,7 +218,8 @@ const char* kMeshNotes =
     "(--set engine.steiner_spacing=0.1, --set input.options.views_per_keyframe=4); `imr options`\n"
     "lists them. Any other option is handed to imr run (--force, --check-invariants, ...).\n"
     "Example (COLMAP): imr mesh --input sparse/0 --format colmap --out mesh.ply\n"
-    "Exit status: 0 written; 1 the run failed (its report and log say why); 64 bad usage.\n";
+    "Exit status: 0 written; 1 the run failed (its report and log say why); 64 bad usage; 73\n"
+    "the mesh could not be copied to --out (the run's result stays in WORK/mesh).\n";
 
 int CmdMesh(const std::vector<std::string>& args) {
   po::options_description opts("imr mesh options");
@@ -257,6 +259,16 @@ int CmdMesh(const std::vector<std::string>& args) {
   }
   for (const char* required : {"input", "format", "out"})
     if (!vm.count(required)) return usage(std::string("needs --") + required);
+  if (vm["out"].as<std::string>().empty()) return usage("--out: expected a mesh file name, got ''");
+  // --out decides the output: the run must write there and nowhere else.
+  for (const std::string& o : JobOverrides(vm)) {
+    const std::string key = o.substr(0, o.find('='));
+    for (const char* owned : {"output", "output.directory", "output.stem", "output.formats"})
+      if (key == owned || key.rfind(std::string(owned) + "[", 0) == 0 ||
+          (key.rfind(std::string(owned) + ".", 0) == 0 && std::string(owned) != "output"))
+        return usage("--set " + OneLine(o, 200) + ": imr mesh sets output.directory, output.stem "
+                     "and output.formats from --out (and --work); change those instead");
+  }
   const std::string input = vm["input"].as<std::string>();
   const std::string format = vm["format"].as<std::string>();
   const io::InputFormat* f = io::FindInputFormat(format);
@@ -266,6 +278,9 @@ int CmdMesh(const std::vector<std::string>& args) {
     return usage("--format: expected " + io::JoinAlternatives(names) + ", got '" + format + "'");
   }
   const fs::path out = fs::absolute(vm["out"].as<std::string>()).lexically_normal();
+  if (std::error_code ec; fs::is_directory(out, ec))
+    return usage("--out: " + out.string() + " is a folder; name the mesh file (e.g. " +
+                 (out / "mesh.ply").string() + ")");
   std::string ext = out.extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext != ".ply" && ext != ".obj" && ext != ".gltf" && ext != ".glb")
@@ -302,18 +317,38 @@ int CmdMesh(const std::vector<std::string>& args) {
   run_args.insert(run_args.end(), forwarded.begin(), forwarded.end());
   if (const int status = CmdRun(run_args); status != kExitOk) return status;
 
-  // The run's output folder holds the mesh and its companions; report.json lists them.
+  // The run's output folder holds the mesh and its companions; report.json lists them. The mesh
+  // is copied to --out as named (the exporter writes the extension in lower case), companions
+  // by their names; each copy is atomic, and a failure is the output's, not the run's (73).
   const fs::path folder = work / "mesh";
-  std::ifstream in(folder / "report.json", std::ios::binary);
-  const nlohmann::json report = nlohmann::json::parse(in);
+  const std::string mesh_name = out.stem().string() + ext;
+  std::vector<std::string> files;
+  try {
+    std::ifstream in(folder / "report.json", std::ios::binary);
+    const nlohmann::json report = nlohmann::json::parse(in);
+    for (const auto& name : report.at("files")) files.push_back(name.get<std::string>());
+  } catch (const std::exception& e) {
+    std::cerr << "imr mesh: " << (folder / "report.json").string() << ": unreadable ("
+              << e.what() << ")\n";
+    return kExitFailed;
+  }
+  if (std::find(files.begin(), files.end(), mesh_name) == files.end()) {
+    std::cerr << "imr mesh: the run wrote no " << (folder / mesh_name).string()
+              << " (its report.json lists the files it wrote)\n";
+    return kExitFailed;
+  }
   std::vector<std::string> copied;
-  for (const auto& name : report["files"]) {
-    const std::string n = name.get<std::string>();
+  for (const std::string& n : files) {
     if (n == "report.json") continue;
-    const fs::path tmp = out.parent_path() / ("." + n + ".partial");
-    fs::copy_file(folder / n, tmp, fs::copy_options::overwrite_existing);
-    fs::rename(tmp, out.parent_path() / n);
-    copied.push_back(n);
+    const fs::path to = n == mesh_name ? out : out.parent_path() / n;
+    try {
+      CopyFileAtomically(folder / n, to);
+    } catch (const std::exception& e) {
+      std::cerr << "imr mesh: cannot copy the mesh to --out: " << e.what()
+                << " (the run's result stays in " << folder.string() << ")\n";
+      return kExitCantCreate;
+    }
+    copied.push_back(to.filename().string());
   }
   std::string companions;
   for (const std::string& n : copied)
