@@ -11,6 +11,7 @@
 #include "host/util/file_lock.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
+#include "host/util/sha256.h"
 #include "host/util/thread_pool.h"
 
 #include <fcntl.h>
@@ -77,6 +78,34 @@ bool Unquote(const std::string& line, std::string* name) {
     }
   }
   return true;
+}
+
+// Why a sequence whose manifest matches must still be redone because its input changed: the
+// files of its source as report.json hashed them (input.checksums.files: the source file, or
+// the files directly in its folder) are hashed again. Empty when they match, or when the report
+// names none. Files in the source's subfolders (an image sequence's images) are not re-read.
+std::string InputChanged(const fs::path& output, const std::string& source) {
+  json files;
+  try {
+    std::ifstream in(output / "report.json", std::ios::binary);
+    const json report = json::parse(in);
+    files = report.at("input").at("checksums").at("files");
+  } catch (const std::exception&) {
+    return {};
+  }
+  if (!files.is_object()) return {};
+  std::error_code ec;
+  const fs::path src(source);
+  const bool one_file = fs::is_regular_file(src, ec);
+  for (const auto& [name, sha] : files.items()) {
+    if (!sha.is_string() || name.find("\\x") != std::string::npos) continue;  // a name kept as text
+    const fs::path p = one_file ? src.parent_path() / name : src / name;
+    if (!fs::is_regular_file(p, ec))
+      return "its input " + p.string() + " is gone since the last run";
+    if (Sha256File(p) != sha.get<std::string>())
+      return "its input " + p.string() + " changed since the last run (SHA-256)";
+  }
+  return {};
 }
 
 std::string HolderOf(const fs::path& lock_file) {
@@ -171,12 +200,33 @@ std::string SequenceListLine(const std::string& name) {
 }
 
 std::vector<std::string> ReadSequenceList(const fs::path& file) {
+  std::error_code ec;
+  if (fs::is_directory(file, ec))
+    throw std::runtime_error(file.string() + ": is a folder, not a list");
   std::ifstream in(file, std::ios::binary);
   if (!in) throw std::runtime_error(file.string() + ": cannot read");
+  // Read at most one byte past the bound: /dev/zero or a 2 GB file is not a list of names.
+  std::string text(kMaxSequenceListBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  if (text.size() > kMaxSequenceListBytes)
+    throw std::runtime_error(file.string() + ": more than " +
+                             std::to_string(kMaxSequenceListBytes >> 20) +
+                             " MiB: not a sequence list (one name a line)");
   std::vector<std::string> names;
   int number = 0;
-  for (std::string line; std::getline(in, line);) {
+  for (std::size_t pos = 0; pos < text.size();) {
+    const std::size_t end = std::min(text.find('\n', pos), text.size());
+    std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
     ++number;
+    const std::string where = file.string() + ":" + std::to_string(number) + ": ";
+    if (line.size() > kMaxSequenceListLine)
+      throw std::runtime_error(where + std::to_string(line.size()) + " bytes, more than a name (" +
+                               std::to_string(kMaxSequenceListLine) + " at most): " +
+                               OneLine(line, 80));
+    if (line.find('\0') != std::string::npos)
+      throw std::runtime_error(where + "a NUL byte (not a text file?): " + OneLine(line, 80));
     const auto b = line.find_first_not_of(" \t\r");
     const auto e = line.find_last_not_of(" \t\r");
     if (b == std::string::npos || line[b] == '#') continue;
@@ -187,9 +237,8 @@ std::vector<std::string> ReadSequenceList(const fs::path& file) {
     }
     std::string name;
     if (!Unquote(line, &name))
-      throw std::runtime_error(file.string() + ":" + std::to_string(number) +
-                               ": a quoted name must be one \"...\" with the escapes \\\", "
-                               "\\\\, \\n, \\r, \\t, \\xNN, got " + JsonText(line));
+      throw std::runtime_error(where + "a quoted name must be one \"...\" with the escapes \\\", "
+                               "\\\\, \\n, \\r, \\t, \\xNN, got " + OneLine(line, 200));
     names.push_back(std::move(name));
   }
   return names;
@@ -251,7 +300,7 @@ std::vector<std::string> CheckBatch(const pipeline::ValidatedJob& v, const Batch
       for (const auto& n : ReadSequenceList(o.sequences_from))
         if (!known.count(n))
           problems.push_back("--sequences-from " + o.sequences_from.string() + ": '" +
-                             JsonText(n) + "' is not a sequence of the job");
+                             OneLine(n, 200) + "' is not a sequence of the job");
     } catch (const std::exception& e) {
       problems.push_back(std::string("--sequences-from: ") + e.what());
     }
@@ -352,7 +401,9 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
     if (!options.force) {
       const ManifestCheck check =
           CheckManifest(o.output_directory, HashIdentity(identity), identity);
-      if (check.up_to_date) {
+      const std::string changed =
+          check.up_to_date ? InputChanged(o.output_directory, seq.source) : std::string();
+      if (check.up_to_date && changed.empty()) {
         o.status = SequenceStatus::kSkipped;
         o.detail = "up to date (" + check.reason + ")";
         say(LogLevel::kInfo, position + seq.name + ": skipped, " + o.detail);
@@ -362,7 +413,7 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
         outcomes[index] = o;
         return;
       }
-      o.detail = check.reason;
+      o.detail = changed.empty() ? check.reason : changed;
     } else {
       o.detail = "--force";
     }
