@@ -62,7 +62,7 @@ bool ParseSize(const po::variables_map& vm, const char* cmd, uint64_t* bytes) {
   const auto b = imr::batch::ParseBytes(vm["max-rss"].as<std::string>());
   if (!b) {
     std::cerr << "imr " << cmd << ": --max-rss: expected a size like 512M or 4G, got '"
-              << vm["max-rss"].as<std::string>() << "'\n";
+              << OneLine(vm["max-rss"].as<std::string>(), 200) << "' (at most 4 EiB)\n";
     return false;
   }
   *bytes = *b;

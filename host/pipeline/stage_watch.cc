@@ -36,7 +36,7 @@ WatchedStage WatchedStageOf(const io::StageSpec& stage, double default_seconds) 
 
 std::string CheckStageTimeout(double seconds) {
   if (std::isfinite(seconds) && seconds >= 0.0 && seconds <= io::kMaxStageTimeoutSeconds) return {};
-  return "expected a number of seconds > 0 and at most " +
+  return "expected a number of seconds >= 0 (0: no limit) and at most " +
          std::to_string(static_cast<long>(io::kMaxStageTimeoutSeconds)) + " (a year)";
 }
 
