@@ -496,7 +496,9 @@ int CmdReport(const std::vector<std::string>& args) {
       "viewable in 3D in a browser, offline (<model-viewer> is copied beside the page).\n"
       "A sequence whose process was killed (a time limit, SIGKILL) shows as interrupted.\n"
       "Exit status: 0 every sequence ok; else the number that failed, were interrupted or did not\n"
-      "run (1..63; 63 means 63 or more); 64 not a batch folder or bad usage.";
+      "run (1..63; 63 means 63 or more); 64 not a batch folder or bad usage; 73 RUN_DIR holds a\n"
+      "summary.json or summary.md that imr did not write (it is left alone; so is a foreign\n"
+      "index.html or assets/: the page is then not written).";
   if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
   fs::path dir = vm["dir"].as<std::string>();
   std::error_code ec;

@@ -51,8 +51,8 @@ std::string ForeignBatchEntry(const fs::path& batch_dir, const std::string& entr
            page.find("<script type=\"application/json\" id=\"imr-meshes\">") != std::string::npos;
     what = "not a viewer page of imr";
   } else if (entry == "assets") {
-    ours = HoldsAny(p, {kViewerScriptName});
-    what = std::string("a folder without imr's ") + kViewerScriptName;
+    ours = HoldsAny(p, {kViewerScriptName, "meshes"});
+    what = std::string("a folder without imr's ") + kViewerScriptName + " or meshes/";
   } else if (entry == kBatchSubdir) {
     ours = HoldsAny(p, {"batch.json", "lock", "status", "slurm", "sequences.txt"});
     what = "a folder without imr's batch.json, lock or status records";

@@ -29,7 +29,7 @@ inline bool IsBatchFolderEntry(const std::string& name) {
 // imr will not write it, naming the path. imr's own: summary.json with "imr_summary" (or the
 // keys every summary has), summary.md starting "# imr batch summary", index.html with imr's
 // generator tag (or its mesh table, in pages of older versions), assets/ empty or holding the
-// viewer's script, imr-batch/ empty or holding batch.json, a lock or status records.
+// viewer's script or meshes/, imr-batch/ empty or holding batch.json, a lock or status records.
 std::string ForeignBatchEntry(const std::filesystem::path& batch_dir, const std::string& entry);
 
 // The first foreign entry of the batch folder (index.html and assets/ only when `viewer`), as
