@@ -707,7 +707,13 @@ TEST_F(BadJob, JobWithIntegersBeyondTheirRange) {
                                "input.options.frames: expected integer >= 1 (a 32-bit integer"});
   std::string text = GoodJob().dump(2);
   text.insert(text.find("\"input\""), "\"engine\": {\"window\": 123456789012345678901234567890},\n  ");
-  ExpectJobRefused(text, {"engine.window: expected integer >= 1, got 1.2345678901234568e+29"});
+  ExpectJobRefused(text, {"engine.window: expected integer >= 1 (a 32-bit integer, at most "
+                          "2147483647), got 1.2345678901234568e+29"});
+  // The same hint for a whole number written as a float (issue 36: 1e308 lacked it).
+  j = GoodJob();
+  j["engine"]["window"] = 1e308;
+  ExpectJobRefused(j.dump(2), {"engine.window: expected integer >= 1 (a 32-bit integer, at most "
+                               "2147483647), got 1e+308"});
 }
 
 TEST_F(BadJob, JobWithDeepNesting) {
@@ -1305,10 +1311,12 @@ TEST_F(BadImages, PoseWithHugeTranslation) {
 
 TEST_F(BadSfm, AllPointsAtOnePosition) {
   // Every point at one position: all but the first are refused as duplicates. Not an error, but
-  // a warning (on stderr, in report.json and the summary), and report.json counts them.
+  // a warning (on stderr, in report.json and the summary), and report.json counts them. The
+  // position is ahead of every camera (a position behind most of them is refused as impossible
+  // since issue 36: ImpossibleOrStaleInput).
   json j = ReadJson(Fixture("slam/good.json"));
   for (json& v : j["views"])
-    for (json& o : v["observations"]) o["X"] = {1.0, 2.0, 0.5};
+    for (json& o : v["observations"]) o["X"] = {1.0, 30.0, 0.5};
   WriteText(Case() / "bad.json", j.dump());
   const json job = EngineJob("slam_json", {"bad.json", Fixture("slam/good.json")});
   const CommandResult r = Run(job);
@@ -1641,6 +1649,375 @@ TEST_F(BadSfm, OpenMvgOddFieldsOfVersions02And03) {
                                 {(Case() / "bad.json").string(),
                                  "intrinsics[0].value.ptr_wrapper.data.disto_k3",
                                  "the pinhole_radial_k3 model has 3 distortion values, got 2"});
+}
+
+// ---- Issue 36: outside probes of the landed build, as a careless or hostile user, a full
+// disk or a scheduler would try it ----
+
+// A job of two synthetic sequences that `imr submit` accepts.
+json SubmitJob() {
+  json j = EngineJob("synthetic", {"street", "room"});
+  j["input"]["options"] = {{"frames", 20}, {"seed", 3}};
+  return j;
+}
+
+// The lines of the scripts `imr submit` wrote into `batch`, and whether bash parses them.
+std::vector<std::string> ScriptLines(const fs::path& batch) {
+  std::vector<std::string> lines;
+  for (const char* name : {"array.sbatch", "report.sbatch"}) {
+    const fs::path script = batch / "imr-batch/slurm" / name;
+    const CommandResult n = RunShell("bash -n " + Quote(script.string()));
+    EXPECT_EQ(n.status, 0) << script << ": " << n.err;
+    std::istringstream in(ReadText(script));
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+  }
+  return lines;
+}
+
+TEST_F(BadJob, SubmitValuesThatWouldRunCommands) {
+  // A newline in --time, --mem, --partition, --sbatch-arg ended the #SBATCH line and the rest ran
+  // as a command in both scripts; --mem -5G and --time '' were written unchecked. Each is now
+  // refused before anything is written (64).
+  WriteText(Case() / "job.json", SubmitJob().dump(2));
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {"--time " + Quote("1:00:00\ntouch X #"), "--time: expected a Slurm time limit (minutes, M:S, "
+                                                "H:M:S, D-H, D-H:M or D-H:M:S, or UNLIMITED), got "
+                                                "'1:00:00\\ntouch X #'"},
+      {"--time ''", "--time: expected a value, got ''"},
+      {"--time 1:2:3:4", "--time: expected a Slurm time limit"},
+      {"--mem -5G", "--mem: expected a memory size in megabytes, or with a unit K, M, G or T (e.g. "
+                    "8G), got '-5G'"},
+      {"--partition " + Quote("gpu\ntouch X"), "--partition: 'gpu\\ntouch X' holds a control "
+                                               "character (a newline would end the #SBATCH line)"},
+      {"--account " + Quote("a\nb"), "--account: 'a\\nb' holds a control character"},
+      {"--qos " + Quote("q\rq"), "--qos: 'q\\rq' holds a control character"},
+      {"--sbatch-arg " + Quote("--constraint=x\ntouch X"), "--sbatch-arg: '--constraint=x\\ntouch X' "
+                                                          "holds a control character"},
+      {"--sbatch-arg " + Quote("touch X"), "--sbatch-arg: expected an sbatch option"},
+  };
+  for (const auto& [flags, message] : refused) {
+    const CommandResult r = InCase("submit job.json --tasks 2 --dry-run " + flags);
+    EXPECT_EQ(r.status, kExitUsage) << flags << "\n" << r.out << r.err;
+    EXPECT_NE(r.err.find("imr submit: " + message), std::string::npos) << flags << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(Case() / "runs")) << flags << " wrote " << Case() / "runs";
+  }
+  EXPECT_FALSE(fs::exists(Case() / "X"));
+  // A job file whose name holds a newline: written on one line in the comments and as one
+  // ANSI-C quoted word in the commands; no line of either script is the injected command.
+  const std::string name = "j\ntouch Y #.json";
+  WriteText(Case() / name, SubmitJob().dump(2));
+  const CommandResult r = InCase("submit " + Quote(name) + " --tasks 2 --dry-run --time 1:00:00 --mem 2G");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  for (const std::string& line : ScriptLines(Case() / "runs")) EXPECT_NE(line.rfind("touch", 0), 0u) << line;
+  EXPECT_NE(ReadText(Case() / "runs/imr-batch/slurm/array.sbatch").find("# Job " + (Case() / "j\\ntouch Y #.json").string()),
+            std::string::npos);
+  std::cout << "[ message  ] " << refused[0].second << "\n";
+}
+
+TEST_F(BadJob, SteinerGridThatWouldNeverEnd) {
+  // engine.max_ray_length=1e12 or steiner_spacing=1e-9 passed validation and then ran for ever
+  // (the grid around the first camera has ~1e32 nodes); now refused up front, naming the options
+  // and the size. Milder values that only filled the memory are refused the same way.
+  for (const auto& [set, size] : std::vector<std::pair<std::string, std::string>>{
+           {"engine.max_ray_length=1e12", "6.4e+34 nodes"},
+           {"engine.steiner_spacing=1e-9", "7.29e+32 nodes"},
+           {"engine.steiner_margin=1e9", "6.4e+25 nodes"},
+           {"engine.steiner_spacing=0.1", "7.34e+08 nodes"}}) {
+    ExpectJobRefused(GoodJob().dump(2),
+                     {"engine: the Steiner grid would have " + size + " around each camera",
+                      "more than the 1e+07 allowed: raise steiner_spacing or lower max_ray_length "
+                      "or steiner_margin"},
+                     "--set " + set);
+  }
+}
+
+TEST_F(BadJob, EngineUpdateThatRunsLong) {
+  // A grid within the bound that still takes seconds per camera (a 0.9 m spacing: a million
+  // Steiner points around the first): the engine's update is watched under --stage-timeout like
+  // a plugin call, and SIGTERM reaches its loops (it used to be ignored until the SIGKILL).
+  json j = GoodJob();
+  j["engine"]["steiner_spacing"] = 0.9;
+  WriteText(Case() / "job.json", j.dump(2));
+  const CommandResult t = InCase("run job.json --stage-timeout 1");
+  EXPECT_NE(t.status, 0) << t.out << t.err;
+  EXPECT_NE(t.err.find("stage \"engine\" (engine) did not return within 1 s (keyframe 0, frame "),
+            std::string::npos) << t.err;
+  EXPECT_NE(t.err.find("the limit is --stage-timeout"), std::string::npos) << t.err;
+  EXPECT_EQ(Leftovers(Case() / "runs"), std::vector<std::string>{});
+
+  fs::remove_all(Case() / "runs");
+  const BackgroundRun run(Case(), "run");
+  ASSERT_GT(run.pid(), 0);
+  ASSERT_TRUE(WaitForText(Case() / "runs/imr-batch/status/street.json", "running", 60)) << run.Output();
+  ::sleep(2);  // into the first camera's grid
+  const auto sent = std::chrono::steady_clock::now();
+  ::kill(run.pid(), SIGTERM);
+  EXPECT_NE(run.Wait(60), 0) << run.Output();
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
+  EXPECT_LT(took, 8.0) << "SIGTERM did not stop the engine's loop\n" << run.Output();
+  const json street = SummaryRow(ReadJson(Case() / "runs/summary.json"), "street");
+  EXPECT_EQ(street["status"], "interrupted") << street.dump(2);
+  EXPECT_EQ(street.value("error", "").find("was killed"), std::string::npos) << street.dump(2);
+  const std::size_t at = t.err.find("stage \"engine\"");
+  std::cout << "[ message  ] " << t.err.substr(at, t.err.find('\n', at) - at)
+            << "; SIGTERM ended the run in " << took << " s\n";
+}
+
+TEST_F(BadSfm, BatchFolderHoldsTheUsersFiles) {
+  // output.directory "{sequence}" makes the job's own folder the batch folder: the user's
+  // index.html and summary.md beside the input used to be replaced. Refused (73), untouched.
+  CopyModel(Case() / "A");
+  json job = EngineJob("colmap", {"A"});
+  job["output"]["directory"] = "{sequence}";
+  WriteText(Case() / "index.html", "<p>my page</p>\n");
+  WriteText(Case() / "summary.md", "# my notes\n");
+  WriteText(Case() / "job.json", job.dump(2));
+  CommandResult r = InCase("run job.json");
+  EXPECT_EQ(r.status, kExitCantCreate) << r.out << r.err;
+  EXPECT_NE(r.err.find("imr run: " + (Case() / "summary.md").string() +
+                       ": not a batch summary of imr (it does not start with \"# imr batch "
+                       "summary\"): imr would overwrite it with the batch summary"),
+            std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(Case() / "A/report.json")) << "it ran";
+  std::cout << "[ message  ] " << r.err.substr(r.err.find("imr run: ")) << "\n";
+  fs::remove(Case() / "summary.md");
+  r = InCase("run job.json");
+  EXPECT_EQ(r.status, kExitCantCreate) << r.out << r.err;
+  EXPECT_NE(r.err.find((Case() / "index.html").string() + ": not a viewer page of imr: imr would "
+                       "overwrite it with the viewer page"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("or give imr run --no-viewer"), std::string::npos) << r.err;
+  // Without the page it runs; the user's page stays, and imr's own files are rewritten freely.
+  for (int i = 0; i < 2; ++i) {
+    r = InCase("run job.json --no-viewer");
+    EXPECT_EQ(r.status, 0) << r.out << r.err;
+  }
+  EXPECT_EQ(ReadText(Case() / "index.html"), "<p>my page</p>\n");
+  EXPECT_EQ(ReadText(Case() / "summary.md").rfind("# imr batch summary", 0), 0u);
+  // `imr report` keeps the summary and leaves the page alone.
+  r = InCase("report job.json");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find("viewer page not written: " + (Case() / "index.html").string()), std::string::npos) << r.err;
+  EXPECT_EQ(ReadText(Case() / "index.html"), "<p>my page</p>\n");
+}
+
+TEST_F(BadJob, JobNamedLikeAParentFolder) {
+  // "...json" has the stem "..": runs/{job}/{sequence} climbed out of runs/, and `imr validate`
+  // accepted it.
+  json j = GoodJob();
+  j["output"]["directory"] = "runs/{job}/{sequence}";
+  WriteText(Case() / "...json", j.dump(2));
+  const CommandResult r = InCase("validate ...json");
+  EXPECT_EQ(r.status, kExitUsage) << r.out << r.err;
+  EXPECT_NE(r.err.find("output.directory: {job} would be '..' (the job file ...json): not a folder "
+                       "name; rename the job file"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(InCase("run ...json").status, kExitUsage);
+  EXPECT_FALSE(fs::exists(Case() / "runs"));
+  std::cout << "[ message  ] " << r.err << "\n";
+}
+
+TEST_F(BadSfm, GlobOverTheOutputFolder) {
+  // Sequences "cm/*/" with output "cm/{sequence}_mesh": every re-run took imr's own folders
+  // (cm/imr-batch, cm/assets, A_mesh) for sequences, and the batch grew (0, then 4, then 8
+  // failures). They are left out; a re-run is up to date.
+  CopyModel(Case() / "cm/A");
+  CopyModel(Case() / "cm/B");
+  json job = EngineJob("colmap", {"cm/*/"});
+  job["output"]["directory"] = "cm/{sequence}_mesh";
+  WriteText(Case() / "job.json", job.dump(2));
+  for (int run = 0; run < 3; ++run) {
+    const CommandResult r = InCase("run job.json");
+    EXPECT_EQ(r.status, 0) << "run " << run << "\n" << r.out << r.err;
+    const json summary = ReadJson(Case() / "cm/summary.json");
+    EXPECT_EQ(summary["counts"]["sequences"], 2) << summary.dump(2);
+    if (run > 0) {
+      EXPECT_NE(r.out.find("2 skipped (up to date)"), std::string::npos) << r.out;
+    }
+  }
+  EXPECT_FALSE(fs::exists(Case() / "cm/A_mesh_mesh"));
+  const CommandResult v = InCase("validate job.json -v");
+  EXPECT_NE(v.err.find("left out what imr wrote"), std::string::npos) << v.err;
+}
+
+TEST_F(BadSfm, SequenceNamedLikeTheBatchFolderFiles) {
+  // summary.md used to fail the summary ("Is a directory") and still exit 0; index.html stopped
+  // the viewer page; assets shared the viewer's folder; imr-batch passed `imr validate`.
+  for (const char* n : {"summary.md", "summary.json", "index.html", "assets", "imr-batch", "good"})
+    CopyModel(Case() / "seqs" / n);
+  WriteText(Case() / "job.json", EngineJob("colmap", {"seqs/*/"}).dump(2));
+  const CommandResult r = InCase("validate job.json");
+  EXPECT_EQ(r.status, kExitUsage) << r.out << r.err;
+  for (const char* n : {"summary.md", "summary.json", "index.html", "assets", "imr-batch"})
+    EXPECT_NE(r.err.find("sequence '" + std::string(n) + "': its output folder " +
+                         (Case() / "runs" / n).string() + " is the batch folder's " + n +
+                         ", which imr run writes"),
+              std::string::npos) << n << "\n" << r.err;
+  ExpectJobRefused(EngineJob("colmap", {"seqs/*/"}).dump(2), {"is the batch folder's summary.md"});
+}
+
+TEST_F(BadJob, SequenceListWithoutEnd) {
+  // --sequences-from had no bound: a 2 GB file of zeros took 33 s and 8.4 GB, a 200 MB line was
+  // echoed whole (NUL bytes too) into the log. Now 64 MiB and 64 KiB lines at most, and the
+  // message quotes 80 bytes.
+  WriteText(Case() / "job.json", GoodJob().dump(2));
+  ASSERT_EQ(RunShell("truncate -s 2G " + Quote((Case() / "zeros.txt").string())).status, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  CommandResult r = RunShell("ulimit -v 4194304; cd " + Quote(Case().string()) + " && " +
+                             Quote(kImr) + " run job.json --sequences-from zeros.txt");
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(r.status, kExitUsage) << r.err.substr(0, 400);
+  EXPECT_NE(r.err.find("zeros.txt: more than 64 MiB: not a sequence list"), std::string::npos) << r.err.substr(0, 400);
+  EXPECT_LT(seconds, 10.0);
+  WriteText(Case() / "long.txt", "street\n" + std::string(200000, 'x') + std::string(1, '\0') + "\n");
+  r = InCase("run job.json --sequences-from long.txt");
+  EXPECT_EQ(r.status, kExitUsage) << r.err.substr(0, 400);
+  EXPECT_NE(r.err.find("long.txt:2: 200001 bytes, more than a name (65536 at most): " +
+                       std::string(80, 'x') + "... (200001 bytes)"),
+            std::string::npos) << r.err.substr(0, 400);
+  EXPECT_LT(r.err.size(), 2000u);
+  std::cout << "[ message  ] " << r.err.substr(0, 200) << "\n";
+}
+
+TEST_F(BadSfm, HugeSparseFileNamedLikeAMesh) {
+  // `imr evaluate` and `imr render` read a 2 GB sparse file whole (2.1 GB, up to 12 s) before
+  // "not a PLY file"; the header is now read first.
+  const fs::path zeros = Case() / "zeros.ply";
+  ASSERT_EQ(RunShell("truncate -s 2G " + Quote(zeros.string())).status, 0);
+  const fs::path mesh = *dir_ / "fixture-run/mesh.ply";
+  for (const std::string& args :
+       {"evaluate " + Quote(zeros.string()) + " --truth " + Quote(mesh.string()),
+        "evaluate " + Quote(mesh.string()) + " --truth " + Quote(zeros.string()),
+        "render " + Quote(zeros.string()) + " --sequence " + Quote(Fixture("slam/good.json").string()) +
+            " --format slam_json --frame 0 --out " + Quote((Case() / "r.png").string())}) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const CommandResult r = RunShell("ulimit -v 2097152; " + Quote(kImr) + " " + args);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_NE(r.status, 0) << args;
+    EXPECT_NE(r.err.find(zeros.string() + ": not a PLY file (no 'ply' first line)"), std::string::npos)
+        << args << "\n" << r.err;
+    EXPECT_LT(seconds, 3.0) << args;
+  }
+}
+
+TEST_F(BadSfm, ImpossibleOrStaleInput) {
+  // (a) Every point behind the cameras that see it (a stream re-imported with its points
+  // mirrored through the cameras) meshed "ok" in the wrong place.
+  json j = ReadJson(Fixture("slam/good.json"));
+  for (json& v : j["views"]) {
+    const json c = v["extrinsic"]["center"];
+    for (json& o : v["observations"])
+      for (int k = 0; k < 3; ++k) o["X"][k] = 2.0 * c[k].get<double>() - o["X"][k].get<double>();
+  }
+  WriteText(Case() / "bad.json", j.dump());
+  ExpectOnlyTheBadSequenceFails(EngineJob("slam_json", {"bad.json", Fixture("slam/good.json")}),
+                                "bad.json", "good.json",
+                                {"observations of new points", "put the point behind the camera "
+                                 "that sees it (first: point ", "are the points mirrored"});
+  // (b) One view listing a point twice with two positions was accepted.
+  j = ReadJson(Fixture("slam/good.json"));
+  json& obs = j["views"][3]["observations"];
+  json twice = obs[0];
+  twice["X"][0] = twice["X"][0].get<double>() + 1.0;
+  obs.push_back(twice);
+  WriteText(Case() / "bad.json", j.dump());
+  ExpectOnlyTheBadSequenceFails(EngineJob("slam_json", {"bad.json", Fixture("slam/good.json")}),
+                                "bad.json", "good.json",
+                                {(Case() / "bad.json").string(), "views[3].observations[" +
+                                 std::to_string(obs.size() - 1) + "].pointId: point " +
+                                 std::to_string(twice["pointId"].get<uint64_t>()) +
+                                 " is listed twice in view", "a view sees a point once"});
+  // (c) An input replaced at the same path was "skipped, up to date" with the old mesh,
+  // although report.json holds the input's SHA-256: it is redone.
+  fs::copy_file(Fixture("slam/good.json"), Case() / "in.json");
+  const std::string mesh = "imr mesh --input in.json --format slam_json --out m.ply";
+  CommandResult r = InCase(mesh.substr(4));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  r = InCase(mesh.substr(4));
+  EXPECT_NE(r.err.find("skipped, up to date"), std::string::npos) << r.err;
+  json k = ReadJson(Fixture("slam/good.json"));
+  k["views"].erase(k["views"].end() - 3, k["views"].end());  // the last three views
+  WriteText(Case() / "in.json", k.dump());
+  r = InCase(mesh.substr(4));
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find("running (its input " + (Case() / "in.json").string() +
+                       " changed since the last run (SHA-256))"),
+            std::string::npos) << r.err;
+}
+
+TEST_F(BadSfm, MeshOutThatWasNotWritten) {
+  // `imr mesh` said "mesh: OUT" and exited 0 when OUT was never written (--out m/Mesh.PLY wrote
+  // Mesh.ply; --set output.stem / output.formats wrote other files); --set output.directory
+  // ended in a JSON parse error; --out '' or a folder: a filesystem exception or a full-size
+  // .partial left behind.
+  const std::string in = Fixture("slam/good.json").string();
+  const std::string base = "mesh --input " + Quote(in) + " --format slam_json --work w ";
+  fs::create_directories(Case() / "m");
+  CommandResult r = InCase(base + "--out m/Mesh.PLY");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("mesh: " + (Case() / "m/Mesh.PLY").string() + "\n"), std::string::npos) << r.out;
+  EXPECT_GT(fs::file_size(Case() / "m/Mesh.PLY"), 0u);
+  EXPECT_FALSE(fs::exists(Case() / "m/Mesh.ply"));
+  for (const std::string set : {"output.stem=other", "output.formats=[\"glb\"]",
+                                 "output.directory=ELSEWHERE", "output.formats[0]=obj"}) {
+    r = InCase(base + "--out m/x.ply --set " + Quote(set));
+    EXPECT_EQ(r.status, kExitUsage) << set << "\n" << r.out << r.err;
+    EXPECT_NE(r.err.find("imr mesh: --set " + set + ": imr mesh sets output.directory, "
+                         "output.stem and output.formats from --out"),
+              std::string::npos) << r.err;
+  }
+  r = InCase(base + "--out ''");
+  EXPECT_EQ(r.status, kExitUsage) << r.out << r.err;
+  EXPECT_NE(r.err.find("imr mesh: --out: expected a mesh file name, got ''"), std::string::npos) << r.err;
+  fs::create_directories(Case() / "d.ply");
+  r = InCase(base + "--out d.ply");
+  EXPECT_EQ(r.status, kExitUsage) << r.out << r.err;
+  EXPECT_NE(r.err.find((Case() / "d.ply").string() + " is a folder; name the mesh file"), std::string::npos) << r.err;
+  EXPECT_EQ(Leftovers(Case()), std::vector<std::string>{});
+  // A full disk at --out: "No space left on device", 73 (the run succeeded), no .partial.
+  TmpfsMount full(Case() / "full", 0, "size=16k");
+  if (!full.SkipReason().empty()) GTEST_SKIP() << full.SkipReason();
+  r = InCase(base + "--out full/mesh.ply");
+  EXPECT_EQ(r.status, kExitCantCreate) << r.out << r.err;
+  EXPECT_NE(r.err.find("imr mesh: cannot copy the mesh to --out: " + (Case() / "full/mesh.ply").string() +
+                       ": write failed: No space left on device"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(FilesUnder(Case() / "full"), std::vector<std::string>{});
+  std::cout << "[ message  ] " << r.err.substr(r.err.find("imr mesh: ")) << "\n";
+}
+
+TEST_F(BadSfm, RenderNamesWhatItRead) {
+  // A folder given as a SLAM JSON file: "basic_filebuf::underflow ... Is a directory" without
+  // the path; a successful render printed "frame 5 ()".
+  fs::create_directories(Case() / "folder");
+  const fs::path mesh = *dir_ / "fixture-run/mesh.ply";
+  const std::string out = " --out " + Quote((Case() / "r.png").string());
+  CommandResult r = RunShell(Quote(kImr) + " render " + Quote(mesh.string()) + " --sequence " +
+                             Quote((Case() / "folder").string()) + " --format slam_json --frame 0" + out);
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find((Case() / "folder").string() + ": is a folder, expected a JSON file"),
+            std::string::npos) << r.err;
+  r = RunShell(Quote(kImr) + " render " + Quote(mesh.string()) + " --sequence " +
+               Quote(Fixture("slam/good.json").string()) + " --format slam_json --frame 5" + out);
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find(": frame 5 (view "), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("()"), std::string::npos) << r.out;
+}
+
+TEST_F(BadJob, MessagesThatSaidTheWrongThing) {
+  // --stage-timeout -1 said "> 0" though 0 is accepted; --set engine=null said "got null null";
+  // --max-rss 99999999999999999999G was accepted (it overflowed).
+  ExpectJobRefused(GoodJob().dump(2),
+                   {"--stage-timeout: expected a number of seconds >= 0 (0: no limit) and at most "
+                    "31536000 (a year), got -1"},
+                   "--stage-timeout=-1");
+  ExpectJobRefused(GoodJob().dump(2), {"engine: expected object, got null\n"}, "--set engine=null");
+  WriteText(Case() / "job.json", GoodJob().dump(2));
+  const CommandResult r = InCase("validate job.json --set engine=null");
+  EXPECT_EQ(r.err.find("null null"), std::string::npos) << r.err;
+  ExpectJobRefused(GoodJob().dump(2), {"--max-rss: expected a size like 512M or 4G, got "
+                                       "'99999999999999999999G' (at most 4 EiB)"},
+                   "--max-rss 99999999999999999999G");
 }
 
 }  // namespace

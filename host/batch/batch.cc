@@ -11,6 +11,7 @@
 #include "host/util/file_lock.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
+#include "host/util/sha256.h"
 #include "host/util/thread_pool.h"
 
 #include <fcntl.h>
@@ -77,6 +78,34 @@ bool Unquote(const std::string& line, std::string* name) {
     }
   }
   return true;
+}
+
+// Why a sequence whose manifest matches must still be redone because its input changed: the
+// files of its source as report.json hashed them (input.checksums.files: the source file, or
+// the files directly in its folder) are hashed again. Empty when they match, or when the report
+// names none. Files in the source's subfolders (an image sequence's images) are not re-read.
+std::string InputChanged(const fs::path& output, const std::string& source) {
+  json files;
+  try {
+    std::ifstream in(output / "report.json", std::ios::binary);
+    const json report = json::parse(in);
+    files = report.at("input").at("checksums").at("files");
+  } catch (const std::exception&) {
+    return {};
+  }
+  if (!files.is_object()) return {};
+  std::error_code ec;
+  const fs::path src(source);
+  const bool one_file = fs::is_regular_file(src, ec);
+  for (const auto& [name, sha] : files.items()) {
+    if (!sha.is_string() || name.find("\\x") != std::string::npos) continue;  // a name kept as text
+    const fs::path p = one_file ? src.parent_path() / name : src / name;
+    if (!fs::is_regular_file(p, ec))
+      return "its input " + p.string() + " is gone since the last run";
+    if (Sha256File(p) != sha.get<std::string>())
+      return "its input " + p.string() + " changed since the last run (SHA-256)";
+  }
+  return {};
 }
 
 std::string HolderOf(const fs::path& lock_file) {
@@ -171,12 +200,33 @@ std::string SequenceListLine(const std::string& name) {
 }
 
 std::vector<std::string> ReadSequenceList(const fs::path& file) {
+  std::error_code ec;
+  if (fs::is_directory(file, ec))
+    throw std::runtime_error(file.string() + ": is a folder, not a list");
   std::ifstream in(file, std::ios::binary);
   if (!in) throw std::runtime_error(file.string() + ": cannot read");
+  // Read at most one byte past the bound: /dev/zero or a 2 GB file is not a list of names.
+  std::string text(kMaxSequenceListBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  if (text.size() > kMaxSequenceListBytes)
+    throw std::runtime_error(file.string() + ": more than " +
+                             std::to_string(kMaxSequenceListBytes >> 20) +
+                             " MiB: not a sequence list (one name a line)");
   std::vector<std::string> names;
   int number = 0;
-  for (std::string line; std::getline(in, line);) {
+  for (std::size_t pos = 0; pos < text.size();) {
+    const std::size_t end = std::min(text.find('\n', pos), text.size());
+    std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
     ++number;
+    const std::string where = file.string() + ":" + std::to_string(number) + ": ";
+    if (line.size() > kMaxSequenceListLine)
+      throw std::runtime_error(where + std::to_string(line.size()) + " bytes, more than a name (" +
+                               std::to_string(kMaxSequenceListLine) + " at most): " +
+                               OneLine(line, 80));
+    if (line.find('\0') != std::string::npos)
+      throw std::runtime_error(where + "a NUL byte (not a text file?): " + OneLine(line, 80));
     const auto b = line.find_first_not_of(" \t\r");
     const auto e = line.find_last_not_of(" \t\r");
     if (b == std::string::npos || line[b] == '#') continue;
@@ -187,9 +237,8 @@ std::vector<std::string> ReadSequenceList(const fs::path& file) {
     }
     std::string name;
     if (!Unquote(line, &name))
-      throw std::runtime_error(file.string() + ":" + std::to_string(number) +
-                               ": a quoted name must be one \"...\" with the escapes \\\", "
-                               "\\\\, \\n, \\r, \\t, \\xNN, got " + JsonText(line));
+      throw std::runtime_error(where + "a quoted name must be one \"...\" with the escapes \\\", "
+                               "\\\\, \\n, \\r, \\t, \\xNN, got " + OneLine(line, 200));
     names.push_back(std::move(name));
   }
   return names;
@@ -251,7 +300,7 @@ std::vector<std::string> CheckBatch(const pipeline::ValidatedJob& v, const Batch
       for (const auto& n : ReadSequenceList(o.sequences_from))
         if (!known.count(n))
           problems.push_back("--sequences-from " + o.sequences_from.string() + ": '" +
-                             JsonText(n) + "' is not a sequence of the job");
+                             OneLine(n, 200) + "' is not a sequence of the job");
     } catch (const std::exception& e) {
       problems.push_back(std::string("--sequences-from: ") + e.what());
     }
@@ -280,14 +329,12 @@ void RecordBatch(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& 
   WriteBatchInfo(BatchDirectory(v.job), info);
 }
 
-BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& registry,
-                        const pipeline::RunOptions& run_options, const BatchOptions& options) {
-  BatchRunResult result;
-  result.batch_directory = BatchDirectory(v.job);
-  const fs::path& batch_dir = result.batch_directory;
-  RecordBatch(v, registry, run_options);
+namespace {
 
-  // Which sequences: the frozen list, then this process's shard of it.
+// Which sequences this process runs, as indices into the job's: the frozen list
+// (--sequences-from), then this process's shard of it.
+std::vector<std::size_t> SelectSequences(const pipeline::ValidatedJob& v,
+                                         const BatchOptions& options) {
   std::vector<std::size_t> candidates;
   if (options.sequences_from.empty()) {
     for (std::size_t i = 0; i < v.sequences.size(); ++i) candidates.push_back(i);
@@ -306,293 +353,388 @@ BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginReg
             (options.shard_origin.empty() ? "" : " (" + options.shard_origin + ")") + ": " +
             std::to_string(selected.size()) + " of " + std::to_string(candidates.size()) +
             " sequences");
+  return selected;
+}
 
-  ProgressDisplay display(options.progress, options.progress_interval);
-  auto say = [&](LogLevel level, const std::string& m) {
-    if (level != LogLevel::kError && static_cast<int>(level) < static_cast<int>(GetLogLevel())) return;
-    display.Clear();
-    Log(level, m);
-  };
+// The selected sequences run J at a time, each in a child process: started in order (or skipped
+// when finished), watched (output, messages, memory, a cancel), and each outcome recorded in the
+// batch folder as it ends.
+class SequenceRunner {
+ public:
+  SequenceRunner(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& registry,
+                 const pipeline::RunOptions& run_options, const BatchOptions& options,
+                 const fs::path& batch_dir, std::vector<std::size_t> selected)
+      : v_(v), registry_(registry), run_options_(run_options), options_(options),
+        batch_dir_(batch_dir), selected_(std::move(selected)),
+        display_(options.progress, options.progress_interval), host_(Hostname()) {
+    shown_.total = static_cast<int>(selected_.size());
+  }
 
-  BatchProgress shown;
-  shown.total = static_cast<int>(selected.size());
-  std::map<std::size_t, SequenceOutcome> outcomes;
-  std::vector<std::unique_ptr<Running>> running;
-  std::size_t next = 0;
-  bool cancelled = false;
-  const std::string host = Hostname();
+  // Until every selected sequence has ended, or a cancel has stopped the running ones.
+  void RunAll();
+  // The outcomes in the order of the selection; a sequence a cancel kept from starting is
+  // "not run".
+  std::vector<SequenceOutcome> Outcomes() const;
 
-  auto record = [&](const SequenceOutcome& o) {
-    StatusRecord r;
-    r.sequence = o.name;
-    r.status = ToString(o.status);
-    r.seconds = o.seconds;
-    r.error = o.detail;
-    r.exit_code = o.exit_code;
-    r.signal = o.signal != 0 ? SignalName(o.signal) : "";
-    r.log_tail = o.log_tail;
-    r.warnings = o.warnings;
-    r.host = host;
-    r.finished_at = UtcNow();
-    try {
-      WriteStatusRecord(batch_dir, r);
-    } catch (const std::exception& e) {
-      say(LogLevel::kError, std::string("cannot record the outcome of ") + o.name + ": " + e.what());
+ private:
+  void Say(LogLevel level, const std::string& m);
+  void Record(const SequenceOutcome& o);
+  void Write(const StatusRecord& r, const char* what);
+  bool SkipIfFinished(std::size_t index, const std::string& position, SequenceOutcome* o);
+  void StartNext();
+  void HandleOutput(Running& r, const std::string& line);
+  void HandleMessage(Running& r, const std::string& line);
+  void Drain(Running& r, bool to_end);
+  void Finish(Running& r);
+  void DescribeFailure(const Running& r, SequenceOutcome* o) const;
+  void CancelIfAsked();
+  void ReapAndWatchMemory();
+
+  const pipeline::ValidatedJob& v_;
+  const plugin::PluginRegistry& registry_;
+  const pipeline::RunOptions& run_options_;
+  const BatchOptions& options_;
+  const fs::path batch_dir_;
+  const std::vector<std::size_t> selected_;
+  ProgressDisplay display_;
+  const std::string host_;
+  BatchProgress shown_;
+  std::map<std::size_t, SequenceOutcome> outcomes_;
+  std::vector<std::unique_ptr<Running>> running_;
+  std::size_t next_ = 0;
+  bool cancelled_ = false;
+  Clock::time_point cancelled_at_;
+};
+
+void SequenceRunner::Say(LogLevel level, const std::string& m) {
+  if (level != LogLevel::kError && static_cast<int>(level) < static_cast<int>(GetLogLevel())) return;
+  display_.Clear();
+  Log(level, m);
+}
+
+void SequenceRunner::Record(const SequenceOutcome& o) {
+  StatusRecord r;
+  r.sequence = o.name;
+  r.status = ToString(o.status);
+  r.seconds = o.seconds;
+  r.error = o.detail;
+  r.exit_code = o.exit_code;
+  r.signal = o.signal != 0 ? SignalName(o.signal) : "";
+  r.log_tail = o.log_tail;
+  r.warnings = o.warnings;
+  r.host = host_;
+  r.finished_at = UtcNow();
+  Write(r, "outcome");
+}
+
+// A record the batch cannot write is said, and the batch goes on.
+void SequenceRunner::Write(const StatusRecord& r, const char* what) {
+  try {
+    WriteStatusRecord(batch_dir_, r);
+  } catch (const std::exception& e) {
+    Say(LogLevel::kError,
+        std::string("cannot record the ") + what + " of " + r.sequence + ": " + e.what());
+  }
+}
+
+// A sequence whose manifest matches (and whose input did not change) is skipped and recorded so;
+// otherwise *o says why it runs.
+bool SequenceRunner::SkipIfFinished(std::size_t index, const std::string& position,
+                                    SequenceOutcome* o) {
+  const pipeline::SequenceRef& seq = v_.sequences[index];
+  if (options_.force) {
+    o->detail = "--force";
+    return false;
+  }
+  const json identity = JobIdentity(v_, registry_, run_options_, seq);
+  const ManifestCheck check = CheckManifest(o->output_directory, HashIdentity(identity), identity);
+  const std::string changed =
+      check.up_to_date ? InputChanged(o->output_directory, seq.source) : std::string();
+  if (check.up_to_date && changed.empty()) {
+    o->status = SequenceStatus::kSkipped;
+    o->detail = "up to date (" + check.reason + ")";
+    Say(LogLevel::kInfo, position + seq.name + ": skipped, " + o->detail);
+    Record(*o);
+    ++shown_.done;
+    ++shown_.skipped;
+    outcomes_[index] = *o;
+    return true;
+  }
+  o->detail = changed.empty() ? check.reason : changed;
+  return false;
+}
+
+void SequenceRunner::StartNext() {
+  const std::size_t index = selected_[next_++];
+  const pipeline::SequenceRef& seq = v_.sequences[index];
+  SequenceOutcome o;
+  o.name = seq.name;
+  o.output_directory = v_.job.OutputDirectory(seq.name);
+  const std::string position =
+      "[" + std::to_string(next_) + "/" + std::to_string(selected_.size()) + "] ";
+  if (SkipIfFinished(index, position, &o)) return;
+  Say(LogLevel::kInfo, position + seq.name + ": running (" + o.detail + ")");
+  // Until it ends, the record says where and when it started: a run killed with it (a time
+  // limit, SIGKILL) then shows as interrupted, not as its previous outcome.
+  StatusRecord started;
+  started.sequence = seq.name;
+  started.status = "running";
+  started.host = host_;
+  started.started_at = UtcNow();
+  Write(started, "start");
+  std::vector<std::string> argv = {options_.executable, kChildCommand,
+                                   "--job", fs::absolute(v_.job.file).string(),
+                                   "--sequence", seq.name,
+                                   "--parent-pid", std::to_string(::getpid())};
+  for (std::string& a : JobOverrideArgs(v_.job.overrides)) argv.push_back(std::move(a));
+  // J sequences at once share the cores: each engine gets cores / J threads (not J x cores).
+  pipeline::RunOptions child_options = run_options_;
+  if (child_options.threads <= 0 && options_.jobs > 1)
+    child_options.threads = std::max(1, util::AvailableCores() / options_.jobs);
+  for (std::string& a : RunOptionsToArgs(child_options)) argv.push_back(std::move(a));
+  if (options_.verbose) argv.push_back("-v");
+  auto r = std::make_unique<Running>();
+  r->index = index;
+  r->shown = {seq.name, {}, Clock::now()};
+  try {
+    r->proc = SpawnChild(argv);
+  } catch (const std::exception& e) {
+    o.status = SequenceStatus::kFailed;
+    o.detail = e.what();
+    Record(o);
+    ++shown_.done;
+    ++shown_.failed;
+    outcomes_[index] = o;
+    return;
+  }
+  outcomes_[index] = o;
+  running_.push_back(std::move(r));
+}
+
+void SequenceRunner::HandleOutput(Running& r, const std::string& line) {
+  r.tail.Add(line);
+  const std::string& name = v_.sequences[r.index].name;
+  const std::string shown_line =
+      line.find("[" + name + "]") != std::string::npos ? line : "[" + name + "] " + line;
+  if (options_.verbose)
+    Say(LogLevel::kInfo, shown_line);
+  else if (line.rfind("warning: ", 0) == 0) {
+    const std::string text = line.substr(9);
+    Say(LogLevel::kWarning,
+        text.find("[" + name + "]") != std::string::npos ? text : "[" + name + "] " + text);
+  }
+}
+
+void SequenceRunner::HandleMessage(Running& r, const std::string& line) {
+  try {
+    const json m = json::parse(line);
+    if (m.contains("progress")) {
+      const json& p = m["progress"];
+      r.shown.progress = {p.at(0).get<int>(), p.at(1).get<int>(), p.at(2).get<int>()};
+    } else if (m.contains("result")) {
+      r.result = m["result"];
     }
-  };
+  } catch (const std::exception&) {
+    r.tail.Add("(unreadable message from the child: " + line + ")");
+  }
+}
 
-  auto start_next = [&]() {
-    const std::size_t index = selected[next++];
-    const pipeline::SequenceRef& seq = v.sequences[index];
-    SequenceOutcome o;
-    o.name = seq.name;
-    o.output_directory = v.job.OutputDirectory(seq.name);
-    const json identity = JobIdentity(v, registry, run_options, seq);
-    const std::string position = "[" + std::to_string(next) + "/" + std::to_string(selected.size()) + "] ";
-    if (!options.force) {
-      const ManifestCheck check =
-          CheckManifest(o.output_directory, HashIdentity(identity), identity);
-      if (check.up_to_date) {
-        o.status = SequenceStatus::kSkipped;
-        o.detail = "up to date (" + check.reason + ")";
-        say(LogLevel::kInfo, position + seq.name + ": skipped, " + o.detail);
-        record(o);
-        ++shown.done;
-        ++shown.skipped;
-        outcomes[index] = o;
-        return;
+void SequenceRunner::Drain(Running& r, bool to_end) {
+  std::string line;
+  if (r.out_open) {
+    r.out_open = ReadAvailable(r.proc.output_fd, &r.out);
+    while (r.out.Next(&line, to_end || !r.out_open)) HandleOutput(r, line);
+  }
+  if (r.msg_open) {
+    r.msg_open = ReadAvailable(r.proc.message_fd, &r.msg);
+    while (r.msg.Next(&line, to_end || !r.msg_open)) HandleMessage(r, line);
+  }
+}
+
+// A failure's cause: the child's own error, or how its process ended.
+void SequenceRunner::DescribeFailure(const Running& r, SequenceOutcome* o) const {
+  const int st = r.wait_status;
+  o->log_tail = r.tail.Lines();
+  if (r.result.is_object() && r.result.contains("warnings") && r.result["warnings"].is_array())
+    for (const json& w : r.result["warnings"])
+      if (w.is_string()) o->warnings.push_back(w.get<std::string>());
+  if (WIFEXITED(st)) {
+    o->exit_code = WEXITSTATUS(st);
+    o->detail = r.result.is_object() && r.result.contains("error")
+                    ? r.result["error"].get<std::string>()
+                    : "the sequence's process exited with status " + std::to_string(o->exit_code) +
+                          " without a result";
+  } else if (WIFSIGNALED(st)) {
+    o->signal = WTERMSIG(st);
+    if (r.killed_for_memory)
+      o->detail = "killed: resident memory reached " + FormatBytes(r.peak_rss) +
+                  ", over --max-rss " + FormatBytes(options_.max_rss);
+    else if (cancelled_)
+      o->detail = "cancelled (" + DescribeSignal(o->signal) + ")";
+    else
+      o->detail = "crashed: " + DescribeSignal(o->signal);
+    if (!o->log_tail.empty() && !r.killed_for_memory)
+      o->detail += "; last log line: " + o->log_tail.back();
+  }
+}
+
+// A child has ended: its outcome (ok, interrupted by the batch's cancel, or failed), recorded.
+void SequenceRunner::Finish(Running& r) {
+  Drain(r, true);
+  ::close(r.proc.output_fd);
+  ::close(r.proc.message_fd);
+  SequenceOutcome& o = outcomes_[r.index];
+  o.seconds = SecondsSince(r.shown.started);
+  o.peak_rss = r.peak_rss;
+  const int st = r.wait_status;
+  const bool result_ok = r.result.is_object() && r.result.value("ok", false);
+  // Stopped by the batch's cancel (the child ended on the signal, or reports it stopped for
+  // it): interrupted, not failed. A failure of its own, reported as such, stays a failure.
+  const bool stopped = cancelled_ && !result_ok &&
+                       (WIFSIGNALED(st) || !r.result.is_object() || r.result.value("cancelled", false));
+  if (WIFEXITED(st) && WEXITSTATUS(st) == 0 && result_ok) {
+    o.status = SequenceStatus::kOk;
+    o.detail.clear();
+  } else if (stopped) {
+    o.status = SequenceStatus::kInterrupted;
+    const int sig = plugin::CancelSignal();
+    o.detail = std::string("interrupted: imr run was stopped") +
+               (sig != 0 ? " by " + SignalName(sig) : std::string()) + " while the sequence ran" +
+               (r.killed_after_cancel ? " (it did not stop within " +
+                                            std::to_string(kCancelGraceSeconds) +
+                                            " s of SIGTERM and was killed)"
+                                      : "");
+    if (WIFSIGNALED(st)) o.signal = WTERMSIG(st);
+    if (WIFEXITED(st)) o.exit_code = WEXITSTATUS(st);
+  } else {
+    o.status = SequenceStatus::kFailed;
+    DescribeFailure(r, &o);
+  }
+  Record(o);
+  ++shown_.done;
+  if (o.status == SequenceStatus::kFailed) {
+    ++shown_.failed;
+    Say(LogLevel::kError, o.name + " failed: " + o.detail);
+  } else if (o.status == SequenceStatus::kInterrupted) {
+    Say(LogLevel::kWarning, o.name + ": " + o.detail);
+  } else {
+    char took[32];
+    std::snprintf(took, sizeof(took), "%.2f s", o.seconds);
+    Say(LogLevel::kInfo, o.name + ": done in " + took);
+  }
+}
+
+// Ctrl-C, SIGTERM or SIGHUP: no more sequences start and the running ones get SIGTERM; a
+// sequence stuck in a plugin call cannot act on it, so it is killed after the grace period.
+void SequenceRunner::CancelIfAsked() {
+  if (!cancelled_ && plugin::CancelRequested()) {
+    cancelled_ = true;
+    cancelled_at_ = Clock::now();
+    const int sig = plugin::CancelSignal();
+    Say(LogLevel::kWarning, std::string("cancelled") + (sig != 0 ? " (" + SignalName(sig) + ")" : "") +
+                                ": no more sequences start; stopping the running ones");
+    for (auto& r : running_) ::kill(r->proc.pid, SIGTERM);
+  }
+  if (cancelled_ && SecondsSince(cancelled_at_) > kCancelGraceSeconds)
+    for (auto& r : running_)
+      if (!r->killed_after_cancel) {
+        r->killed_after_cancel = true;
+        ::kill(r->proc.pid, SIGKILL);
       }
-      o.detail = check.reason;
-    } else {
-      o.detail = "--force";
-    }
-    say(LogLevel::kInfo, position + seq.name + ": running (" + o.detail + ")");
-    // Until it ends, the record says where and when it started: a run killed with it (a time
-    // limit, SIGKILL) then shows as interrupted, not as its previous outcome.
-    StatusRecord started;
-    started.sequence = seq.name;
-    started.status = "running";
-    started.host = host;
-    started.started_at = UtcNow();
-    try {
-      WriteStatusRecord(batch_dir, started);
-    } catch (const std::exception& e) {
-      say(LogLevel::kError, std::string("cannot record the start of ") + seq.name + ": " + e.what());
-    }
-    std::vector<std::string> argv = {options.executable, kChildCommand,
-                                     "--job", fs::absolute(v.job.file).string(),
-                                     "--sequence", seq.name,
-                                     "--parent-pid", std::to_string(::getpid())};
-    for (std::string& a : JobOverrideArgs(v.job.overrides)) argv.push_back(std::move(a));
-    // J sequences at once share the cores: each engine gets cores / J threads (not J x cores).
-    pipeline::RunOptions child_options = run_options;
-    if (child_options.threads <= 0 && options.jobs > 1)
-      child_options.threads = std::max(1, util::AvailableCores() / options.jobs);
-    for (std::string& a : RunOptionsToArgs(child_options)) argv.push_back(std::move(a));
-    if (options.verbose) argv.push_back("-v");
-    auto r = std::make_unique<Running>();
-    r->index = index;
-    r->shown = {seq.name, {}, Clock::now()};
-    try {
-      r->proc = SpawnChild(argv);
-    } catch (const std::exception& e) {
-      o.status = SequenceStatus::kFailed;
-      o.detail = e.what();
-      record(o);
-      ++shown.done;
-      ++shown.failed;
-      outcomes[index] = o;
-      return;
-    }
-    outcomes[index] = o;
-    running.push_back(std::move(r));
-  };
+}
 
-  auto handle_output = [&](Running& r, const std::string& line) {
-    r.tail.Add(line);
-    const std::string& name = v.sequences[r.index].name;
-    const std::string shown_line =
-        line.find("[" + name + "]") != std::string::npos ? line : "[" + name + "] " + line;
-    if (options.verbose)
-      say(LogLevel::kInfo, shown_line);
-    else if (line.rfind("warning: ", 0) == 0) {
-      const std::string text = line.substr(9);
-      say(LogLevel::kWarning,
-          text.find("[" + name + "]") != std::string::npos ? text : "[" + name + "] " + text);
+// Finishes the children that have ended; kills one over --max-rss.
+void SequenceRunner::ReapAndWatchMemory() {
+  for (auto it = running_.begin(); it != running_.end();) {
+    Running& r = **it;
+    const pid_t w = ::waitpid(r.proc.pid, &r.wait_status, WNOHANG);
+    if (w == r.proc.pid) {
+      Finish(r);
+      it = running_.erase(it);
+      continue;
     }
-  };
-
-  auto handle_message = [&](Running& r, const std::string& line) {
-    try {
-      const json m = json::parse(line);
-      if (m.contains("progress")) {
-        const json& p = m["progress"];
-        r.shown.progress = {p.at(0).get<int>(), p.at(1).get<int>(), p.at(2).get<int>()};
-      } else if (m.contains("result")) {
-        r.result = m["result"];
-      }
-    } catch (const std::exception&) {
-      r.tail.Add("(unreadable message from the child: " + line + ")");
-    }
-  };
-
-  auto drain = [&](Running& r, bool to_end) {
-    std::string line;
-    if (r.out_open) {
-      r.out_open = ReadAvailable(r.proc.output_fd, &r.out);
-      while (r.out.Next(&line, to_end || !r.out_open)) handle_output(r, line);
-    }
-    if (r.msg_open) {
-      r.msg_open = ReadAvailable(r.proc.message_fd, &r.msg);
-      while (r.msg.Next(&line, to_end || !r.msg_open)) handle_message(r, line);
-    }
-  };
-
-  auto finish = [&](Running& r) {
-    drain(r, true);
-    ::close(r.proc.output_fd);
-    ::close(r.proc.message_fd);
-    SequenceOutcome& o = outcomes[r.index];
-    o.seconds = SecondsSince(r.shown.started);
-    o.peak_rss = r.peak_rss;
-    const int st = r.wait_status;
-    const bool result_ok = r.result.is_object() && r.result.value("ok", false);
-    // Stopped by the batch's cancel (the child ended on the signal, or reports it stopped for
-    // it): interrupted, not failed. A failure of its own, reported as such, stays a failure.
-    const bool stopped = cancelled && !result_ok &&
-                         (WIFSIGNALED(st) || !r.result.is_object() || r.result.value("cancelled", false));
-    if (WIFEXITED(st) && WEXITSTATUS(st) == 0 && result_ok) {
-      o.status = SequenceStatus::kOk;
-      o.detail.clear();
-    } else if (stopped) {
-      o.status = SequenceStatus::kInterrupted;
-      const int sig = plugin::CancelSignal();
-      o.detail = std::string("interrupted: imr run was stopped") +
-                 (sig != 0 ? " by " + SignalName(sig) : std::string()) + " while the sequence ran" +
-                 (r.killed_after_cancel ? " (it did not stop within " +
-                                              std::to_string(kCancelGraceSeconds) +
-                                              " s of SIGTERM and was killed)"
-                                        : "");
-      if (WIFSIGNALED(st)) o.signal = WTERMSIG(st);
-      if (WIFEXITED(st)) o.exit_code = WEXITSTATUS(st);
-    } else {
-      o.status = SequenceStatus::kFailed;
-      o.log_tail = r.tail.Lines();
-      if (r.result.is_object() && r.result.contains("warnings") && r.result["warnings"].is_array())
-        for (const json& w : r.result["warnings"])
-          if (w.is_string()) o.warnings.push_back(w.get<std::string>());
-      if (WIFEXITED(st)) {
-        o.exit_code = WEXITSTATUS(st);
-        o.detail = r.result.is_object() && r.result.contains("error")
-                       ? r.result["error"].get<std::string>()
-                       : "the sequence's process exited with status " + std::to_string(o.exit_code) +
-                             " without a result";
-      } else if (WIFSIGNALED(st)) {
-        o.signal = WTERMSIG(st);
-        if (r.killed_for_memory)
-          o.detail = "killed: resident memory reached " + FormatBytes(r.peak_rss) +
-                     ", over --max-rss " + FormatBytes(options.max_rss);
-        else if (cancelled)
-          o.detail = "cancelled (" + DescribeSignal(o.signal) + ")";
-        else
-          o.detail = "crashed: " + DescribeSignal(o.signal);
-        if (!o.log_tail.empty() && !r.killed_for_memory)
-          o.detail += "; last log line: " + o.log_tail.back();
-      }
-    }
-    record(o);
-    ++shown.done;
-    if (o.status == SequenceStatus::kFailed) {
-      ++shown.failed;
-      say(LogLevel::kError, o.name + " failed: " + o.detail);
-    } else if (o.status == SequenceStatus::kInterrupted) {
-      say(LogLevel::kWarning, o.name + ": " + o.detail);
-    } else {
-      char took[32];
-      std::snprintf(took, sizeof(took), "%.2f s", o.seconds);
-      say(LogLevel::kInfo, o.name + ": done in " + took);
-    }
-  };
-
-  if (display.mode() == ProgressMode::kBar) display.Update(shown, true);
-  Clock::time_point cancelled_at;
-  for (;;) {
-    if (!cancelled && plugin::CancelRequested()) {
-      cancelled = true;
-      cancelled_at = Clock::now();
-      const int sig = plugin::CancelSignal();
-      say(LogLevel::kWarning, std::string("cancelled") + (sig != 0 ? " (" + SignalName(sig) + ")" : "") +
-                                  ": no more sequences start; stopping the running ones");
-      for (auto& r : running) ::kill(r->proc.pid, SIGTERM);
-    }
-    // A sequence stuck in a plugin call cannot act on SIGTERM: it must not hold the batch.
-    if (cancelled && SecondsSince(cancelled_at) > kCancelGraceSeconds)
-      for (auto& r : running)
-        if (!r->killed_after_cancel) {
-          r->killed_after_cancel = true;
-          ::kill(r->proc.pid, SIGKILL);
+    if (options_.max_rss > 0) {
+      if (auto rss = ResidentBytes(r.proc.pid)) {
+        r.peak_rss = std::max(r.peak_rss, *rss);
+        if (*rss > options_.max_rss && !r.killed_for_memory) {
+          r.killed_for_memory = true;
+          ::kill(r.proc.pid, SIGKILL);
         }
-    while (!cancelled && running.size() < static_cast<std::size_t>(options.jobs) &&
-           next < selected.size())
-      start_next();
-    if (running.empty() && (cancelled || next >= selected.size())) break;
+      }
+    }
+    ++it;
+  }
+}
+
+void SequenceRunner::RunAll() {
+  if (display_.mode() == ProgressMode::kBar) display_.Update(shown_, true);
+  for (;;) {
+    CancelIfAsked();
+    while (!cancelled_ && running_.size() < static_cast<std::size_t>(options_.jobs) &&
+           next_ < selected_.size())
+      StartNext();
+    if (running_.empty() && (cancelled_ || next_ >= selected_.size())) break;
 
     std::vector<pollfd> fds;
-    for (auto& r : running) {
+    for (auto& r : running_) {
       if (r->out_open) fds.push_back({r->proc.output_fd, POLLIN, 0});
       if (r->msg_open) fds.push_back({r->proc.message_fd, POLLIN, 0});
     }
     ::poll(fds.data(), fds.size(), 100);
-    for (auto& r : running) drain(*r, false);
-
-    for (auto it = running.begin(); it != running.end();) {
-      Running& r = **it;
-      const pid_t w = ::waitpid(r.proc.pid, &r.wait_status, WNOHANG);
-      if (w == r.proc.pid) {
-        finish(r);
-        it = running.erase(it);
-        continue;
-      }
-      if (options.max_rss > 0) {
-        if (auto rss = ResidentBytes(r.proc.pid)) {
-          r.peak_rss = std::max(r.peak_rss, *rss);
-          if (*rss > options.max_rss && !r.killed_for_memory) {
-            r.killed_for_memory = true;
-            ::kill(r.proc.pid, SIGKILL);
-          }
-        }
-      }
-      ++it;
-    }
-    shown.running.clear();
-    for (auto& r : running) shown.running.push_back(r->shown);
-    display.Update(shown);
+    for (auto& r : running_) Drain(*r, false);
+    ReapAndWatchMemory();
+    shown_.running.clear();
+    for (auto& r : running_) shown_.running.push_back(r->shown);
+    display_.Update(shown_);
   }
-  shown.running.clear();
-  display.Update(shown, true);
-  display.Clear();
+  shown_.running.clear();
+  display_.Update(shown_, true);
+  display_.Clear();
+}
 
-  for (std::size_t i : selected) {
-    auto it = outcomes.find(i);
-    if (it != outcomes.end()) {
-      result.outcomes.push_back(it->second);
+std::vector<SequenceOutcome> SequenceRunner::Outcomes() const {
+  std::vector<SequenceOutcome> out;
+  for (std::size_t i : selected_) {
+    auto it = outcomes_.find(i);
+    if (it != outcomes_.end()) {
+      out.push_back(it->second);
     } else {
       SequenceOutcome o;
-      o.name = v.sequences[i].name;
-      o.output_directory = v.job.OutputDirectory(o.name);
+      o.name = v_.sequences[i].name;
+      o.output_directory = v_.job.OutputDirectory(o.name);
       o.detail = "not started (cancelled)";
-      result.outcomes.push_back(o);
+      out.push_back(o);
     }
   }
-  if (!options.shard.active()) {
-    try {
-      const nlohmann::json summary = WriteSummary(batch_dir, "imr run");
-      result.summary_written = true;
-      if (options.viewer_page) result.viewer_page = WriteViewerPage(batch_dir, summary);
-    } catch (const std::exception& e) {
-      LogError(std::string("cannot write the batch summary: ") + e.what());
-    }
+  return out;
+}
+
+// The batch summary and the viewer page, for a whole run (a shard's are `imr report`'s).
+void Summarise(const BatchOptions& options, BatchRunResult* result) {
+  try {
+    const nlohmann::json summary = WriteSummary(result->batch_directory, "imr run");
+    result->summary_written = true;
+    if (options.viewer_page)
+      result->viewer_page = WriteViewerPage(result->batch_directory, summary);
+  } catch (const std::exception& e) {
+    LogError(std::string("cannot write the batch summary: ") + e.what());
   }
+}
+
+}  // namespace
+
+// The steps of a batch: record it, select this process's sequences, run them (skipping the
+// finished ones, recording each outcome), summarise.
+BatchRunResult RunBatch(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& registry,
+                        const pipeline::RunOptions& run_options, const BatchOptions& options) {
+  BatchRunResult result;
+  result.batch_directory = BatchDirectory(v.job);
+  RecordBatch(v, registry, run_options);
+  SequenceRunner runner(v, registry, run_options, options, result.batch_directory,
+                        SelectSequences(v, options));
+  runner.RunAll();
+  result.outcomes = runner.Outcomes();
+  if (!options.shard.active()) Summarise(options, &result);
   return result;
 }
 

@@ -77,9 +77,12 @@ struct BatchRunResult {
 // unescaped (\", \\, \n, \r, \t, \xNN): so every name, of any bytes, reads back as it was.
 // SequenceListLine writes a name so (quoted when it needs to be).
 std::string SequenceListLine(const std::string& name);
-// Throws std::runtime_error naming the file and line when it cannot be read or a quoted line is
-// malformed.
+// Throws std::runtime_error naming the file and line when it cannot be read, is larger than
+// kMaxSequenceListBytes, has a line longer than kMaxSequenceListLine or a NUL byte, or a quoted
+// line is malformed; messages quote at most a few hundred bytes of a line.
 std::vector<std::string> ReadSequenceList(const std::filesystem::path& file);
+inline constexpr std::size_t kMaxSequenceListBytes = 64u << 20;
+inline constexpr std::size_t kMaxSequenceListLine = 64u << 10;
 
 // Thrown by LockBatchFolder when another run holds the lock; the message names it.
 struct BatchFolderBusy : std::runtime_error {

@@ -146,7 +146,8 @@ std::optional<uint64_t> ParseBytes(const std::string& text) {
     if (k == std::string::npos) return std::nullopt;
     scale = std::pow(1024.0, static_cast<double>(k + 1));
   }
-  if (!(value > 0) || !std::isfinite(value)) return std::nullopt;
+  // Past 2^62 bytes (4 EiB) no machine has it, and the conversion would overflow.
+  if (!(value > 0) || !(value * scale < 0x1p62)) return std::nullopt;
   return static_cast<uint64_t>(value * scale);
 }
 

@@ -82,8 +82,8 @@ std::vector<RunFlag> MakeFlags() {
          return std::string();
        }},
       {"stage-timeout", "SECONDS",
-       "fail a sequence when a call into a plugin takes longer (a stage's timeout_seconds "
-       "wins; 0: no limit, the default)",
+       "fail a sequence when a call into a plugin, or the engine's work on one keyframe, takes "
+       "longer (a stage's timeout_seconds wins for its plugin; 0: no limit, the default)",
        [](const std::string& text, RunOptions* o) -> std::string {
          double seconds = 0.0;
          if (!ParseWholeDouble(text, &seconds))

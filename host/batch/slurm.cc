@@ -7,8 +7,10 @@
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
 
+#include <strings.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <sstream>
 
 namespace imr::batch {
@@ -45,6 +47,78 @@ std::string SbatchValue(const std::string& value, bool pattern = false) {
   return quote ? out + "\"" : out;
 }
 
+bool IsControl(char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; }
+bool HasControl(const std::string& s) { return std::any_of(s.begin(), s.end(), IsControl); }
+
+// A word of a script's command line, for bash: ShellQuote's, or, when it holds a control
+// character (a newline would end the line and start a command of its own), ANSI-C quoted
+// ($'...' with \xNN): every command of the script stays on its own line.
+std::string ScriptWord(const std::string& word) {
+  if (!HasControl(word)) return ShellQuote(word);
+  std::string q = "$'";
+  for (const char c : word) {
+    if (c == '\'' || c == '\\') {
+      q += '\\';
+      q += c;
+    } else if (IsControl(c)) {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+      q += hex;
+    } else {
+      q += c;
+    }
+  }
+  return q + "'";
+}
+
+std::string ScriptLine(const std::vector<std::string>& words) {
+  std::string s;
+  for (const auto& w : words) s += (s.empty() ? "" : " ") + ScriptWord(w);
+  return s;
+}
+
+bool Digits(const std::string& s, std::size_t max_digits = 9) {
+  return !s.empty() && s.size() <= max_digits &&
+         s.find_first_not_of("0123456789") == std::string::npos;
+}
+
+// A time limit as sbatch --time reads it: minutes, minutes:seconds, hours:minutes:seconds,
+// days-hours, days-hours:minutes, days-hours:minutes:seconds, or UNLIMITED / INFINITE.
+bool IsSlurmTime(const std::string& t) {
+  if (::strcasecmp(t.c_str(), "UNLIMITED") == 0 || ::strcasecmp(t.c_str(), "INFINITE") == 0)
+    return true;
+  std::string rest = t;
+  if (const std::size_t dash = t.find('-'); dash != std::string::npos) {
+    if (!Digits(t.substr(0, dash))) return false;
+    rest = t.substr(dash + 1);
+  }
+  int parts = 0;
+  for (std::size_t pos = 0;; ++parts) {
+    const std::size_t colon = std::min(rest.find(':', pos), rest.size());
+    if (!Digits(rest.substr(pos, colon - pos))) return false;
+    if (colon == rest.size()) break;
+    pos = colon + 1;
+  }
+  return parts <= 2;
+}
+
+// A memory size as sbatch --mem reads it: a whole number of megabytes, or with a unit K, M, G
+// or T.
+bool IsSlurmMemory(const std::string& m) {
+  if (m.empty()) return false;
+  const bool unit = std::string("KMGTkmgt").find(m.back()) != std::string::npos;
+  return Digits(unit ? m.substr(0, m.size() - 1) : m, 15);
+}
+
+// A value that reaches a script: none of its characters may end the line.
+std::string CheckScriptValue(const char* option, const std::string& value) {
+  if (value.empty()) return std::string(option) + ": expected a value, got ''";
+  if (HasControl(value))
+    return std::string(option) + ": '" + OneLine(value, 200) +
+           "' holds a control character (a newline would end the #SBATCH line): not a Slurm value";
+  return {};
+}
+
 std::string SubmitScript(const std::vector<std::string>& command) {
   std::string out, err;
   const int status = RunAndCapture(command, &out, &err);
@@ -61,6 +135,30 @@ std::string SubmitOptions::Check() const {
   if (cpus_per_task < 1) return "--cpus-per-task must be at least 1";
   if (jobs < 0) return "--jobs must be at least 1";
   if (executable.empty()) return "no imr executable for the tasks";
+  for (const auto& [option, value] : {std::pair{"--partition", &partition},
+                                      std::pair{"--account", &account}, std::pair{"--qos", &qos}})
+    if (!value->empty())
+      if (std::string e = CheckScriptValue(option, *value); !e.empty()) return e;
+  if (!time.empty() && !IsSlurmTime(time))
+    return "--time: expected a Slurm time limit (minutes, M:S, H:M:S, D-H, D-H:M or D-H:M:S, or "
+           "UNLIMITED), got '" + OneLine(time, 200) + "'";
+  if (!mem.empty() && !IsSlurmMemory(mem))
+    return "--mem: expected a memory size in megabytes, or with a unit K, M, G or T (e.g. 8G), "
+           "got '" + OneLine(mem, 200) + "'";
+  for (const std::string& a : sbatch_args) {
+    if (std::string e = CheckScriptValue("--sbatch-arg", a); !e.empty()) return e;
+    if (a[0] != '-')
+      return "--sbatch-arg: expected an sbatch option (e.g. --constraint=avx2), got '" +
+             OneLine(a, 200) + "'";
+  }
+  return {};
+}
+
+std::string CheckScriptPaths(const std::filesystem::path& batch_directory) {
+  if (HasControl(batch_directory.string()))
+    return "the batch folder " + OneLine(batch_directory.string(), 400) +
+           " holds a control character in its name: Slurm cannot write the tasks' logs there "
+           "(#SBATCH --output); choose another output.directory";
   return {};
 }
 
@@ -75,7 +173,8 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   RecordBatch(v, registry, run_options);
 
   // The frozen list: tasks that start hours apart shard the same set.
-  std::string list = "# the sequences of " + JsonText(fs::absolute(v.job.file).string()) +
+  if (std::string e = CheckScriptPaths(r.batch_directory); !e.empty()) throw std::invalid_argument(e);
+  std::string list = "# the sequences of " + OneLine(fs::absolute(v.job.file).string()) +
                      " when `imr submit` ran; the array tasks shard this list (names that need it\n"
                      "# are in double quotes, with C escapes)\n";
   for (const auto& s : v.sequences) list += SequenceListLine(s.name) + "\n";
@@ -84,7 +183,9 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
 
   r.tasks = std::min<int>(o.tasks, static_cast<int>(v.sequences.size()));
   const std::string job_file = fs::absolute(v.job.file).lexically_normal().string();
-  const std::string name = "imr-" + v.job.Name();
+  // The job's name, a label: a control character in the job file's name becomes '?'.
+  std::string name = "imr-" + v.job.Name();
+  std::replace_if(name.begin(), name.end(), IsControl, '?');
   const int jobs = o.jobs > 0 ? o.jobs : o.cpus_per_task;
 
   std::vector<std::string> run = {o.executable, "run", job_file, "--sequences-from",
@@ -107,12 +208,12 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   a << "#!/bin/bash\n"
     << "# imr array job, written by `imr submit` (imr " << pipeline::Version() << ") at "
     << UtcNow() << ".\n"
-    << "# Job " << job_file << ": " << v.sequences.size() << " sequences in " << r.tasks
+    << "# Job " << OneLine(job_file) << ": " << v.sequences.size() << " sequences in " << r.tasks
     << " tasks. Each task runs `imr run` on its\n"
-    << "# share of " << list_file.string() << " (its shard comes from SLURM_ARRAY_TASK_ID,\n"
+    << "# share of " << OneLine(list_file.string()) << " (its shard comes from SLURM_ARRAY_TASK_ID,\n"
     << "# SLURM_ARRAY_TASK_COUNT and SLURM_ARRAY_TASK_MIN); each sequence runs in a child process.\n"
     << "# Submitting this script again redoes only what is not finished: sequences whose\n"
-    << "# manifest matches are skipped. Then run `imr report " << r.batch_directory.string()
+    << "# manifest matches are skipped. Then run `imr report " << OneLine(r.batch_directory.string())
     << "`.\n"
     << "#SBATCH --job-name=" << SbatchValue(name) << "\n"
     << "#SBATCH --array=0-" << (r.tasks - 1) << "\n"
@@ -123,8 +224,8 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   if (!o.mem.empty()) a << "#SBATCH --mem=" << o.mem << "\n";
   for (const auto& extra : o.sbatch_args) a << "#SBATCH " << extra << "\n";
   a << "set -eu\n"
-    << "cd " << ShellQuote(cwd) << "  # where imr submit ran: relative export paths resolve here\n"
-    << "exec " << Join(run) << "\n";
+    << "cd " << ScriptWord(cwd) << "  # where imr submit ran: relative export paths resolve here\n"
+    << "exec " << ScriptLine(run) << "\n";
   r.array_script = slurm / "array.sbatch";
   WriteFileAtomically(r.array_script, a.str());
   ::chmod(r.array_script.c_str(), 0755);
@@ -140,7 +241,7 @@ SubmitResult Submit(const pipeline::ValidatedJob& v, const plugin::PluginRegistr
   common(b);
   if (!o.time.empty()) b << "#SBATCH --time=" << o.time << "\n";
   b << "set -eu\n"
-    << "exec " << Join({o.executable, "report", r.batch_directory.string()}) << "\n";
+    << "exec " << ScriptLine({o.executable, "report", r.batch_directory.string()}) << "\n";
   r.reduce_script = slurm / "report.sbatch";
   WriteFileAtomically(r.reduce_script, b.str());
   ::chmod(r.reduce_script.c_str(), 0755);

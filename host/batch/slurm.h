@@ -29,8 +29,15 @@ struct SubmitOptions {
   std::string executable;        // the imr the tasks run (this one)
   std::string sbatch = "sbatch"; // the sbatch program
 
+  // Empty when usable, else what is wrong, naming the option. Every value that reaches a script
+  // is checked: --time and --mem as Slurm reads them, no control character anywhere (a newline
+  // would end an #SBATCH line and make the rest a command), --sbatch-arg an option ("-...").
   std::string Check() const;
 };
+
+// Empty when Slurm can take a job whose batch folder is `batch_directory`, else why not (a
+// control character in the path: the #SBATCH --output of the tasks' logs cannot hold it).
+std::string CheckScriptPaths(const std::filesystem::path& batch_directory);
 
 struct SubmitResult {
   std::filesystem::path batch_directory;
@@ -41,7 +48,9 @@ struct SubmitResult {
 };
 
 // Writes the scripts and (unless a dry run) submits them. Throws std::runtime_error with
-// sbatch's message when a submission fails.
+// sbatch's message when a submission fails, std::invalid_argument when CheckScriptPaths fails.
+// Paths in the scripts' comments are written on one line (OneLine), words of their commands
+// quoted for bash (ANSI-C quoting when they hold a control character).
 SubmitResult Submit(const pipeline::ValidatedJob& job, const plugin::PluginRegistry& registry,
                     const pipeline::RunOptions& run_options, const SubmitOptions& options);
 

@@ -102,6 +102,12 @@ std::string CountsSentence(const json& c) {
 }
 
 std::filesystem::path WriteViewerPage(const std::filesystem::path& batch_dir, const json& summary) {
+  for (const char* entry : {"index.html", "assets"})
+    if (const std::string foreign = io::ForeignBatchEntry(batch_dir, entry); !foreign.empty()) {
+      LogWarning("viewer page not written: " + foreign + ": imr does not overwrite a file it did "
+                 "not write");
+      return {};
+    }
   try {
     const report::ViewerPageResult page = report::WriteBatchPage(batch_dir, summary);
     for (const std::string& note : page.notes) LogWarning("viewer page: " + note);
@@ -351,6 +357,8 @@ std::string SummaryMarkdown(const json& s) {
 }
 
 json WriteSummary(const fs::path& batch_dir, const std::string& written_by) {
+  if (const std::string foreign = io::ForeignBatchFiles(batch_dir, false); !foreign.empty())
+    throw std::runtime_error(foreign);
   json s = BuildSummary(batch_dir);
   s["written_by"] = written_by;
   s["written_at"] = UtcNow();

@@ -13,6 +13,7 @@
 // `imr report RUN_DIR` can write it after array tasks on other machines have finished.
 #pragma once
 
+#include "host/io/batch_folder.h"
 #include "host/io/job.h"
 
 #include <nlohmann/json.hpp>
@@ -23,7 +24,7 @@
 
 namespace imr::batch {
 
-inline constexpr const char* kBatchSubdir = "imr-batch";
+using io::kBatchSubdir;
 
 std::filesystem::path BatchDirectory(const io::JobSpec& job);
 
@@ -76,7 +77,9 @@ void WriteStatusRecord(const std::filesystem::path& batch_dir, const StatusRecor
 // folder when inside it.
 nlohmann::json BuildSummary(const std::filesystem::path& batch_dir);
 std::string SummaryMarkdown(const nlohmann::json& summary);
-// Builds and writes summary.json and summary.md (atomically); returns the summary.
+// Builds and writes summary.json and summary.md (atomically); returns the summary. Throws
+// std::runtime_error when either (or imr-batch/) is a file imr did not write
+// (io::ForeignBatchFiles): it is never overwritten.
 nlohmann::json WriteSummary(const std::filesystem::path& batch_dir, const std::string& written_by);
 
 // "3 sequences: 2 ok, 1 failed" from the summary's "counts" ("1 sequence"; interrupted, not run
@@ -84,8 +87,8 @@ nlohmann::json WriteSummary(const std::filesystem::path& batch_dir, const std::s
 std::string CountsSentence(const nlohmann::json& counts);
 
 // The viewer page of the batch folder from its summary (host/report/viewer_page.h), its notes
-// logged as warnings; the page's path, or empty (with a warning) when it cannot be written: the
-// summary still stands.
+// logged as warnings; the page's path, or empty (with a warning) when it cannot be written or
+// index.html or assets/ is not imr's: the summary still stands.
 std::filesystem::path WriteViewerPage(const std::filesystem::path& batch_dir,
                                       const nlohmann::json& summary);
 

@@ -6,6 +6,7 @@
 #include "host/batch/slurm.h"
 #include "host/batch/summary.h"
 #include "host/cli/command.h"
+#include "host/io/batch_folder.h"
 #include "host/io/input_formats.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
@@ -16,6 +17,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -51,14 +53,16 @@ const char* kRunNotes =
     "(SIGKILL 10 s later) and count as interrupted, and the summary is written.\n"
     "Exit status: 0 every sequence ok or up to date; else the number of sequences that failed,\n"
     "were interrupted or did not run (1..63; 63 means 63 or more); 64 bad usage or job; 73 the\n"
-    "batch folder cannot be created; 75 another imr run holds it (each case: nothing ran).\n";
+    "batch folder cannot be created or holds a summary.md, summary.json, index.html, assets/ or\n"
+    "imr-batch/ that imr did not write; 75 another imr run holds it (each case: nothing ran); 73\n"
+    "also when the batch summary could not be written after the run.\n";
 
 bool ParseSize(const po::variables_map& vm, const char* cmd, uint64_t* bytes) {
   if (!vm.count("max-rss")) return true;
   const auto b = imr::batch::ParseBytes(vm["max-rss"].as<std::string>());
   if (!b) {
     std::cerr << "imr " << cmd << ": --max-rss: expected a size like 512M or 4G, got '"
-              << vm["max-rss"].as<std::string>() << "'\n";
+              << OneLine(vm["max-rss"].as<std::string>(), 200) << "' (at most 4 EiB)\n";
     return false;
   }
   *bytes = *b;
@@ -141,6 +145,11 @@ int CmdRun(const std::vector<std::string>& args) {
   if (!LoadRunnableJob("run", job, vm, run_options, batch, &registry, &v)) return kExitUsage;
   // The batch folder, and this run's hold on it: an environment problem, not a failure.
   const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  if (const std::string foreign = io::ForeignBatchFiles(batch_dir, batch.viewer_page);
+      !foreign.empty()) {
+    std::cerr << "imr run: " << foreign << "\n";
+    return imr::kExitCantCreate;
+  }
   std::shared_ptr<imr::batch::BatchLock> lock;
   try {
     lock = imr::batch::LockBatchFolder(batch_dir, batch.shard);
@@ -193,6 +202,9 @@ int CmdRun(const std::vector<std::string>& args) {
                 result.viewer_page.string().c_str());
   else
     std::printf("\n");
+  // The summary is the batch's result: not writing it is the batch folder's failure (its error
+  // is on stderr), whatever the sequences did.
+  if (!batch.shard.active() && !result.summary_written) return imr::kExitCantCreate;
   return imr::ExitStatusForFailures(failed);
 }
 
@@ -206,7 +218,8 @@ const char* kMeshNotes =
     "(--set engine.steiner_spacing=0.1, --set input.options.views_per_keyframe=4); `imr options`\n"
     "lists them. Any other option is handed to imr run (--force, --check-invariants, ...).\n"
     "Example (COLMAP): imr mesh --input sparse/0 --format colmap --out mesh.ply\n"
-    "Exit status: 0 written; 1 the run failed (its report and log say why); 64 bad usage.\n";
+    "Exit status: 0 written; 1 the run failed (its report and log say why); 64 bad usage; 73\n"
+    "the mesh could not be copied to --out (the run's result stays in WORK/mesh).\n";
 
 int CmdMesh(const std::vector<std::string>& args) {
   po::options_description opts("imr mesh options");
@@ -246,6 +259,16 @@ int CmdMesh(const std::vector<std::string>& args) {
   }
   for (const char* required : {"input", "format", "out"})
     if (!vm.count(required)) return usage(std::string("needs --") + required);
+  if (vm["out"].as<std::string>().empty()) return usage("--out: expected a mesh file name, got ''");
+  // --out decides the output: the run must write there and nowhere else.
+  for (const std::string& o : JobOverrides(vm)) {
+    const std::string key = o.substr(0, o.find('='));
+    for (const char* owned : {"output", "output.directory", "output.stem", "output.formats"})
+      if (key == owned || key.rfind(std::string(owned) + "[", 0) == 0 ||
+          (key.rfind(std::string(owned) + ".", 0) == 0 && std::string(owned) != "output"))
+        return usage("--set " + OneLine(o, 200) + ": imr mesh sets output.directory, output.stem "
+                     "and output.formats from --out (and --work); change those instead");
+  }
   const std::string input = vm["input"].as<std::string>();
   const std::string format = vm["format"].as<std::string>();
   const io::InputFormat* f = io::FindInputFormat(format);
@@ -255,6 +278,9 @@ int CmdMesh(const std::vector<std::string>& args) {
     return usage("--format: expected " + io::JoinAlternatives(names) + ", got '" + format + "'");
   }
   const fs::path out = fs::absolute(vm["out"].as<std::string>()).lexically_normal();
+  if (std::error_code ec; fs::is_directory(out, ec))
+    return usage("--out: " + out.string() + " is a folder; name the mesh file (e.g. " +
+                 (out / "mesh.ply").string() + ")");
   std::string ext = out.extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext != ".ply" && ext != ".obj" && ext != ".gltf" && ext != ".glb")
@@ -291,18 +317,38 @@ int CmdMesh(const std::vector<std::string>& args) {
   run_args.insert(run_args.end(), forwarded.begin(), forwarded.end());
   if (const int status = CmdRun(run_args); status != kExitOk) return status;
 
-  // The run's output folder holds the mesh and its companions; report.json lists them.
+  // The run's output folder holds the mesh and its companions; report.json lists them. The mesh
+  // is copied to --out as named (the exporter writes the extension in lower case), companions
+  // by their names; each copy is atomic, and a failure is the output's, not the run's (73).
   const fs::path folder = work / "mesh";
-  std::ifstream in(folder / "report.json", std::ios::binary);
-  const nlohmann::json report = nlohmann::json::parse(in);
+  const std::string mesh_name = out.stem().string() + ext;
+  std::vector<std::string> files;
+  try {
+    std::ifstream in(folder / "report.json", std::ios::binary);
+    const nlohmann::json report = nlohmann::json::parse(in);
+    for (const auto& name : report.at("files")) files.push_back(name.get<std::string>());
+  } catch (const std::exception& e) {
+    std::cerr << "imr mesh: " << (folder / "report.json").string() << ": unreadable ("
+              << e.what() << ")\n";
+    return kExitFailed;
+  }
+  if (std::find(files.begin(), files.end(), mesh_name) == files.end()) {
+    std::cerr << "imr mesh: the run wrote no " << (folder / mesh_name).string()
+              << " (its report.json lists the files it wrote)\n";
+    return kExitFailed;
+  }
   std::vector<std::string> copied;
-  for (const auto& name : report["files"]) {
-    const std::string n = name.get<std::string>();
+  for (const std::string& n : files) {
     if (n == "report.json") continue;
-    const fs::path tmp = out.parent_path() / ("." + n + ".partial");
-    fs::copy_file(folder / n, tmp, fs::copy_options::overwrite_existing);
-    fs::rename(tmp, out.parent_path() / n);
-    copied.push_back(n);
+    const fs::path to = n == mesh_name ? out : out.parent_path() / n;
+    try {
+      CopyFileAtomically(folder / n, to);
+    } catch (const std::exception& e) {
+      std::cerr << "imr mesh: cannot copy the mesh to --out: " << e.what()
+                << " (the run's result stays in " << folder.string() << ")\n";
+      return kExitCantCreate;
+    }
+    copied.push_back(to.filename().string());
   }
   std::string companions;
   for (const std::string& n : copied)
@@ -357,6 +403,12 @@ int CmdSubmit(const std::vector<std::string>& args) {
   if (!ParseCommand("submit", synopsis, opts, pos, args, &vm, &status,
                     {{"job", "needs a job file: imr submit JOB.json --tasks N"}}))
     return status;
+  // An option given with an empty value is a mistake, not "the default".
+  for (const char* name : {"partition", "time", "mem", "account", "qos"})
+    if (vm.count(name) && vm[name].as<std::string>().empty()) {
+      std::cerr << "imr submit: --" << name << ": expected a value, got ''\n";
+      return kExitUsage;
+    }
   imr::batch::SubmitOptions o;
   o.tasks = vm["tasks"].as<int>();
   o.cpus_per_task = vm["cpus-per-task"].as<int>();
@@ -385,6 +437,15 @@ int CmdSubmit(const std::vector<std::string>& args) {
   if (!LoadRunnableJob("submit", job, vm, run_options, batch_check, &registry, &v))
     return kExitUsage;
   const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
+  if (const std::string e = imr::batch::CheckScriptPaths(batch_dir); !e.empty()) {
+    std::cerr << "imr submit: " << e << "\n";
+    return kExitUsage;
+  }
+  // The reduce job writes the summary and the viewer page: refuse now, not hours later.
+  if (const std::string foreign = io::ForeignBatchFiles(batch_dir, true); !foreign.empty()) {
+    std::cerr << "imr submit: " << foreign << "\n";
+    return imr::kExitCantCreate;
+  }
   try {
     imr::EnsureWritableDirectory(batch_dir / imr::batch::kBatchSubdir);
   } catch (const std::exception& e) {
@@ -435,7 +496,9 @@ int CmdReport(const std::vector<std::string>& args) {
       "viewable in 3D in a browser, offline (<model-viewer> is copied beside the page).\n"
       "A sequence whose process was killed (a time limit, SIGKILL) shows as interrupted.\n"
       "Exit status: 0 every sequence ok; else the number that failed, were interrupted or did not\n"
-      "run (1..63; 63 means 63 or more); 64 not a batch folder or bad usage.";
+      "run (1..63; 63 means 63 or more); 64 not a batch folder or bad usage; 73 RUN_DIR holds a\n"
+      "summary.json or summary.md that imr did not write (it is left alone; so is a foreign\n"
+      "index.html or assets/: the page is then not written).";
   if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
   fs::path dir = vm["dir"].as<std::string>();
   std::error_code ec;
@@ -447,6 +510,10 @@ int CmdReport(const std::vector<std::string>& args) {
     }
     dir = imr::batch::BatchDirectory(parsed.job);
   }
+  if (const std::string foreign = io::ForeignBatchFiles(dir, false); !foreign.empty()) {
+    std::cerr << "imr report: " << foreign << "\n";
+    return imr::kExitCantCreate;
+  }
   nlohmann::json summary;
   try {
     summary = imr::batch::WriteSummary(dir, "imr report");
@@ -455,13 +522,21 @@ int CmdReport(const std::vector<std::string>& args) {
     return kExitUsage;
   }
   // The page is a view of the summary: if it cannot be written, the summary still stands.
-  try {
-    const auto page = imr::report::WriteBatchPage(dir, summary);
-    for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
-    std::printf("viewer page: %s (%d mesh%s in 3D)\n", page.page.string().c_str(),
-                page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es");
-  } catch (const std::exception& e) {
-    imr::LogWarning(std::string("viewer page not written: ") + e.what());
+  std::string foreign_page;
+  for (const char* entry : {"index.html", "assets"})
+    if (foreign_page.empty()) foreign_page = io::ForeignBatchEntry(dir, entry);
+  if (!foreign_page.empty()) {
+    imr::LogWarning("viewer page not written: " + foreign_page +
+                    ": imr does not overwrite a file it did not write");
+  } else {
+    try {
+      const auto page = imr::report::WriteBatchPage(dir, summary);
+      for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
+      std::printf("viewer page: %s (%d mesh%s in 3D)\n", page.page.string().c_str(),
+                  page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es");
+    } catch (const std::exception& e) {
+      imr::LogWarning(std::string("viewer page not written: ") + e.what());
+    }
   }
   for (const auto& r : summary["sequences"]) {
     const std::string st = r["status"].get<std::string>();

@@ -500,26 +500,37 @@ void WeightTransfer::AssignNewCells(const std::vector<Cell_handle>& added, const
 // =================================================================================================
 // The Steiner grid and dO.
 
-std::vector<Point> SteinerGrid::NewPoints(const Point& camera) {
+std::vector<Point> SteinerGrid::NewPoints(const Point& camera, const std::function<bool()>& stop) {
   const double s = opt_.steiner_spacing;
   const double reach = opt_.max_ray_length + opt_.steiner_margin;
   int64_t lo[3], hi[3];
   const double cc[3] = {camera.x(), camera.y(), camera.z()};
   for (int d = 0; d < 3; ++d) {
-    lo[d] = static_cast<int64_t>(std::floor((cc[d] - reach) / s - opt_.steiner_origin[d]));
-    hi[d] = static_cast<int64_t>(std::ceil((cc[d] + reach) / s - opt_.steiner_origin[d]));
+    const double a = std::floor((cc[d] - reach) / s - opt_.steiner_origin[d]);
+    const double b = std::ceil((cc[d] + reach) / s - opt_.steiner_origin[d]);
+    // Node numbers are exact integers in a double up to 2^53.
+    if (!(std::abs(a) < 0x1p53 && std::abs(b) < 0x1p53))
+      throw std::runtime_error("a camera at " + std::to_string(cc[d]) + " on axis " +
+                               std::to_string(d) + " is beyond the Steiner grid's node numbers "
+                               "(2^53 steps of steiner_spacing " + std::to_string(s) +
+                               "): raise steiner_spacing");
+    lo[d] = static_cast<int64_t>(a);
+    hi[d] = static_cast<int64_t>(b);
   }
   std::vector<Point> out;
+  uint64_t walked = 0;
   for (int64_t i = lo[0]; i <= hi[0]; ++i)
     for (int64_t j = lo[1]; j <= hi[1]; ++j)
       for (int64_t k = lo[2]; k <= hi[2]; ++k) {
+        if ((++walked & 0xFFFF) == 0 && stop && stop())
+          throw Stopped("stopped on request while placing the Steiner grid's nodes");
+        if (!nodes_.insert({i, j, k}).second) continue;
+        // Off the exact grid by a deterministic jitter (steiner_jitter): on a regular grid
+        // eight points share every circumsphere and CGAL's predicates fall back to exact
+        // arithmetic. The jitter's seed packs the node in 63 bits (it only needs to vary).
         const uint64_t key = (static_cast<uint64_t>(i & 0x1FFFFF) << 42) |
                              (static_cast<uint64_t>(j & 0x1FFFFF) << 21) |
                              static_cast<uint64_t>(k & 0x1FFFFF);
-        if (!keys_.insert(key).second) continue;
-        // Off the exact grid by a deterministic jitter (steiner_jitter): on a regular grid
-        // eight points share every circumsphere and CGAL's predicates fall back to exact
-        // arithmetic.
         const double jit = opt_.steiner_jitter * s;
         out.emplace_back(
             (static_cast<double>(i) + opt_.steiner_origin[0]) * s + jit * Jitter(key, 0),
@@ -529,18 +540,13 @@ std::vector<Point> SteinerGrid::NewPoints(const Point& camera) {
   return out;
 }
 
-// Node (i, j, k) of a key: 21 bits an axis, two's complement.
 void SteinerGrid::Forget(const std::function<bool(const Point&)>& gone) {
   const double s = opt_.steiner_spacing;
-  auto axis = [](uint64_t key, int shift) {
-    const int64_t v = static_cast<int64_t>((key >> shift) & 0x1FFFFF);
-    return v >= (int64_t{1} << 20) ? v - (int64_t{1} << 21) : v;
-  };
-  for (auto it = keys_.begin(); it != keys_.end();) {
-    const Point node((static_cast<double>(axis(*it, 42)) + opt_.steiner_origin[0]) * s,
-                     (static_cast<double>(axis(*it, 21)) + opt_.steiner_origin[1]) * s,
-                     (static_cast<double>(axis(*it, 0)) + opt_.steiner_origin[2]) * s);
-    it = gone(node) ? keys_.erase(it) : std::next(it);
+  for (auto it = nodes_.begin(); it != nodes_.end();) {
+    const Point node((static_cast<double>(it->i) + opt_.steiner_origin[0]) * s,
+                     (static_cast<double>(it->j) + opt_.steiner_origin[1]) * s,
+                     (static_cast<double>(it->k) + opt_.steiner_origin[2]) * s);
+    it = gone(node) ? nodes_.erase(it) : std::next(it);
   }
 }
 
@@ -589,6 +595,8 @@ Engine::Impl::Impl(const EngineOptions& o, WeightTransferPolicy* p)
       planner(s, caster, carving), forgetting(s, caster, steiner) {
   if (const std::string error = s.opt.Check(); !error.empty()) {
     init = Status::Error("invalid engine options: " + error);
+  } else if (const std::string grid = s.opt.CheckSteinerGrid(); !grid.empty()) {
+    init = Status::Error("invalid engine options: " + grid);
   } else if (s.opt.visibility_mode == VisibilityMode::kWeights && p == nullptr) {
     init = Status::Error("visibility_mode 'weights' needs a weight-transfer policy");
   }
@@ -741,11 +749,15 @@ void Engine::Impl::RemoveVertex(Vertex_handle v, std::vector<RayEntry>* rays) {
 // triangulation and mesh bytes).
 void Engine::Impl::PlaceSteinerPoints(const Point& camera) {
   std::vector<std::pair<Point, int64_t>> points;
-  for (const Point& p : steiner.NewPoints(camera)) points.emplace_back(p, -(++steiner_nodes_));
+  for (const Point& p : steiner.NewPoints(camera, stop_requested))
+    points.emplace_back(p, -(++steiner_nodes_));
   using PointOf = CGAL::First_of_pair_property_map<std::pair<Point, int64_t>>;
   CGAL::spatial_sort(points.begin(), points.end(),
                      CGAL::Spatial_sort_traits_adapter_3<detail::K, PointOf>());
+  size_t placed = 0;
   for (const auto& [p, id] : points) {
+    if ((++placed & 0x3FF) == 0 && stop_requested && stop_requested())
+      throw detail::Stopped("stopped on request while inserting the Steiner grid's points");
     bool dup = false;
     std::vector<RayEntry> u;
     Vertex_handle v = InsertPoint(p, id, s.opt.transfer_on_insert, &dup, &u);
@@ -1518,9 +1530,15 @@ Engine::~Engine() = default;
 
 const Status& Engine::init_status() const { return impl_->init; }
 
+void Engine::SetStopCheck(std::function<bool()> stop_requested) {
+  impl_->stop_requested = std::move(stop_requested);
+}
+
 Status Engine::ApplyUpdate(const KeyframeUpdate& update) {
   try {
     return impl_->ApplyUpdate(update);
+  } catch (const detail::Stopped& e) {
+    return Status::Error(e.what());
   } catch (const std::exception& e) {
     return Status::Error(std::string("engine failure: ") + e.what());
   } catch (...) {

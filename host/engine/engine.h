@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -60,6 +61,12 @@ enum class LongRays {
 };
 std::string ToString(LongRays rule);
 bool FromString(const std::string& s, LongRays* rule);
+
+// The most Steiner grid nodes around one camera that EngineOptions::CheckSteinerGrid accepts: the
+// grid covers each camera +- (max_ray_length + steiner_margin) in steps of steiner_spacing, and
+// each node becomes a vertex of the triangulation (a kilobyte or so). 1e7 nodes is a spacing of
+// 0.42 m at the default reach of 45 m; a reach of 1e12 m or a spacing of 1e-9 m would never end.
+inline constexpr double kMaxSteinerNodesPerCamera = 1e7;
 
 struct EngineOptions {
   double steiner_spacing = 5.0;       // Steiner grid step, metres (paper: 5 m).
@@ -150,6 +157,14 @@ struct EngineOptions {
   double ForgetDistance() const;
   // forget_step, or when 0 two grid steps.
   double ForgetStep() const;
+  // Nodes of the Steiner grid within reach of one camera: a cube of
+  // 2 (max_ray_length + steiner_margin) / steiner_spacing + 2 nodes a side.
+  double SteinerNodesPerCamera() const;
+  // Empty when that grid has at most kMaxSteinerNodesPerCamera nodes, else its size, the
+  // memory it would take and the options to change. Apart from Check: the lengths a job gives
+  // may be scaled to the scene before they are used (pipeline/scale.h). The engine refuses to
+  // start with such options.
+  std::string CheckSteinerGrid() const;
 };
 
 struct Camera {
@@ -358,6 +373,11 @@ class Engine {
   // What the engine's structures take now (walks every cell: milliseconds on a large scene).
   EngineMemory Memory() const;
   const EngineOptions& options() const;
+
+  // Polled in the update's long loops (the Steiner grid): when it returns true, ApplyUpdate
+  // stops and returns an error starting "stopped"; the engine is then not to be used further.
+  // A signal handler's flag, or a deadline. Empty (the default): never stops.
+  void SetStopCheck(std::function<bool()> stop_requested);
 
   // Full check of dO (not the local test): every edge in exactly two boundary triangles with
   // opposite orientations, every vertex one fan, no infinite cell in O, Delaunay valid.

@@ -41,6 +41,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
@@ -794,11 +795,13 @@ class SteinerGrid {
  public:
   explicit SteinerGrid(const EngineOptions& opt) : opt_(opt) {}
   // The grid's points within reach of a camera that were not placed before, in placement order.
-  std::vector<Point> NewPoints(const Point& camera);
+  // `stop` is polled as the nodes are walked (throws Stopped when it says so); throws
+  // std::runtime_error when the camera is too far from the origin for the grid's node numbers.
+  std::vector<Point> NewPoints(const Point& camera, const std::function<bool()>& stop);
   // Bytes its record of placed nodes takes.
   int64_t MemoryBytes() const {
-    return static_cast<int64_t>(keys_.size() * (sizeof(uint64_t) + 2 * sizeof(void*)) +
-                                keys_.bucket_count() * sizeof(void*));
+    return static_cast<int64_t>(nodes_.size() * (sizeof(Node) + 2 * sizeof(void*)) +
+                                nodes_.bucket_count() * sizeof(void*));
   }
   // forget: drops the record of the placed nodes for which gone(node position) holds (where
   // everything is final: a camera that reaches there again finds its cells final and places
@@ -806,8 +809,27 @@ class SteinerGrid {
   void Forget(const std::function<bool(const Point&)>& gone);
 
  private:
+  // A node by its integer coordinates, exactly (packing them in 64 bits would alias nodes
+  // 2^21 steps apart).
+  struct Node {
+    int64_t i, j, k;
+    bool operator==(const Node& o) const { return i == o.i && j == o.j && k == o.k; }
+  };
+  struct NodeHash {
+    size_t operator()(const Node& n) const {
+      uint64_t h = static_cast<uint64_t>(n.i) * 0x9E3779B97F4A7C15ull;
+      h ^= static_cast<uint64_t>(n.j) + 0x7F4A7C159E3779B9ull + (h << 6) + (h >> 2);
+      h ^= static_cast<uint64_t>(n.k) + 0x94D049BB133111EBull + (h << 6) + (h >> 2);
+      return static_cast<size_t>(h);
+    }
+  };
   const EngineOptions& opt_;
-  std::unordered_set<uint64_t> keys_;  // nodes placed
+  std::unordered_set<Node, NodeHash> nodes_;  // nodes placed
+};
+
+// Thrown from a long loop when the engine's stop check says so (Engine::SetStopCheck).
+struct Stopped : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 
 // -------------------------------------------------------------------------------------------------
@@ -1041,6 +1063,7 @@ struct Engine::Impl {
   detail::MovePlanner planner;
   detail::Forgetting forgetting;
   Status init;
+  std::function<bool()> stop_requested;  // Engine::SetStopCheck
 
  private:
   Status Validate(const KeyframeUpdate& u) const;

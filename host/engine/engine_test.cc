@@ -91,6 +91,59 @@ TEST(EngineTest, InvalidOptionsOrMissingPolicyAreReportedByApplyUpdate) {
   EXPECT_TRUE(exact.ApplyUpdate({}).ok());
 }
 
+TEST(EngineOptionsTest, SteinerGridsThatWouldNeverEndAreRefused) {
+  // Issue 36: max_ray_length 1e12 or a 1e-9 spacing passed Check and then walked ~1e32 nodes.
+  EngineOptions o;
+  EXPECT_DOUBLE_EQ(o.SteinerNodesPerCamera(), 20.0 * 20.0 * 20.0);  // 2 x 45 / 5 + 2 a side
+  for (auto set : {+[](EngineOptions* x) { x->max_ray_length = 1e12; },
+                   +[](EngineOptions* x) { x->steiner_spacing = 1e-9; },
+                   +[](EngineOptions* x) { x->steiner_margin = 1e9; },
+                   +[](EngineOptions* x) { x->steiner_spacing = 0.1; }}) {
+    EngineOptions big;
+    set(&big);
+    EXPECT_EQ(big.Check(), "");  // the other checks; the grid's is apart (lengths may be scaled)
+    const std::string e = big.CheckSteinerGrid();
+    EXPECT_NE(e.find("the Steiner grid would have"), std::string::npos) << e;
+    EXPECT_NE(e.find("raise steiner_spacing or lower max_ray_length or steiner_margin"),
+              std::string::npos)
+        << e;
+  }
+  o.steiner_spacing = 0.5;  // 182^3 = 6.0e6 nodes: allowed
+  EXPECT_EQ(o.CheckSteinerGrid(), "");
+  o.steiner_spacing = 1e-9;  // and the engine refuses to start with more
+  Engine e(o, nullptr);
+  EXPECT_NE(e.init_status().message().find("the Steiner grid would have"), std::string::npos);
+}
+
+TEST(EngineTest, SteinerNodesFarApartAreNotConfused) {
+  // Issue 36: the grid's nodes were keyed by 21 bits an axis, so a camera 2^21 steps from
+  // another found "its" nodes placed already and got no Steiner points at all.
+  EngineOptions o;
+  o.steiner_spacing = 1.0;
+  o.max_ray_length = 2.0;
+  o.steiner_margin = 0.5;
+  o.regrow_radius = 0.0;
+  Engine e(o, nullptr);
+  ASSERT_TRUE(e.ApplyUpdate({{{1, {0.0, 0.0, 0.0}}}, {}, {}, {}}).ok());
+  const int64_t first = e.Stats().steiner_points + e.Stats().steiner_dropped;
+  EXPECT_GT(first, 200);
+  ASSERT_TRUE(e.ApplyUpdate({{{2, {2097152.0, 0.0, 0.0}}}, {}, {}, {}}).ok());  // 2^21 steps on
+  EXPECT_EQ(e.Stats().steiner_points + e.Stats().steiner_dropped, 2 * first);
+}
+
+TEST(EngineTest, AStopRequestEndsTheUpdate) {
+  // A signal reaches the Steiner grid's loops (issue 36: SIGTERM waited for the forced kill).
+  EngineOptions o;
+  o.steiner_spacing = 1.0;  // 92^3 nodes around the camera
+  Engine e(o, nullptr);
+  int polls = 0;
+  e.SetStopCheck([&] { return ++polls >= 3; });
+  const Status s = e.ApplyUpdate({{{1, {0.0, 0.0, 0.0}}}, {}, {}, {}});
+  EXPECT_FALSE(s.ok());
+  EXPECT_EQ(s.message().rfind("stopped on request", 0), 0u) << s.message();
+  EXPECT_EQ(polls, 3);
+}
+
 // A tiny hand-made scene: a camera, a wall of points at y = 10 seen from it.
 class SmallSceneTest : public ::testing::TestWithParam<std::string> {
  protected:

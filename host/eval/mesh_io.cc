@@ -843,11 +843,39 @@ std::string GeometryFormat(const fs::path& path) {
   return "";
 }
 
+namespace {
+
+// The first bytes of a file say what it is: checked before the whole file is read (a 2 GB file
+// of zeros named .ply used to be read whole, 12 s, before "not a PLY file").
+void CheckHead(const fs::path& path, const std::string& format) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) Fail(path, "no such file");
+  if (fs::is_directory(path, ec)) Fail(path, "is a folder, not a file");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) Fail(path, std::string("cannot be opened (") + std::strerror(errno) + ")");
+  std::string head(4096, '\0');
+  f.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(f.gcount()));
+  if (format == "ply") {
+    if (head.rfind("ply\n", 0) != 0 && head.rfind("ply\r\n", 0) != 0)
+      Fail(path, "not a PLY file (no 'ply' first line)");
+  } else if (format == "glb") {
+    if (head.rfind("glTF", 0) != 0) Fail(path, "not a GLB file (no 'glTF' magic)");
+  } else if (const std::size_t nul = head.find('\0'); nul != std::string::npos) {
+    // The text formats (OBJ, OFF, glTF's JSON, point lists) hold no NUL byte.
+    Fail(path, "not a " + format + " file: a NUL byte at offset " + std::to_string(nul) +
+                   " (a binary file?)");
+  }
+}
+
+}  // namespace
+
 TriangleMesh ReadGeometry(const fs::path& path) {
   const std::string format = GeometryFormat(path);
   if (format.empty())
     Fail(path, "unknown extension '" + path.extension().string() +
                    "' (expected .obj, .ply, .gltf, .glb, .off, or .xyz/.txt/.asc for points)");
+  CheckHead(path, format);
   const std::string data = ReadBytes(path);
   if (format == "obj") return ParseObj(data, path);
   if (format == "ply") return ParsePly(data, path);

@@ -118,8 +118,10 @@ class ObjectReader {
 
  private:
   void Wrong(const std::string& key, const std::string& expected, const json& got) {
-    problems_->push_back({Path(key), "expected " + expected + ", got " + TypeName(got) + " " +
-                                         Describe(got)});
+    // "got string \"ply\"", "got number 3"; null is its own type and value ("got null").
+    problems_->push_back({Path(key), "expected " + expected + ", got " +
+                                         (got.is_null() ? std::string("null")
+                                                        : TypeName(got) + " " + Describe(got))});
   }
   const json& obj_;
   std::string path_;

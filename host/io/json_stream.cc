@@ -155,11 +155,16 @@ std::set<std::string> StreamJsonFile(const std::filesystem::path& file, const st
                     const std::function<void(const std::string&, nlohmann::json&&)>& member,
                     const std::function<void(const std::string&, std::size_t,
                                              nlohmann::json&&)>& element) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec))
+    throw std::runtime_error(file.string() + ": is a folder, expected a JSON file");
   std::ifstream in(file, std::ios::binary);
   if (!in) throw std::runtime_error(file.string() + ": cannot open for reading");
   Streamer s(streamed, member, element);
   try {
     nlohmann::json::sax_parse(in, &s);
+  } catch (const std::ios_base::failure& e) {
+    throw std::runtime_error(file.string() + ": cannot read: " + e.what());
   } catch (const UnreadableJson& e) {
     throw std::runtime_error(file.string() + ": " + e.what());
   } catch (const nlohmann::json::exception& e) {

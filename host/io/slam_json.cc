@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -41,6 +42,12 @@ json SlamJsonOptionsSchema() {
 namespace {
 
 constexpr int64_t kNone = std::numeric_limits<int64_t>::min();
+
+std::string Coordinates(const Vec3& x) {
+  char b[96];
+  std::snprintf(b, sizeof(b), "%.9g, %.9g, %.9g", x[0], x[1], x[2]);
+  return b;
+}
 
 class SlamJsonSource : public PrecomputedKeyframeSource {
  public:
@@ -135,6 +142,10 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
     SetFromCenter(rot, f_.Vector3(f_.Member(ex, "center", path + ".extrinsic"), path + ".extrinsic.center"), &g);
     const json& obs = f_.Member(v, "observations", path);
     if (!obs.is_array()) f_.Fail(path + ".observations", "expected an array, got " + Describe(obs));
+    // A view sees a point once at a keyframe (imr's streams list it again at a later keyframe
+    // with the later estimate): the same pointId twice at one keyframe with two positions is a
+    // contradiction (the same position twice is read as once).
+    std::map<std::pair<uint64_t, int64_t>, std::size_t> seen;
     for (std::size_t j = 0; j < obs.size(); ++j) {
       const std::string op = path + ".observations[" + std::to_string(j) + "]";
       Obs o;
@@ -142,6 +153,17 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
       o.x = f_.Vector3(f_.Member(obs[j], "X", op), op + ".X");
       o.keyframe = kNone;
       if (const json* k = f_.Optional(obs[j], "keyframe", op)) o.keyframe = f_.Integer(*k, op + ".keyframe");
+      if (const auto [it, first] = seen.try_emplace({o.point, o.keyframe}, obs_.size()); !first) {
+        const Vec3& before = obs_[it->second].x;
+        if (before != o.x)
+          f_.Fail(op + ".pointId",
+                  "point " + std::to_string(o.point) + " is listed twice in view " +
+                      std::to_string(g.id) + " with two positions (observations[" +
+                      std::to_string(obs_[it->second].index) + "].X [" + Coordinates(before) +
+                      "], here [" + Coordinates(o.x) +
+                      "]): a view sees a point once (at a keyframe)");
+        continue;
+      }
       o.view = static_cast<uint32_t>(views_.size());
       o.index = static_cast<uint32_t>(j);
       obs_.push_back(o);

@@ -1,7 +1,9 @@
 #include "host/pipeline/job_validation.h"
 
+#include "host/io/batch_folder.h"
 #include "host/io/engine_options.h"
 #include "host/io/input_formats.h"
+#include "host/pipeline/scale.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 
@@ -73,12 +75,71 @@ void CheckOutputFolder(const SequenceRef& s, const std::string& path, const fs::
       v->problems.push_back({path, who + " is outside the batch folder " + batch.string()});
       return;
     }
+    // imr's own entries of the batch folder: the summary, the viewer page, imr-batch/.
+    if (io::IsBatchFolderEntry(rel.begin()->string())) {
+      v->problems.push_back({path, who + " is the batch folder's " + rel.begin()->string() +
+                                       ", which imr run writes (the batch summary, the viewer "
+                                       "page or its records); rename the sequence, or put text "
+                                       "around {sequence} in output.directory (e.g. "
+                                       "\"runs/{sequence}_mesh\")"});
+      return;
+    }
+    if (s.name == "." || s.name == "..") {
+      v->problems.push_back({path, "a sequence named '" + s.name + "': not a folder name for " +
+                                       "{sequence} in output.directory"});
+      return;
+    }
   }
   const auto [it, first] = owners->emplace(out, s.name);
   if (!first)
     v->problems.push_back({"output.directory", "sequences '" + JsonText(it->second) + "' and '" +
                                                    JsonText(s.name) + "' would both write to " +
                                                    out.string()});
+}
+
+// A glob over the folder the outputs go to matches them on the next run (sequences "cm/*/" and
+// output "cm/{sequence}_mesh": cm/A_mesh, cm/imr-batch, cm/assets), and the batch would grow
+// with every run. Matches that are imr's own entries of the batch folder, or the output folder
+// of another match (or inside one), are left out, with an info line naming them.
+void LeaveOutOwnOutputs(const std::string& path, const io::JobSpec& job, const fs::path& batch,
+                        std::vector<SequenceRef>* found) {
+  auto normal = [](const fs::path& p) {
+    fs::path n = fs::absolute(p).lexically_normal();
+    if (n.has_relative_path() && n.filename().empty()) n = n.parent_path();
+    return n;
+  };
+  auto inside = [](const fs::path& p, const fs::path& dir) {
+    const fs::path rel = p.lexically_relative(dir);
+    return !rel.empty() && *rel.begin() != "..";
+  };
+  // Output folder -> its sequence; only those strictly inside the batch folder (the others are
+  // refused by CheckOutputFolder, and must not hide a match).
+  std::map<fs::path, std::string> outputs;
+  if (job.output.directory.find("{sequence}") != std::string::npos)
+    for (const SequenceRef& s : *found) {
+      const fs::path out = normal(job.OutputDirectory(s.name));
+      if (out != batch && inside(out, batch)) outputs.emplace(out, s.name);
+    }
+  std::vector<SequenceRef> kept;
+  std::string left_out;
+  for (SequenceRef& s : *found) {
+    const fs::path source = normal(s.source);
+    std::string why;
+    for (const char* e : io::kBatchFolderEntries)
+      if (inside(source, batch / e) && io::ForeignBatchEntry(batch, e).empty())
+        why = "the batch folder's";
+    for (const auto& [out, owner] : outputs)
+      if (why.empty() && owner != s.name && inside(source, out))
+        why = "the output folder of '" + JsonText(owner) + "'";
+    if (why.empty()) {
+      kept.push_back(std::move(s));
+      continue;
+    }
+    left_out += (left_out.empty() ? "" : ", ") + source.string() + " (" + why + ")";
+  }
+  if (!left_out.empty())
+    LogInfo(path + ": left out what imr wrote: " + left_out);
+  *found = std::move(kept);
 }
 
 void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
@@ -107,6 +168,7 @@ void ExpandSequences(const io::InputFormat& format, ValidatedJob* v) {
         for (std::size_t k = 0; k < g.gl_pathc; ++k)
           found.push_back({GlobMatchName(pattern, g.gl_pathv[k]), StripSlash(g.gl_pathv[k])});
       ::globfree(&g);
+      LeaveOutOwnOutputs(path, job, batch, &found);
       if (found.empty()) v->problems.push_back({path, "pattern matches nothing: " + pattern});
       std::sort(found.begin(), found.end(),
                 [](const SequenceRef& a, const SequenceRef& b) { return a.source < b.source; });
@@ -259,7 +321,24 @@ ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry
       ExpandSequences(*format, &v);
     }
   }
-  io::EngineOptionsFromJson(v.job.engine, &v.engine_options, &v.problems);
+  // {job} is the job file's stem: "...json" gives "..", which would climb out of the folder.
+  if (v.job.output.directory.find("{job}") != std::string::npos &&
+      (v.job.Name() == "." || v.job.Name() == ".." || v.job.Name().empty()))
+    v.problems.push_back({"output.directory",
+                          "{job} would be '" + v.job.Name() + "' (the job file " +
+                              v.job.file.filename().string() + "): not a folder name; rename the "
+                              "job file"});
+  if (io::EngineOptionsFromJson(v.job.engine, &v.engine_options, &v.problems)) {
+    // The Steiner grid's size, once its lengths are known: in metric mode, or when the job gives
+    // all three; auto scaling sets the others per sequence, and the run checks them then.
+    bool known = ScaleModeOf(v.job.engine, v.job.input.format) == ScaleMode::kMetric;
+    if (!known && v.job.engine.is_object())
+      known = v.job.engine.contains("steiner_spacing") && v.job.engine.contains("steiner_margin") &&
+              v.job.engine.contains("max_ray_length");
+    if (known)
+      if (const std::string grid = v.engine_options.CheckSteinerGrid(); !grid.empty())
+        v.problems.push_back({"engine", grid});
+  }
   if (!v.job.evaluation.is_null()) {
     io::ValidateAgainstSchema(EvaluationSchema(), v.job.evaluation, "evaluation", &v.problems);
     v.evaluation = io::WithDefaults(EvaluationSchema(), v.job.evaluation);

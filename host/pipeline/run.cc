@@ -23,6 +23,7 @@
 #include "host/util/thread_pool.h"
 
 #include <chrono>
+#include <cstdio>
 #include <deque>
 #include <future>
 #include <map>
@@ -79,6 +80,8 @@ class SequenceRun {
   void AddObservers();
   void ProcessKeyframes();
   bool NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info);
+  void CheckInFront(const engine::KeyframeUpdate& update);
+  std::string BehindMessage() const;
   void Finish();
   engine::Mesh CheckedMesh();
   void WarnAbout(const engine::Mesh& mesh);
@@ -110,6 +113,9 @@ class SequenceRun {
   // which call plugins through it.
   StageWatch watch_;
   std::vector<WatchedStage> watched_;  // per stage of the job
+  // The engine's work on one keyframe, watched under --stage-timeout too: a runaway update
+  // (a grid or loop too large to finish) fails the sequence like a hung plugin.
+  WatchedStage engine_stage_;
   std::size_t policy_stage_ = 0, features_stage_ = 0, refiner_stage_ = 0;
 
   // The source.
@@ -122,6 +128,11 @@ class SequenceRun {
   std::optional<PrefetchingSource> prefetch_;
   io::KeyframeSource& Input() { return prefetch_ ? *prefetch_ : *source_; }
   std::optional<WatchedPolicy> watched_policy_;
+
+  // New points seen from behind the cameras that see them (CheckInFront): a mirrored stream,
+  // or rotations the wrong way round, would mesh "ok" in the wrong place.
+  int64_t observations_checked_ = 0, observations_behind_ = 0;
+  std::string first_behind_;
 
   // The scene's scale (scale.h) and the engine.
   ScaleMode scale_mode_ = ScaleMode::kMetric;
@@ -262,7 +273,9 @@ void SequenceRun::StartEngine() {
                  std::to_string(scale_.keyframes) + " keyframes; the metric defaults are kept");
     } else {
       engine_options_ = ScaledOptions(v_.engine_options, scale_, explicit_keys_);
-      if (const std::string error = engine_options_.Check(); !error.empty())
+      std::string error = engine_options_.Check();
+      if (error.empty()) error = engine_options_.CheckSteinerGrid();
+      if (!error.empty())
         throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale_.median_ray) +
                                  ") gives unusable options: " + error +
                                  "; set the engine's lengths in the job, or engine.scale \"metric\"");
@@ -273,6 +286,10 @@ void SequenceRun::StartEngine() {
   engine_.emplace(engine_options_, watched_policy_ ? &*watched_policy_ : nullptr);
   if (!engine_->init_status().ok())
     throw std::runtime_error("engine: " + engine_->init_status().message());
+  // A signal (Ctrl-C, SIGTERM) reaches the engine's long loops, not only the keyframe loop.
+  engine_->SetStopCheck([] { return plugin::CancelRequested(); });
+  if (options_.stage_timeout > 0.0)
+    engine_stage_ = {"engine", "", "engine", options_.stage_timeout, "--stage-timeout"};
 }
 
 // What runs after every keyframe, in this order (the trace writes the check's time).
@@ -314,10 +331,14 @@ void SequenceRun::ProcessKeyframes() {
   while (NextKeyframe(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
     if (scale_mode_ == ScaleMode::kMetric && !probe_.Enough()) probe_.Add(update);
+    CheckInFront(update);
     canonical_.Apply(&update);
     watch_.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
     const auto engine_start = std::chrono::steady_clock::now();
-    const engine::Status st = engine_->ApplyUpdate(update);
+    const engine::Status st = [&] {
+      const StageWatch::Call call = watch_.Enter(engine_stage_);
+      return engine_->ApplyUpdate(update);
+    }();
     KeyframeEvent event{update, kf};
     event.engine_seconds = SecondsSince(engine_start);
     engine_seconds_ += event.engine_seconds;
@@ -331,6 +352,44 @@ void SequenceRun::ProcessKeyframes() {
     event.keyframes = ++keyframes_;
     for (const auto& observer : observers_) observer->OnKeyframe(event);
   }
+}
+
+// Counts the observations of new points that put the point behind its camera (depth <= 0 in
+// the camera's frame, for cameras whose rotation the source knows). Once 100 are counted, most
+// of them behind fails the sequence: the mesh would be made, and look fine, in the wrong place.
+void SequenceRun::CheckInFront(const engine::KeyframeUpdate& update) {
+  for (const engine::NewPoint& p : update.new_points)
+    for (uint64_t id : p.camera_ids) {
+      const io::CameraGeometry* g = source_->Camera(id);
+      if (g == nullptr) continue;
+      const io::Mat3& r = g->rotation;
+      const double depth = r[2][0] * (p.position[0] - g->center[0]) +
+                           r[2][1] * (p.position[1] - g->center[1]) +
+                           r[2][2] * (p.position[2] - g->center[2]);
+      ++observations_checked_;
+      if (depth > 0.0) continue;
+      if (++observations_behind_ == 1) {
+        char b[240];
+        std::snprintf(b, sizeof(b),
+                      "point %llu at (%g, %g, %g) is %g behind camera %llu at (%g, %g, %g)",
+                      static_cast<unsigned long long>(p.id), p.position[0], p.position[1],
+                      p.position[2], -depth, static_cast<unsigned long long>(id), g->center[0],
+                      g->center[1], g->center[2]);
+        first_behind_ = b;
+      }
+    }
+  if (observations_checked_ >= 100 && 2 * observations_behind_ > observations_checked_)
+    throw std::runtime_error(BehindMessage());
+}
+
+std::string SequenceRun::BehindMessage() const {
+  char share[32];
+  std::snprintf(share, sizeof(share), "%.1f %%", 100.0 * static_cast<double>(observations_behind_) /
+                                                    static_cast<double>(observations_checked_));
+  return std::to_string(observations_behind_) + " of " + std::to_string(observations_checked_) +
+         " observations of new points (" + share + ") put the point behind the camera that sees "
+         "it (first: " + first_behind_ + "): are the points mirrored, or the rotations camera -> "
+         "world where world -> camera is expected?";
 }
 
 // The keyframes read to decide the scale first, then the rest.
@@ -378,6 +437,11 @@ void SequenceRun::Warn(const std::string& warning) {
 
 // What looks wrong though a mesh was made; no surface at all fails the sequence.
 void SequenceRun::WarnAbout(const engine::Mesh& mesh) {
+  // A short sequence never reached the 100 observations of CheckInFront; a few behind is noise,
+  // more than 5 % is worth a word.
+  if (2 * observations_behind_ > observations_checked_ && observations_checked_ > 0)
+    throw std::runtime_error(BehindMessage());
+  if (20 * observations_behind_ > observations_checked_) Warn(BehindMessage());
   // Rays longer than max_ray_length are not cast: most of them skipped usually means the
   // scene is not in metres (or is much larger or smaller than the defaults assume).
   const engine::EngineStats& stats = engine_->Stats();

@@ -36,7 +36,7 @@ WatchedStage WatchedStageOf(const io::StageSpec& stage, double default_seconds) 
 
 std::string CheckStageTimeout(double seconds) {
   if (std::isfinite(seconds) && seconds >= 0.0 && seconds <= io::kMaxStageTimeoutSeconds) return {};
-  return "expected a number of seconds > 0 and at most " +
+  return "expected a number of seconds >= 0 (0: no limit) and at most " +
          std::to_string(static_cast<long>(io::kMaxStageTimeoutSeconds)) + " (a year)";
 }
 
@@ -98,8 +98,9 @@ void StageWatch::Run() {
       const auto at = positions_.find(due->thread);
       const std::string position = at == positions_.end() ? std::string() : at->second;
       const std::string message =
-          "stage \"" + s.kind + "\" (" + s.json_path + ", plugin " + s.plugin +
-          ") did not return within " + Seconds(s.timeout_seconds) +
+          "stage \"" + s.kind + "\" (" + s.json_path +
+          (s.plugin.empty() ? std::string() : ", plugin " + s.plugin) + ") did not return within " +
+          Seconds(s.timeout_seconds) +
           (position.empty() ? std::string() : " (" + position + ")") + "; the limit is " +
           s.limit_source;
       due->reported = true;

@@ -134,7 +134,12 @@ std::string RenderFiles(const RenderFilesRequest& q) {
                              std::to_string(camera.width) + "x" + std::to_string(camera.height));
   const Rendering r = RenderIntoCamera(mesh, camera, no_image ? nullptr : &image, q.render);
   WritePngAtomically(q.out, r.image);
-  said << q.out.string() << ": frame " << n << " (" << frame.image_path << "), " << r.image.width
+  // A SLAM JSON view has no image: it is named by its id and file name.
+  const std::string what =
+      !frame.image_path.empty() ? frame.image_path
+                                : "view " + std::to_string(frame.camera.id) +
+                                      (frame.camera.name.empty() ? "" : ", " + frame.camera.name);
+  said << q.out.string() << ": frame " << n << " (" << what << "), " << r.image.width
        << "x" << r.image.height << ", " << r.faces_drawn << " of " << faces.size() / 3
        << " triangles visible, " << Percent(r.Coverage()) << " of the pixels covered";
   return said.str();

@@ -562,6 +562,7 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
   const std::string title = summary.value("title", options.title);
   std::ostringstream h;
   h << "<!doctype html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+    << "<meta name=\"generator\" content=\"imr\">\n"  // how imr knows the page is its own
     << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
     << "<title>" << HtmlEscape(title) << "</title>\n<style>" << kStyle << "</style>\n";
   if (viewer) h << "<script src=\"assets/" << kModelViewerName << "\"></script>\n";

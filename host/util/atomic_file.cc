@@ -29,19 +29,22 @@ std::string RandomSuffix() {
 
 }  // namespace
 
-void WriteFileAtomically(const fs::path& path, std::string_view contents) {
+namespace {
+
+// A temporary beside `path` for its atomic write: ".<name>.tmp-<12 hex>", 18 bytes more than the
+// name, which may itself be near NAME_MAX (255); a long name is cut in the temporary (the random
+// suffix keeps it unique).
+fs::path TemporaryFor(const fs::path& path) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  // ".<name>.tmp-<12 hex>": 18 bytes more than the name, which may itself be near NAME_MAX
-  // (255); a long name is cut in the temporary (the random suffix keeps it unique).
   std::string name = path.filename().string();
   if (name.size() > 200) name.resize(200);
-  const fs::path tmp = dir / ("." + name + ".tmp-" + RandomSuffix());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd < 0) Fail(path, std::string("cannot write: ") + std::strerror(errno));
-  const char* p = contents.data();
-  std::size_t left = contents.size();
-  while (left > 0) {
-    const ssize_t n = ::write(fd, p, left);
+  return dir / ("." + name + ".tmp-" + RandomSuffix());
+}
+
+// Writes `size` bytes to fd; on failure closes it, removes `tmp` and throws naming `path`.
+void WriteAll(int fd, const char* p, std::size_t size, const fs::path& tmp, const fs::path& path) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, p, size);
     if (n < 0) {
       if (errno == EINTR) continue;
       const int err = errno;
@@ -50,8 +53,12 @@ void WriteFileAtomically(const fs::path& path, std::string_view contents) {
       Fail(path, std::string("write failed: ") + std::strerror(err));
     }
     p += n;
-    left -= static_cast<std::size_t>(n);
+    size -= static_cast<std::size_t>(n);
   }
+}
+
+// Flushes and closes fd and renames `tmp` to `path`; on failure removes `tmp` and throws.
+void Finish(int fd, const fs::path& tmp, const fs::path& path) {
   if (::fsync(fd) != 0 || ::close(fd) != 0) {
     const int err = errno;
     ::unlink(tmp.c_str());
@@ -62,6 +69,49 @@ void WriteFileAtomically(const fs::path& path, std::string_view contents) {
     ::unlink(tmp.c_str());
     Fail(path, std::string("rename failed: ") + std::strerror(err));
   }
+}
+
+}  // namespace
+
+void WriteFileAtomically(const fs::path& path, std::string_view contents) {
+  const fs::path tmp = TemporaryFor(path);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) Fail(path, std::string("cannot write: ") + std::strerror(errno));
+  WriteAll(fd, contents.data(), contents.size(), tmp, path);
+  Finish(fd, tmp, path);
+}
+
+void CopyFileAtomically(const fs::path& from, const fs::path& to) {
+  const int in = ::open(from.c_str(), O_RDONLY | O_CLOEXEC);
+  if (in < 0) Fail(from, std::string("cannot read: ") + std::strerror(errno));
+  const fs::path tmp = TemporaryFor(to);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    const int err = errno;
+    ::close(in);
+    Fail(to, std::string("cannot write: ") + std::strerror(err));
+  }
+  std::vector<char> buffer(1 << 20);
+  for (;;) {
+    const ssize_t n = ::read(in, buffer.data(), buffer.size());
+    if (n == 0) break;
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      ::close(in);
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      Fail(from, std::string("read failed: ") + std::strerror(err));
+    }
+    try {
+      WriteAll(fd, buffer.data(), static_cast<std::size_t>(n), tmp, to);
+    } catch (...) {
+      ::close(in);
+      throw;
+    }
+  }
+  ::close(in);
+  Finish(fd, tmp, to);
 }
 
 void EnsureWritableDirectory(const fs::path& dir) {

@@ -14,6 +14,11 @@ namespace imr {
 // (folder missing or not writable, disk full); the final path is then untouched.
 void WriteFileAtomically(const std::filesystem::path& path, std::string_view contents);
 
+// Copies `from` to `to` atomically (a temporary beside `to`, renamed into place). Throws
+// std::runtime_error naming the path and the system's reason ("No space left on device"); the
+// temporary is removed and `to` untouched.
+void CopyFileAtomically(const std::filesystem::path& from, const std::filesystem::path& to);
+
 // A private folder beside the final outputs for writers that produce several files (glTF +
 // .bin). Commit() moves every file into the destination folder (each by rename) and removes the
 // staging folder; destruction without Commit() removes it and everything in it.

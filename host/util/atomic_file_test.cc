@@ -110,5 +110,25 @@ TEST_F(AtomicFile, StagingWithoutCommitLeavesNothing) {
   EXPECT_EQ(CountEntries(out), 0);
 }
 
+TEST_F(AtomicFile, CopyIsWholeOrAbsent) {
+  const std::string big(3 << 20, 'm');  // more than one buffer
+  WriteFileAtomically(dir_ / "mesh.ply", big);
+  CopyFileAtomically(dir_ / "mesh.ply", dir_ / "Mesh.PLY");
+  EXPECT_EQ(Read(dir_ / "Mesh.PLY"), big);
+  // Onto a folder: refused by the rename, the temporary removed, the folder kept.
+  fs::create_directories(dir_ / "out.ply");
+  try {
+    CopyFileAtomically(dir_ / "mesh.ply", dir_ / "out.ply");
+    ADD_FAILURE() << "copied onto a folder";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find((dir_ / "out.ply").string() + ": rename failed: Is a directory"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(fs::is_directory(dir_ / "out.ply"));
+  EXPECT_EQ(CountEntries(dir_), 3);  // mesh.ply, Mesh.PLY, out.ply: no temporary
+  EXPECT_THROW(CopyFileAtomically(dir_ / "missing.ply", dir_ / "x.ply"), std::runtime_error);
+}
+
 }  // namespace
 }  // namespace imr

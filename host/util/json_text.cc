@@ -76,6 +76,26 @@ std::string JsonText(std::string_view bytes) {
   return out;
 }
 
+std::string OneLine(std::string_view bytes, std::size_t max_bytes) {
+  const bool cut = max_bytes > 0 && bytes.size() > max_bytes;
+  std::string out;
+  for (const char c : JsonText(cut ? bytes.substr(0, max_bytes) : bytes)) {
+    const auto u = static_cast<uint8_t>(c);
+    if (c == '\n') out += "\\n";
+    else if (c == '\r') out += "\\r";
+    else if (c == '\t') out += "\\t";
+    else if (u < 0x20 || u == 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02X", static_cast<unsigned>(u));
+      out += hex;
+    } else {
+      out += c;
+    }
+  }
+  if (cut) out += "... (" + std::to_string(bytes.size()) + " bytes)";
+  return out;
+}
+
 std::string DumpJson(const nlohmann::json& j, int indent) {
   try {
     return j.dump(indent);

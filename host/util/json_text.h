@@ -18,6 +18,12 @@ bool IsUtf8(std::string_view s);
 // `bytes` with each byte that is not part of well-formed UTF-8 written as \xNN ("caf\xE9").
 std::string JsonText(std::string_view bytes);
 
+// `bytes` as one line of text, for messages, logs and the comments of scripts: JsonText, with
+// each control character (newline, tab, NUL, DEL, ...) written as \n, \r, \t or \xNN, so that
+// nothing a name holds can start a line of its own. Past `max_bytes` of input (0: no limit) the
+// rest is cut and "... (N bytes)" says how long it was.
+std::string OneLine(std::string_view bytes, std::size_t max_bytes = 0);
+
 // j.dump(indent), with every string and key that is not UTF-8 shown as JsonText: never throws
 // for the bytes of a string.
 std::string DumpJson(const nlohmann::json& j, int indent = -1);

@@ -15,6 +15,14 @@ TEST(JsonText, KeepsUtf8AndEscapesOtherBytes) {
   EXPECT_FALSE(IsUtf8("\xE2\x82"));  // cut short
 }
 
+TEST(JsonText, OneLineEscapesControlCharactersAndCuts) {
+  EXPECT_EQ(OneLine("1:00:00\ntouch X #"), "1:00:00\\ntouch X #");
+  EXPECT_EQ(OneLine(std::string("a\0b\x7f\tc\r", 7)), "a\\x00b\\x7F\\tc\\r");
+  EXPECT_EQ(OneLine("caf\xE9"), "caf\\xE9");
+  EXPECT_EQ(OneLine(std::string(100, 'z'), 10), std::string(10, 'z') + "... (100 bytes)");
+  EXPECT_EQ(OneLine("short", 10), "short");
+}
+
 TEST(JsonText, DumpNeverThrowsForBytes) {
   nlohmann::json j = {{"name", "caf\xE9"}, {"list", {"ok", "\xFF"}}};
   j["caf\xE9"] = 1;

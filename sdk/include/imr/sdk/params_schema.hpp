@@ -143,7 +143,14 @@ inline std::vector<ParamProblem> ValidateParams(const nlohmann::json& schema,
     const std::string type = spec.value("type", "");
     const std::string got = ", got " + DescribeJson(v);
     if (!MatchesType(type, v)) {
-      problems.push_back({name, "expected " + ExpectedValue(spec) + got});
+      // A whole number written as a float beyond int (1e308, 1.2e29) gets the same hint as
+      // 9223372036854775808: it is the size, not the form, that is wrong.
+      const double x = v.is_number() ? v.get<double>() : 0.0;
+      const bool too_large = type == "integer" && v.is_number_float() && std::isfinite(x) &&
+                             std::trunc(x) == x && std::abs(x) > INT32_MAX;
+      const std::string hint =
+          too_large ? " (a 32-bit integer, at most " + std::to_string(INT32_MAX) + ")" : "";
+      problems.push_back({name, "expected " + ExpectedValue(spec) + hint + got});
       continue;
     }
     // Hosts and plugins read integers as int: a larger value would wrap silently.
