@@ -234,6 +234,7 @@ struct PhaseTimes {
   double grow = 0.0;
   double extract = 0.0;  // ExtractMesh.
   double forget = 0.0;   // forget: finding what became final, handing it out, rebuilding.
+  double rebuild = 0.0;  // Of forget, rebuilding the triangulation without what it forgot.
   double total = 0.0;    // ApplyUpdate wall time.
 };
 
