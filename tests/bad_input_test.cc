@@ -669,7 +669,8 @@ TEST_F(BadJob, JobWithWrongTypes) {
   j["pipeline"][0]["params"] = {{"k", 1}};  // nearest takes none
   j["input"]["options"] = {{"frames", "twenty"}};
   ExpectJobRefused(j.dump(2), {"output.formats: expected array of strings, got string \"ply\"",
-                               "input.options.frames: expected integer >= 1, got \"twenty\"",
+                               "input.options.frames: expected integer in [1, 200000], got "
+                               "\"twenty\"",
                                "pipeline[0].params.k: unknown key"});
 }
 
@@ -704,7 +705,8 @@ TEST_F(BadJob, JobWithIntegersBeyondTheirRange) {
   j["input"]["options"] = {{"frames", (int64_t{1} << 32) + 20}};  // used to wrap to 20
   ExpectJobRefused(j.dump(2), {"engine.window: expected integer >= 1 (a 32-bit integer",
                                "output.snapshot_every: expected an integer in [0, 2147483647]",
-                               "input.options.frames: expected integer >= 1 (a 32-bit integer"});
+                               "input.options.frames: expected integer in [1, 200000] (a 32-bit "
+                               "integer"});
   std::string text = GoodJob().dump(2);
   text.insert(text.find("\"input\""), "\"engine\": {\"window\": 123456789012345678901234567890},\n  ");
   ExpectJobRefused(text, {"engine.window: expected integer >= 1, got 1.2345678901234568e+29"});
