@@ -712,6 +712,25 @@ TEST_F(BadJob, JobWithIntegersBeyondTheirRange) {
   ExpectJobRefused(text, {"engine.window: expected integer >= 1, got 1.2345678901234568e+29"});
 }
 
+// Synthetic input options that would build a scene or a loop without bound: each alone is
+// bounded by the schema (a 10,000 km street used to be built whole, then the machine ran out of
+// memory); what only their combination breaks is refused when the job is validated, by name.
+TEST_F(BadJob, SyntheticOptionsThatWouldNotFit) {
+  json j = GoodJob();
+  j["input"]["options"] = {{"frames", 10000000}};
+  ExpectJobRefused(j.dump(2), {"input.options.frames: expected integer in [1, 200000], got "
+                               "10000000"});
+  j["input"]["options"] = {{"frames", 150000}, {"speed", 2.0}};
+  ExpectJobRefused(j.dump(2), {"input.options: frames x speed: 300000 m, expected at most 200000"});
+  j["input"]["options"] = {{"frames", 20}, {"track_frames", 1}};
+  ExpectJobRefused(j.dump(2), {"input.options: track_frames: expected 0 or >= min_observations "
+                               "(2), got 1 (no track would ever be reported)"});
+  j["input"]["options"] = {{"frames", 20}, {"track_frames", 17}, {"track_density", 100.0},
+                           {"max_range", 200.0}};
+  ExpectJobRefused(j.dump(2), {"input.options: track_density x max_range^2: 4e+06, expected at "
+                               "most 250000"});
+}
+
 TEST_F(BadJob, JobWithDeepNesting) {
   std::string text = GoodJob().dump(2);
   text.insert(text.find("\"input\""),

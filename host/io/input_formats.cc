@@ -23,8 +23,8 @@ const std::vector<InputFormat>& InputFormats() {
     s.needs_front_end = false;
     s.options_schema = {
         {"frames", {{"type", "integer"}, {"default", 200}, {"minimum", 1}, {"maximum", 200000},
-                    {"description", "frames in the sequence (street and plane: frames x speed at "
-                                    "most 200 km, the scene is built whole)"}}},
+                    {"description", "frames in the sequence (frames x speed at most 200 km: the "
+                                    "street and the plane are built whole)"}}},
         {"seed", {{"type", "integer"}, {"default", 1}, {"minimum", 0},
                   {"description", "everything random derives from it"}}},
         {"keyframe_every", {{"type", "integer"}, {"default", d.keyframe_every}, {"minimum", 1},
@@ -73,6 +73,7 @@ const std::vector<InputFormat>& InputFormats() {
                                         "memory flat on long drives (the report then gives "
                                         "precision only, and says why)"}}}};
     s.open = &OpenSyntheticSource;
+    s.check = &CheckSyntheticOptions;
     f.push_back(s);
 
     InputFormat mvg;

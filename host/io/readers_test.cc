@@ -995,11 +995,16 @@ TEST(SyntheticInput, TrackedOptionsSummaryAndEvaluationWithoutTruth) {
   // naming them.
   EXPECT_EQ(Open("synthetic", "street", {{"frames", 10}})->Summary()["model"], "block");
   const InputFormat* f = FindInputFormat("synthetic");
+  const json too_long = WithDefaults(f->options_schema, {{"frames", 150000}, {"speed", 2.0}});
+  ASSERT_TRUE(f->check);
+  const std::vector<std::string> found = f->check(too_long);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].rfind("frames x speed: 300000 m", 0), 0u) << found[0];
+  EXPECT_TRUE(f->check(WithDefaults(f->options_schema, json::object())).empty());
   EXPECT_THROW(
       {
         try {
-          f->open("street", WithDefaults(f->options_schema,
-                                         {{"frames", 150000}, {"speed", 2.0}}));
+          f->open("room", too_long);  // not validated: still refused, by name
         } catch (const std::runtime_error& e) {
           EXPECT_NE(std::string(e.what()).find("input.options: frames x speed"), std::string::npos)
               << e.what();

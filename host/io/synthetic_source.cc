@@ -139,11 +139,10 @@ class SyntheticSource : public KeyframeSource {
 
 }  // namespace
 
-std::unique_ptr<KeyframeSource> OpenSyntheticSource(const std::string& scene,
-                                                    const nlohmann::json& o) {
+namespace {
+
+synthetic::StreamOptions StreamOptionsFromJson(const nlohmann::json& o) {
   synthetic::StreamOptions s;
-  if (!synthetic::FromString(scene, &s.scene))
-    throw std::runtime_error("unknown synthetic scene '" + scene + "'");
   s.frames = o.at("frames");
   s.seed = o.at("seed");
   s.keyframe_every = o.at("keyframe_every");
@@ -156,8 +155,24 @@ std::unique_ptr<KeyframeSource> OpenSyntheticSource(const std::string& scene,
   s.track_density = o.at("track_density");
   s.angular_noise = o.at("angular_noise");
   s.keep_truth = o.at("keep_truth");
-  // The schema bounds each option; what only their combination can break (the street's length,
-  // frames x speed) is refused here, naming the options.
+  return s;
+}
+
+}  // namespace
+
+std::vector<std::string> CheckSyntheticOptions(const nlohmann::json& o) {
+  const std::string problem = StreamOptionsFromJson(o).Check();
+  if (problem.empty()) return {};
+  return {problem};
+}
+
+std::unique_ptr<KeyframeSource> OpenSyntheticSource(const std::string& scene,
+                                                    const nlohmann::json& o) {
+  synthetic::StreamOptions s = StreamOptionsFromJson(o);
+  if (!synthetic::FromString(scene, &s.scene))
+    throw std::runtime_error("unknown synthetic scene '" + scene + "'");
+  // Validation refuses what the options break together (CheckSyntheticOptions); a caller that
+  // skipped it still gets the field named.
   if (const std::string problem = s.Check(); !problem.empty())
     throw std::runtime_error("input.options: " + problem);
   return std::make_unique<SyntheticSource>(s);

@@ -36,8 +36,9 @@ double StreetLength(int frames, double speed) { return frames * speed + 10.0; }
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr Vec3 kUp{0.0, 0.0, 1.0};
-// The street (or plane) is built whole: its length is bounded so a job cannot ask for a scene
-// that does not fit in memory (200 km: ~210,000 rects, ~25 MB).
+// The street (or plane) is built whole: the drive's length is bounded so a job cannot ask for a
+// scene that does not fit in memory (200 km: ~210,000 rects, ~25 MB). The room, whose size does
+// not follow the drive, is held to it too: one rule for every scene.
 constexpr double kMaxStreetLength = 200000.0;
 // Candidates for new tracks drawn per frame grow as track_density x max_range^2 (the dense street:
 // 2.1 x 40^2 = 3,360); bounded so that no job makes a frame take minutes.
@@ -49,9 +50,9 @@ std::string StreamOptions::Check() const {
   if (frames < 1) m << "frames: expected >= 1, got " << frames;
   else if (keyframe_every < 1) m << "keyframe_every: expected >= 1, got " << keyframe_every;
   else if (!(speed > 0.0) || !std::isfinite(speed)) m << "speed: expected > 0, got " << speed;
-  else if (scene != SceneKind::kRoom && frames * speed > kMaxStreetLength)
-    m << "frames x speed: " << frames * speed << " m of " << ToString(scene)
-      << ", expected at most " << kMaxStreetLength << " (the scene is built whole)";
+  else if (frames * speed > kMaxStreetLength)
+    m << "frames x speed: " << frames * speed << " m, expected at most " << kMaxStreetLength
+      << " (the street and the plane are built whole, as long as the drive)";
   else if (points_per_keyframe < 0)
     m << "points_per_keyframe: expected >= 0, got " << points_per_keyframe;
   else if (!(max_range > 0.0) || max_range > 1000.0)
