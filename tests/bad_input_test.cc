@@ -669,7 +669,8 @@ TEST_F(BadJob, JobWithWrongTypes) {
   j["pipeline"][0]["params"] = {{"k", 1}};  // nearest takes none
   j["input"]["options"] = {{"frames", "twenty"}};
   ExpectJobRefused(j.dump(2), {"output.formats: expected array of strings, got string \"ply\"",
-                               "input.options.frames: expected integer >= 1, got \"twenty\"",
+                               "input.options.frames: expected integer in [1, 200000], got "
+                               "\"twenty\"",
                                "pipeline[0].params.k: unknown key"});
 }
 
@@ -704,7 +705,8 @@ TEST_F(BadJob, JobWithIntegersBeyondTheirRange) {
   j["input"]["options"] = {{"frames", (int64_t{1} << 32) + 20}};  // used to wrap to 20
   ExpectJobRefused(j.dump(2), {"engine.window: expected integer >= 1 (a 32-bit integer",
                                "output.snapshot_every: expected an integer in [0, 2147483647]",
-                               "input.options.frames: expected integer >= 1 (a 32-bit integer"});
+                               "input.options.frames: expected integer in [1, 200000] (a 32-bit "
+                               "integer"});
   std::string text = GoodJob().dump(2);
   text.insert(text.find("\"input\""), "\"engine\": {\"window\": 123456789012345678901234567890},\n  ");
   ExpectJobRefused(text, {"engine.window: expected integer >= 1 (a 32-bit integer, at most "
@@ -714,6 +716,25 @@ TEST_F(BadJob, JobWithIntegersBeyondTheirRange) {
   j["engine"]["window"] = 1e308;
   ExpectJobRefused(j.dump(2), {"engine.window: expected integer >= 1 (a 32-bit integer, at most "
                                "2147483647), got 1e+308"});
+}
+
+// Synthetic input options that would build a scene or a loop without bound: each alone is
+// bounded by the schema (a 10,000 km street used to be built whole, then the machine ran out of
+// memory); what only their combination breaks is refused when the job is validated, by name.
+TEST_F(BadJob, SyntheticOptionsThatWouldNotFit) {
+  json j = GoodJob();
+  j["input"]["options"] = {{"frames", 10000000}};
+  ExpectJobRefused(j.dump(2), {"input.options.frames: expected integer in [1, 200000], got "
+                               "10000000"});
+  j["input"]["options"] = {{"frames", 150000}, {"speed", 2.0}};
+  ExpectJobRefused(j.dump(2), {"input.options: frames x speed: 300000 m, expected at most 200000"});
+  j["input"]["options"] = {{"frames", 20}, {"track_frames", 1}};
+  ExpectJobRefused(j.dump(2), {"input.options: track_frames: expected 0 or >= min_observations "
+                               "(2), got 1 (no track would ever be reported)"});
+  j["input"]["options"] = {{"frames", 20}, {"track_frames", 17}, {"track_density", 100.0},
+                           {"max_range", 200.0}};
+  ExpectJobRefused(j.dump(2), {"input.options: track_density x max_range^2: 4e+06, expected at "
+                               "most 250000"});
 }
 
 TEST_F(BadJob, JobWithDeepNesting) {

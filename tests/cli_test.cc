@@ -257,7 +257,7 @@ TEST_F(Cli, ValidateReportsEveryProblemWithItsPath) {
   auto r = Imr("validate " + Quote(WriteJob(j).string()));
   EXPECT_EQ(r.status, 64);
   const std::vector<std::string> expected = {
-      "input.options.frames: expected integer >= 1, got \"15\"",
+      "input.options.frames: expected integer in [1, 200000], got \"15\"",
       "input.options.seeed: unknown key",
       "outptu: unknown key",
       "engine.window: expected integer >= 1, got 0",

@@ -22,21 +22,58 @@ const std::vector<InputFormat>& InputFormats() {
       s.sequence_names.push_back(synthetic::ToString(k));
     s.needs_front_end = false;
     s.options_schema = {
-        {"frames", {{"type", "integer"}, {"default", 200}, {"minimum", 1},
-                    {"description", "frames in the sequence"}}},
+        {"frames", {{"type", "integer"}, {"default", 200}, {"minimum", 1}, {"maximum", 200000},
+                    {"description", "frames in the sequence (frames x speed at most 200 km: the "
+                                    "street and the plane are built whole)"}}},
         {"seed", {{"type", "integer"}, {"default", 1}, {"minimum", 0},
                   {"description", "everything random derives from it"}}},
         {"keyframe_every", {{"type", "integer"}, {"default", d.keyframe_every}, {"minimum", 1},
-                            {"description", "a keyframe every this many frames (paper: 5)"}}},
-        {"speed", {{"type", "number"}, {"default", d.speed}, {"minimum", 0.01},
-                   {"description", "camera motion per frame, metres"}}},
+                            {"maximum", 10000},
+                            {"description", "a keyframe every this many frames (paper: 5); each "
+                                            "update carries the frames since the last one"}}},
+        {"speed", {{"type", "number"}, {"default", d.speed}, {"minimum", 0.01}, {"maximum", 100.0},
+                   {"unit", "m/frame"}, {"description", "camera motion per frame"}}},
+        {"max_range", {{"type", "number"}, {"default", d.max_range}, {"minimum", 1.0},
+                       {"maximum", 1000.0}, {"unit", "m"},
+                       {"description", "a camera sees no point farther than this"}}},
         {"points_per_keyframe", {{"type", "integer"}, {"default", d.points_per_keyframe},
-                                 {"minimum", 1}, {"description", "new points per keyframe"}}},
+                                 {"minimum", 1}, {"maximum", 100000},
+                                 {"description", "block model (track_frames 0): new points per "
+                                                 "keyframe"}}},
         {"noise_at_10m", {{"type", "number"}, {"default", d.noise_at_10m}, {"minimum", 0.0},
-                          {"description", "depth error of a first estimate at 10 m, metres"}}},
+                          {"maximum", 100.0}, {"unit", "m"},
+                          {"description", "depth error at 10 m (grows with depth^2): block model, "
+                                          "of a first estimate; tracked model, of one "
+                                          "observation (0.2 is ../shared/data/street-stream's "
+                                          "0.002 depth^2)"}}},
         {"frozen", {{"type", "boolean"}, {"default", false},
-                    {"description", "points keep their first estimate (no moves)"}}}};
+                    {"description", "points keep their first estimate (no moves; tracked model: "
+                                    "moves keep the position and bring the new cameras)"}}},
+        {"track_frames", {{"type", "integer"}, {"default", d.track_frames}, {"minimum", 0},
+                          {"maximum", 10000},
+                          {"description", "0: the block model (each keyframe's new points seen by "
+                                          "its own frames, refined 3 keyframes). > 0: the tracked "
+                                          "model, a SLAM stream: every frame observes its tracks "
+                                          "until one has this many observations or is lost; a "
+                                          "track is a new point from its 2nd observation, then "
+                                          "moves at each keyframe to the mean of its "
+                                          "observations' errors (configs/dense-street.json: 17)"}}},
+        {"track_density", {{"type", "number"}, {"default", d.track_density}, {"minimum", 0.0},
+                           {"maximum", 100.0}, {"unit", "1/m^2"},
+                           {"description", "tracked model: new tracks per m^2 of surface coming "
+                                           "into view (2.1 with track_frames 17, max_range 40: "
+                                           "~1,270 observations per frame on the street)"}}},
+        {"angular_noise", {{"type", "number"}, {"default", d.angular_noise}, {"minimum", 0.0},
+                           {"maximum", 0.1}, {"unit", "rad"},
+                           {"description", "tracked model: error of one observation across its "
+                                           "viewing ray (0.002: 1 px of the exported pinhole)"}}},
+        {"keep_truth", {{"type", "boolean"}, {"default", d.keep_truth},
+                        {"description", "keep every reported point's true position for the "
+                                        "report's completeness; false keeps the generator's "
+                                        "memory flat on long drives (the report then gives "
+                                        "precision only, and says why)"}}}};
     s.open = &OpenSyntheticSource;
+    s.check = &CheckSyntheticOptions;
     f.push_back(s);
 
     InputFormat mvg;

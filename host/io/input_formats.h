@@ -24,6 +24,10 @@ struct InputFormat {
   std::vector<std::string> sequence_names;  // allowed names when !sequences_are_paths
   bool needs_front_end = true;             // true: needs features + refiner stages (images)
   nlohmann::json options_schema;
+  // Optional: what only a combination of options breaks (the schema bounds each alone), checked
+  // when the job is validated, on options that passed the schema, defaults filled in. Returns
+  // the problems, each "what and what was expected" (the path is input.options); empty: none.
+  std::function<std::vector<std::string>(const nlohmann::json& options)> check;
   // Opens one sequence: `source` is the resolved path (or the name), `options` have defaults.
   // Throws std::runtime_error naming the file and field when the input is unusable.
   std::function<std::unique_ptr<KeyframeSource>(const std::string& source,

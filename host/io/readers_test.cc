@@ -14,6 +14,7 @@
 #include <cstring>
 #include <fstream>
 #include <random>
+#include <set>
 
 namespace imr::io {
 namespace {
@@ -935,6 +936,86 @@ TEST(OpenMvgInTheWild, OddFieldsOfVersions02And03AreReadOrRefusedByField) {
   j["intrinsics"][0]["value"]["ptr_wrapper"]["data"]["disto_t2"] = {0.1, 0.01, 0, 0.001};
   Write(p, j.dump());
   EXPECT_ERROR(ErrorOf("openmvg", p), "disto_t2", "the pinhole_brown_t2 model has 5 distortion values, got 4");
+}
+
+}  // namespace
+}  // namespace imr::io
+
+namespace imr::io {
+namespace {
+
+// The synthetic format's tracked model through the job's options: an update per frame that the
+// engine accepts (cameras known, ids new or known), the stream's figures in the summary, and an
+// evaluation that says why completeness is left out when the truth was not kept.
+TEST(SyntheticInput, TrackedOptionsSummaryAndEvaluationWithoutTruth) {
+  for (bool keep_truth : {true, false}) {
+    SCOPED_TRACE(keep_truth);
+    auto s = Open("synthetic", "street",
+                  {{"frames", 40}, {"keyframe_every", 1}, {"track_frames", 17}, {"max_range", 40.0},
+                   {"keep_truth", keep_truth}});
+    std::set<uint64_t> cameras, points;
+    int updates = 0;
+    engine::KeyframeUpdate u;
+    KeyframeInfo info;
+    while (s->Next(&u, &info)) {
+      ASSERT_EQ(u.cameras.size(), 1u);
+      EXPECT_EQ(u.cameras[0].id, static_cast<uint64_t>(info.frame));
+      cameras.insert(u.cameras[0].id);
+      EXPECT_NE(s->Camera(u.cameras[0].id), nullptr);
+      for (const auto& p : u.new_points) {
+        EXPECT_TRUE(points.insert(p.id).second);
+        for (uint64_t c : p.camera_ids) EXPECT_TRUE(cameras.count(c));
+      }
+      for (const auto& p : u.moved_points) {
+        EXPECT_TRUE(points.count(p.id));
+        for (uint64_t c : p.camera_ids) EXPECT_TRUE(cameras.count(c));
+      }
+      if (info.frame > 1) {  // frame 1 reports the tracks of frame 0 as new; moves from frame 2
+        EXPECT_FALSE(u.moved_points.empty());
+      }
+      ++updates;
+    }
+    EXPECT_EQ(updates, 40);
+    const json summary = s->Summary();
+    EXPECT_EQ(summary["model"], "tracked");
+    EXPECT_EQ(summary["frames"], 40);
+    EXPECT_GT(summary["observations_per_frame"].get<double>(), 800.0);
+    EXPECT_EQ(summary["true_points_kept"].get<size_t>(), keep_truth ? points.size() : 0u);
+    EXPECT_EQ(summary["tracks"]["length_histogram"].size(), 18u);
+    // A triangle on the ground under the first cameras: on the scene, so precision 1.
+    engine::Mesh mesh;
+    mesh.vertices = {-2, 5, 0, 2, 5, 0, 0, 9, 0};
+    mesh.faces = {0, 1, 2};
+    const json a = s->Evaluate(mesh);
+    EXPECT_NEAR(a["precision"].get<double>(), 1.0, 1e-12);
+    EXPECT_EQ(a.contains("completeness"), keep_truth);
+    EXPECT_EQ(a.contains("completeness_omitted"), !keep_truth);
+  }
+  // The block model (track_frames 0) says so; options only their combination breaks are refused
+  // naming them.
+  EXPECT_EQ(Open("synthetic", "street", {{"frames", 10}})->Summary()["model"], "block");
+  const InputFormat* f = FindInputFormat("synthetic");
+  const json too_long = WithDefaults(f->options_schema, {{"frames", 150000}, {"speed", 2.0}});
+  ASSERT_TRUE(f->check);
+  const std::vector<std::string> found = f->check(too_long);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].rfind("frames x speed: 300000 m", 0), 0u) << found[0];
+  EXPECT_TRUE(f->check(WithDefaults(f->options_schema, json::object())).empty());
+  EXPECT_THROW(
+      {
+        try {
+          f->open("room", too_long);  // not validated: still refused, by name
+        } catch (const std::runtime_error& e) {
+          EXPECT_NE(std::string(e.what()).find("input.options: frames x speed"), std::string::npos)
+              << e.what();
+          throw;
+        }
+      },
+      std::runtime_error);
+  std::vector<Problem> problems;
+  ValidateAgainstSchema(f->options_schema, {{"frames", 10000000}}, "input.options", &problems);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_EQ(problems[0].path, "input.options.frames");
 }
 
 }  // namespace

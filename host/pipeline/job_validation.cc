@@ -311,9 +311,13 @@ ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry
       v.problems.push_back({"input.format", "unknown format " + io::Describe(v.job.input.format) +
                                                 " (expected " + io::JoinAlternatives(names) + ")"});
     } else {
+      const size_t before = v.problems.size();
       io::ValidateAgainstSchema(format->options_schema, v.job.input.options, "input.options",
                                 &v.problems);
       v.input_options = io::WithDefaults(format->options_schema, v.job.input.options);
+      if (format->check && v.problems.size() == before)
+        for (std::string& m : format->check(v.input_options))
+          v.problems.push_back({"input.options", std::move(m)});
       // A poses file named in the job is relative to the job's folder, like every other path.
       if (v.input_options.contains("poses") && v.input_options["poses"].is_string() &&
           !v.input_options["poses"].get<std::string>().empty())

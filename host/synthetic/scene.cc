@@ -129,6 +129,10 @@ void Scene::AddBox(const Vec3& mn, const Vec3& mx, bool with_bottom) {
   AddRect({{c[0], mn[1], c[2]}, {1, 0, 0}, {0, 0, 1}, h[0], h[2]});
 }
 
+namespace {
+constexpr int kLargeBins = 8;
+}  // namespace
+
 void Scene::Index() const {
   if (indexed_) return;
   double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
@@ -146,6 +150,7 @@ void Scene::Index() const {
   nx_ = std::max(1, static_cast<int>(std::ceil((x1 - x0) / bin_)) + 1);
   ny_ = std::max(1, static_cast<int>(std::ceil((y1 - y0) / bin_)) + 1);
   bins_.assign(static_cast<size_t>(nx_) * ny_, {});
+  large_.clear();
   for (int i = 0; i < static_cast<int>(rects_.size()); ++i) {
     double a, b, c, d;
     RectBounds(rects_[i], &a, &b, &c, &d);
@@ -153,52 +158,69 @@ void Scene::Index() const {
     const int i1 = std::clamp(static_cast<int>((c - min_x_) / bin_), 0, nx_ - 1);
     const int j0 = std::clamp(static_cast<int>((b - min_y_) / bin_), 0, ny_ - 1);
     const int j1 = std::clamp(static_cast<int>((d - min_y_) / bin_), 0, ny_ - 1);
+    if (static_cast<int64_t>(i1 - i0 + 1) * (j1 - j0 + 1) > kLargeBins) {
+      large_.push_back(i);
+      continue;
+    }
     for (int ix = i0; ix <= i1; ++ix)
       for (int jy = j0; jy <= j1; ++jy) bins_[static_cast<size_t>(jy) * nx_ + ix].push_back(i);
   }
   indexed_ = true;
 }
 
-std::vector<int> Scene::Candidates(double x0, double y0, double x1, double y1) const {
+template <typename Visit>
+void Scene::ForEachCandidate(double x0, double y0, double x1, double y1, Visit&& visit) const {
   Index();
+  for (int i : large_) visit(i);
   const int i0 = std::clamp(static_cast<int>(std::floor((x0 - min_x_) / bin_)), 0, nx_ - 1);
   const int i1 = std::clamp(static_cast<int>(std::floor((x1 - min_x_) / bin_)), 0, nx_ - 1);
   const int j0 = std::clamp(static_cast<int>(std::floor((y0 - min_y_) / bin_)), 0, ny_ - 1);
   const int j1 = std::clamp(static_cast<int>(std::floor((y1 - min_y_) / bin_)), 0, ny_ - 1);
+  for (int jy = j0; jy <= j1; ++jy)
+    for (int ix = i0; ix <= i1; ++ix)
+      for (int i : bins_[static_cast<size_t>(jy) * nx_ + ix]) visit(i);
+}
+
+std::vector<int> Scene::RectsNear(double x0, double y0, double x1, double y1) const {
   std::vector<int> out;
-  for (int ix = i0; ix <= i1; ++ix)
-    for (int jy = j0; jy <= j1; ++jy) {
-      const auto& b = bins_[static_cast<size_t>(jy) * nx_ + ix];
-      out.insert(out.end(), b.begin(), b.end());
-    }
+  ForEachCandidate(x0, y0, x1, y1, [&](int i) { out.push_back(i); });
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
   return out;
 }
 
+// The minimum over a superset of the rects that can be hit or be near is the minimum over all
+// rects: a rect whose bounding box misses the query box is farther than the ring (Distance) or
+// cannot hold a point of the segment (Intersect), so results do not depend on the index.
 double Scene::Distance(const Vec3& p) const {
   double best = std::numeric_limits<double>::infinity();
   Index();
   const double extent = bin_ * (nx_ + ny_ + 2);
   for (double r = bin_;; r *= 2.0) {
-    for (int i : Candidates(p[0] - r, p[1] - r, p[0] + r, p[1] + r))
-      best = std::min(best, RectDistance(rects_[i], p));
+    ForEachCandidate(p[0] - r, p[1] - r, p[0] + r, p[1] + r,
+                     [&](int i) { best = std::min(best, RectDistance(rects_[i], p)); });
     if (best <= r || r > extent) break;
   }
   return best;
 }
 
-bool Scene::Intersect(const Vec3& o, const Vec3& dir, double t_max, double* t_hit) const {
+bool Scene::Cast(const Vec3& o, const Vec3& dir, double t_max, bool any, double* t_hit) const {
   const Vec3 e = Add(o, Scale(dir, t_max));
   double best = std::numeric_limits<double>::infinity();
-  for (int i : Candidates(std::min(o[0], e[0]), std::min(o[1], e[1]), std::max(o[0], e[0]),
-                          std::max(o[1], e[1]))) {
-    double t;
-    if (RectIntersect(rects_[i], o, dir, t_max, &t) && t < best) best = t;
-  }
+  // No early return from the walk: `any` only skips the remaining rect tests.
+  ForEachCandidate(std::min(o[0], e[0]), std::min(o[1], e[1]), std::max(o[0], e[0]),
+                   std::max(o[1], e[1]), [&](int i) {
+                     if (any && best < std::numeric_limits<double>::infinity()) return;
+                     double t;
+                     if (RectIntersect(rects_[i], o, dir, t_max, &t) && t < best) best = t;
+                   });
   if (best == std::numeric_limits<double>::infinity()) return false;
   *t_hit = best;
   return true;
+}
+
+bool Scene::Intersect(const Vec3& o, const Vec3& dir, double t_max, double* t_hit) const {
+  return Cast(o, dir, t_max, false, t_hit);
 }
 
 bool Scene::Visible(const Vec3& from, const Vec3& to, double eps) const {
@@ -206,7 +228,7 @@ bool Scene::Visible(const Vec3& from, const Vec3& to, double eps) const {
   const double len = Norm(d);
   if (len <= eps) return true;
   double t;
-  return !Intersect(from, Scale(d, 1.0 / len), len - eps, &t);
+  return !Cast(from, Scale(d, 1.0 / len), len - eps, true, &t);
 }
 
 }  // namespace imr::synthetic

@@ -58,18 +58,31 @@ class Scene {
   bool Intersect(const Vec3& origin, const Vec3& dir, double t_max, double* t_hit) const;
   // True when nothing in the scene lies on the segment from `from` to `to` (up to `eps` before it).
   bool Visible(const Vec3& from, const Vec3& to, double eps = 1e-3) const;
+  // Indices (ascending, each once) of the rects whose xy bounding box may meet the box
+  // [x0, x1] x [y0, y1]: a superset, found through the bin index, so its cost follows the box's
+  // size, not the scene's.
+  std::vector<int> RectsNear(double x0, double y0, double x1, double y1) const;
 
   const std::vector<Rect>& rects() const { return rects_; }
   const std::string& name() const { return name_; }
 
  private:
   void Index() const;
-  std::vector<int> Candidates(double x0, double y0, double x1, double y1) const;
+  // Calls visit(i) for every rect that may meet the xy box (large rects first, then the bins'
+  // rects; a rect spanning several bins may come more than once): no allocation, no sorting.
+  template <typename Visit>
+  void ForEachCandidate(double x0, double y0, double x1, double y1, Visit&& visit) const;
+  // Nearest hit of the ray within (0, t_max]; with `any`, the first hit found.
+  bool Cast(const Vec3& origin, const Vec3& dir, double t_max, bool any, double* t_hit) const;
 
   std::string name_;
   std::vector<Rect> rects_;
-  // Uniform xy bins over rect bounding boxes, built lazily (scenes are immutable once built).
+  // Uniform xy bins over rect bounding boxes, built lazily (scenes are immutable once built). A
+  // rect spanning more than kLargeBins bins (a street's ground and facades, as long as the
+  // street) is kept out of the bins, in large_, and tried by every query: otherwise every bin
+  // holds it and a query sorts out the copies.
   mutable bool indexed_ = false;
+  mutable std::vector<int> large_;
   mutable double bin_ = 10.0;
   mutable double min_x_ = 0.0, min_y_ = 0.0;
   mutable int nx_ = 0, ny_ = 0;

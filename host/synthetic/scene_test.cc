@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <tuple>
 
@@ -40,6 +41,60 @@ TEST(SceneTest, StreetHasGroundFacadesAndBoxes) {
   EXPECT_FALSE(street.Intersect({0, 100, 5.0}, {0, 0, 1}, 100, &t));  // The sky.
   // Same seed, same scene.
   EXPECT_EQ(Scene::StreetCanyon(200, 3).rects().size(), street.rects().size());
+}
+
+// A query's cost follows what is near it, not the street's length: the street's ground and
+// facades (as long as the street) are tried by every query, the boxes only where they are; and
+// the index answers as trying every rect does.
+TEST(SceneTest, QueriesNearAPointCostTheSameOnAnyLengthOfStreet) {
+  const Scene shortish = Scene::StreetCanyon(2000, 5), km20 = Scene::StreetCanyon(20000, 5);
+  EXPECT_GT(km20.rects().size(), 9u * shortish.rects().size());  // boxes all along: linear
+  EXPECT_LT(km20.rects().size(), 30000u);                          // ~21,000 rects for 20 km
+  const auto near_short = shortish.RectsNear(-40, 1500, 40, 1580);
+  const auto near_long = km20.RectsNear(-40, 19500, 40, 19580);
+  EXPECT_LT(near_long.size(), 140u);  // ~100 m of street in the box's bins: ~20 boxes
+  EXPECT_LT(near_long.size(), near_short.size() + 15);
+  EXPECT_TRUE(std::is_sorted(near_long.begin(), near_long.end()));
+  EXPECT_EQ(std::adjacent_find(near_long.begin(), near_long.end()), near_long.end());
+  // Every rect whose bounding box meets the query box is among them.
+  for (int i = 0; i < static_cast<int>(km20.rects().size()); ++i) {
+    const Rect& r = km20.rects()[i];
+    const double ey = std::abs(r.u[1]) * r.half_u + std::abs(r.v[1]) * r.half_v;
+    if (r.center[1] + ey >= 19500 && r.center[1] - ey <= 19580) {
+      EXPECT_TRUE(std::binary_search(near_long.begin(), near_long.end(), i)) << i;
+    }
+  }
+  // Index and brute force agree on hits and distances.
+  std::mt19937_64 rng(2);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int k = 0; k < 500; ++k) {
+    const Vec3 o{6.0 * u(rng), 19000.0 + 900.0 * u(rng), 2.0 + 1.5 * u(rng)};
+    const Vec3 d = Normalized({u(rng), u(rng), 0.5 * u(rng)});
+    double best = std::numeric_limits<double>::infinity(), nearest = best;
+    for (const Rect& r : km20.rects()) {
+      const Vec3 n = Cross(r.u, r.v);
+      const double den = Dot(d, n);
+      if (std::abs(den) >= 1e-12) {
+        const double t = Dot(Sub(r.center, o), n) / den;
+        const Vec3 q = Sub(Add(o, Scale(d, t)), r.center);
+        if (t > 1e-9 && t <= 40.0 && std::abs(Dot(q, r.u)) <= r.half_u &&
+            std::abs(Dot(q, r.v)) <= r.half_v)
+          best = std::min(best, t);
+      }
+      const Vec3 q = Sub(o, r.center);
+      const double ds = std::max(std::abs(Dot(q, r.u)) - r.half_u, 0.0);
+      const double dt = std::max(std::abs(Dot(q, r.v)) - r.half_v, 0.0);
+      nearest = std::min(nearest, std::sqrt(Dot(q, n) * Dot(q, n) + ds * ds + dt * dt));
+    }
+    double t = -1.0;
+    const bool hit = km20.Intersect(o, d, 40.0, &t);
+    EXPECT_EQ(hit, best < std::numeric_limits<double>::infinity());
+    if (hit) {
+      EXPECT_EQ(t, best);
+    }
+    EXPECT_EQ(km20.Visible(o, Add(o, Scale(d, 40.0)), 0.0), !hit);
+    EXPECT_EQ(km20.Distance(o), nearest);
+  }
 }
 
 TEST(EvaluationTest, PointTriangleDistanceAndMeshAccuracy) {

@@ -3,6 +3,21 @@
 // point estimates that start noisy and converge as observations accumulate, so points move at
 // keyframes. Deterministic by seed. It needs no images and knows nothing of the engine: its
 // keyframes are plain structs that a caller maps to the engine's update.
+//
+// Two observation models (StreamOptions::track_frames):
+// - block (0, the original): each keyframe samples new points in its camera's view, observed by
+//   the frames of that keyframe's block only, refined for refine_keyframes keyframes.
+// - tracked (> 0): a SLAM front end's stream, shaped like ../shared/data/street-stream. A point of
+//   the surface starts a track in the frame that first sees it (features at track_density per m^2
+//   of visible surface); every frame observes its tracks that it still sees (range, field of view,
+//   not occluded) until a track has track_frames observations or is lost. A track is reported from
+//   its min_observations-th observation as a new point (its observing frames), then at each
+//   keyframe as a moved point (the frames that observed it since). Its estimate after k
+//   observations is the truth plus the mean of k error draws, one per observation, each along
+//   that observation's viewing ray (sigma noise_at_10m * (depth / 10 m)^2) plus angular_noise
+//   across it: points move while tracked and converge. Only the active tracks are kept (and,
+//   with keep_truth, every reported point's true position), so memory does not grow with the
+//   drive.
 #pragma once
 
 #include <cstdint>
@@ -43,6 +58,41 @@ struct StreamOptions {
   double min_move = 1e-3;                // A refinement smaller than this is not reported as a move.
   bool frozen = false;                   // Points stay at their first estimate (gives T_nonmov).
   int min_observations = 2;              // A new point needs this many observing frames.
+
+  // The tracked model (see the top of this file); 0 keeps the block model above, unchanged.
+  int track_frames = 0;  // > 0: a track ends after this many observations (or when lost).
+  // New tracks per m^2 of surface that comes into view. 2.1 gives ~1,270 observations per frame
+  // on the street at 1 m per frame with track_frames 17 and max_range 40 (1,268 over 2,000
+  // frames; configs/dense-street.json; ../shared/data/street-stream has ~1,226).
+  double track_density = 2.1;
+  // Error of one observation across its viewing ray, radians (per axis): 0.002 is 1 px of the
+  // 1000-px-wide pinhole the synthetic input exports at hfov 90 degrees.
+  double angular_noise = 0.002;
+  // Keep the true position of every point reported (TruePoints, TruePosition; the synthetic input's
+  // completeness). Off: only the active tracks' (block model: the points still refined), so the
+  // generator's memory stays flat on any length of drive.
+  bool keep_truth = true;
+
+  // Empty when every field is usable; otherwise which field and why.
+  std::string Check() const;
+};
+
+// What the stream has generated so far (both models; the track figures in the tracked model).
+struct StreamStats {
+  int64_t frames = 0;        // Frames generated.
+  int64_t keyframes = 0;     // Keyframes handed out.
+  int64_t observations = 0;  // Camera ids handed out: new points' cameras + moves' new cameras.
+  int64_t new_points = 0;
+  int64_t moved_points = 0;  // Moves handed out (a point moves at most once per keyframe).
+  int64_t tracks_started = 0;
+  int64_t tracks_ended = 0;    // Capped or lost (reported or not).
+  int64_t tracks_lost = 0;     // Ended before track_frames observations.
+  // lengths[n]: ended tracks that had n observations (index 0 unused).
+  std::vector<int64_t> track_lengths;
+  size_t active_tracks = 0;      // Tracks now alive (observed in the last frame, or to report).
+  size_t max_active_tracks = 0;  // The most at any keyframe.
+  size_t kept_truths = 0;        // True positions held (keep_truth, or points still refined).
+  double seconds = 0.0;          // Wall time spent in Next.
 };
 
 struct StreamCamera {
@@ -68,6 +118,7 @@ struct StreamKeyframe {
 
 class SyntheticStream {
  public:
+  // Throws std::invalid_argument with options.Check()'s message when an option is unusable.
   explicit SyntheticStream(const StreamOptions& options);
   ~SyntheticStream();
 
@@ -77,7 +128,10 @@ class SyntheticStream {
   const Scene& scene() const;
   const StreamOptions& options() const;
   int keyframe_count() const;
-  // The true position of a point emitted so far.
+  const StreamStats& stats() const;
+  // The true position of a point emitted so far: any with keep_truth, else only a point still
+  // refined (block model) or tracked (tracked model; a scan of the active tracks). The origin
+  // for a point it does not hold.
   Vec3 TruePosition(uint64_t point_id) const;
   // Camera centre of a frame (any frame of the sequence).
   Vec3 CameraCenter(int frame) const;
@@ -86,7 +140,8 @@ class SyntheticStream {
   // True when the camera of `frame` sees x: within max_range, inside its field of view and not
   // hidden by the scene. Benchmarks sample ground truth with it (what the cameras saw).
   bool Sees(int frame, const Vec3& x) const;
-  // True positions of every point emitted so far (for completeness measures).
+  // True positions of every point emitted so far (for completeness measures); with keep_truth
+  // false only those it still holds (see TruePosition).
   std::vector<Vec3> TruePoints() const;
 
  private:

@@ -11,6 +11,7 @@ int RunEngineBench(int argc, char** argv);
 int RunPipelineBench(int argc, char** argv);
 int RunPaperBench(int argc, char** argv);
 int RunScalingBench(int argc, char** argv);
+int RunStreamBench(int argc, char** argv);
 #ifdef IMR_BENCH_EVALUATE
 int RunEvaluateBench(int argc, char** argv);
 int RunPeersBench(int argc, char** argv);
@@ -42,6 +43,11 @@ const std::vector<Subcommand>& Subcommands() {
        "the paper's comparison: accuracy and per-move overhead per policy", &RunPaperBench},
       {"scaling", "[--frames 250,500,1000,2000] [--out DIR] ...",
        "keyframe time, total time and memory against sequence length", &RunScalingBench},
+      {"stream", "[--frames 20000] [--keyframe-every 5] [--keep-truth] ...",
+       "the synthetic stream alone on the dense street (configs/dense-street.json):\n"
+       "time per frame and memory per tenth of a long drive, observations, moves,\n"
+       "track lengths; the scene's build time and Sees cost at both ends",
+       &RunStreamBench},
 #ifdef IMR_BENCH_EVALUATE
       {"peers", "[--frames N] [--colmap PATH]",
        "imr vs COLMAP's delaunay_mesher on identical input (needs\n"
