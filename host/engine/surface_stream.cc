@@ -458,6 +458,7 @@ struct SurfaceStream::Impl {
     for (int64_t k : part.completed) Split(k);
     Emit();
     ++stats.parts;
+    stats.vertices_released = next_key;
     stats.held_triangles = static_cast<int64_t>(triangles.size());
     stats.held_vertices = static_cast<int64_t>(vertices.size() + copies.size());
     stats.peak_held_triangles = std::max(stats.peak_held_triangles, stats.held_triangles);

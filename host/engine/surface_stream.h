@@ -46,6 +46,7 @@ struct SurfaceStreamStats {
   int64_t parts = 0;               // Add calls
   int64_t triangles_in = 0;        // triangles of the parts
   int64_t triangles_released = 0;  // released, hole fans included
+  int64_t vertices_released = 0;   // distinct vertices released (split copies, hole centres)
   int64_t holes_filled = 0;
   int64_t vertices_split = 0;      // copies made for the extra fans of pinched vertices
   int64_t held_triangles = 0;      // held now (waiting for a vertex to be completed)
