@@ -8,6 +8,11 @@
 //   node tiles_browser.cjs --run RUN_FOLDER --node-modules DIR --chromium /usr/bin/chromium
 //        --screenshot view.png [--timeout-ms 90000]
 //
+// With --page index.html instead of --run: imr's batch viewer page opened from disk, its tiles
+// view (imr-tiles-viewer.js) left to load the first tiled run; only file:, blob: and data: URLs
+// may be asked for; the result has tiles_shown and the same counts (tiles_requested: none, the
+// page loads tiles from its own scripts).
+//
 // Prints one JSON line: {ok, tileset_loaded, models_loaded, tiles_requested: [uris], load_errors,
 // console_errors, requests_refused, http_errors, meshes, triangles, attributes, canvas}. Exit
 // status 0 when ok, 1 otherwise.
@@ -24,7 +29,7 @@ function args() {
     const key = v[i].replace(/^--/, '').replace(/-([a-z])/g, (_, c) => c.toUpperCase());
     a[key] = v[i + 1];
   }
-  for (const k of ['run', 'nodeModules', 'chromium', 'screenshot'])
+  for (const k of [a.page ? 'page' : 'run', 'nodeModules', 'chromium', 'screenshot'])
     if (!a[k]) { console.error(`tiles_browser.cjs: --${k} is required`); process.exit(2); }
   a.timeoutMs = Number(a.timeoutMs);
   return a;
@@ -111,8 +116,61 @@ function serve(run, nodeModules) {
   return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve(server)));
 }
 
+// The batch viewer page from disk: its tiles view.
+async function viewerPage(a) {
+  const { chromium } = require(path.join(path.resolve(a.nodeModules), 'playwright-core'));
+  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'imr-chromium-'));
+  const result = { ok: false, tileset_loaded: false, models_loaded: 0, tiles_shown: null, load_errors: [],
+                   console_errors: [], requests_refused: [], canvas: null };
+  let context;
+  try {
+    context = await chromium.launchPersistentContext(profile, {
+      executablePath: a.chromium, headless: true, viewport: { width: 1280, height: 1000 },
+      args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+             '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+    });
+    const page = context.pages()[0] || await context.newPage();
+    page.on('console', (m) => { if (m.type() === 'error') result.console_errors.push(m.text()); });
+    page.on('pageerror', (e) => result.console_errors.push('uncaught: ' + e.message));
+    await page.route('**/*', (route) => {
+      const url = route.request().url();
+      if (/^(file|blob|data):/.test(url)) return route.continue();
+      result.requests_refused.push(url);
+      return route.abort();
+    });
+    await page.goto('file://' + path.resolve(a.page));
+    let timeout = null;
+    await page.waitForFunction(() => window.imrTilesViewer && window.imrTilesViewer.done, null, { timeout: a.timeoutMs })
+      .catch((e) => { timeout = 'not done: ' + e.message; });
+    const s = await page.evaluate(() => window.imrTilesViewer || null);
+    if (!s) throw new Error('the page has no tiles view (window.imrTilesViewer)');
+    result.tileset_loaded = s.tilesetLoaded;
+    result.models_loaded = s.models;
+    result.tiles_shown = s.shown;
+    result.load_errors = s.errors.concat(timeout ? [timeout] : []);
+    const canvas = page.locator('#tiles-viewer canvas');
+    await canvas.scrollIntoViewIfNeeded();
+    const box = await canvas.boundingBox();
+    result.canvas = box && { width: Math.round(box.width), height: Math.round(box.height) };
+    await canvas.screenshot({ path: a.screenshot });
+    result.ok = result.tileset_loaded && result.models_loaded > 0 && result.load_errors.length === 0 &&
+                result.console_errors.length === 0 && result.requests_refused.length === 0;
+  } catch (e) {
+    result.load_errors.push(String(e && e.message || e));
+  } finally {
+    if (context) await context.close().catch(() => {});
+    fs.rmSync(profile, { recursive: true, force: true });
+  }
+  return result;
+}
+
 (async () => {
   const a = args();
+  if (a.page) {
+    const r = await viewerPage(a);
+    console.log(JSON.stringify(r));
+    process.exit(r.ok ? 0 : 1);
+  }
   a.run = path.resolve(a.run);
   a.nodeModules = path.resolve(a.nodeModules);
   const { chromium } = require(path.join(a.nodeModules, 'playwright-core'));

@@ -6,6 +6,7 @@
 // saying what is missing, without Chromium, node or the npm packages (tools/setup.sh installs
 // them). IMR_VIEWER_TEST_OUT=DIR keeps the screenshot.
 #include "host/io/image_io.h"
+#include "host/report/viewer_page.h"
 #include "test_util.h"
 
 #include <gtest/gtest.h>
@@ -112,6 +113,67 @@ TEST(TilesBrowser, EveryTileLoadsIn3dTilesRenderer) {
   if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
     fs::create_directories(keep);
     fs::copy_file(shot, fs::path(keep) / "tiles.png", fs::copy_options::overwrite_existing);
+  }
+}
+
+// The batch viewer page shows a tiled run (tiles only: no single mesh), opened from disk: its
+// tiles view loads the tileset and every tile in view from the page's own scripts, with nothing
+// fetched from the network.
+TEST(TilesBrowser, ViewerPageShowsATiledRun) {
+  if (const std::string m = Missing(); !m.empty()) GTEST_SKIP() << m;
+  if (!fs::exists(IMR_TILES_VIEWER_SCRIPT))
+    GTEST_SKIP() << IMR_TILES_VIEWER_SCRIPT << " was not built (node and tools/node's esbuild: tools/setup.sh)";
+  ScratchDir dir("tiles-page");
+  const json job = {
+      {"sequences", {"street"}},
+      {"input", {{"format", "synthetic"}, {"options", {{"frames", 60}, {"seed", 3}}}}},
+      {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+      {"output", {{"directory", "runs/{sequence}"}, {"formats", json::array()}, {"tiles", {{"size", 20}}}}}};
+  WriteText(dir / "job.json", job.dump(2));
+  const auto run = RunShell(std::string(IMR_EXE) + " run -q --no-viewer " + Quote((dir / "job.json").string()));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const fs::path out = dir / "runs" / "street";
+  const json report = json::parse(ReadText(out / "report.json"));
+  const std::size_t tiles = Uris(json::parse(ReadText(out / "tileset.json"))["root"]).size();
+  const json summary = {{"title", "tiles page test"},
+                        {"sequences", {{{"name", "street"}, {"ok", true}, {"error", ""},
+                                        {"output_directory", out.string()}, {"report", report}}}}};
+  report::ViewerPageOptions options;
+  options.model_viewer_script = IMR_MODEL_VIEWER_SOURCE;
+  options.tiles_viewer_script = IMR_TILES_VIEWER_SCRIPT;
+  const report::ViewerPageResult page = report::WriteBatchPage(dir / "runs", summary, options);
+  EXPECT_EQ(page.tilesets_viewable, 1);
+  EXPECT_EQ(page.meshes_viewable, 0);
+  const fs::path shot = dir / "page-tiles.png";
+  const auto b = RunShell(Quote(IMR_NODE_EXE) + " " + Quote(std::string(IMR_SOURCE_DIR) + "/tests/tiles_browser.cjs") +
+                          " --page " + Quote(page.page.string()) + " --node-modules " + Quote(kNodeModules.string()) +
+                          " --chromium " + Quote(Chromium()) + " --screenshot " + Quote(shot.string()) +
+                          " --timeout-ms 90000");
+  json r;
+  try {
+    r = json::parse(b.out);
+  } catch (const std::exception&) {
+    FAIL() << "no result from the browser (exit " << b.status << "): " << b.out << "\n" << b.err;
+  }
+  EXPECT_EQ(b.status, 0) << r.dump(2) << "\n" << b.err;
+  EXPECT_EQ(r["tiles_shown"], 0);
+  EXPECT_TRUE(r["tileset_loaded"].get<bool>()) << r.dump(2);
+  // The whole street is in view: every tile is loaded.
+  EXPECT_EQ(r["models_loaded"].get<std::size_t>(), tiles) << r.dump(2);
+  EXPECT_EQ(r["load_errors"], json::array()) << r.dump(2);
+  EXPECT_EQ(r["console_errors"], json::array()) << r.dump(2);
+  EXPECT_EQ(r["requests_refused"], json::array()) << r.dump(2);
+  const io::Image view = io::ReadImage(shot.string());
+  std::set<uint32_t> colors;
+  for (int y = 0; y < view.height; ++y)
+    for (int x = 0; x < view.width; ++x) {
+      const uint8_t* p = view.pixels.data() + y * view.stride_bytes + 3 * x;
+      colors.insert(uint32_t(p[0]) << 16 | uint32_t(p[1]) << 8 | p[2]);
+    }
+  EXPECT_GT(colors.size(), 20u) << "the tiles view looks flat";
+  if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
+    fs::create_directories(keep);
+    fs::copy_file(shot, fs::path(keep) / "page-tiles.png", fs::copy_options::overwrite_existing);
   }
 }
 
