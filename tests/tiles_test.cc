@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cstring>
 #include <fstream>
 #include <set>
 #include <string>
@@ -161,6 +162,55 @@ TEST(Tiles, TilesOnly) {
   const auto none = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "none.json").string()));
   EXPECT_EQ(none.status, 64);
   EXPECT_NE(none.err.find("output.formats"), std::string::npos) << none.err;
+}
+
+// Texture per tile (imr-synth's colour street through the image pipeline): each tile is coloured
+// from the keyframes that may see it, not all of them, their images decoded for that tile only.
+TEST(Tiles, TexturedFromTheKeyframesThatSeeEachTile) {
+  ScratchDir dir("tiles-texture");
+  const auto synth = RunShell(Quote(IMR_SYNTH_EXE) + " --out " + Quote((dir / "street").string()) +
+                              " --frames 40 --width 621 --height 188 --color --no-lidar -q");
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const json job = {
+      {"sequences", {(dir / "street").string()}},
+      {"input", {{"format", "kitti_odometry"}}},
+      {"engine", {{"steiner_export", "any_steiner"}}},
+      {"pipeline",
+       {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+        {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}},
+        {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+      {"output", {{"directory", (dir / "out").string()}, {"formats", {"glb"}}, {"tiles", {{"size", 10}}}}}};
+  WriteText(dir / "job.json", job.dump(2));
+  const auto run = RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / "job.json").string()));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const json report = json::parse(ReadText(dir / "out" / "report.json"));
+  const json& tiles = report["tiles"];
+  const int64_t count = tiles["count"], keyframes = report["engine"]["keyframes"];
+  ASSERT_GE(count, 4);
+  EXPECT_GT(tiles["keyframes_given"].get<int64_t>(), 0);
+  EXPECT_LT(tiles["keyframes_given"].get<int64_t>(), count * keyframes) << tiles.dump();
+  EXPECT_EQ(tiles["image_service"]["decodes"], tiles["keyframes_given"]) << tiles.dump();
+  int textured = 0;
+  for (const std::string& uri : Uris(json::parse(ReadText(dir / "out" / "tileset.json"))["root"])) {
+    const std::string glb = ReadText(dir / "out" / uri);
+    uint32_t length = 0;
+    std::memcpy(&length, glb.data() + 12, 4);
+    const json g = json::parse(glb.substr(20, length));
+    bool coloured = false;
+    for (const json& m : g.value("materials", json::array()))
+      coloured = coloured || m["pbrMetallicRoughness"].contains("baseColorTexture");
+    textured += coloured;
+    for (const json& p : g["meshes"][0]["primitives"]) {
+      EXPECT_TRUE(p["attributes"].contains("_VERTEX_KEY")) << uri;
+      coloured = coloured || p["attributes"].contains("COLOR_0");
+    }
+    EXPECT_TRUE(coloured) << uri << " has neither texture nor vertex colours";
+  }
+  EXPECT_GT(textured, count / 2);
+  const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote((dir / "out").string()) + " --out " +
+                              Quote((dir / "merged.ply").string()));
+  ASSERT_EQ(merge.status, 0) << merge.err;
+  EXPECT_EQ(eval::ReadMesh(dir / "merged.ply").triangles.size(), report["mesh"]["faces"].get<std::size_t>());
 }
 
 // A run stopped (SIGKILL) while it writes tiles: every tile file is whole, the tileset lists
