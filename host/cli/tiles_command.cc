@@ -123,7 +123,7 @@ int CmdTiles(const std::vector<std::string>& args) {
 }  // namespace
 
 std::vector<Command> TilesCommands() {
-  return {{"tiles", "tiles merge RUN_FOLDER",
+  return {{"tiles", "tiles merge RUN",
            "one mesh (--out MESH.ply|.obj|.gltf|.glb) from a run's 3D Tiles\n"
            "(output.tiles), finished or stopped: seam vertices merged",
            &CmdTiles}};
