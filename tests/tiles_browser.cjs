@@ -116,28 +116,37 @@ function serve(run, nodeModules) {
   return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve(server)));
 }
 
+// Headless Chromium with a page whose errors go to `result` and whose requests pass `allowed`
+// (the others are refused and listed).
+async function openPage(a, profile, viewport, result, allowed) {
+  const { chromium } = require(path.join(path.resolve(a.nodeModules), 'playwright-core'));
+  const context = await chromium.launchPersistentContext(profile, {
+    executablePath: a.chromium, headless: true, viewport,
+    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+  const page = context.pages()[0] || await context.newPage();
+  page.on('console', (m) => { if (m.type() === 'error') result.console_errors.push(m.text()); });
+  page.on('pageerror', (e) => result.console_errors.push('uncaught: ' + e.message));
+  await page.route('**/*', (route) => {
+    const url = route.request().url();
+    if (allowed(url)) return route.continue();
+    result.requests_refused.push(url);
+    return route.abort();
+  });
+  return { context, page };
+}
+
 // The batch viewer page from disk: its tiles view.
 async function viewerPage(a) {
-  const { chromium } = require(path.join(path.resolve(a.nodeModules), 'playwright-core'));
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'imr-chromium-'));
   const result = { ok: false, tileset_loaded: false, models_loaded: 0, tiles_shown: null, load_errors: [],
                    console_errors: [], requests_refused: [], canvas: null };
   let context;
   try {
-    context = await chromium.launchPersistentContext(profile, {
-      executablePath: a.chromium, headless: true, viewport: { width: 1280, height: 1000 },
-      args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-             '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-    });
-    const page = context.pages()[0] || await context.newPage();
-    page.on('console', (m) => { if (m.type() === 'error') result.console_errors.push(m.text()); });
-    page.on('pageerror', (e) => result.console_errors.push('uncaught: ' + e.message));
-    await page.route('**/*', (route) => {
-      const url = route.request().url();
-      if (/^(file|blob|data):/.test(url)) return route.continue();
-      result.requests_refused.push(url);
-      return route.abort();
-    });
+    let page;
+    ({ context, page } = await openPage(a, profile, { width: 1280, height: 1000 }, result,
+                                        (url) => /^(file|blob|data):/.test(url)));
     await page.goto('file://' + path.resolve(a.page));
     let timeout = null;
     await page.waitForFunction(() => window.imrTilesViewer && window.imrTilesViewer.done, null, { timeout: a.timeoutMs })
@@ -173,7 +182,6 @@ async function viewerPage(a) {
   }
   a.run = path.resolve(a.run);
   a.nodeModules = path.resolve(a.nodeModules);
-  const { chromium } = require(path.join(a.nodeModules, 'playwright-core'));
   const server = await serve(a.run, a.nodeModules);
   const origin = `http://127.0.0.1:${server.address().port}`;
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'imr-chromium-'));
@@ -182,20 +190,9 @@ async function viewerPage(a) {
                    meshes: 0, triangles: 0, attributes: [], canvas: null };
   let context;
   try {
-    context = await chromium.launchPersistentContext(profile, {
-      executablePath: a.chromium, headless: true, viewport: { width: 1000, height: 700 },
-      args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-             '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-    });
-    const page = context.pages()[0] || await context.newPage();
-    page.on('console', (m) => { if (m.type() === 'error') result.console_errors.push(m.text()); });
-    page.on('pageerror', (e) => result.console_errors.push('uncaught: ' + e.message));
-    await page.route('**/*', (route) => {
-      const url = route.request().url();
-      if (url.startsWith(origin + '/') || /^(blob|data):/.test(url)) return route.continue();
-      result.requests_refused.push(url);
-      return route.abort();
-    });
+    let page;
+    ({ context, page } = await openPage(a, profile, { width: 1000, height: 700 }, result,
+                                        (url) => url.startsWith(origin + '/') || /^(blob|data):/.test(url)));
     page.on('response', (r) => {
       const url = r.url();
       if (!url.startsWith(origin)) return;

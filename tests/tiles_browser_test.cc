@@ -7,6 +7,7 @@
 // them). IMR_VIEWER_TEST_OUT=DIR keeps the screenshot.
 #include "host/io/image_io.h"
 #include "host/report/viewer_page.h"
+#include "host/pipeline/tiles.h"
 #include "test_util.h"
 
 #include <gtest/gtest.h>
@@ -45,12 +46,22 @@ std::string Missing() {
   return {};
 }
 
-std::vector<std::string> Uris(const json& tile) {
-  std::vector<std::string> out;
-  if (tile.contains("content")) out.push_back(tile["content"]["uri"]);
-  for (const json& c : tile.value("children", json::array()))
-    for (const std::string& u : Uris(c)) out.push_back(u);
-  return out;
+
+// tests/tiles_browser.cjs with `args` (--run or --page, --screenshot): its JSON result, or a
+// failure and an empty object.
+json Browser(const std::string& args) {
+  const auto b = RunShell(Quote(IMR_NODE_EXE) + " " + Quote(std::string(IMR_SOURCE_DIR) + "/tests/tiles_browser.cjs") +
+                          " " + args + " --node-modules " + Quote(kNodeModules.string()) + " --chromium " +
+                          Quote(Chromium()) + " --timeout-ms 90000");
+  json r;
+  try {
+    r = json::parse(b.out);
+  } catch (const std::exception&) {
+    ADD_FAILURE() << "no result from the browser (exit " << b.status << "): " << b.out << "\n" << b.err;
+    return json::object();
+  }
+  EXPECT_EQ(b.status, 0) << r.dump(2) << "\n" << b.err;
+  return r;
 }
 
 TEST(TilesBrowser, EveryTileLoadsIn3dTilesRenderer) {
@@ -67,21 +78,12 @@ TEST(TilesBrowser, EveryTileLoadsIn3dTilesRenderer) {
   const fs::path out = dir / "runs" / "street";
   const json tileset = json::parse(ReadText(out / "tileset.json"));
   const json report = json::parse(ReadText(out / "report.json"));
-  std::vector<std::string> uris = Uris(tileset["root"]);
+  std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
   ASSERT_GE(uris.size(), 9u);
 
   const fs::path shot = dir / "tiles.png";
-  const auto b = RunShell(Quote(IMR_NODE_EXE) + " " + Quote(std::string(IMR_SOURCE_DIR) + "/tests/tiles_browser.cjs") +
-                          " --run " + Quote(out.string()) + " --node-modules " + Quote(kNodeModules.string()) +
-                          " --chromium " + Quote(Chromium()) + " --screenshot " + Quote(shot.string()) +
-                          " --timeout-ms 90000");
-  json r;
-  try {
-    r = json::parse(b.out);
-  } catch (const std::exception&) {
-    FAIL() << "no result from the browser (exit " << b.status << "): " << b.out << "\n" << b.err;
-  }
-  EXPECT_EQ(b.status, 0) << r.dump(2) << "\n" << b.err;
+  const json r = Browser("--run " + Quote(out.string()) + " --screenshot " + Quote(shot.string()));
+  ASSERT_TRUE(r.contains("tileset_loaded"));
   EXPECT_TRUE(r["tileset_loaded"].get<bool>()) << r.dump(2);
   // Every tile the tileset names was requested once and parsed into the scene.
   std::sort(uris.begin(), uris.end());
@@ -134,7 +136,7 @@ TEST(TilesBrowser, ViewerPageShowsATiledRun) {
   ASSERT_EQ(run.status, 0) << run.err;
   const fs::path out = dir / "runs" / "street";
   const json report = json::parse(ReadText(out / "report.json"));
-  const std::size_t tiles = Uris(json::parse(ReadText(out / "tileset.json"))["root"]).size();
+  const std::size_t tiles = pipeline::TileContentUris(json::parse(ReadText(out / "tileset.json"))["root"]).size();
   const json summary = {{"title", "tiles page test"},
                         {"sequences", {{{"name", "street"}, {"ok", true}, {"error", ""},
                                         {"output_directory", out.string()}, {"report", report}}}}};
@@ -145,17 +147,8 @@ TEST(TilesBrowser, ViewerPageShowsATiledRun) {
   EXPECT_EQ(page.tilesets_viewable, 1);
   EXPECT_EQ(page.meshes_viewable, 0);
   const fs::path shot = dir / "page-tiles.png";
-  const auto b = RunShell(Quote(IMR_NODE_EXE) + " " + Quote(std::string(IMR_SOURCE_DIR) + "/tests/tiles_browser.cjs") +
-                          " --page " + Quote(page.page.string()) + " --node-modules " + Quote(kNodeModules.string()) +
-                          " --chromium " + Quote(Chromium()) + " --screenshot " + Quote(shot.string()) +
-                          " --timeout-ms 90000");
-  json r;
-  try {
-    r = json::parse(b.out);
-  } catch (const std::exception&) {
-    FAIL() << "no result from the browser (exit " << b.status << "): " << b.out << "\n" << b.err;
-  }
-  EXPECT_EQ(b.status, 0) << r.dump(2) << "\n" << b.err;
+  const json r = Browser("--page " + Quote(page.page.string()) + " --screenshot " + Quote(shot.string()));
+  ASSERT_TRUE(r.contains("tiles_shown"));
   EXPECT_EQ(r["tiles_shown"], 0);
   EXPECT_TRUE(r["tileset_loaded"].get<bool>()) << r.dump(2);
   // The whole street is in view: every tile is loaded.

@@ -6,6 +6,7 @@
 // imr did not write is never overwritten.
 #include "host/engine/engine.h"
 #include "host/eval/mesh_io.h"
+#include "host/pipeline/tiles.h"
 #include "test_util.h"
 
 #include <gtest/gtest.h>
@@ -47,14 +48,6 @@ testing::CommandResult RunJob(const fs::path& dir, const std::string& name, cons
   return RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / (name + ".json")).string()));
 }
 
-// Content uris of a tileset, in tree order.
-std::vector<std::string> Uris(const json& tile) {
-  std::vector<std::string> out;
-  if (tile.contains("content")) out.push_back(tile["content"]["uri"]);
-  for (const json& c : tile.value("children", json::array()))
-    for (const std::string& u : Uris(c)) out.push_back(u);
-  return out;
-}
 
 engine::Mesh AsEngineMesh(const eval::TriangleMesh& t) {
   engine::Mesh m;
@@ -96,7 +89,7 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   EXPECT_EQ(tileset["root"]["transform"].size(), 16u);
   EXPECT_EQ(tileset["root"]["refine"], "ADD");
   EXPECT_GT(tileset["geometricError"].get<double>(), 0.0);
-  const std::vector<std::string> uris = Uris(tileset["root"]);
+  const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
   ASSERT_GE(uris.size(), 9u);  // more than one level of the tree
   EXPECT_EQ(report["tiles"]["count"], uris.size());
   std::set<std::string> on_disk;
@@ -135,7 +128,7 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   const auto again = RunShell(std::string(IMR_EXE) + " run -q --set output.tiles.size=40 " +
                               Quote((dir / "tiles.json").string()));
   ASSERT_EQ(again.status, 0) << again.err;
-  const std::vector<std::string> uris2 = Uris(json::parse(ReadText(out / "tileset.json"))["root"]);
+  const std::vector<std::string> uris2 = pipeline::TileContentUris(json::parse(ReadText(out / "tileset.json"))["root"]);
   std::set<std::string> on_disk2;
   for (const auto& e : fs::directory_iterator(out / "tiles")) on_disk2.insert("tiles/" + e.path().filename().string());
   EXPECT_LT(uris2.size(), uris.size());
@@ -191,7 +184,7 @@ TEST(Tiles, TexturedFromTheKeyframesThatSeeEachTile) {
   EXPECT_LT(tiles["keyframes_given"].get<int64_t>(), count * keyframes) << tiles.dump();
   EXPECT_EQ(tiles["image_service"]["decodes"], tiles["keyframes_given"]) << tiles.dump();
   int textured = 0;
-  for (const std::string& uri : Uris(json::parse(ReadText(dir / "out" / "tileset.json"))["root"])) {
+  for (const std::string& uri : pipeline::TileContentUris(json::parse(ReadText(dir / "out" / "tileset.json"))["root"])) {
     const std::string glb = ReadText(dir / "out" / uri);
     uint32_t length = 0;
     std::memcpy(&length, glb.data() + 12, 4);
@@ -250,7 +243,7 @@ TEST(Tiles, AStoppedRunKeepsWholeTilesOnly) {
   ASSERT_TRUE(WIFSIGNALED(status));
   const json tileset = json::parse(ReadText(out / "tileset.json"));
   EXPECT_EQ(tileset["asset"]["extras"]["imr"]["complete"], false);
-  const std::vector<std::string> uris = Uris(tileset["root"]);
+  const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
   EXPECT_GE(uris.size(), 5u);
   std::size_t whole = 0;
   for (const auto& e : fs::directory_iterator(out / "tiles")) {

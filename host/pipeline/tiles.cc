@@ -360,6 +360,19 @@ std::array<double, 16> TilesetFrame(const std::vector<std::array<double, 9>>& ro
 
 std::array<double, 9> TileGltfRotation() { return {1, 0, 0, 0, 0, 1, 0, -1, 0}; }
 
+std::vector<std::string> TileContentUris(const json& tile) {
+  std::vector<std::string> out;
+  std::vector<const json*> todo = {&tile};
+  while (!todo.empty()) {
+    const json* t = todo.back();
+    todo.pop_back();
+    if (t->contains("content")) out.push_back(t->at("content").at("uri").get<std::string>());
+    if (t->contains("children"))
+      for (auto it = t->at("children").rbegin(); it != t->at("children").rend(); ++it) todo.push_back(&*it);
+  }
+  return out;
+}
+
 // ---- merging ------------------------------------------------------------------------------------
 
 MergedTiles MergeTiles(const fs::path& run) {
@@ -380,14 +393,7 @@ MergedTiles MergeTiles(const fs::path& run) {
   std::vector<std::string> uris;
   try {
     out.complete = tileset.at("asset").at("extras").at("imr").value("complete", false);
-    std::vector<const json*> todo = {&tileset.at("root")};
-    while (!todo.empty()) {
-      const json* t = todo.back();
-      todo.pop_back();
-      if (t->contains("content")) uris.push_back(t->at("content").at("uri").get<std::string>());
-      if (t->contains("children"))
-        for (auto it = (*t)["children"].rbegin(); it != (*t)["children"].rend(); ++it) todo.push_back(&*it);
-    }
+    uris = TileContentUris(tileset.at("root"));
   } catch (const json::exception& e) {
     throw std::runtime_error(tileset_path.string() + ": not a tileset of imr (" + e.what() + ")");
   }

@@ -121,6 +121,9 @@ class TileWriter {
   TilesStats stats_;
 };
 
+// The content uris of a tileset's tile and its descendants, in tree order (depth first).
+std::vector<std::string> TileContentUris(const nlohmann::json& tile);
+
 // The local frame (TileWriter's root transform) from keyframe camera rotations (world -> camera,
 // row-major): the cameras' mean up (-y axis) becomes +Z, their mean viewing direction +Y;
 // column-major 4x4. Identity when the rotations give no up.

@@ -35,13 +35,6 @@ void WriteStandInGlb(const fs::path& path) {
   std::ofstream(path, std::ios::binary) << glb;
 }
 
-std::vector<std::string> Uris(const json& tile) {
-  std::vector<std::string> out;
-  if (tile.contains("content")) out.push_back(tile["content"]["uri"]);
-  for (const json& c : tile.value("children", json::array()))
-    for (const std::string& u : Uris(c)) out.push_back(u);
-  return out;
-}
 
 TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
   synthetic::StreamOptions so;
@@ -106,7 +99,7 @@ TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
   // The tileset: every tile once, in writing order, under nodes of at most 8.
   const json ts = json::parse(std::ifstream(dir / "tileset.json"));
   EXPECT_EQ(ts["asset"]["extras"]["imr"]["complete"], true);
-  const std::vector<std::string> uris = Uris(ts["root"]);
+  const std::vector<std::string> uris = TileContentUris(ts["root"]);
   ASSERT_EQ(uris.size(), written.size());
   for (std::size_t i = 0; i < uris.size(); ++i) {
     char name[64];

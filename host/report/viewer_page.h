@@ -75,7 +75,7 @@ struct ViewerPageOptions {
   // Empty: FindTilesViewerScript(); when none is found, tiled runs are listed without it.
   std::filesystem::path tiles_viewer_script;
   // A run's tiles (all of them, bytes) above this are linked but not embedded for the view.
-  std::uintmax_t max_tiles_bytes = std::uintmax_t{1} << 30;
+  std::uintmax_t max_tiles_bytes = std::uintmax_t{256} << 20;
 
   // Empty when usable, else which field and why.
   std::string Check() const;
