@@ -32,6 +32,8 @@ import tempfile
 # outputs, fields of input formats, names in code. A name here is not checked; an option renamed
 # in the code stays unknown (it is not in this list), so the page that names it fails.
 NOT_OPTIONS = {
+    # the SDK's structs and fields (docs/plugins.md, docs/tiles.md), glTF extras
+    "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "imr_upright",
     # report.json, summary.json, evaluation output
     "stage_seconds", "engine_scale", "export_input", "invariant_checks", "rays_walked_exact",
     "rays_uncast_listed", "ray_mismatches", "road_surface", "completeness_visible", "log_tail",
@@ -111,6 +113,11 @@ def imr_commands(imr):
     for c in commands:
         rc, text = run([imr, c, "--help"])
         flags[c] = help_flags(text)
+        # A command of subcommands (imr tiles merge): the subcommands' flags are the command's.
+        for sub in sorted(set(re.findall(rf"\bimr {c} ([a-z]+)\b", text))):
+            sub_rc, sub_text = run([imr, c, sub, "--help"])
+            if sub_rc == 0:
+                flags[c] |= help_flags(sub_text)
         if rc != 0 or not flags[c]:
             raise SystemExit(f"docs_test: `imr {c} --help` failed or lists no options:\n{text}")
     if "mesh" in flags:  # imr mesh hands every other option to imr run

@@ -47,6 +47,8 @@ json JobIdentity(const pipeline::ValidatedJob& v, const plugin::PluginRegistry& 
   // (even one that restates the job's value) redo the sequence. Absent without overrides, so
   // runs without --set keep their hashes.
   if (!job.overrides.empty()) identity["overrides"] = job.overrides;
+  // Likewise tiles: absent when the job asks for none.
+  if (!v.tiles.is_null()) identity["output"]["tiles"] = v.tiles;
   return identity;
 }
 
@@ -214,7 +216,7 @@ std::string ForeignOutputs(const fs::path& output_directory, const fs::path& job
 
 int RemoveLeftovers(const fs::path& output_directory) {
   int removed = 0;
-  for (const fs::path& dir : {output_directory, output_directory / "snapshots"}) {
+  for (const fs::path& dir : {output_directory, output_directory / "snapshots", output_directory / "tiles"}) {
     std::error_code ec;
     if (!fs::is_directory(dir, ec)) continue;
     std::vector<fs::path> doomed;

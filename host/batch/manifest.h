@@ -78,7 +78,7 @@ std::string ForeignOutputs(const std::filesystem::path& output_directory,
 // The absolute path of a manifest entry.
 std::filesystem::path EntryPath(const ManifestEntry& e, const std::filesystem::path& output_directory);
 
-// Removes what a killed run may leave in an output folder (and its snapshots/): staging folders
+// Removes what a killed run may leave in an output folder (and its snapshots/ and tiles/): staging folders
 // (.imr-staging-*) and temporaries of atomic writes (.<name>.tmp-*). Never a file under a final
 // name. Returns the number of entries removed.
 int RemoveLeftovers(const std::filesystem::path& output_directory);

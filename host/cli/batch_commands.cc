@@ -532,8 +532,12 @@ int CmdReport(const std::vector<std::string>& args) {
     try {
       const auto page = imr::report::WriteBatchPage(dir, summary);
       for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
-      std::printf("viewer page: %s (%d mesh%s in 3D)\n", page.page.string().c_str(),
-                  page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es");
+      std::printf("viewer page: %s (%d mesh%s in 3D%s)\n", page.page.string().c_str(),
+                  page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es",
+                  page.tilesets_viewable == 0   ? ""
+                  : page.tilesets_viewable == 1 ? ", 1 run's tiles"
+                                                : (", " + std::to_string(page.tilesets_viewable) +
+                                                   " runs' tiles").c_str());
     } catch (const std::exception& e) {
       imr::LogWarning(std::string("viewer page not written: ") + e.what());
     }

@@ -31,6 +31,7 @@ std::vector<Command> BatchCommands();     // run, submit, report, mesh (and the 
 std::vector<Command> JobCommands();       // validate, options, plugins
 std::vector<Command> EvaluateCommands();  // evaluate
 std::vector<Command> RenderCommands();    // render
+std::vector<Command> TilesCommands();     // tiles merge
 
 // Parses a command's options after adding -h, -q and -v; returns false (after printing the
 // help, status 0, or the error and the usage, status 64) when the command should stop.

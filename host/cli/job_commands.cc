@@ -3,6 +3,7 @@
 #include "host/cli/command.h"
 #include "host/io/engine_options.h"
 #include "host/io/input_formats.h"
+#include "host/pipeline/tiles.h"
 #include "host/util/exit_status.h"
 
 #include <algorithm>
@@ -88,29 +89,30 @@ int CmdPlugins(const std::vector<std::string>& args) {
 }
 
 
-const char* kOptionsSections[] = {"engine", "input", "evaluation", "plugins"};
+const char* kOptionsSections[] = {"engine", "input", "evaluation", "tiles", "plugins"};
 
 int CmdOptions(const std::vector<std::string>& args) {
   po::options_description opts("imr options options");
   opts.add_options()("only", po::value<std::string>()->value_name("SECTION"),
-                     "one section: engine, input, evaluation or plugins")(
+                     "one section: engine, input, evaluation, tiles or plugins")(
       "markdown", "Markdown tables (docs/engine.md's engine table is `--only engine --markdown`)");
   AddPluginPathFlag(opts);
   po::positional_options_description pos;
   po::variables_map vm;
   int status = kExitOk;
   const char* synopsis =
-      "imr options [--only engine|input|evaluation|plugins] [--markdown] [-p PATH]...\n\n"
+      "imr options [--only engine|input|evaluation|tiles|plugins] [--markdown] [-p PATH]...\n\n"
       "Every option a job can set, from the schemas imr validates jobs with: the engine's (the\n"
       "job's \"engine\"), each input format's (\"input\": {\"format\", \"options\"}), the\n"
-      "evaluation's (\"evaluation\") and each plugin's params (\"pipeline\"[i].params), each with\n"
-      "what it accepts (type, bounds), its default, unit and description. Any of them can be\n"
-      "overridden on the command line: imr run JOB.json --set engine.steiner_spacing=2.";
+      "evaluation's (\"evaluation\"), the tiles' (\"output\": {\"tiles\"}) and each plugin's\n"
+      "params (\"pipeline\"[i].params), each with what it accepts (type, bounds), its default,\n"
+      "unit and description. Any of them can be overridden on the command line: imr run\n"
+      "JOB.json --set engine.steiner_spacing=2.";
   if (!ParseCommand("options", synopsis, opts, pos, args, &vm, &status)) return status;
   const std::string only = vm.count("only") ? vm["only"].as<std::string>() : "";
   if (!only.empty() && std::find(std::begin(kOptionsSections), std::end(kOptionsSections), only) ==
                            std::end(kOptionsSections)) {
-    std::cerr << "imr options: --only: expected engine, input, evaluation or plugins, got '" << only
+    std::cerr << "imr options: --only: expected engine, input, evaluation, tiles or plugins, got '" << only
               << "'\n";
     return kExitUsage;
   }
@@ -130,6 +132,7 @@ int CmdOptions(const std::vector<std::string>& args) {
   for (const io::InputFormat& f : io::InputFormats())
     section("input", "input format " + f.name, f.description, f.options_schema);
   section("evaluation", "evaluation", "", pipeline::EvaluationSchema());
+  section("tiles", "tiles", "output.tiles: the surface as OGC 3D Tiles (docs/tiles.md)", pipeline::TilesSchema());
   if (only.empty() || only == "plugins") {
     plugin::PluginRegistry registry;
     ScanPlugins(vm, &registry);
@@ -148,8 +151,8 @@ std::vector<Command> JobCommands() {
       {"validate", "validate JOB.json", "check a job and report every problem, without running it",
        &CmdValidate},
       {"options", "options",
-       "every engine, input, evaluation and plugin option a job can set, with\n"
-       "its default, bounds, unit and description",
+       "every engine, input, evaluation, tiles and plugin option a job can set,\n"
+       "with its default, bounds, unit and description",
        &CmdOptions},
       {"plugins", "plugins", "list the plugins found (kind, id, version, ABI, file) and refusals;\n"
        "-v: also each plugin's params", &CmdPlugins},

@@ -23,7 +23,8 @@ const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = [] {
     std::vector<Command> all;
     for (auto group : {&imr::cli::BatchCommands, &imr::cli::JobCommands,
-                       &imr::cli::EvaluateCommands, &imr::cli::RenderCommands})
+                       &imr::cli::EvaluateCommands, &imr::cli::RenderCommands,
+                       &imr::cli::TilesCommands})
       for (Command& c : group()) all.push_back(std::move(c));
     return all;
   }();
@@ -56,7 +57,7 @@ std::string Usage() {
          "Plugins are searched in a job's plugin_paths, then IMR_PLUGIN_PATH (':'-separated),\n"
          "then the installed folder next to the executable (../lib/imr/plugins).\n"
          "Exit status: run, report: 0 every sequence ok, else the number that failed (1..63; 63 means\n"
-         "63 or more; the others still ran); evaluate, render, submit: 1 failed; 64 bad usage or an\n"
+         "63 or more; the others still ran); evaluate, render, submit, tiles: 1 failed; 64 bad usage or an\n"
          "invalid job (nothing ran); 73 the batch folder cannot be created (read-only, full);\n"
          "75 another imr run is using the batch folder (try again when it has ended).\n";
 }

@@ -402,8 +402,8 @@ class Engine {
 // Puts a mesh in a canonical order that depends only on its geometry and point ids (faces sorted,
 // each starting at its smallest vertex, orientation kept; vertices numbered by first use), so the
 // same surface is written identically by every run. ExtractMesh and ExtractBoundary return
-// canonical meshes.
-void CanonicalizeMesh(Mesh* mesh);
+// canonical meshes. `new_index` (optional) receives each old vertex's new index.
+void CanonicalizeMesh(Mesh* mesh, std::vector<uint32_t>* new_index = nullptr);
 
 // Closes every boundary loop of at most `max_edges` edges and `max_perimeter` in length with a
 // fan of triangles around a new vertex (point id -1) at its centroid; a 2-manifold with boundary

@@ -21,7 +21,7 @@ VertexKey KeyOf(const Mesh& m, uint32_t v) {
 
 }  // namespace
 
-void CanonicalizeMesh(Mesh* m) {
+void CanonicalizeMesh(Mesh* m, std::vector<uint32_t>* new_index) {
   const size_t nf = m->faces.size() / 3;
   const size_t nv = m->vertices.size() / 3;
   // Rotate each face so its smallest vertex comes first (orientation kept).
@@ -65,6 +65,7 @@ void CanonicalizeMesh(Mesh* m) {
     if (!m->point_ids.empty()) out.point_ids[remap[v]] = m->point_ids[v];
   }
   *m = std::move(out);
+  if (new_index != nullptr) *new_index = std::move(remap);
 }
 
 }  // namespace imr::engine

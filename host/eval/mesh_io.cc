@@ -550,6 +550,15 @@ class GltfReader {
   GltfReader(const json& doc, const fs::path& path, std::string_view glb_bin, bool is_glb)
       : doc_(doc), path_(path), glb_bin_(glb_bin), is_glb_(is_glb) {}
 
+  // Per-vertex attributes to read beside POSITION (ReadGltfWithAttributes).
+  void WantAttributes(const std::vector<std::string>& names) {
+    names_ = names;
+    values_.assign(names.size(), {});
+    components_.assign(names.size(), 0);
+  }
+  std::vector<std::vector<double>> values_;
+  std::vector<int> components_;
+
   TriangleMesh Read() {
     const std::string version = Get(doc_, "asset", "the document").value("version", "");
     if (version.empty() || version[0] != '2')
@@ -620,17 +629,23 @@ class GltfReader {
     }
   }
 
+  // Components per element of accessor `a` (SCALAR 1, VEC2 2, ...; 0: unknown type).
+  int Components(std::size_t a) const {
+    static const std::pair<const char*, int> kTypes[] = {{"SCALAR", 1}, {"VEC2", 2}, {"VEC3", 3},
+                                                          {"VEC4", 4}, {"MAT4", 16}};
+    const std::string type = Item("accessors", a).value("type", "");
+    for (const auto& [t, c] : kTypes)
+      if (type == t) return c;
+    return 0;
+  }
+
   // Values of accessor `a` as doubles, `components` per element; normalised integers map to
   // [0, 1] / [-1, 1] as the spec says.
   std::vector<double> ReadAccessor(std::size_t a, int components, const std::string& use) {
     const json& acc = Item("accessors", a);
     const std::string name = "accessors[" + std::to_string(a) + "] (" + use + ")";
-    static const std::pair<const char*, int> kTypes[] = {{"SCALAR", 1}, {"VEC2", 2}, {"VEC3", 3},
-                                                          {"VEC4", 4}, {"MAT4", 16}};
     const std::string type = acc.value("type", "");
-    int n = 0;
-    for (const auto& [t, c] : kTypes)
-      if (type == t) n = c;
+    const int n = Components(a);
     if (n != components)
       Fail(path_, name + " has type '" + type + "', expected " +
                       (components == 1 ? "SCALAR" : "VEC3"));
@@ -765,6 +780,20 @@ class GltfReader {
         Fail(path_, "more than 2^32 - 1 vertices");
       for (std::size_t i = 0; i < nv; ++i)
         m->vertices.push_back(Transform(world, {pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]}));
+      for (std::size_t k = 0; k < names_.size(); ++k) {
+        if (!attrs.contains(names_[k])) Fail(path_, name + " has no attribute " + names_[k]);
+        const std::size_t a = Index(attrs[names_[k]], name + "." + names_[k]);
+        const int c = Components(a);
+        if (components_[k] != 0 && c != components_[k])
+          Fail(path_, name + "." + names_[k] + " has " + std::to_string(c) +
+                          " components, an earlier primitive's " + std::to_string(components_[k]));
+        components_[k] = c;
+        const std::vector<double> v = ReadAccessor(a, c, name + " " + names_[k]);
+        if (v.size() != nv * static_cast<std::size_t>(c))
+          Fail(path_, name + "." + names_[k] + " has " + std::to_string(v.size() / std::max(c, 1)) +
+                          " values, POSITION " + std::to_string(nv));
+        values_[k].insert(values_[k].end(), v.begin(), v.end());
+      }
       auto add = [&](uint64_t a, uint64_t b, uint64_t c) {
         m->triangles.push_back({static_cast<uint32_t>(base + a), static_cast<uint32_t>(base + b),
                                 static_cast<uint32_t>(base + c)});
@@ -787,6 +816,7 @@ class GltfReader {
   std::string_view glb_bin_;
   bool is_glb_;
   std::vector<std::string> buffers_;
+  std::vector<std::string> names_;
 };
 
 json ParseJson(std::string_view text, const fs::path& path) {
@@ -797,15 +827,29 @@ json ParseJson(std::string_view text, const fs::path& path) {
   }
 }
 
-TriangleMesh RunGltf(const json& doc, const fs::path& path, std::string_view bin, bool glb) {
+struct GltfAttributes {
+  const std::vector<std::string>* names = nullptr;
+  std::vector<std::vector<double>>* values = nullptr;
+  std::vector<int>* components = nullptr;
+};
+
+TriangleMesh RunGltf(const json& doc, const fs::path& path, std::string_view bin, bool glb,
+                     const GltfAttributes& attributes = {}) {
   try {
-    return GltfReader(doc, path, bin, glb).Read();
+    GltfReader reader(doc, path, bin, glb);
+    if (attributes.names != nullptr) reader.WantAttributes(*attributes.names);
+    TriangleMesh m = reader.Read();
+    if (attributes.names != nullptr) {
+      *attributes.values = std::move(reader.values_);
+      *attributes.components = std::move(reader.components_);
+    }
+    return m;
   } catch (const json::exception& e) {  // a field of the wrong type
     Fail(path, std::string("malformed glTF: ") + e.what());
   }
 }
 
-TriangleMesh ParseGlb(std::string_view data, const fs::path& path) {
+TriangleMesh ParseGlb(std::string_view data, const fs::path& path, const GltfAttributes& attributes = {}) {
   auto u32 = [&](std::size_t at) {
     uint32_t v;
     std::memcpy(&v, data.data() + at, 4);
@@ -827,7 +871,7 @@ TriangleMesh ParseGlb(std::string_view data, const fs::path& path) {
     at += 8 + len;
   }
   if (json_chunk.empty()) Fail(path, "GLB has no JSON chunk");
-  return RunGltf(ParseJson(json_chunk, path), path, bin_chunk, true);
+  return RunGltf(ParseJson(json_chunk, path), path, bin_chunk, true, attributes);
 }
 
 }  // namespace
@@ -890,6 +934,19 @@ TriangleMesh ReadMesh(const fs::path& path) {
   TriangleMesh m = ReadGeometry(path);
   if (m.triangles.empty())
     Fail(path, "no triangles (" + std::to_string(m.vertices.size()) + " vertices)");
+  return m;
+}
+
+TriangleMesh ReadGltfWithAttributes(const fs::path& path, const std::vector<std::string>& names,
+                                    std::vector<std::vector<double>>* values,
+                                    std::vector<int>* components) {
+  const std::string format = GeometryFormat(path);
+  if (format != "glb" && format != "gltf") Fail(path, "not a .gltf or .glb file");
+  const std::string data = ReadBytes(path);
+  const GltfAttributes a{&names, values, components};
+  TriangleMesh m = format == "glb" ? ParseGlb(data, path, a)
+                                   : RunGltf(ParseJson(data, path), path, {}, false, a);
+  if (m.triangles.empty()) Fail(path, "no triangles (" + std::to_string(m.vertices.size()) + " vertices)");
   return m;
 }
 

@@ -63,6 +63,15 @@ TriangleMesh ReadGeometry(const std::filesystem::path& path);
 // As ReadGeometry, and also throws when the file holds no triangle or is a point format.
 TriangleMesh ReadMesh(const std::filesystem::path& path);
 
+// As ReadMesh for a .gltf / .glb, also the named per-vertex attributes of every primitive read
+// (e.g. imr's `_POINT_ID`, SCALAR, and `_VERTEX_KEY`, VEC2: 3D Tiles tiles): `values[i]` holds
+// attribute i for every vertex, `components[i]` values each (1 for SCALAR .. 4 for VEC4). A
+// primitive without one of them, or two that disagree in type, is an error naming it.
+TriangleMesh ReadGltfWithAttributes(const std::filesystem::path& path,
+                                    const std::vector<std::string>& names,
+                                    std::vector<std::vector<double>>* values,
+                                    std::vector<int>* components);
+
 // Total area of the triangles.
 double MeshArea(const TriangleMesh& mesh);
 

@@ -496,7 +496,20 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file,
       else
         job.output.stem = *s;
     }
-    if (auto f = orr.Strings("formats", false, true)) job.output.formats = *f;
+    if (const json* t = orr.Get("tiles", false)) {
+      if (t->is_object() || t->is_boolean())
+        job.output.tiles = *t;
+      else
+        problems.push_back({"output.tiles", "expected an object of tile options (or true), got " +
+                                                Describe(*t)});
+    }
+    const bool tiles = job.output.tiles.is_object() || job.output.tiles == json(true);
+    if (auto f = orr.Strings("formats", false, false)) {
+      job.output.formats = *f;
+      if (f->empty() && !tiles)
+        problems.push_back({"output.formats", "expected at least one entry, got [] (formats [] "
+                                              "with output.tiles writes tiles only)"});
+    }
     if (auto n = orr.Integer("snapshot_every", false, 0)) job.output.snapshot_every = static_cast<int>(*n);
     orr.RejectUnknown();
   }

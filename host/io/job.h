@@ -47,6 +47,10 @@ struct OutputSpec {
   // Also write the mesh every this many keyframes, as snapshots/<stem>_kf<NNNNNN>.<format>
   // (watching a reconstruction grow; the paper's Figure 3). 0: no snapshots.
   int snapshot_every = 0;
+  // "tiles": the surface also as OGC 3D Tiles (tileset.json, tiles/*.glb) written as the run
+  // goes (host/pipeline/tiles.h; an object of options, or true); null: none. With tiles,
+  // `formats` may be empty: tiles only.
+  nlohmann::json tiles;
 };
 
 struct JobSpec {

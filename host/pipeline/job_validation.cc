@@ -4,6 +4,7 @@
 #include "host/io/engine_options.h"
 #include "host/io/input_formats.h"
 #include "host/pipeline/scale.h"
+#include "host/pipeline/tiles.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 
@@ -16,6 +17,7 @@
 namespace imr::pipeline {
 namespace fs = std::filesystem;
 using io::Problem;
+using nlohmann::json;
 
 namespace {
 
@@ -268,6 +270,11 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
                                            std::to_string(count["weight_policy"])});
   if (count["exporter"] == 0)
     v->problems.push_back({"pipeline", "no exporter stage: nothing would be written"});
+  // Tiles are GLB (3D Tiles 1.1 content), written through the first exporter that writes glb.
+  if (!v->tiles.is_null() && count["exporter"] > 0 && !unknown_exporter &&
+      std::find(exporter_formats.begin(), exporter_formats.end(), "glb") == exporter_formats.end())
+    v->problems.push_back({"output.tiles", "tiles are GLB files: no exporter stage writes glb (they "
+                                           "write " + io::JoinAlternatives(exporter_formats) + ")"});
   for (std::size_t i = 0; i < job.output.formats.size(); ++i) {
     const std::string& f = job.output.formats[i];
     if (count["exporter"] > 0 && !unknown_exporter &&
@@ -363,6 +370,12 @@ ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry
         v.problems.push_back({"evaluation.truth", "no such file: " + p.string()});
       v.evaluation["truth"] = p.string();
     }
+  }
+  const json& tiles = v.job.output.tiles;
+  if (tiles.is_object() || tiles == json(true)) {
+    const json given = tiles.is_object() ? tiles : json::object();
+    io::ValidateAgainstSchema(TilesSchema(), given, "output.tiles", &v.problems);
+    v.tiles = io::WithDefaults(TilesSchema(), given);
   }
   ValidateStages(format, *registry, &v);
   return v;

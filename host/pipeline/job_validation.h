@@ -26,6 +26,7 @@ struct ValidatedJob {
   engine::EngineOptions engine_options;
   std::vector<nlohmann::json> stage_params;  // per stage, with defaults
   nlohmann::json evaluation;                 // the job's "evaluation" with defaults; null: none
+  nlohmann::json tiles;                      // "output.tiles" with defaults; null: none
   std::vector<io::Problem> problems;
   bool ok() const { return problems.empty(); }
 };

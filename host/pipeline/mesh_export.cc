@@ -50,9 +50,10 @@ std::array<double, 3> ExportOrigin(const engine::Mesh& mesh) {
 ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& context,
                             const std::vector<std::string>& formats, const Exporters& exporters,
                             const std::filesystem::path& directory, const std::string& stem,
-                            StageWatch& watch, double stage_timeout) {
+                            StageWatch& watch, double stage_timeout, const TileExportExtras* tile) {
   imr_mesh_view view{};
   view.struct_size = sizeof(view);
+  if (tile != nullptr && tile->vertex_keys != nullptr) view.vertex_keys = tile->vertex_keys->data();
   view.vertices = mesh.vertices.data();
   view.vertex_count = mesh.vertices.size() / 3;
   view.faces = mesh.faces.data();
@@ -91,6 +92,10 @@ ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& conte
       req.keyframes = context.keyframes.empty() ? nullptr : context.keyframes.data();
       req.keyframe_count = context.keyframes.size();
       req.keyframe_images = images ? 1 : 0;
+      if (tile != nullptr) {
+        req.origin = tile->origin.data();
+        req.gltf_rotation = tile->gltf_rotation.data();
+      }
       const WatchedStage watched = WatchedStageOf(*stage, stage_timeout);
       const StageWatch::Call call = watch.Enter(watched);
       inst.instance.ExportMesh(&req);
@@ -102,6 +107,50 @@ ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& conte
   stats.keyframes = static_cast<int>(context.keyframes.size());
   if (images) stats.store = images->stats();
   return stats;
+}
+
+}  // namespace imr::pipeline
+
+namespace imr::pipeline {
+
+ExportContext KeyframesSeeing(const ExportContext& context, const std::array<double, 6>& box,
+                              double max_distance) {
+  ExportContext out;
+  out.source = context.source;
+  for (std::size_t i = 0; i < context.keyframes.size(); ++i) {
+    const imr_camera& c = context.keyframes[i];
+    double centre[3];  // C = -R^T t
+    for (int k = 0; k < 3; ++k) centre[k] = -(c.R[k] * c.t[0] + c.R[3 + k] * c.t[1] + c.R[6 + k] * c.t[2]);
+    double d2 = 0.0;  // from the camera to the box
+    for (int k = 0; k < 3; ++k) {
+      const double d = std::max({box[k] - centre[k], 0.0, centre[k] - box[3 + k]});
+      d2 += d * d;
+    }
+    if (d2 > max_distance * max_distance) continue;
+    // The box's corners projected: seen when their rectangle meets the image (a box that
+    // straddles the camera's plane, or no intrinsics to project with: by distance alone).
+    bool sees = d2 == 0.0 || c.K[0] == 0.0 || c.width <= 0 || c.height <= 0;
+    int in_front = 0;
+    double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+    for (int corner = 0; corner < 8 && !sees; ++corner) {
+      double p[3], x[3];
+      for (int k = 0; k < 3; ++k) p[k] = ((corner >> k) & 1) ? box[3 + k] : box[k];
+      for (int r = 0; r < 3; ++r) x[r] = c.R[3 * r] * p[0] + c.R[3 * r + 1] * p[1] + c.R[3 * r + 2] * p[2] + c.t[r];
+      if (x[2] <= 1e-6) continue;
+      ++in_front;
+      const double uv[2] = {c.K[0] * x[0] / x[2] + c.K[1] * x[1] / x[2] + c.K[2], c.K[4] * x[1] / x[2] + c.K[5]};
+      for (int k = 0; k < 2; ++k) {
+        lo[k] = std::min(lo[k], uv[k]);
+        hi[k] = std::max(hi[k], uv[k]);
+      }
+    }
+    if (!sees && in_front > 0)
+      sees = in_front < 8 || (hi[0] >= 0 && hi[1] >= 0 && lo[0] < c.width && lo[1] < c.height);
+    if (!sees) continue;
+    out.keyframes.push_back(c);
+    if (!context.image_paths.empty()) out.image_paths.push_back(context.image_paths[i]);
+  }
+  return out;
 }
 
 }  // namespace imr::pipeline

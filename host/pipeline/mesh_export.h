@@ -53,13 +53,27 @@ struct ExportImageStats {
 // ExportOrigin (plugins/exporter_assimp/point_id_channel.hpp); report.json records it.
 std::array<double, 3> ExportOrigin(const engine::Mesh& mesh);
 
+// What a 3D Tiles tile's export carries beyond the mesh (SDK 1.2; host/pipeline/tiles.h).
+struct TileExportExtras {
+  const std::vector<int64_t>* vertex_keys = nullptr;  // per vertex
+  std::array<double, 3> origin{};                     // vertices written relative to it
+  std::array<double, 9> gltf_rotation{};              // the glTF root's, row-major
+};
+
 // Writes `mesh` into `directory` as stem.<format> for every format, each through the first
 // exporter stage that writes it, with the keyframes of `context` (their images decoded on demand
 // for this export only, within a bounded cache). Every call is watched against its stage's
-// timeout (stage_timeout when the stage sets none).
+// timeout (stage_timeout when the stage sets none). `tile`: the request of a tile.
 ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& context,
                             const std::vector<std::string>& formats, const Exporters& exporters,
                             const std::filesystem::path& directory, const std::string& stem,
-                            StageWatch& watch, double stage_timeout);
+                            StageWatch& watch, double stage_timeout,
+                            const TileExportExtras* tile = nullptr);
+
+// The keyframes of `context` (with their images) that may see the box (min xyz, max xyz): a
+// corner or the centre in front of the camera within its image, within `max_distance` of the
+// camera centre; cameras without intrinsics by distance alone.
+ExportContext KeyframesSeeing(const ExportContext& context, const std::array<double, 6>& box,
+                              double max_distance);
 
 }  // namespace imr::pipeline

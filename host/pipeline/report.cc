@@ -201,16 +201,60 @@ json BuildReport(const ReportInputs& in) {
                         {"cameras", m.cameras}}},
                       {"ray_entries",
                        {{"held", m.ray_entries_used}, {"live", m.ray_entries_live}}}};
-  report["mesh"] = {{"vertices", mesh.vertices.size() / 3},
-                    {"faces", mesh.faces.size() / 3},
-                    {"manifold", in.mesh_check.ok},
-                    {"boundary_closed_manifold", in.boundary_check.ok},
-                    {"boundary_triangles", in.boundary_check.boundary_triangles}};
-  // PLY and glTF/GLB vertices are relative to it (0 near the origin): mesh_export.h.
-  const std::array<double, 3> origin = ExportOrigin(mesh);
-  report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
-  // Topology of what was written: components, Euler characteristic, genus, boundary loops.
-  report["mesh"]["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
+  if (in.job->job.output.formats.empty() && in.streamed != nullptr) {
+    // Tiles only: no single mesh was put together; its size from the surface stream.
+    report["mesh"] = {{"vertices", in.streamed->stream.vertices_released},
+                      {"faces", in.streamed->stream.triangles_released},
+                      {"written", false},
+                      {"manifold", nullptr},
+                      {"boundary_closed_manifold", in.boundary_check.ok},
+                      {"boundary_triangles", in.boundary_check.boundary_triangles}};
+  } else {
+    report["mesh"] = {{"vertices", mesh.vertices.size() / 3},
+                      {"faces", mesh.faces.size() / 3},
+                      {"written", true},
+                      {"manifold", in.mesh_check.ok},
+                      {"boundary_closed_manifold", in.boundary_check.ok},
+                      {"boundary_triangles", in.boundary_check.boundary_triangles}};
+    // PLY and glTF/GLB vertices are relative to it (0 near the origin): mesh_export.h.
+    const std::array<double, 3> origin = ExportOrigin(mesh);
+    report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
+    // Topology of what was written: components, Euler characteristic, genus, boundary loops.
+    report["mesh"]["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
+  }
+  if (in.streamed != nullptr) {
+    const StreamedSurfaceStats& ss = *in.streamed;
+    report["surface_parts"] = {{"parts", ss.engine_parts},
+                               {"triangles", ss.stream.triangles_in},
+                               {"triangles_released", ss.stream.triangles_released},
+                               {"vertices_released", ss.stream.vertices_released},
+                               {"holes_filled", ss.stream.holes_filled},
+                               {"vertices_split", ss.stream.vertices_split},
+                               {"peak_held_triangles", ss.stream.peak_held_triangles},
+                               {"peak_held_vertices", ss.stream.peak_held_vertices},
+                               {"spool_bytes", ss.spool_bytes},
+                               {"seconds", ss.seconds},
+                               {"max_keyframe_seconds", ss.max_update_seconds}};
+  }
+  if (in.tiles != nullptr) {
+    const TilesStats& t = *in.tiles;
+    report["tiles"] = {{"tileset", "tileset.json"},
+                       {"folder", "tiles"},
+                       {"count", t.tiles},
+                       {"triangles", t.triangles},
+                       {"vertices", t.vertices},
+                       {"bytes", t.bytes},
+                       {"open_tiles_peak", t.open_tiles_peak},
+                       {"seconds", t.seconds},
+                       {"keyframes_given", in.tile_images.keyframes}};
+    const ExportImageStats& ti = in.tile_images;
+    if (ti.store.requests > 0)
+      report["tiles"]["image_service"] = {{"requests", ti.store.requests},
+                                          {"decodes", ti.store.decodes},
+                                          {"evictions", ti.store.evictions},
+                                          {"peak_bytes", ti.store.peak_bytes},
+                                          {"decode_seconds", ti.store.decode_seconds}};
+  }
   if (!in.accuracy.is_null()) report["accuracy"] = in.accuracy;
   if (!in.accuracy_known_scene.is_null()) report["accuracy_known_scene"] = in.accuracy_known_scene;
   // Wall time per stage of the chain (reader -> features -> refiner -> engine -> exporter).
@@ -234,6 +278,7 @@ json BuildReport(const ReportInputs& in) {
                                                {"decode_seconds", ei.store.decode_seconds}};
   const bool snapshots = in.snapshots != nullptr && !in.snapshots->list().empty();
   if (snapshots) stages["snapshots"] = in.snapshots->seconds();
+  if (in.tiles != nullptr) stages["tiles"] = in.tiles->seconds;
   if (!in.job->evaluation.is_null()) stages["evaluation"] = in.evaluation_seconds;
   report["stage_seconds"] = stages;
   if (snapshots) report["snapshots"] = in.snapshots->list();

@@ -9,6 +9,8 @@
 #include "host/pipeline/keyframe_observers.h"
 #include "host/pipeline/mesh_export.h"
 #include "host/pipeline/scale.h"
+#include "host/pipeline/streamed_surface.h"
+#include "host/pipeline/tiles.h"
 #include "host/plugin/registry.h"
 
 #include <nlohmann/json.hpp>
@@ -59,6 +61,9 @@ struct ReportInputs {
   ExportImageStats export_images;
   bool keyframe_images = false;               // the exporters were offered keyframe images
   const Snapshots* snapshots = nullptr;       // null: no snapshots asked
+  const StreamedSurfaceStats* streamed = nullptr;  // null: the surface was taken whole
+  const TilesStats* tiles = nullptr;          // null: no tiles asked
+  ExportImageStats tile_images;               // the tiles' exports, summed
   const InvariantCheck* checks = nullptr;     // null: no check during the loop
   std::filesystem::path trace;                // empty: no trace
   nlohmann::json exports = nlohmann::json::object();  // stream, colmap: absolute paths

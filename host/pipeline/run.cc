@@ -14,6 +14,8 @@
 #include "host/pipeline/report.h"
 #include "host/pipeline/scale.h"
 #include "host/pipeline/stage_watch.h"
+#include "host/pipeline/streamed_surface.h"
+#include "host/pipeline/tiles.h"
 #include "host/plugin/host_services.h"
 #include "host/plugin/policy_adapter.h"
 #include "host/util/atomic_file.h"
@@ -68,6 +70,7 @@ class SequenceRun {
     InstantiateStages();
     OpenSource();
     StartEngine();
+    StartStreamedSurface();
     AddObservers();
     ProcessKeyframes();
     Finish();
@@ -77,6 +80,8 @@ class SequenceRun {
   void InstantiateStages();
   void OpenSource();
   void StartEngine();
+  void StartStreamedSurface();
+  void WriteTile(const TileMesh& tile, const fs::path& dir, const std::string& stem);
   void AddObservers();
   void ProcessKeyframes();
   bool NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info);
@@ -84,6 +89,8 @@ class SequenceRun {
   std::string BehindMessage() const;
   void Finish();
   engine::Mesh CheckedMesh();
+  engine::Mesh StreamedMesh();
+  const engine::EngineStats& EngineStats() const { return engine_ ? engine_->Stats() : engine_stats_; }
   void WarnAbout(const engine::Mesh& mesh);
   void Warn(const std::string& warning);
   void WriteStreamExports();
@@ -143,6 +150,15 @@ class SequenceRun {
   // Keyframes read to decide the scale (auto mode), given to the engine before the rest.
   std::deque<std::pair<engine::KeyframeUpdate, io::KeyframeInfo>> early_;
   std::optional<engine::Engine> engine_;
+
+  // The surface taken in parts as the engine hands them out (engine.forget or output.tiles:
+  // streamed_surface.h), its tiles, and the spool the single mesh is read back from (in a
+  // staging folder of the output folder: removed on every path).
+  std::optional<TileWriter> tiles_;
+  std::optional<StagingDirectory> spool_dir_;
+  std::optional<StreamedSurface> streamed_;
+  ExportImageStats tile_images_;          // summed over the tiles' exports
+  engine::EngineStats engine_stats_;      // the engine's, kept when it is destroyed early
 
   // The keyframe loop.
   io::CanonicalOrder canonical_;
@@ -292,6 +308,69 @@ void SequenceRun::StartEngine() {
     engine_stage_ = {"engine", "", "engine", options_.stage_timeout, "--stage-timeout"};
 }
 
+// With forgetting or tiles, the surface is taken in parts as the engine hands them out: through
+// the surface stream to the tiles and to a spool for the single mesh (streamed_surface.h).
+void SequenceRun::StartStreamedSurface() {
+  const TilesOptions tiles = TilesOptionsFromJson(v_.tiles);
+  if (!engine_options_.forget && !tiles.enabled) return;  // today's path: ExtractMesh at the end
+  const fs::path out = result_->output_directory;
+  if (tiles.enabled) {
+    const std::string job = fs::absolute(job_.file).lexically_normal().string();
+    if (const std::string foreign = ForeignTiles(out, job, seq_.name); !foreign.empty())
+      throw std::runtime_error("tiles: " + foreign);
+    TilesOptions o = tiles;
+    if (o.size == 0.0) o.size = 10.0 * engine_options_.steiner_spacing;
+    auto frame = [this] {
+      std::vector<std::array<double, 9>> rotations;
+      for (const imr_camera& c : export_context_.keyframes) {
+        std::array<double, 9> r;
+        std::copy(c.R, c.R + 9, r.begin());
+        rotations.push_back(r);
+      }
+      return TilesetFrame(rotations);
+    };
+    try {
+      tiles_.emplace(o, out, json{{"job", JsonText(job)}, {"sequence", JsonText(seq_.name)}}, frame,
+                     [this](const TileMesh& t, const fs::path& dir, const std::string& stem) {
+                       WriteTile(t, dir, stem);
+                     });
+    } catch (const std::exception& e) {
+      throw std::runtime_error(std::string("tiles: ") + e.what());
+    }
+  }
+  fs::path spool;
+  if (!job_.output.formats.empty()) {
+    spool_dir_.emplace(out);
+    spool = spool_dir_->path() / "surface.spool";
+  }
+  streamed_.emplace(engine_options_, spool, tiles_ ? &*tiles_ : nullptr);
+}
+
+// One tile through the job's glb exporter: with the keyframes that may see it (their images for
+// this export only), its vertex keys, origin and 3D Tiles' y-up rotation (SDK 1.2).
+void SequenceRun::WriteTile(const TileMesh& t, const fs::path& dir, const std::string& stem) {
+  watch_.SetPosition("writing tile " + std::to_string(t.index));
+  const ExportContext seeing = KeyframesSeeing(export_context_, t.box, engine_options_.max_ray_length);
+  TileExportExtras extras;
+  extras.vertex_keys = &t.keys;
+  extras.origin = t.origin;
+  extras.gltf_rotation = TileGltfRotation();
+  try {
+    const ExportImageStats s = ExportMesh(t.mesh, seeing, {"glb"}, exporters_, dir, stem, watch_,
+                                          options_.stage_timeout, &extras);
+    tile_images_.keyframes += s.keyframes;
+    tile_images_.store.requests += s.store.requests;
+    tile_images_.store.decodes += s.store.decodes;
+    tile_images_.store.evictions += s.store.evictions;
+    tile_images_.store.peak_bytes = std::max(tile_images_.store.peak_bytes, s.store.peak_bytes);
+    tile_images_.store.decode_seconds += s.store.decode_seconds;
+  } catch (const std::exception& e) {
+    throw std::runtime_error("tile " + std::to_string(t.index) + " (" +
+                             (result_->output_directory / "tiles" / (stem + ".glb")).string() +
+                             "): " + e.what());
+  }
+}
+
 // What runs after every keyframe, in this order (the trace writes the check's time).
 void SequenceRun::AddObservers() {
   if (!options_.export_stream.empty() || !options_.export_colmap.empty()) {
@@ -349,6 +428,10 @@ void SequenceRun::ProcessKeyframes() {
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + ": weight policy " +
                                policy_->error());
     export_context_.Add(update, kf, front_end_);
+    if (streamed_) {
+      watch_.SetPosition("keyframe " + std::to_string(kf.index) + ": the final parts of the surface");
+      streamed_->Take(*engine_);
+    }
     event.keyframes = ++keyframes_;
     for (const auto& observer : observers_) observer->OnKeyframe(event);
   }
@@ -405,7 +488,7 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 // evaluation, the mesh and the report. With the overlap (2 cores or more) the evaluation, which
 // only reads the mesh and the source, runs beside the mesh's export; its error still comes first.
 void SequenceRun::Finish() {
-  const engine::Mesh mesh = CheckedMesh();
+  const engine::Mesh mesh = streamed_ ? StreamedMesh() : CheckedMesh();
   WarnAbout(mesh);
   WriteStreamExports();
   std::future<void> evaluation;
@@ -419,6 +502,7 @@ void SequenceRun::Finish() {
 // The mesh after the last keyframe; throws when dO or the mesh is not what it must be.
 engine::Mesh SequenceRun::CheckedMesh() {
   engine::Mesh mesh = engine_->ExtractMesh();
+  report_.engine_memory = engine_->Memory();
   report_.boundary_check = engine_->CheckInvariants();
   report_.mesh_check = engine::CheckMesh(mesh, /*closed=*/false);
   if (!report_.boundary_check.ok)
@@ -426,6 +510,30 @@ engine::Mesh SequenceRun::CheckedMesh() {
                              std::to_string(keyframes_) + "): " + report_.boundary_check.message);
   if (!report_.mesh_check.ok)
     throw std::runtime_error("exported mesh check failed: " + report_.mesh_check.message);
+  return mesh;
+}
+
+// The streamed surface's end: the engine's last part, the last tiles, dO checked; then the engine
+// goes (its memory with it) before the single mesh is read back from the spool and checked.
+engine::Mesh SequenceRun::StreamedMesh() {
+  watch_.SetPosition("the last part of the surface and its tiles");
+  streamed_->Finish(*engine_);
+  if (tiles_)
+    for (const fs::path& f : tiles_->files()) result_->extra_files.push_back(f);
+  report_.boundary_check = engine_->CheckInvariants();
+  if (!report_.boundary_check.ok)
+    throw std::runtime_error("invariant check failed after the last keyframe (" +
+                             std::to_string(keyframes_) + "): " + report_.boundary_check.message);
+  engine_stats_ = engine_->Stats();
+  report_.engine_memory = engine_->Memory();
+  engine_.reset();
+  engine::Mesh mesh = streamed_->ReadMesh(/*canonical=*/!engine_options_.forget);
+  spool_dir_.reset();
+  if (!job_.output.formats.empty()) {
+    report_.mesh_check = engine::CheckMesh(mesh, /*closed=*/false);
+    if (!report_.mesh_check.ok)
+      throw std::runtime_error("exported mesh check failed: " + report_.mesh_check.message);
+  }
   return mesh;
 }
 
@@ -444,7 +552,7 @@ void SequenceRun::WarnAbout(const engine::Mesh& mesh) {
   if (20 * observations_behind_ > observations_checked_) Warn(BehindMessage());
   // Rays longer than max_ray_length are not cast: most of them skipped usually means the
   // scene is not in metres (or is much larger or smaller than the defaults assume).
-  const engine::EngineStats& stats = engine_->Stats();
+  const engine::EngineStats& stats = EngineStats();
   std::string scale_hint;
   if (stats.rays_skipped_too_long > stats.rays_cast) {
     scale_hint = std::to_string(stats.rays_skipped_too_long) + " of " +
@@ -468,7 +576,9 @@ void SequenceRun::WarnAbout(const engine::Mesh& mesh) {
     }
   }
   if (const std::string w = RefusedPointsWarning(stats, mesh); !w.empty()) Warn(w);
-  if (mesh.faces.empty())
+  const int64_t triangles = streamed_ ? streamed_->stats().stream.triangles_released
+                                      : static_cast<int64_t>(mesh.faces.size() / 3);
+  if (triangles == 0)
     throw std::runtime_error("no surface was reconstructed (0 triangles after " +
                              std::to_string(keyframes_) + " keyframes): nothing to export" +
                              (scale_hint.empty() ? "" : "; " + scale_hint));
@@ -499,6 +609,7 @@ void SequenceRun::WriteStreamExports() {
 // The source's own figures (a known synthetic scene) and, with the job's "evaluation", the
 // figures against its ground truth, which win the "accuracy" key (the summary's column).
 void SequenceRun::EvaluateMesh(const engine::Mesh& mesh) {
+  if (mesh.faces.empty()) return;  // tiles only: no mesh in memory to measure
   report_.accuracy = source_->Evaluate(mesh);
   if (v_.evaluation.is_null()) return;
   const auto start = std::chrono::steady_clock::now();
@@ -535,8 +646,12 @@ void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>
   report_.scale_mode = scale_mode_;
   report_.scale = scale_;
   report_.explicit_keys = explicit_keys_;
-  report_.stats = &engine_->Stats();
-  report_.engine_memory = engine_->Memory();
+  report_.stats = &EngineStats();
+  if (streamed_) report_.streamed = &streamed_->stats();
+  if (tiles_) {
+    report_.tiles = &tiles_->stats();
+    report_.tile_images = tile_images_;
+  }
   report_.peak_rss_bytes = PeakResidentBytes();
   report_.final_rss_bytes = ResidentBytes();
   report_.mesh = &mesh;

@@ -22,6 +22,9 @@
 #ifndef IMR_MODEL_VIEWER_SOURCE
 #define IMR_MODEL_VIEWER_SOURCE ""
 #endif
+#ifndef IMR_TILES_VIEWER_SCRIPT
+#define IMR_TILES_VIEWER_SCRIPT ""
+#endif
 
 namespace imr::report {
 namespace {
@@ -30,6 +33,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr const char* kModelViewerName = "model-viewer-umd.min.js";
+constexpr const char* kTilesViewerName = "imr-tiles-viewer.js";
 
 std::string ReadBytes(const fs::path& path, const std::string& what) {
   std::ifstream in(path, std::ios::binary);
@@ -115,6 +119,7 @@ struct Row {
   json report;         // null when none
   json row;            // the summary row itself
   fs::path mesh;       // the mesh shown in 3D (GLB or glTF), empty when none
+  fs::path tileset;    // its 3D Tiles (output.tiles), empty when none
 };
 
 fs::path Absolute(const fs::path& p, const fs::path& run_dir) {
@@ -177,7 +182,9 @@ Row ReadRow(const json& s, std::size_t index, const fs::path& run_dir, std::vect
       }
     if (!r.mesh.empty()) break;
   }
-  if (r.mesh.empty()) notes->push_back(r.name + ": no .glb or .gltf mesh among its outputs: no 3D view");
+  if (!r.output.empty() && fs::is_regular_file(r.output / "tileset.json")) r.tileset = r.output / "tileset.json";
+  if (r.mesh.empty() && r.tileset.empty())
+    notes->push_back(r.name + ": no .glb or .gltf mesh among its outputs: no 3D view");
   return r;
 }
 
@@ -218,7 +225,8 @@ tr.failed td { background: #fff0f0; }
 .status-bad { color: #b00; font-weight: 600; }
 .error { color: #b00; max-width: 40em; white-space: pre-wrap; }
 #viewer { width: 100%; height: 520px; background: #eef1f4; border: 1px solid #ccc; }
-#viewer-status { color: #555; margin: 0.3em 0; }
+#viewer-status, #tiles-status { color: #555; margin: 0.3em 0; }
+#tiles-viewer { width: 100%; height: 520px; background: #eef1f4; border: 1px solid #ccc; }
 .plots img { max-width: 100%; border: 1px solid #ddd; margin: 0.5em 0; }
 button { cursor: pointer; }
 .note { color: #666; }
@@ -361,6 +369,20 @@ std::string ViewerPageOptions::Check() const {
   if (!model_viewer_script.empty() && !fs::is_regular_file(model_viewer_script))
     return "model_viewer_script " + model_viewer_script.string() + ": no such file";
   return "";
+}
+
+fs::path FindTilesViewerScript() {
+  if (const char* env = std::getenv("IMR_TILES_VIEWER_JS"); env != nullptr && *env != '\0')
+    return fs::is_regular_file(env) ? fs::path(env) : fs::path();
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path beside = exe.parent_path().parent_path() / "share" / "imr" / kTilesViewerName;
+    if (fs::is_regular_file(beside, ec)) return beside;
+  }
+  const fs::path built = IMR_TILES_VIEWER_SCRIPT;
+  if (!built.empty() && fs::is_regular_file(built, ec)) return built;
+  return {};
 }
 
 fs::path FindModelViewerScript() {
@@ -537,6 +559,76 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
     ++result.meshes_viewable;
   }
 
+  // Tiled runs: the tiles view's script, each run's tileset and tiles as scripts.
+  json tilesets = json::array();
+  bool any_tiles = false;
+  for (const Row& r : rows) any_tiles = any_tiles || !r.tileset.empty();
+  fs::path tiles_script;
+  if (any_tiles) {
+    tiles_script = options.tiles_viewer_script.empty() ? FindTilesViewerScript() : options.tiles_viewer_script;
+    if (tiles_script.empty())
+      result.notes.push_back("no view of 3D Tiles: imr-tiles-viewer.js not found (built with node "
+                             "and tools/node's esbuild: tools/setup.sh; or set IMR_TILES_VIEWER_JS)");
+    else {
+      fs::create_directories(assets);
+      WriteFileAtomically(assets / kTilesViewerName, ReadBytes(tiles_script, "the tiles view's script"));
+      result.files.push_back(assets / kTilesViewerName);
+    }
+  }
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Row& r = rows[i];
+    if (tiles_script.empty() || r.tileset.empty()) {
+      tilesets.push_back(nullptr);
+      continue;
+    }
+    try {
+      const std::string text = ReadBytes(r.tileset, "a tileset");
+      const json ts = json::parse(text);
+      std::vector<std::string> uris;
+      std::vector<const json*> todo = {&ts.at("root")};
+      while (!todo.empty()) {
+        const json* t = todo.back();
+        todo.pop_back();
+        if (t->contains("content")) uris.push_back(t->at("content").at("uri").get<std::string>());
+        if (t->contains("children"))
+          for (const json& c : t->at("children")) todo.push_back(&c);
+      }
+      std::uintmax_t bytes = 0;
+      for (const std::string& u : uris) {
+        // Only imr's tile names, inside the run's tiles/ folder: the tileset is read, not trusted.
+        const std::string name = u.rfind("tiles/", 0) == 0 ? u.substr(6) : "";
+        if (name.size() != 15 || name.rfind("tile_", 0) != 0 || name.substr(11) != ".glb" ||
+            name.substr(5, 6).find_first_not_of("0123456789") != std::string::npos)
+          throw std::runtime_error(r.tileset.string() + ": content uri '" + JsonText(u) + "' is not a tile of imr");
+        bytes += fs::file_size(r.output / u);
+      }
+      if (bytes > options.max_tiles_bytes) {
+        result.notes.push_back(r.name + ": no view of its tiles: " + std::to_string(bytes >> 20) +
+                               " MiB of tiles, more than max_tiles_bytes");
+        tilesets.push_back(nullptr);
+        continue;
+      }
+      const fs::path dir = assets / "tiles" / std::to_string(i);
+      fs::create_directories(dir);
+      auto put = [&](const std::string& path, const std::string& name, const std::string& data) {
+        WriteFileAtomically(dir / (name + ".js"), "imrTileData(" + std::to_string(i) + "," + DumpJson(json(path)) +
+                                                      ",\"" + Base64Encode(data) + "\");\n");
+        result.files.push_back(dir / (name + ".js"));
+      };
+      put("tileset.json", "tileset", text);
+      for (const std::string& u : uris)
+        put(u, u.substr(6, 11), ReadBytes(r.output / u, "a tile"));
+      tilesets.push_back({{"name", r.name},
+                          {"scripts", UrlPath(dir.lexically_relative(run_dir))},
+                          {"tiles", uris.size()},
+                          {"triangles", At(r.report, "/tiles/triangles").is_null() ? json("?") : At(r.report, "/tiles/triangles")}});
+      ++result.tilesets_viewable;
+    } catch (const std::exception& e) {
+      result.notes.push_back(r.name + ": no view of its tiles: " + e.what());
+      tilesets.push_back(nullptr);
+    }
+  }
+
   // Plots.
   std::vector<fs::path> plots;
   if (!options.plots.empty()) {
@@ -600,11 +692,13 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
     if (!r.output.empty() && fs::is_regular_file(r.output / "report.json"))
       links.emplace_back("report", r.output / "report.json");
     if (!r.mesh.empty()) links.emplace_back(r.mesh.extension().string().substr(1), r.mesh);
+    if (!r.tileset.empty()) links.emplace_back("tileset", r.tileset);
     for (std::size_t k = 0; k < links.size(); ++k)
       h << (k ? " " : "") << "<a href=\"" << HtmlEscape(UrlPath(links[k].second.lexically_relative(run_dir)))
         << "\">" << HtmlEscape(links[k].first) << "</a>";
     h << "</td><td>";
     if (!meshes[i].is_null()) h << "<button data-mesh=\"" << i << "\">view</button>";
+    if (!tilesets[i].is_null()) h << " <button data-tiles=\"" << i << "\">tiles</button>";
     h << "</td></tr>\n";
   }
   h << "</tbody>\n</table>\n";
@@ -616,6 +710,8 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
          "shadow-intensity=\"0\" exposure=\"1.1\" alt=\"the selected sequence's mesh\">"
          "</model-viewer>\n";
   }
+  if (result.tilesets_viewable > 0)
+    h << "<h2>Tiles</h2>\n<p id=\"tiles-status\">Loading ...</p>\n<div id=\"tiles-viewer\"></div>\n";
   if (!plots.empty()) {
     h << "<h2>Plots</h2>\n<div class=\"plots\">\n";
     for (const fs::path& p : plots) {
@@ -635,7 +731,15 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
   for (std::size_t pos = 0; (pos = meshes_json.find("</", pos)) != std::string::npos; pos += 3)
     meshes_json.replace(pos, 2, "<\\/");
   h << "<script type=\"application/json\" id=\"imr-meshes\">" << meshes_json << "</script>\n"
-    << "<script>" << kScript << "</script>\n</body>\n</html>\n";
+    << "<script>" << kScript << "</script>\n";
+  if (result.tilesets_viewable > 0) {
+    std::string tiles_json = DumpJson(tilesets);
+    for (std::size_t pos = 0; (pos = tiles_json.find("</", pos)) != std::string::npos; pos += 3)
+      tiles_json.replace(pos, 2, "<\\/");
+    h << "<script type=\"application/json\" id=\"imr-tiles\">" << tiles_json << "</script>\n"
+      << "<script src=\"assets/" << kTilesViewerName << "\"></script>\n";
+  }
+  h << "</body>\n</html>\n";
   WriteFileAtomically(result.page, h.str());
   result.files.push_back(result.page);
   return result;

@@ -12,8 +12,15 @@
 // are; the page also links them. imr's glTF meshes stand upright (their root node's rotation,
 // +Y up), so the view opens looking the way the cameras looked.
 //
+// A run with 3D Tiles (output.tiles: tileset.json in its output folder) is shown as tiles too,
+// with NASA-AMMOS' 3d-tiles-renderer on three.js (tiles_viewer.js, bundled at build time into
+// imr-tiles-viewer.js, copied into RUN_DIR/assets/): its tileset.json and tiles are written as
+// scripts, assets/tiles/<n>/{tileset,tile_NNNNNN}.js, which the view loads when the renderer
+// asks for a tile (tiles out of view are never loaded); nothing is fetched from the network.
+//
 // Written files (each atomically; index.html last): RUN_DIR/index.html,
-// RUN_DIR/assets/model-viewer-umd.min.js, RUN_DIR/assets/meshes/<n>.js.
+// RUN_DIR/assets/model-viewer-umd.min.js, RUN_DIR/assets/meshes/<n>.js, and for tiled runs
+// RUN_DIR/assets/imr-tiles-viewer.js and RUN_DIR/assets/tiles/<n>/*.js.
 //
 // The `summary` it reads (what `imr run` / `imr report` hand over):
 //
@@ -64,6 +71,11 @@ struct ViewerPageOptions {
   std::vector<std::filesystem::path> plots;
   // Meshes (GLB bytes) larger than this are linked but not embedded for the 3D view.
   std::uintmax_t max_mesh_bytes = std::uintmax_t{128} << 20;
+  // The tiles view's script (imr-tiles-viewer.js: 3d-tiles-renderer bundled at build time).
+  // Empty: FindTilesViewerScript(); when none is found, tiled runs are listed without it.
+  std::filesystem::path tiles_viewer_script;
+  // A run's tiles (all of them, bytes) above this are linked but not embedded for the view.
+  std::uintmax_t max_tiles_bytes = std::uintmax_t{256} << 20;
 
   // Empty when usable, else which field and why.
   std::string Check() const;
@@ -73,6 +85,7 @@ struct ViewerPageResult {
   std::filesystem::path page;                // RUN_DIR/index.html
   std::vector<std::filesystem::path> files;  // everything written, the page last
   int meshes_viewable = 0;                   // sequences with a 3D view
+  int tilesets_viewable = 0;                 // sequences with a view of their 3D Tiles
   std::vector<std::string> notes;            // what is missing and why (no model-viewer, a mesh
                                              // too large, a report that could not be read, ...)
 };
@@ -83,6 +96,10 @@ struct ViewerPageResult {
 ViewerPageResult WriteBatchPage(const std::filesystem::path& run_dir,
                                 const nlohmann::json& summary,
                                 const ViewerPageOptions& options = {});
+
+// Where the tiles view's script is: $IMR_TILES_VIEWER_JS if set; else <executable's
+// folder>/../share/imr/imr-tiles-viewer.js (the build tree and an install). Empty when none.
+std::filesystem::path FindTilesViewerScript();
 
 // Where <model-viewer>'s UMD build is: $IMR_MODEL_VIEWER_JS if set; else
 // <executable's folder>/../share/imr/model-viewer-umd.min.js (an install); else the copy

@@ -90,6 +90,55 @@ class ViewerPage : public ::testing::Test {
   ViewerPageOptions options_;
 };
 
+// A tiled run (issue 32): its tileset and each tile as scripts for the tiles view, a button and
+// a link; a tileset naming a file outside tiles/ is not followed; without the view's script the
+// page says so.
+TEST_F(ViewerPage, TiledRunGetsTheTilesView) {
+  Write("tv/imr-tiles-viewer.js", "/* tiles view stand-in */");
+  options_.tiles_viewer_script = dir_ / "tv" / "imr-tiles-viewer.js";
+  const json tileset = {{"asset", {{"version", "1.1"}}},
+                        {"geometricError", 10},
+                        {"root", {{"geometricError", 10}, {"refine", "ADD"},
+                                  {"children", {{{"content", {{"uri", "tiles/tile_000001.glb"}}}},
+                                                {{"content", {{"uri", "tiles/tile_000002.glb"}}}}}}}}};
+  Write("run/street/tileset.json", tileset.dump());
+  Write("run/street/tiles/tile_000001.glb", TetraGlb());
+  Write("run/street/tiles/tile_000002.glb", TetraGlb());
+  const json summary = {{"sequences", {{{"name", "street"}, {"ok", true}, {"output_directory", "street"},
+                                        {"report", {{"tiles", {{"triangles", 8}}}}}}}}};
+  ViewerPageResult r = WriteBatchPage(dir_ / "run", summary, options_);
+  EXPECT_EQ(r.tilesets_viewable, 1);
+  EXPECT_EQ(r.meshes_viewable, 0);
+  EXPECT_TRUE(r.notes.empty()) << r.notes.front();  // tiles only: no note about a missing mesh
+  const std::string html = Read(r.page);
+  EXPECT_NE(html.find("<button data-tiles=\"0\">tiles</button>"), std::string::npos) << html;
+  EXPECT_NE(html.find("<a href=\"street/tileset.json\">tileset</a>"), std::string::npos);
+  EXPECT_NE(html.find("<div id=\"tiles-viewer\"></div>"), std::string::npos);
+  EXPECT_NE(html.find("\"scripts\":\"assets/tiles/0\""), std::string::npos);
+  EXPECT_NE(html.find("<script src=\"assets/imr-tiles-viewer.js\"></script>"), std::string::npos);
+  EXPECT_EQ(Read(dir_ / "run/assets/imr-tiles-viewer.js"), "/* tiles view stand-in */");
+  EXPECT_EQ(Read(dir_ / "run/assets/tiles/0/tileset.js").rfind("imrTileData(0,\"tileset.json\",\"", 0), 0u);
+  const std::string tile = Read(dir_ / "run/assets/tiles/0/tile_000002.js");
+  EXPECT_EQ(tile.rfind("imrTileData(0,\"tiles/tile_000002.glb\",\"", 0), 0u) << tile.substr(0, 60);
+  // A tileset that names a file outside tiles/ is not followed.
+  json outside = tileset;
+  outside["root"]["children"][1]["content"]["uri"] = "../../etc/passwd";
+  Write("run/street/tileset.json", outside.dump());
+  r = WriteBatchPage(dir_ / "run", summary, options_);
+  EXPECT_EQ(r.tilesets_viewable, 0);
+  ASSERT_EQ(r.notes.size(), 1u);
+  EXPECT_NE(r.notes[0].find("is not a tile of imr"), std::string::npos) << r.notes[0];
+  // No script for the view: said, and the page is still written.
+  Write("run/street/tileset.json", tileset.dump());
+  options_.tiles_viewer_script.clear();
+  ::setenv("IMR_TILES_VIEWER_JS", (dir_ / "missing.js").c_str(), 1);
+  r = WriteBatchPage(dir_ / "run", summary, options_);
+  ::unsetenv("IMR_TILES_VIEWER_JS");
+  EXPECT_EQ(r.tilesets_viewable, 0);
+  ASSERT_FALSE(r.notes.empty());
+  EXPECT_NE(r.notes[0].find("imr-tiles-viewer.js not found"), std::string::npos) << r.notes[0];
+}
+
 TEST_F(ViewerPage, SequenceResultSummaryGivesTableMeshScriptsAndPlots) {
   const fs::path glb = Write("run/street/mesh.glb", TetraGlb());
   Write("run/street/report.json", "{}");

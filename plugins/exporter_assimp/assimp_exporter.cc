@@ -43,6 +43,9 @@ namespace fs = std::filesystem;
 using imr::exporter_assimp::AtlasPage;
 using imr::exporter_assimp::ColorAndTexture;
 using imr::exporter_assimp::ConvertGltfPointIds;
+using imr::exporter_assimp::ConvertGltfVertexKeys;
+using imr::exporter_assimp::EncodeVertexKey;
+using imr::exporter_assimp::kMaxVertexKey;
 using imr::exporter_assimp::AddPlyOrigin;
 using imr::exporter_assimp::EditGltf;
 using imr::exporter_assimp::ExportOrigin;
@@ -188,6 +191,10 @@ void CheckMesh(const imr::sdk::MeshView& mesh, const Format& format, bool check_
                             std::to_string(t[0]) + ", " + std::to_string(t[1]) + ", " +
                             std::to_string(t[2]) + ")");
   }
+  for (std::size_t i = 0; i < mesh.vertex_keys.size(); ++i)
+    if (mesh.vertex_keys[i] < 0 || mesh.vertex_keys[i] > kMaxVertexKey)
+      throw InvalidArgument("vertex key of vertex " + std::to_string(i) + " is " +
+                            std::to_string(mesh.vertex_keys[i]) + ": expected 0 .. 2^48 - 1");
   if (check_point_ids) {
     for (std::size_t i = 0; i < mesh.point_ids.size(); ++i) {
       const int64_t id = mesh.point_ids[i];
@@ -216,7 +223,7 @@ struct Part {
 };
 
 aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& normals,
-                  const Part& part, const Appearance& look, bool with_point_ids,
+                  const Part& part, const Appearance& look, bool with_point_ids, bool with_keys,
                   const std::string& name, unsigned material,
                   const std::array<double, 3>& origin) {
   const TexturedMesh* tex = part.page >= 0 ? look.texture : nullptr;
@@ -271,6 +278,22 @@ aiMesh* BuildPart(const imr::sdk::MeshView& mesh, const std::vector<double>& nor
       const EncodedPointId e = EncodePointId(mesh.point_ids[source[i]]);
       m->mTextureCoords[channel][i] = aiVector3D(e.hi, e.lo, 0);
     }
+    ++channel;
+  }
+  if (with_keys) {  // behind the point ids (ConvertGltfVertexKeys): also keeps split copies apart
+    m->mNumUVComponents[channel] = 2;
+    m->mTextureCoords[channel] = new aiVector3D[nv];
+    for (unsigned i = 0; i < nv; ++i) {
+      const auto e = EncodeVertexKey(mesh.vertex_keys[source[i]]);
+      m->mTextureCoords[channel][i] = aiVector3D(e.hi, e.lo, 0);
+    }
+  }
+  if (with_keys) {
+    // assimp's JoinIdenticalVertices compares texture channel 0 only (assimp 5.2: the copies of
+    // a pinched vertex, one position and one point id, became one vertex whatever their keys).
+    // Its third component is compared and not written: each vertex's own number there keeps
+    // every vertex of the mesh apart.
+    for (unsigned i = 0; i < nv; ++i) m->mTextureCoords[0][i].z = static_cast<ai_real>(i);
   }
   if (look.vertex_rgb != nullptr && !tex) {
     m->mColors[0] = new aiColor4D[nv];
@@ -371,7 +394,7 @@ ObjMesh ObjOf(const imr::sdk::MeshView& mesh, const std::vector<double>& normals
 // A complete scene: one root node holding one mesh per atlas page (with its textured material)
 // and one for the faces without texture (vertex colours, or the plain grey material).
 std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::string& name,
-                                    bool with_point_ids, const Appearance& look,
+                                    bool with_point_ids, bool with_keys, const Appearance& look,
                                     const std::array<double, 3>& origin) {
   auto scene = std::make_unique<aiScene>();
   const std::vector<double> normals = VertexNormals(mesh);
@@ -384,7 +407,8 @@ std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::s
     materials.push_back(Material(MaterialName(part), textured || look.vertex_rgb != nullptr,
                                  textured ? look.page_paths[static_cast<std::size_t>(part.page)] : ""));
     const std::string mesh_name = PartName(name, part, parts.size());
-    meshes.push_back(BuildPart(mesh, normals, part, look, with_point_ids, mesh_name, material, origin));
+    meshes.push_back(BuildPart(mesh, normals, part, look, with_point_ids, with_keys, mesh_name,
+                               material, origin));
   }
   scene->mNumMaterials = static_cast<unsigned>(materials.size());
   scene->mMaterials = new aiMaterial*[materials.size()];
@@ -444,7 +468,7 @@ uint64_t Hash(uint64_t h, const void* data, std::size_t bytes) {
 class AssimpExporter : public imr::sdk::Exporter {
  public:
   static constexpr const char* kId = "org.imr.exporter.assimp";
-  static constexpr const char* kVersion = "1.1.0";
+  static constexpr const char* kVersion = "1.2.0";
   static constexpr const char* kDescription =
       "Mesh files through assimp: OBJ, binary PLY, glTF 2.0, GLB; normals in all, point ids in "
       "PLY and glTF/GLB, colours and a texture atlas from the keyframe images, glTF upright";
@@ -529,10 +553,14 @@ class AssimpExporter : public imr::sdk::Exporter {
                   (look.texture ? ", " + std::to_string(tm->pages.size()) + " atlas page(s)" : ""));
       return;
     }
-    // Vertices relative to a local origin (0 near the origin: point_id_channel.hpp).
-    const std::array<double, 3> origin = ExportOrigin(mesh.vertices.data(), mesh.vertex_count());
+    // Vertices relative to a local origin: the host's (tiles), else 0 near the origin
+    // (point_id_channel.hpp).
+    const std::array<double, 3> origin =
+        request.origin ? *request.origin : ExportOrigin(mesh.vertices.data(), mesh.vertex_count());
     const bool shifted = origin != std::array<double, 3>{};
-    std::unique_ptr<aiScene> scene = BuildScene(mesh, stem, write_ids, look, origin);
+    const bool gltf = f.max_point_id == kMaxGltfPointId;
+    const bool write_keys = gltf && !mesh.vertex_keys.empty();
+    std::unique_ptr<aiScene> scene = BuildScene(mesh, stem, write_ids, write_keys, look, origin);
     if (look.texture != nullptr && std::string(f.name) == "glb") {
       scene->mNumTextures = static_cast<unsigned>(tm->pages.size());
       scene->mTextures = new aiTexture*[scene->mNumTextures];
@@ -560,29 +588,40 @@ class AssimpExporter : public imr::sdk::Exporter {
                                  "): " + exporter.GetErrorString());
     }
     scene.reset();
+    // The root's rotation: the host's (3D Tiles: z-up to y-up), else upright from the cameras.
     double rotation[9];
-    const bool upright = upright_ && f.max_point_id == kMaxGltfPointId &&
-                         UprightRotation(request.keyframes, rotation);
+    const bool given = gltf && request.gltf_rotation.has_value();
+    if (given) std::copy(request.gltf_rotation->begin(), request.gltf_rotation->end(), rotation);
+    const bool upright = gltf && (given || (upright_ && UprightRotation(request.keyframes, rotation)));
     if (std::string(f.name) == "ply") {
       if (write_ids || look.vertex_rgb != nullptr) RewritePly(path, write_ids);
       if (shifted) AddPlyOrigin(path, origin);
-    } else if (write_ids || upright || shifted) {
+    } else if (write_ids || write_keys || upright || shifted) {
       EditGltf(path, std::string(f.name) == "glb", [&](GltfDocument& g) {
+        if (write_keys) ConvertGltfVertexKeys(g);
         if (write_ids) ConvertGltfPointIds(g);
         if (shifted) SetGltfOrigin(g, origin);
         if (upright) {
           // A viewer's natural start: from the first keyframe, toward one a few keyframes on.
           const auto& k = request.keyframes;
           double from[3], to[3];
-          CameraCenter(k.front(), from);
-          CameraCenter(k[std::min<std::size_t>(k.size() - 1, 4)], to);
-          SetUprightNode(g, rotation, from, to);
+          if (!k.empty()) {
+            CameraCenter(k.front(), from);
+            CameraCenter(k[std::min<std::size_t>(k.size() - 1, 4)], to);
+          }
+          SetUprightNode(g, rotation, k.empty() ? nullptr : from, k.empty() ? nullptr : to,
+                         given ? "this node's rotation is the one the host asked for (3D Tiles "
+                                 "content: the tileset's z-up frame to glTF's +Y up)"
+                               : "this node's rotation takes the sequence's world frame (the vertex "
+                                 "data's) to glTF's +Y up: the keyframe cameras' mean up is +Y, "
+                                 "their mean viewing direction -Z");
         }
       });
     }
     host_.Debug("wrote " + path.string() + ": " + std::to_string(mesh.vertex_count()) +
                 " vertices, " + std::to_string(mesh.face_count()) + " triangles" +
-                (write_ids ? ", point ids" : "") + (look.vertex_rgb ? ", vertex colours" : "") +
+                (write_ids ? ", point ids" : "") + (write_keys ? ", vertex keys" : "") +
+                (look.vertex_rgb ? ", vertex colours" : "") +
                 (look.texture ? ", " + std::to_string(tm->pages.size()) + " atlas page(s)" : "") +
                 (upright ? ", upright" : "") +
                 (shifted ? ", relative to the origin " + std::to_string(origin[0]) + " " +

@@ -304,8 +304,8 @@ TEST_F(AssimpExporter, DescriptorDeclaresFormatsAndParams) {
   EXPECT_EQ(imr::sdk::CheckDescriptor(descriptor_), "");
   EXPECT_EQ(descriptor_->kind, IMR_KIND_EXPORTER);
   EXPECT_STREQ(descriptor_->id, kId);
-  EXPECT_STREQ(descriptor_->version, "1.1.0");
-  EXPECT_EQ(descriptor_->abi_minor, 1);
+  EXPECT_STREQ(descriptor_->version, "1.2.0");
+  EXPECT_EQ(descriptor_->abi_minor, 2);
   EXPECT_STREQ(descriptor_->exporter->formats, "obj,ply,gltf,glb");
   const json schema = json::parse(descriptor_->params_schema);
   ASSERT_TRUE(schema.contains("point_ids"));
@@ -501,6 +501,76 @@ TEST_F(AssimpExporter, GltfAndGlbPassTheKhronosValidatorAndKeepPointIds) {
     }
   }
   EXPECT_TRUE(fs::exists(dir_ / "mesh.bin"));  // the .gltf's companion
+}
+
+// SDK 1.2, what the host asks of 3D Tiles content: every vertex's key as `_VERTEX_KEY` (two
+// vertices at one position with one point id, a pinched vertex's copies, stay two), vertices
+// relative to the host's origin, the host's root rotation.
+TEST_F(AssimpExporter, TileContentKeepsVertexKeysOriginAndRotation) {
+  TestMesh m;
+  m.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, -1, 0, 0, 0, -1, 0};
+  for (double& x : m.vertices) x += 1000.25;
+  m.faces = {0, 1, 2, 3, 4, 5};
+  m.ids = {5, 6, 7, 5, 8, 9};
+  const std::vector<int64_t> keys = {10, 11, (int64_t{1} << 48) - 1, (int64_t{1} << 40) + 3, 16777216, 0};
+  const std::array<double, 3> origin = {1000, 1000, 1000};
+  const double rotation[9] = {1, 0, 0, 0, 0, 1, 0, -1, 0};
+  auto export_tile = [&](const std::vector<int64_t>& k, const std::string& format) {
+    imr::sdk::Instance inst(descriptor_, "{}", nullptr);
+    imr_mesh_view view = m.View();
+    view.vertex_keys = k.data();
+    const std::string d = dir_.string();
+    imr_export_request req{};
+    req.mesh = &view;
+    req.directory = d.c_str();
+    req.stem = "tile";
+    req.format = format.c_str();
+    req.origin = origin.data();
+    req.gltf_rotation = rotation;
+    inst.ExportMesh(&req);
+    return dir_ / ("tile." + format);
+  };
+  const fs::path file = export_tile(keys, "glb");
+  ExpectValid(file);
+  const Gltf g = LoadGltf(file);
+  const json& attrs = g.doc["meshes"][0]["primitives"][0]["attributes"];
+  ASSERT_TRUE(attrs.contains("_VERTEX_KEY")) << attrs.dump();
+  EXPECT_TRUE(attrs.contains("_POINT_ID"));
+  EXPECT_FALSE(attrs.contains("TEXCOORD_0")) << attrs.dump();
+  const json& a = g.doc["accessors"][attrs["_VERTEX_KEY"].get<std::size_t>()];
+  EXPECT_EQ(a["type"], "VEC2");
+  EXPECT_EQ(a["componentType"], 5126);
+  const auto pos = AccessorFloats(g, attrs["POSITION"].get<std::size_t>());
+  const auto key = AccessorFloats(g, attrs["_VERTEX_KEY"].get<std::size_t>());
+  ASSERT_EQ(pos.size(), 18u);  // six vertices: the two at (0, 0, 0) are kept apart
+  std::map<int64_t, std::size_t> seen;
+  for (std::size_t i = 0; i < 6; ++i) {
+    const int64_t k = static_cast<int64_t>(key[2 * i]) * 16777216 + static_cast<int64_t>(key[2 * i + 1]);
+    const auto at = std::find(keys.begin(), keys.end(), k);
+    ASSERT_NE(at, keys.end()) << k;
+    const std::size_t v = static_cast<std::size_t>(at - keys.begin());
+    seen[k] = v;
+    for (int c = 0; c < 3; ++c) EXPECT_DOUBLE_EQ(pos[3 * i + c] + origin[c], m.vertices[3 * v + c]);
+  }
+  EXPECT_EQ(seen.size(), 6u);
+  // The host's rotation at the root (column-major), the origin on the node of the mesh.
+  const json& root = g.doc["nodes"][g.doc["scenes"][0]["nodes"][0].get<std::size_t>()];
+  EXPECT_EQ(root["name"], "imr_upright");
+  EXPECT_EQ(root["matrix"], json({1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1}));
+  const json& child = g.doc["nodes"][root["children"][0].get<std::size_t>()];
+  EXPECT_EQ(child["translation"], json({1000.0, 1000.0, 1000.0}));
+  // PLY has no place for keys: written without them. A key beyond 48 bits is refused.
+  const PlyVertices ply = ReadPly(export_tile(keys, "ply"));
+  EXPECT_EQ(ply.count, 6u);
+  std::vector<int64_t> bad = keys;
+  bad[1] = int64_t{1} << 48;
+  try {
+    export_tile(bad, "glb");
+    ADD_FAILURE() << "a 49-bit key was accepted";
+  } catch (const imr::sdk::PluginCallError& e) {
+    EXPECT_EQ(e.status(), IMR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(e.what()).find("vertex key of vertex 1"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(AssimpExporter, PointIdsOffOrAbsentWritesNoIdAttribute) {

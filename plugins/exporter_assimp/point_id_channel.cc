@@ -83,6 +83,11 @@ bool DecodePointId(double hi, double lo, int64_t* id) {
   return *id >= kMinPointId && *id <= kMaxPointId;
 }
 
+EncodedVertexKey EncodeVertexKey(int64_t key) {
+  const auto v = static_cast<uint64_t>(key);
+  return {static_cast<float>(v >> 24), static_cast<float>(v & 0xFFFFFFu)};
+}
+
 void RewritePly(const fs::path& ply, bool point_ids) {
   const Bytes in = ReadFile(ply);
   static const std::string kEnd = "end_header\n";
@@ -355,8 +360,56 @@ void ConvertGltfPointIds(GltfDocument& g) {
   }
 }
 
+void ConvertGltfVertexKeys(GltfDocument& g) {
+  using nlohmann::json;
+  const fs::path& file = g.file;
+  json& accessors = g.doc["accessors"];
+  json& views = g.doc["bufferViews"];
+  for (json& mesh : g.doc["meshes"]) {
+    for (json& primitive : mesh["primitives"]) {
+      json& attributes = primitive["attributes"];
+      std::string channel;  // the highest-numbered TEXCOORD_n
+      for (int n = 7; n >= 0 && channel.empty(); --n)
+        if (attributes.contains("TEXCOORD_" + std::to_string(n))) channel = "TEXCOORD_" + std::to_string(n);
+      if (channel.empty()) Fail(file, "a primitive has no vertex-key channel");
+      const auto a = attributes[channel].get<std::size_t>();
+      json& accessor = accessors.at(a);
+      if (accessor.value("componentType", 0) != kFloat || accessor.value("type", "") != "VEC2")
+        Fail(file, channel + " is not FLOAT VEC2");
+      const json& view = views.at(accessor.at("bufferView").get<std::size_t>());
+      const auto count = accessor.at("count").get<std::size_t>();
+      const auto stride = view.value("byteStride", std::size_t{8});
+      const auto view_at = view.value("byteOffset", std::size_t{0});
+      const auto first = view_at + accessor.value("byteOffset", std::size_t{0});
+      if (count == 0 || first + (count - 1) * stride + 8 > view_at + view.at("byteLength").get<std::size_t>() ||
+          view_at + view.at("byteLength").get<std::size_t>() > g.buffer.size())
+        Fail(file, channel + " outside its buffer");
+      float lo[2] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max()};
+      float hi[2] = {-lo[0], -lo[0]};
+      for (std::size_t i = 0; i < count; ++i) {
+        uint8_t* p = g.buffer.data() + first + i * stride;
+        // assimp's glTF exporter flips texture v (v' = 1 - v); exact for |v| <= 2^24.
+        const double y = 1.0 - static_cast<double>(Load<float>(p + 4));
+        const double x = Load<float>(p);
+        if (!(x >= 0 && x < 16777216.0 && y >= 0 && y < 16777216.0) || x != std::floor(x) || y != std::floor(y))
+          Fail(file, "vertex " + std::to_string(i) + " does not carry a vertex key");
+        const float xy[2] = {static_cast<float>(x), static_cast<float>(y)};
+        Store<float>(p + 4, xy[1]);
+        for (int k = 0; k < 2; ++k) {
+          lo[k] = std::min(lo[k], xy[k]);
+          hi[k] = std::max(hi[k], xy[k]);
+        }
+      }
+      accessor["min"] = json::array({lo[0], lo[1]});
+      accessor["max"] = json::array({hi[0], hi[1]});
+      attributes.erase(channel);
+      attributes["_VERTEX_KEY"] = a;
+    }
+  }
+}
+
 void SetUprightNode(GltfDocument& g, const double rotation[9], const double view_from[3],
-                    const double view_to[3]) {
+                    const double view_to[3], const std::string& about) {
   using nlohmann::json;
   json& doc = g.doc;
   const auto scene = doc.value("scene", std::size_t{0});
@@ -376,13 +429,11 @@ void SetUprightNode(GltfDocument& g, const double rotation[9], const double view
       {"name", "imr_upright"},
       {"children", roots},
       {"matrix", matrix},
-      {"extras",
-       {{"imr_upright",
-         {{"about",
-           "this node's rotation takes the sequence's world frame (the vertex data's) to glTF's "
-           "+Y up: the keyframe cameras' mean up is +Y, their mean viewing direction -Z"},
-          {"view_from", rotated(view_from)},
-          {"view_to", rotated(view_to)}}}}}};
+      {"extras", {{"imr_upright", {{"about", about}}}}}};
+  if (view_from != nullptr && view_to != nullptr) {
+    node["extras"]["imr_upright"]["view_from"] = rotated(view_from);
+    node["extras"]["imr_upright"]["view_to"] = rotated(view_to);
+  }
   doc["nodes"].push_back(node);
   roots = json::array({doc["nodes"].size() - 1});
 }

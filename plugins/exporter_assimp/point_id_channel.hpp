@@ -13,6 +13,7 @@
 #include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <string>
 #include <vector>
 
 namespace imr::exporter_assimp {
@@ -34,6 +35,15 @@ EncodedPointId EncodePointId(int64_t id);
 // Inverse of EncodePointId; false when (hi, lo) is not an encoding (never happens unless a
 // writer changed the channel).
 bool DecodePointId(double hi, double lo, int64_t* id);
+
+// Vertex keys (SDK 1.2, tiles): 0 .. 2^48 - 1, split into 24-bit halves (exact in float), which
+// is also how `_VERTEX_KEY` (VEC2 FLOAT) holds them: key = x * 2^24 + y.
+constexpr int64_t kMaxVertexKey = (int64_t{1} << 48) - 1;
+struct EncodedVertexKey {
+  float hi;
+  float lo;
+};
+EncodedVertexKey EncodeVertexKey(int64_t key);
 
 // Rewrite a binary little-endian PLY written by assimp: with `point_ids`, the float properties
 // `s t` become `int point_id`; vertex colours become `uchar red green blue` (assimp 5.2 declares
@@ -60,13 +70,18 @@ void EditGltf(const std::filesystem::path& file, bool binary,
 // exceed kMaxGltfPointId), and the freed bytes are removed from the buffer.
 void ConvertGltfPointIds(GltfDocument& gltf);
 
+// The vertex-key channel (the last texture channel, behind the point ids: ConvertGltfPointIds
+// after this) becomes `_VERTEX_KEY` (VEC2 FLOAT, key = x * 2^24 + y) in place.
+void ConvertGltfVertexKeys(GltfDocument& gltf);
+
 // Puts the scene's root nodes under a new root node "imr_upright" whose matrix is `rotation`
 // (row-major 3x3, world -> glTF), marked with extras {"imr_upright": {...}} so that imr's own
 // readers can read the vertices in the sequence's frame. `view_from` and `view_to` (world
-// coordinates: the first keyframe's centre and one a few keyframes on) are recorded there in
-// glTF coordinates, for viewers that want to open at the start of the camera path.
+// coordinates: the first keyframe's centre and one a few keyframes on; both may be null) are
+// recorded there in glTF coordinates, for viewers that want to open at the start of the camera
+// path. `about` says where the rotation comes from.
 void SetUprightNode(GltfDocument& gltf, const double rotation[9], const double view_from[3],
-                    const double view_to[3]);
+                    const double view_to[3], const std::string& about);
 
 // Geo-referenced coordinates (UTM-sized) lose centimetres in float32, which assimp writes: PLY
 // and glTF/GLB vertices are written relative to a local origin. ExportOrigin: 0 when every

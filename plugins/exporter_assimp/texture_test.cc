@@ -135,7 +135,7 @@ struct KnownScene {
   }
 
   imr::sdk::MeshView View() const {
-    return {{vertices.data(), vertices.size()}, {faces.data(), faces.size()}, {ids.data(), ids.size()}, {}};
+    return {{vertices.data(), vertices.size()}, {faces.data(), faces.size()}, {ids.data(), ids.size()}, {}, {}};
   }
   Vec3 Vertex(std::size_t i) const { return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]}; }
   Vec3 Centroid(std::size_t f) const {
@@ -313,7 +313,7 @@ TEST(Texturing, SmoothnessTermJoinsViewsOfEqualQuality) {
       const auto a = static_cast<uint32_t>(j * (n + 1) + i);
       faces.insert(faces.end(), {a, a + 1, a + n + 2, a, a + n + 2, a + n + 1});
     }
-  const imr::sdk::MeshView mesh{{vertices.data(), vertices.size()}, {faces.data(), faces.size()}, {}, {}};
+  const imr::sdk::MeshView mesh{{vertices.data(), vertices.size()}, {faces.data(), faces.size()}, {}, {}, {}};
   uint32_t noise = 12345;
   auto jitter = [&] {
     noise = noise * 1664525u + 1013904223u;

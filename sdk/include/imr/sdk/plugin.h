@@ -88,7 +88,7 @@ extern "C" {
  * or newer than its own) and reads only the fields their struct_size covers, and a plugin does
  * the same with what the host passes. */
 #define IMR_ABI_MAJOR 1
-#define IMR_ABI_MINOR 1
+#define IMR_ABI_MINOR 2
 
 #define IMR_ENTRY_SYMBOL "imr_plugin_entry"
 
@@ -236,6 +236,13 @@ typedef struct imr_mesh_view { /* growing; filled by the host */
   /* 3 * vertex_count bytes, red green blue per vertex: the colours of the 3D points as the input
    * gave them (e.g. COLMAP points3D), grey for Steiner points; NULL when the input has none. */
   const uint8_t* vertex_colors;
+  /* --- since ABI 1.2: read only when struct_size covers it --- */
+  /* vertex_count keys, each in 0 .. 2^48 - 1, that name the vertices across the files of one run:
+   * the 3D Tiles tiles of a sequence share the vertices of their seams, and a key is the same
+   * vertex (same position) in every tile that has it, so tiles merge without duplicates. A glTF
+   * or GLB exporter writes them as the attribute `_VERTEX_KEY` (VEC2 FLOAT, both exact integers:
+   * key = x * 2^24 + y; glTF forbids UNSIGNED_INT attributes). NULL except for tiles. */
+  const int64_t* vertex_keys;
 } imr_mesh_view;
 
 typedef struct imr_export_request { /* growing; filled by the host */
@@ -255,6 +262,16 @@ typedef struct imr_export_request { /* growing; filled by the host */
    * images); 0 for engine-only inputs (SfM / SLAM exports, synthetic streams). */
   int32_t keyframe_images;
   uint32_t reserved1;
+  /* --- since ABI 1.2: read only when struct_size covers them --- */
+  /* NULL, or 3 doubles: the point the vertices of PLY and glTF/GLB are written relative to (PLY
+   * `comment imr_origin`, the translation of the glTF node holding the mesh), instead of one the
+   * exporter picks. The host sets it for 3D Tiles: each tile's own origin, so float32 keeps
+   * millimetres. */
+  const double* origin;
+  /* NULL, or 9 doubles (row-major, world -> glTF): the rotation of the glTF scene's root node,
+   * instead of one the exporter picks (an upright view from the keyframes). The host sets it for
+   * 3D Tiles content, which is y-up glTF in a z-up tileset: (x, y, z) -> (x, z, -y). */
+  const double* gltf_rotation;
 } imr_export_request;
 
 typedef struct imr_exporter_api {
@@ -417,6 +434,8 @@ typedef const imr_plugin_descriptor* (*imr_plugin_entry_fn)(uint32_t index);
 #define IMR_TRANSFER_REQUEST_SIZE_1_0 56
 #define IMR_MESH_VIEW_SIZE_1_0 48
 #define IMR_EXPORT_REQUEST_SIZE_1_0 40
+#define IMR_MESH_VIEW_SIZE_1_1 56     /* up to vertex_colors */
+#define IMR_EXPORT_REQUEST_SIZE_1_1 64 /* up to reserved1 */
 #define IMR_WEIGHT_POLICY_API_SIZE_1_0 16
 #define IMR_EXPORTER_API_SIZE_1_0 24
 #define IMR_FEATURES_API_SIZE_1_0 16
@@ -446,12 +465,16 @@ IMR_STATIC_ASSERT(offsetof(imr_host_services, keyframe_image) == IMR_HOST_SERVIC
 IMR_STATIC_ASSERT(sizeof(imr_error) == IMR_ERROR_MESSAGE_CAPACITY, "ABI: error buffer");
 IMR_STATIC_ASSERT(sizeof(imr_transfer_request) == IMR_TRANSFER_REQUEST_SIZE_1_0,
                   "ABI: transfer request");
-IMR_STATIC_ASSERT(sizeof(imr_mesh_view) == 56, "ABI: mesh view");
+IMR_STATIC_ASSERT(sizeof(imr_mesh_view) == 64, "ABI: mesh view");
 IMR_STATIC_ASSERT(offsetof(imr_mesh_view, vertex_colors) == IMR_MESH_VIEW_SIZE_1_0,
                   "ABI: mesh view 1.1");
-IMR_STATIC_ASSERT(sizeof(imr_export_request) == 64, "ABI: export request");
+IMR_STATIC_ASSERT(offsetof(imr_mesh_view, vertex_keys) == IMR_MESH_VIEW_SIZE_1_1,
+                  "ABI: mesh view 1.2");
+IMR_STATIC_ASSERT(sizeof(imr_export_request) == 80, "ABI: export request");
 IMR_STATIC_ASSERT(offsetof(imr_export_request, keyframes) == IMR_EXPORT_REQUEST_SIZE_1_0,
                   "ABI: export request 1.1");
+IMR_STATIC_ASSERT(offsetof(imr_export_request, origin) == IMR_EXPORT_REQUEST_SIZE_1_1,
+                  "ABI: export request 1.2");
 IMR_STATIC_ASSERT(sizeof(imr_image_view) == IMR_IMAGE_VIEW_SIZE_1_0, "ABI: image view");
 IMR_STATIC_ASSERT(sizeof(imr_weight_policy_api) == IMR_WEIGHT_POLICY_API_SIZE_1_0,
                   "ABI: weight policy table");

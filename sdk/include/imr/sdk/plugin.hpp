@@ -29,11 +29,14 @@
 #include <imr/sdk/params_schema.hpp>
 #include <imr/sdk/plugin.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <exception>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -241,6 +244,7 @@ struct MeshView {
   std::span<const uint32_t> faces;    // 3 per triangle, counter-clockwise seen from free space
   std::span<const int64_t> point_ids; // 1 per vertex (-1: Steiner), or empty
   std::span<const uint8_t> vertex_colors;  // since 1.1: 3 per vertex (RGB) from the input, or empty
+  std::span<const int64_t> vertex_keys;    // since 1.2: 1 per vertex (tiles), or empty
   std::size_t vertex_count() const { return vertices.size() / 3; }
   std::size_t face_count() const { return faces.size() / 3; }
 };
@@ -256,6 +260,11 @@ struct ExportRequest {
   std::span<const imr_camera> keyframes;
   // True when Host::GetKeyframeImage(i) gives keyframe i's image (inputs with images).
   bool keyframe_images = false;
+  // Since 1.2 (plugin.h, imr_export_request): the origin PLY and glTF vertices are written
+  // relative to, and the glTF root node's rotation (row-major, world -> glTF), when the host sets
+  // them (3D Tiles).
+  std::optional<std::array<double, 3>> origin;
+  std::optional<std::array<double, 9>> gltf_rotation;
 };
 
 // Mesh exporter: declare `static constexpr const char* kFormats = "obj,ply";` and override one
@@ -425,11 +434,14 @@ imr_status ExportMesh(imr_instance* instance, const imr_export_request* r,
     // Fields of a newer minor exist only when the host's struct is long enough (1.0 hosts).
     const bool colors = m.struct_size >= offsetof(imr_mesh_view, vertex_colors) + sizeof(void*) &&
                         m.vertex_colors != nullptr;
+    const bool keys = m.struct_size >= offsetof(imr_mesh_view, vertex_keys) + sizeof(void*) &&
+                      m.vertex_keys != nullptr;
     ExportRequest req;
     req.mesh = MeshView{{m.vertices, 3 * nv},
                         {m.faces, 3 * static_cast<std::size_t>(m.face_count)},
                         {m.point_ids, m.point_ids ? nv : 0},
-                        {m.vertex_colors, colors ? 3 * nv : 0}};
+                        {m.vertex_colors, colors ? 3 * nv : 0},
+                        {m.vertex_keys, keys ? nv : 0}};
     req.directory = r->directory ? r->directory : ".";
     req.stem = r->stem ? r->stem : "mesh";
     req.format = r->format ? r->format : "";
@@ -437,6 +449,14 @@ imr_status ExportMesh(imr_instance* instance, const imr_export_request* r,
         r->keyframes != nullptr) {
       req.keyframes = {r->keyframes, static_cast<std::size_t>(r->keyframe_count)};
       req.keyframe_images = r->keyframe_images != 0;
+    }
+    if (r->struct_size >= offsetof(imr_export_request, gltf_rotation) + sizeof(void*)) {
+      if (r->origin != nullptr) req.origin = std::array<double, 3>{r->origin[0], r->origin[1], r->origin[2]};
+      if (r->gltf_rotation != nullptr) {
+        std::array<double, 9> rotation;
+        std::copy_n(r->gltf_rotation, 9, rotation.begin());
+        req.gltf_rotation = rotation;
+      }
     }
     static_cast<Exporter*>(Self<T>(instance))->ExportMesh(req);
   });

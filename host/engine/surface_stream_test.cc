@@ -1,0 +1,269 @@
+// SurfaceStream: the exported surface made part by part is the whole surface's export, exactly.
+#include "host/engine/surface_stream.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <map>
+#include <string>
+
+#include "host/engine/testing/run_stream.h"
+#include "host/engine/testing/slice_parts.h"
+
+namespace imr::engine {
+namespace {
+
+using testing::CutOrder;
+using testing::SliceIntoParts;
+
+// A synthetic street's closed dO and its export, for one set of options (made once per options).
+struct Street {
+  Mesh boundary;
+  Mesh exported;  // ExtractMesh
+};
+
+const Street& StreetRun(const EngineOptions& eo) {
+  static std::map<std::string, Street> cache;
+  const std::string key = ToString(eo.steiner_export) + "/" + std::to_string(eo.fill_holes_perimeter) +
+                          "/" + std::to_string(eo.smoothing_iterations);
+  auto it = cache.find(key);
+  if (it != cache.end()) return it->second;
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = 60;
+  so.points_per_keyframe = 150;
+  synthetic::SyntheticStream stream(so);
+  Engine engine(eo, nullptr);
+  EXPECT_TRUE(testing::RunStream(&stream, &engine).ok());
+  Street s;
+  s.boundary = engine.ExtractBoundary();
+  s.exported = engine.ExtractMesh();
+  return cache.emplace(key, std::move(s)).first->second;
+}
+
+EngineOptions Options() {
+  EngineOptions eo;
+  eo.num_threads = 1;
+  return eo;
+}
+
+// Every part through the stream; what it released, merged by key and in canonical order.
+Mesh Streamed(const std::vector<SurfacePart>& parts, const EngineOptions& eo,
+              SurfaceStreamStats* stats = nullptr) {
+  SurfaceStream stream(SurfaceStreamOptions::FromEngine(eo));
+  std::vector<SurfacePart> released;
+  for (const SurfacePart& p : parts) {
+    EXPECT_EQ(stream.Add(p), "");
+    released.push_back(stream.TakeReleased());
+  }
+  EXPECT_EQ(stream.Finish(), "");
+  Mesh m;
+  EXPECT_EQ(MergeSurfaceParts(released, &m), "");
+  CanonicalizeMesh(&m);
+  if (stats != nullptr) *stats = stream.stats();
+  return m;
+}
+
+Mesh Batch(const std::vector<SurfacePart>& parts, const EngineOptions& eo) {
+  Mesh m;
+  EXPECT_EQ(MergeSurfaceParts(parts, &m), "");
+  FinishExportedMesh(&m, eo);
+  return m;
+}
+
+void ExpectSame(const Mesh& a, const Mesh& b, const std::string& what) {
+  EXPECT_EQ(a.faces, b.faces) << what;
+  EXPECT_EQ(a.vertices, b.vertices) << what;
+  EXPECT_EQ(a.point_ids, b.point_ids) << what;
+}
+
+TEST(SurfaceStreamTest, PartByPartIsTheWholeExportForEveryCut) {
+  const EngineOptions eo = Options();
+  const Street& street = StreetRun(eo);
+  ASSERT_GT(street.exported.faces.size(), 3000u);
+  const int64_t total = static_cast<int64_t>(street.exported.faces.size() / 3);
+  for (CutOrder order : {CutOrder::kAlongY, CutOrder::kAlongX, CutOrder::kBackward, CutOrder::kShuffled})
+    for (int k : {1, 2, 5, 17, 60}) {
+      const std::string what = "order " + std::to_string(static_cast<int>(order)) + ", " +
+                               std::to_string(k) + " parts";
+      const std::vector<SurfacePart> parts = SliceIntoParts(street.boundary, eo.steiner_export, k, order);
+      const Mesh batch = Batch(parts, eo);
+      ExpectSame(batch, street.exported, what + ": merged parts vs ExtractMesh");
+      SurfaceStreamStats stats;
+      ExpectSame(Streamed(parts, eo, &stats), batch, what);
+      // The street has both fix-ups to make, and every triangle came out.
+      EXPECT_GT(stats.holes_filled, 0) << what;
+      EXPECT_GT(stats.vertices_split, 0) << what;
+      EXPECT_EQ(stats.triangles_released, total) << what;
+      EXPECT_EQ(stats.held_triangles, 0) << what;
+      // Cut along the drive, the stream holds the seam, not the street.
+      if (order == CutOrder::kAlongY && k == 60) {
+        EXPECT_LT(stats.peak_held_triangles, total / 10) << what;
+      }
+    }
+}
+
+TEST(SurfaceStreamTest, OtherSteinerRulesAndNoFilling) {
+  for (const auto& [rule, fill] : {std::pair{SteinerExportRule::kAllSteiner, 16.0},
+                                   std::pair{SteinerExportRule::kNone, 16.0},
+                                   std::pair{SteinerExportRule::kAnySteiner, 0.0},
+                                   std::pair{SteinerExportRule::kAnySteiner, 40.0}}) {
+    EngineOptions eo = Options();
+    eo.steiner_export = rule;
+    eo.fill_holes_perimeter = fill;
+    const Street& street = StreetRun(eo);
+    for (CutOrder order : {CutOrder::kAlongY, CutOrder::kShuffled})
+      for (int k : {3, 25}) {
+        const std::string what = ToString(rule) + ", fill " + std::to_string(fill) + ", order " +
+                                 std::to_string(static_cast<int>(order)) + ", " + std::to_string(k);
+        const std::vector<SurfacePart> parts = SliceIntoParts(street.boundary, rule, k, order);
+        const Mesh batch = Batch(parts, eo);
+        ExpectSame(batch, street.exported, what + ": merged parts vs ExtractMesh");
+        ExpectSame(Streamed(parts, eo), batch, what);
+      }
+  }
+}
+
+// Smoothing is per part: with one part it is FinishExportedMesh's, bit for bit; with several the
+// surface is the same one (same faces by count, a manifold) and close to it.
+TEST(SurfaceStreamTest, SmoothingPerPart) {
+  EngineOptions eo = Options();
+  eo.smoothing_iterations = 3;
+  const Street& street = StreetRun(eo);
+  ExpectSame(Streamed(SliceIntoParts(street.boundary, eo.steiner_export, 1, CutOrder::kAlongY), eo),
+             street.exported, "one part");
+  const Mesh parts = Streamed(SliceIntoParts(street.boundary, eo.steiner_export, 12, CutOrder::kAlongY), eo);
+  EXPECT_EQ(parts.faces.size(), street.exported.faces.size());
+  EXPECT_EQ(parts.vertices.size(), street.exported.vertices.size());
+  EXPECT_TRUE(CheckMesh(parts, false).ok) << CheckMesh(parts, false).message;
+  // The seams left unsmoothed change the surface little: its centre and extent within 1 cm.
+  auto extent = [](const Mesh& m) {
+    std::array<double, 6> e = {1e300, 1e300, 1e300, -1e300, -1e300, -1e300};
+    std::array<double, 3> mean{};
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+      e[i % 3] = std::min(e[i % 3], m.vertices[i]);
+      e[3 + i % 3] = std::max(e[3 + i % 3], m.vertices[i]);
+      mean[i % 3] += m.vertices[i] / static_cast<double>(m.vertices.size() / 3);
+    }
+    return std::pair{e, mean};
+  };
+  const auto [e1, m1] = extent(parts);
+  const auto [e2, m2] = extent(street.exported);
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(e1[k], e2[k], 0.01) << k;
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(m1[k], m2[k], 0.01) << k;
+  EXPECT_NE(parts.vertices, street.exported.vertices);  // the seams are not smoothed
+}
+
+// A grid with a small square hole, and a strip touching the grid at one corner only (a pinched
+// vertex), handed out a triangle at a time: the corner becomes two vertices, the hole a fan
+// around its centre; the outer boundaries (16 and 12 m) stay open.
+TEST(SurfaceStreamTest, HandBuiltPinchAndHole) {
+  SurfacePart all;
+  std::map<std::pair<int, int>, uint32_t> at;  // vertices made as triangles use them
+  auto vertex = [&](int x, int y) {
+    const auto [it, fresh] = at.emplace(std::pair{x, y}, static_cast<uint32_t>(all.keys.size()));
+    if (fresh) {
+      all.keys.push_back(static_cast<int64_t>(all.keys.size()) * 7 + 3);  // keys are any int64
+      all.point_ids.push_back(static_cast<int64_t>(all.point_ids.size()));
+      all.vertices.insert(all.vertices.end(), {double(x), double(y), 0.0});
+    }
+    return it->second;
+  };
+  auto square = [&](int x, int y) {
+    all.faces.insert(all.faces.end(), {vertex(x, y), vertex(x + 1, y), vertex(x + 1, y + 1),
+                                       vertex(x, y), vertex(x + 1, y + 1), vertex(x, y + 1)});
+  };
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 4; ++x)
+      if (!((x == 1 || x == 2) && (y == 1 || y == 2))) square(x, y);  // a 2 x 2 hole: 8 m
+  for (int x = 4; x < 9; ++x) square(x, 4);  // the strip, touching the grid at (4, 4)
+  // One triangle per part; each vertex completed with its last triangle.
+  const std::size_t nf = all.faces.size() / 3;
+  std::vector<int64_t> last(all.keys.size(), -1);
+  for (std::size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) last[all.faces[3 * f + k]] = static_cast<int64_t>(f);
+  EngineOptions eo = Options();
+  eo.fill_holes_perimeter = 8.5;
+  SurfaceStream stream(SurfaceStreamOptions::FromEngine(eo));
+  std::vector<SurfacePart> released;
+  for (std::size_t f = 0; f < nf; ++f) {
+    SurfacePart p;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = all.faces[3 * f + k];
+      p.keys.push_back(all.keys[v]);
+      p.point_ids.push_back(all.point_ids[v]);
+      p.vertices.insert(p.vertices.end(), &all.vertices[3 * v], &all.vertices[3 * v] + 3);
+      p.faces.push_back(static_cast<uint32_t>(k));
+    }
+    for (std::size_t v = 0; v < last.size(); ++v)
+      if (last[v] == static_cast<int64_t>(f)) p.completed.push_back(all.keys[v]);
+    ASSERT_EQ(stream.Add(p), "");
+    released.push_back(stream.TakeReleased());
+  }
+  EXPECT_EQ(stream.Finish(), "");
+  EXPECT_EQ(stream.stats().holes_filled, 1);
+  EXPECT_EQ(stream.stats().vertices_split, 1);
+  // The hole's 8 boundary vertices held until the loop closed; then nothing.
+  EXPECT_EQ(stream.stats().held_vertices, 0);
+  Mesh m;
+  ASSERT_EQ(MergeSurfaceParts(released, &m), "");
+  CanonicalizeMesh(&m);
+  Mesh whole;
+  ASSERT_EQ(MergeSurfaceParts({all}, &whole), "");
+  FinishExportedMesh(&whole, eo);
+  ExpectSame(m, whole, "hand-built");
+  EXPECT_EQ(m.faces.size() / 3, nf + 8);           // the hole's fan: 8 triangles
+  EXPECT_EQ(m.vertices.size() / 3, all.keys.size() + 2);  // the corner's copy, the centre
+  EXPECT_TRUE(CheckMesh(m, false).ok) << CheckMesh(m, false).message;
+  // A smaller limit leaves the hole open.
+  eo.fill_holes_perimeter = 7.9;
+  SurfaceStream open(SurfaceStreamOptions::FromEngine(eo));
+  SurfacePart one = all;
+  one.completed = all.keys;
+  ASSERT_EQ(open.Add(one), "");
+  EXPECT_EQ(open.stats().holes_filled, 0);
+  EXPECT_EQ(open.TakeReleased().faces.size(), all.faces.size());
+}
+
+TEST(SurfaceStreamTest, RefusesPartsThatDoNotFit) {
+  SurfacePart a;
+  a.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  a.keys = {0, 1, 2};
+  a.point_ids = {10, 11, 12};
+  a.faces = {0, 1, 2};
+  {
+    SurfaceStream s({});
+    ASSERT_EQ(s.Add(a), "");
+    SurfacePart b = a;
+    b.vertices[0] = 0.5;
+    EXPECT_NE(s.Add(b).find("vertex key 0 is not where"), std::string::npos);
+    EXPECT_NE(s.Add(a).find("failed before"), std::string::npos);
+  }
+  {
+    SurfaceStream s({});
+    SurfacePart b = a;
+    b.faces = {0, 1, 3};
+    EXPECT_NE(s.Add(b).find("out of range"), std::string::npos);
+  }
+  {
+    SurfaceStream s({});
+    SurfacePart b = a;
+    b.completed = {7};
+    EXPECT_NE(s.Add(b).find("completed key 7"), std::string::npos);
+  }
+  {
+    SurfaceStream s({});
+    SurfacePart b = a;
+    b.completed = {0};
+    ASSERT_EQ(s.Add(b), "");
+    EXPECT_NE(s.Add(a).find("completed by an earlier part"), std::string::npos);
+  }
+  {
+    SurfaceStream s({});
+    ASSERT_EQ(s.Add(a), "");
+    EXPECT_NE(s.Finish().find("never completed"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace imr::engine

@@ -1,0 +1,466 @@
+#include "host/pipeline/tiles.h"
+
+#include "host/eval/mesh_io.h"
+#include "host/pipeline/run.h"
+#include "host/util/atomic_file.h"
+#include "host/util/clock.h"
+#include "host/util/json_text.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <regex>
+#include <set>
+#include <stdexcept>
+#include <unordered_map>
+
+namespace imr::pipeline {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr int kChildrenPerNode = 8;  // the tileset's fan-out above the tiles
+
+bool IsTileName(const std::string& name) {
+  static const std::regex kTile("tile_[0-9]{6}\\.glb");
+  return std::regex_match(name, kTile);
+}
+
+std::string TileStem(int index) {
+  char stem[32];
+  std::snprintf(stem, sizeof(stem), "tile_%06d", index);
+  return stem;
+}
+
+// The JSON chunk of a GLB file (its binary chunk is not read).
+json GlbJson(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path.string() + ": cannot read");
+  char header[20];
+  if (!in.read(header, 20)) throw std::runtime_error(path.string() + ": not a GLB file (too short)");
+  uint32_t magic, version, length, chunk_length, chunk_type;
+  std::memcpy(&magic, header, 4);
+  std::memcpy(&version, header + 4, 4);
+  std::memcpy(&length, header + 8, 4);
+  std::memcpy(&chunk_length, header + 12, 4);
+  std::memcpy(&chunk_type, header + 16, 4);
+  if (magic != 0x46546C67u || version != 2 || chunk_type != 0x4E4F534Au || chunk_length > length)
+    throw std::runtime_error(path.string() + ": not a GLB 2.0 file with a JSON chunk");
+  std::string text(chunk_length, '\0');
+  if (!in.read(text.data(), chunk_length)) throw std::runtime_error(path.string() + ": truncated");
+  try {
+    return json::parse(text);
+  } catch (const json::exception& e) {
+    throw std::runtime_error(path.string() + ": its JSON chunk is not JSON: " + e.what());
+  }
+}
+
+// Whether every triangle primitive of the GLB has the attribute.
+bool EveryPrimitiveHas(const json& gltf, const std::string& attribute) {
+  bool any = false;
+  for (const json& mesh : gltf.value("meshes", json::array()))
+    for (const json& p : mesh.value("primitives", json::array())) {
+      if (!p.contains("attributes") || !p["attributes"].contains(attribute)) return false;
+      any = true;
+    }
+  return any;
+}
+
+std::array<double, 6> EmptyBox() { return {1e300, 1e300, 1e300, -1e300, -1e300, -1e300}; }
+
+void Grow(std::array<double, 6>* box, const std::array<double, 6>& other) {
+  for (int k = 0; k < 3; ++k) {
+    (*box)[k] = std::min((*box)[k], other[k]);
+    (*box)[3 + k] = std::max((*box)[3 + k], other[3 + k]);
+  }
+}
+
+double Diagonal(const std::array<double, 6>& b) {
+  return std::hypot(b[3] - b[0], b[4] - b[1], b[5] - b[2]);
+}
+
+// A 3D Tiles box: centre, then three half axes (never flat: viewers divide by them).
+json BoxJson(const std::array<double, 6>& b) {
+  json box = json::array();
+  for (int k = 0; k < 3; ++k) box.push_back((b[k] + b[3 + k]) / 2.0);
+  for (int axis = 0; axis < 3; ++axis)
+    for (int k = 0; k < 3; ++k) box.push_back(k == axis ? std::max((b[3 + k] - b[k]) / 2.0, 0.005) : 0.0);
+  return {{"box", box}};
+}
+
+}  // namespace
+
+std::string TilesOptions::Check() const {
+  if (!std::isfinite(size) || size < 0.0) return "size: expected a length >= 0 (0: 10 x steiner_spacing)";
+  if (max_triangles < 1) return "max_triangles: expected >= 1";
+  if (idle_parts < 1) return "idle_parts: expected >= 1";
+  return "";
+}
+
+const json& TilesSchema() {
+  static const json schema = {
+      {"size", {{"type", "number"}, {"default", 0.0}, {"minimum", 0.0},
+                {"description", "side of the grid cells tiles are cut from (the sequence's units, "
+                                "metres); 0: 10 x the engine's steiner_spacing as used (50 m)"}}},
+      {"max_triangles", {{"type", "integer"}, {"default", 200000}, {"minimum", 1},
+                         {"description", "a cell's tile is written once it holds this many triangles "
+                                         "(the cell then starts another)"}}},
+      {"idle_parts", {{"type", "integer"}, {"default", 2}, {"minimum", 1},
+                      {"description", "a tile is written once this many parts of the surface in a "
+                                      "row (the engine hands one out as the cameras move on) added "
+                                      "nothing to it"}}}};
+  return schema;
+}
+
+TilesOptions TilesOptionsFromJson(const json& tiles) {
+  TilesOptions o;
+  if (tiles.is_null() || (tiles.is_boolean() && !tiles.get<bool>())) return o;
+  o.enabled = true;
+  if (!tiles.is_object()) return o;
+  o.size = tiles.value("size", o.size);
+  o.max_triangles = tiles.value("max_triangles", o.max_triangles);
+  o.idle_parts = tiles.value("idle_parts", o.idle_parts);
+  return o;
+}
+
+std::string ForeignTiles(const fs::path& output_dir, const std::string& job, const std::string& sequence) {
+  const std::string advice = "; give each job its own output folder (e.g. {job} in "
+                             "output.directory), or remove it if it is not needed";
+  std::error_code ec;
+  const fs::path tileset = output_dir / "tileset.json", tiles = output_dir / "tiles";
+  const bool has_tileset = fs::exists(tileset, ec);
+  if (has_tileset) {
+    json j;
+    try {
+      std::ifstream in(tileset, std::ios::binary);
+      j = json::parse(in);
+    } catch (const std::exception&) {
+    }
+    const json* imr = nullptr;
+    if (j.is_object() && j.contains("asset") && j["asset"].is_object() && j["asset"].contains("extras") &&
+        j["asset"]["extras"].is_object() && j["asset"]["extras"].contains("imr"))
+      imr = &j["asset"]["extras"]["imr"];
+    const bool ours = imr != nullptr && imr->is_object() && imr->value("job", "") == JsonText(job) &&
+                      imr->value("sequence", "") == JsonText(sequence);
+    if (!ours)
+      return tileset.string() + ": not a tileset imr wrote for sequence '" + JsonText(sequence) +
+             "' of " + JsonText(job) + ": imr would overwrite it" + advice;
+  }
+  if (fs::exists(tiles, ec) || fs::is_symlink(tiles, ec)) {
+    if (!fs::is_directory(tiles, ec))
+      return tiles.string() + ": not a folder: imr writes the tiles there";
+    if (!has_tileset)
+      for (const auto& e : fs::directory_iterator(tiles, ec))
+        if (IsTileName(e.path().filename().string()))
+          return e.path().string() + ": a tile with no tileset.json of imr beside its folder: imr "
+                 "would overwrite it" + advice;
+  }
+  return "";
+}
+
+// ---- TileWriter ---------------------------------------------------------------------------------
+
+TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json identity,
+                       std::function<std::array<double, 16>()> root_transform, WriteTileGlb write)
+    : options_(options), output_dir_(std::move(output_dir)), tiles_dir_(output_dir_ / "tiles"),
+      identity_(std::move(identity)), root_transform_fn_(std::move(root_transform)),
+      write_(std::move(write)) {
+  if (const std::string e = options_.Check(); !e.empty()) throw std::invalid_argument("output.tiles." + e);
+  if (!(options_.size > 0.0)) throw std::invalid_argument("output.tiles.size: 0 must be resolved first");
+  EnsureWritableDirectory(tiles_dir_);
+  // An earlier run's tiles (this job's: ForeignTiles) and what a killed run left staged.
+  std::vector<fs::path> old;
+  for (const auto& e : fs::directory_iterator(tiles_dir_)) {
+    const std::string name = e.path().filename().string();
+    if (IsTileName(name) || name.rfind(".imr-staging-", 0) == 0) old.push_back(e.path());
+  }
+  for (const fs::path& p : old) {
+    std::error_code ec;
+    fs::remove_all(p, ec);
+    if (ec) throw std::runtime_error(p.string() + ": cannot remove an earlier run's tile: " + ec.message());
+  }
+  root_transform_ = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  WriteTileset(false);
+}
+
+void TileWriter::Add(const engine::SurfacePart& part) {
+  ++parts_;
+  const double size = options_.size;
+  for (std::size_t f = 0; f + 2 < part.faces.size(); f += 3) {
+    double c[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k)
+      for (int d = 0; d < 3; ++d) c[d] += part.vertices[3 * part.faces[f + k] + d] / 3.0;
+    const Cell cell = {static_cast<int64_t>(std::floor(c[0] / size)),
+                       static_cast<int64_t>(std::floor(c[1] / size)),
+                       static_cast<int64_t>(std::floor(c[2] / size))};
+    OpenTile& t = open_[cell];
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = part.faces[f + k];
+      const auto [it, fresh] = t.index.emplace(part.keys[v], static_cast<uint32_t>(t.keys.size()));
+      if (fresh) {
+        t.keys.push_back(part.keys[v]);
+        t.mesh.vertices.insert(t.mesh.vertices.end(), &part.vertices[3 * v], &part.vertices[3 * v] + 3);
+        t.mesh.point_ids.push_back(part.point_ids[v]);
+      }
+      t.mesh.faces.push_back(it->second);
+    }
+    t.last_part = parts_;
+    stats_.open_tiles_peak = std::max<int64_t>(stats_.open_tiles_peak, static_cast<int64_t>(open_.size()));
+    if (static_cast<int64_t>(t.mesh.faces.size() / 3) >= options_.max_triangles) {
+      Write(cell, t);
+      open_.erase(cell);
+    }
+  }
+  for (auto it = open_.begin(); it != open_.end();) {
+    if (parts_ - it->second.last_part >= options_.idle_parts) {
+      Write(it->first, it->second);
+      it = open_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void TileWriter::Finish() {
+  for (auto& [cell, tile] : open_) Write(cell, tile);
+  open_.clear();
+  const auto start = std::chrono::steady_clock::now();
+  WriteTileset(true);
+  stats_.seconds += SecondsSince(start);
+}
+
+void TileWriter::Write(const Cell& cell, OpenTile& t) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!have_root_transform_ && root_transform_fn_) root_transform_ = root_transform_fn_();
+  have_root_transform_ = true;
+  TileMesh tile;
+  tile.index = static_cast<int>(written_.size()) + 1;
+  tile.origin = {(static_cast<double>(std::get<0>(cell)) + 0.5) * options_.size,
+                 (static_cast<double>(std::get<1>(cell)) + 0.5) * options_.size,
+                 (static_cast<double>(std::get<2>(cell)) + 0.5) * options_.size};
+  tile.box = EmptyBox();
+  for (std::size_t i = 0; i < t.mesh.vertices.size(); ++i) {
+    tile.box[i % 3] = std::min(tile.box[i % 3], t.mesh.vertices[i]);
+    tile.box[3 + i % 3] = std::max(tile.box[3 + i % 3], t.mesh.vertices[i]);
+  }
+  tile.mesh = std::move(t.mesh);
+  tile.keys = std::move(t.keys);
+  const std::string stem = TileStem(tile.index);
+  StagingDirectory staging(tiles_dir_);
+  write_(tile, staging.path(), stem);
+  const fs::path staged = staging.path() / (stem + ".glb");
+  if (!fs::exists(staged)) throw std::runtime_error(staged.string() + ": the exporter wrote no GLB");
+  if (!EveryPrimitiveHas(GlbJson(staged), "_VERTEX_KEY"))
+    throw std::runtime_error(staged.string() + ": the exporter wrote the tile without `_VERTEX_KEY`: "
+                             "tiles need an exporter that writes vertex keys (SDK 1.2; "
+                             "org.imr.exporter.assimp 1.2 does), or they cannot be merged");
+  staging.Commit();
+  const fs::path final_path = tiles_dir_ / (stem + ".glb");
+  stats_.bytes += static_cast<int64_t>(fs::file_size(final_path));
+  ++stats_.tiles;
+  stats_.triangles += static_cast<int64_t>(tile.mesh.faces.size() / 3);
+  stats_.vertices += static_cast<int64_t>(tile.keys.size());
+  written_.push_back({"tiles/" + stem + ".glb", tile.box, static_cast<int64_t>(tile.mesh.faces.size() / 3)});
+  WriteTileset(false);
+  stats_.seconds += SecondsSince(start);
+}
+
+void TileWriter::WriteTileset(bool complete) {
+  struct Node {
+    json j;
+    std::array<double, 6> box;
+  };
+  std::vector<Node> level;
+  for (const Written& w : written_)
+    level.push_back({{{"boundingVolume", BoxJson(w.box)}, {"geometricError", 0.0},
+                      {"content", {{"uri", w.uri}}}},
+                     w.box});
+  // Groups of kChildrenPerNode in writing order (along the drive: near each other), upward.
+  while (level.size() > static_cast<std::size_t>(kChildrenPerNode)) {
+    std::vector<Node> up;
+    for (std::size_t i = 0; i < level.size(); i += kChildrenPerNode) {
+      Node n{{{"refine", "ADD"}, {"children", json::array()}}, EmptyBox()};
+      for (std::size_t k = i; k < std::min(level.size(), i + kChildrenPerNode); ++k) {
+        Grow(&n.box, level[k].box);
+        n.j["children"].push_back(std::move(level[k].j));
+      }
+      n.j["boundingVolume"] = BoxJson(n.box);
+      n.j["geometricError"] = Diagonal(n.box);
+      up.push_back(std::move(n));
+    }
+    level = std::move(up);
+  }
+  std::array<double, 6> box = EmptyBox();
+  for (const Node& n : level) Grow(&box, n.box);
+  if (level.empty()) box = {-0.5, -0.5, -0.5, 0.5, 0.5, 0.5};
+  json root = {{"transform", root_transform_},
+               {"boundingVolume", BoxJson(box)},
+               {"geometricError", Diagonal(box)},
+               {"refine", "ADD"},
+               {"children", json::array()}};
+  for (Node& n : level) root["children"].push_back(std::move(n.j));
+  json imr = identity_;
+  imr["complete"] = complete;
+  imr["tiles"] = written_.size();
+  int64_t triangles = 0;
+  for (const Written& w : written_) triangles += w.triangles;
+  imr["triangles"] = triangles;
+  const json tileset = {
+      {"asset", {{"version", "1.1"}, {"generator", std::string("imr ") + Version()}, {"extras", {{"imr", imr}}}}},
+      {"geometricError", Diagonal(box)},
+      {"root", root}};
+  WriteFileAtomically(tileset_path(), DumpJson(tileset, 1) + "\n");
+}
+
+std::vector<fs::path> TileWriter::files() const {
+  std::vector<fs::path> out;
+  for (const Written& w : written_) out.push_back(output_dir_ / w.uri);
+  out.push_back(tileset_path());
+  return out;
+}
+
+std::array<double, 16> TilesetFrame(const std::vector<std::array<double, 9>>& rotations) {
+  std::array<double, 3> up{}, forward{};
+  for (const auto& r : rotations) {
+    bool finite = true;
+    for (double x : r) finite = finite && std::isfinite(x);
+    if (!finite) continue;
+    for (int k = 0; k < 3; ++k) {
+      up[k] -= r[3 + k];       // the camera's y axis (image down) in world coordinates
+      forward[k] += r[6 + k];  // its viewing direction
+    }
+  }
+  std::array<double, 16> m = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  const double n = std::hypot(up[0], up[1], up[2]);
+  if (!(n > 1e-9)) return m;
+  for (double& x : up) x /= n;
+  const double along = forward[0] * up[0] + forward[1] * up[1] + forward[2] * up[2];
+  for (int k = 0; k < 3; ++k) forward[k] -= along * up[k];
+  if (!(std::hypot(forward[0], forward[1], forward[2]) > 1e-9))
+    forward = std::fabs(up[0]) < 0.9 ? std::array<double, 3>{0, -up[2], up[1]}
+                                     : std::array<double, 3>{up[2], 0, -up[0]};  // up x (1,0,0) / (0,1,0)
+  const double fn = std::hypot(forward[0], forward[1], forward[2]);
+  for (double& x : forward) x /= fn;
+  const std::array<double, 3> x = {forward[1] * up[2] - forward[2] * up[1],
+                                   forward[2] * up[0] - forward[0] * up[2],
+                                   forward[0] * up[1] - forward[1] * up[0]};  // Y x Z
+  // Rows X, Y, Z (world -> local), column-major.
+  for (int col = 0; col < 3; ++col) {
+    m[4 * col + 0] = x[col] + 0.0;
+    m[4 * col + 1] = forward[col] + 0.0;
+    m[4 * col + 2] = up[col] + 0.0;
+  }
+  return m;
+}
+
+std::array<double, 9> TileGltfRotation() { return {1, 0, 0, 0, 0, 1, 0, -1, 0}; }
+
+std::vector<std::string> TileContentUris(const json& tile) {
+  std::vector<std::string> out;
+  std::vector<const json*> todo = {&tile};
+  while (!todo.empty()) {
+    const json* t = todo.back();
+    todo.pop_back();
+    if (t->contains("content")) out.push_back(t->at("content").at("uri").get<std::string>());
+    if (t->contains("children"))
+      for (auto it = t->at("children").rbegin(); it != t->at("children").rend(); ++it) todo.push_back(&*it);
+  }
+  return out;
+}
+
+// ---- merging ------------------------------------------------------------------------------------
+
+MergedTiles MergeTiles(const fs::path& run) {
+  const fs::path tileset_path = run / "tileset.json";
+  std::error_code ec;
+  if (!fs::is_directory(run, ec)) throw std::runtime_error(run.string() + ": no such folder");
+  if (!fs::exists(tileset_path, ec))
+    throw std::runtime_error(tileset_path.string() + ": no such file: not the output folder of a "
+                             "run with tiles (a job with output.tiles writes one)");
+  json tileset;
+  try {
+    std::ifstream in(tileset_path, std::ios::binary);
+    tileset = json::parse(in);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(tileset_path.string() + ": not JSON: " + e.what());
+  }
+  MergedTiles out;
+  std::vector<std::string> uris;
+  try {
+    out.complete = tileset.at("asset").at("extras").at("imr").value("complete", false);
+    uris = TileContentUris(tileset.at("root"));
+  } catch (const json::exception& e) {
+    throw std::runtime_error(tileset_path.string() + ": not a tileset of imr (" + e.what() + ")");
+  }
+  std::set<std::string> listed;
+  for (const std::string& uri : uris) {
+    // The tileset names files: only imr's own tile names, inside the run's tiles/ folder.
+    if (uri.rfind("tiles/", 0) != 0 || !IsTileName(uri.substr(6)))
+      throw std::runtime_error(tileset_path.string() + ": content uri '" + JsonText(uri) +
+                               "' is not a tile of imr (tiles/tile_NNNNNN.glb)");
+    if (!listed.insert(uri).second)
+      throw std::runtime_error(tileset_path.string() + ": tile " + uri + " is listed twice");
+  }
+  // A killed run may have written tiles after its last tileset.json.
+  std::vector<std::string> extra;
+  if (fs::is_directory(run / "tiles", ec))
+    for (const auto& e : fs::directory_iterator(run / "tiles", ec)) {
+      const std::string name = e.path().filename().string();
+      if (IsTileName(name) && !listed.count("tiles/" + name)) extra.push_back("tiles/" + name);
+    }
+  std::sort(extra.begin(), extra.end());
+  if (!extra.empty())
+    out.notes.push_back(std::to_string(extra.size()) + " tile(s) not in tileset.json (written after "
+                        "its last version: the run was stopped), merged too");
+  uris.insert(uris.end(), extra.begin(), extra.end());
+  if (!out.complete)
+    out.notes.push_back("the tileset is not complete: the run did not finish (the surface it had "
+                        "not handed out yet is missing)");
+  if (uris.empty()) throw std::runtime_error(tileset_path.string() + ": lists no tile");
+
+  std::unordered_map<int64_t, uint32_t> index;
+  std::unordered_map<int64_t, int> tiles_naming;
+  engine::Mesh& m = out.mesh;
+  for (const std::string& uri : uris) {
+    const fs::path file = run / uri;
+    const json gltf = GlbJson(file);
+    if (!EveryPrimitiveHas(gltf, "_VERTEX_KEY"))
+      throw std::runtime_error(file.string() + ": no `_VERTEX_KEY` attribute: not a tile imr can "
+                               "merge (written by an exporter without vertex keys)");
+    const bool ids = EveryPrimitiveHas(gltf, "_POINT_ID");
+    std::vector<std::string> names = {"_VERTEX_KEY"};
+    if (ids) names.push_back("_POINT_ID");
+    std::vector<std::vector<double>> values;
+    std::vector<int> components;
+    const eval::TriangleMesh t = eval::ReadGltfWithAttributes(file, names, &values, &components);
+    if (components[0] != 2)
+      throw std::runtime_error(file.string() + ": `_VERTEX_KEY` is not VEC2 (key = x * 2^24 + y)");
+    std::vector<uint32_t> local(t.vertices.size());
+    std::set<int64_t> in_this_tile;
+    for (std::size_t v = 0; v < t.vertices.size(); ++v) {
+      const double hi = values[0][2 * v], lo = values[0][2 * v + 1];
+      if (!(hi >= 0 && lo >= 0 && hi < 16777216.0 && lo < 16777216.0) || hi != std::floor(hi) || lo != std::floor(lo))
+        throw std::runtime_error(file.string() + ": vertex " + std::to_string(v) + " has no valid `_VERTEX_KEY`");
+      const int64_t key = static_cast<int64_t>(hi) * 16777216 + static_cast<int64_t>(lo);
+      const auto [it, fresh] = index.emplace(key, static_cast<uint32_t>(m.point_ids.size()));
+      if (fresh) {
+        m.vertices.insert(m.vertices.end(), t.vertices[v].begin(), t.vertices[v].end());
+        m.point_ids.push_back(ids ? static_cast<int64_t>(values[1][v]) : -1);
+      }
+      if (in_this_tile.insert(key).second && ++tiles_naming[key] == 2) ++out.seam_vertices;
+      local[v] = it->second;
+    }
+    for (const auto& tri : t.triangles)
+      m.faces.insert(m.faces.end(), {local[tri[0]], local[tri[1]], local[tri[2]]});
+    ++out.tiles;
+  }
+  engine::CanonicalizeMesh(&m);
+  return out;
+}
+
+}  // namespace imr::pipeline

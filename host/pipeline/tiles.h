@@ -1,0 +1,148 @@
+// The surface as OGC 3D Tiles 1.1 (issue 32, DESIGN.md section 10): the triangles the surface
+// stream releases (host/engine/surface_stream.h: final, fixed up) are grouped into tiles by a
+// grid over the sequence's frame; a tile is written when it is full, when the surface has moved
+// on from it, or at the end, each as GLB through the job's exporter (the callback) into
+// <output>/tiles/ (staged, then renamed: a killed run keeps every finished tile and never a half
+// one under a final name), and <output>/tileset.json is rewritten (atomically) after each tile.
+//
+// Frames. Tile content is glTF, y-up; 3D Tiles is z-up and turns a glTF's +Y into +Z when it
+// loads it. A tile's GLB holds its vertices relative to the tile's origin (a grid cell's centre,
+// float32 keeps millimetres: the glTF node's translation) under a root node rotating the
+// sequence's frame as if it were z-up into glTF's y-up, (x, y, z) -> (x, z, -y), so that 3D
+// Tiles reads the sequence's own coordinates back; tiles have no transform of their own and their
+// bounding boxes are in the sequence's frame. The root's transform is the local frame: the
+// sequence's frame turned so that the cameras' mean up is +Z (their mean viewing direction +Y),
+// as viewers of 3D Tiles expect the ground. Vertices carry their keys (`_VERTEX_KEY`): tiles share
+// their seam vertices and merge without duplicates (MergeTiles).
+#pragma once
+
+#include "host/engine/engine.h"
+
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <string>
+#include <tuple>
+#include <vector>
+
+namespace imr::pipeline {
+
+// The job's "output": {"tiles": {...}} (job_validation.cc reads it; REPORT.md, docs/tiles.md).
+struct TilesOptions {
+  bool enabled = false;        // "tiles" given (an object, or true)
+  double size = 0.0;           // side of the grid cells (sequence units, metres); 0: 10 x the
+                               // engine's steiner_spacing as used (50 m metric)
+  int64_t max_triangles = 200000;  // a cell's tile is written when it holds this many
+  int idle_parts = 2;          // ... or when this many released parts in a row added nothing
+                               // to it (the surface has moved on)
+  // Empty when usable, else which key and why.
+  std::string Check() const;
+};
+TilesOptions TilesOptionsFromJson(const nlohmann::json& tiles);  // after validation
+// The JSON schema of "output.tiles" (for validation and `imr options`).
+const nlohmann::json& TilesSchema();
+
+// One tile as the exporter gets it.
+struct TileMesh {
+  int index = 0;                    // 1, 2, ...: tiles/tile_<index, 6 digits>.glb
+  engine::Mesh mesh;                // in the sequence's frame
+  std::vector<int64_t> keys;        // per vertex: its key (the surface stream's)
+  std::array<double, 3> origin{};   // the vertices are written relative to it
+  std::array<double, 6> box{};      // min x y z, max x y z of its vertices
+};
+
+// The tile's GLB, written as `stem`.glb into `dir` (a private staging folder).
+using WriteTileGlb =
+    std::function<void(const TileMesh& tile, const std::filesystem::path& dir, const std::string& stem)>;
+
+struct TilesStats {
+  int64_t tiles = 0;
+  int64_t triangles = 0;
+  int64_t vertices = 0;      // summed over tiles (a seam vertex counts in each of its tiles)
+  int64_t bytes = 0;         // of the tiles' GLB files
+  int64_t open_tiles_peak = 0;
+  double seconds = 0.0;      // writing tiles and the tileset (exporter included)
+};
+
+// <output>/tileset.json and <output>/tiles/ are imr's (a tileset written for this sequence of
+// this job): "" when imr may replace them (or there are none), else which file is another's.
+std::string ForeignTiles(const std::filesystem::path& output_dir, const std::string& job,
+                         const std::string& sequence);
+
+class TileWriter {
+ public:
+  // Replaces an earlier run's tiles (after ForeignTiles said they are this job's), creates
+  // <output>/tiles/ and writes an empty tileset.json (marking the folder as imr's at once).
+  // `identity` goes into the tileset's asset.extras.imr (job, sequence). `root_transform` is
+  // asked once, at the first tile (the keyframes so far give the local frame). Throws naming the
+  // path when the folder cannot be written.
+  TileWriter(const TilesOptions& options, std::filesystem::path output_dir, nlohmann::json identity,
+             std::function<std::array<double, 16>()> root_transform, WriteTileGlb write);
+  // One part released by the surface stream (keys are the stream's).
+  void Add(const engine::SurfacePart& released);
+  // Writes every open tile and the final tileset.json (asset.extras.imr.complete: true).
+  void Finish();
+
+  const TilesStats& stats() const { return stats_; }
+  // Written so far: the tiles, then tileset.json.
+  std::vector<std::filesystem::path> files() const;
+  std::filesystem::path tileset_path() const { return output_dir_ / "tileset.json"; }
+
+ private:
+  using Cell = std::tuple<int64_t, int64_t, int64_t>;
+  struct OpenTile {
+    engine::Mesh mesh;
+    std::vector<int64_t> keys;
+    std::map<int64_t, uint32_t> index;  // key -> vertex
+    int64_t last_part = 0;
+  };
+  struct Written {
+    std::string uri;
+    std::array<double, 6> box;
+    int64_t triangles = 0;
+  };
+  void Write(const Cell& cell, OpenTile& tile);
+  void WriteTileset(bool complete);
+
+  TilesOptions options_;
+  std::filesystem::path output_dir_, tiles_dir_;
+  nlohmann::json identity_;
+  std::function<std::array<double, 16>()> root_transform_fn_;
+  std::array<double, 16> root_transform_{};
+  bool have_root_transform_ = false;
+  WriteTileGlb write_;
+  std::map<Cell, OpenTile> open_;
+  std::vector<Written> written_;
+  int64_t parts_ = 0;
+  TilesStats stats_;
+};
+
+// The content uris of a tileset's tile and its descendants, in tree order (depth first).
+std::vector<std::string> TileContentUris(const nlohmann::json& tile);
+
+// The local frame (TileWriter's root transform) from keyframe camera rotations (world -> camera,
+// row-major): the cameras' mean up (-y axis) becomes +Z, their mean viewing direction +Y;
+// column-major 4x4. Identity when the rotations give no up.
+std::array<double, 16> TilesetFrame(const std::vector<std::array<double, 9>>& rotations);
+
+// z-up to glTF's y-up, row-major: a tile's root rotation (see the file comment).
+std::array<double, 9> TileGltfRotation();
+
+// A run's tiles as one mesh: tileset.json's tiles, and tile files a killed run wrote after its
+// last tileset.json, vertices merged by key (positions from the first tile naming a key), in
+// canonical order. Throws std::runtime_error naming the folder or file that cannot be read or
+// does not fit (no tileset, a tile without `_VERTEX_KEY`).
+struct MergedTiles {
+  engine::Mesh mesh;
+  int tiles = 0;
+  int64_t seam_vertices = 0;   // vertices named by more than one tile (merged)
+  bool complete = false;       // the run finished its tileset (else it was killed or failed)
+  std::vector<std::string> notes;
+};
+MergedTiles MergeTiles(const std::filesystem::path& run_folder);
+
+}  // namespace imr::pipeline

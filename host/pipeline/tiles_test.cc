@@ -1,0 +1,180 @@
+// TileWriter without an exporter (a stand-in writes each tile's GLB header and records the tile):
+// the surface handed out in many parts, as the engine's forgetting will, becomes tiles while the
+// parts come (not all at the end), each triangle in exactly one tile, open tiles few; the
+// tileset's tree; the local frame; whose files imr may replace. tests/tiles_test runs the real
+// thing through the imr executable.
+#include "host/pipeline/tiles.h"
+
+#include "host/engine/surface_stream.h"
+#include "host/engine/testing/run_stream.h"
+#include "host/engine/testing/slice_parts.h"
+#include "host/io/testing/temp_dir.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+#include <set>
+
+namespace imr::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// A GLB whose JSON chunk names `_VERTEX_KEY` (all TileWriter reads back).
+void WriteStandInGlb(const fs::path& path) {
+  std::string text = R"({"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0,"_VERTEX_KEY":1}}]}]})";
+  while (text.size() % 4) text.push_back(' ');
+  std::string glb = "glTF";
+  auto u32 = [&](uint32_t v) { glb.append(reinterpret_cast<const char*>(&v), 4); };
+  u32(2);
+  u32(static_cast<uint32_t>(20 + text.size()));
+  u32(static_cast<uint32_t>(text.size()));
+  glb += "JSON" + text;
+  std::ofstream(path, std::ios::binary) << glb;
+}
+
+
+TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = 60;
+  so.points_per_keyframe = 150;
+  synthetic::SyntheticStream stream(so);
+  engine::EngineOptions eo;
+  eo.num_threads = 1;
+  engine::Engine engine(eo, nullptr);
+  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine).ok());
+  const auto parts = engine::testing::SliceIntoParts(engine.ExtractBoundary(), eo.steiner_export, 40,
+                                                     engine::testing::CutOrder::kAlongY);
+
+  io::testing::TempDir dir("imr-tiles-writer");
+  std::vector<TileMesh> written;
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 10.0;
+  o.max_triangles = 150;
+  TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}},
+                    [] { return TilesetFrame({}); },
+                    [&](const TileMesh& t, const fs::path& staging, const std::string& stem) {
+                      WriteStandInGlb(staging / (stem + ".glb"));
+                      written.push_back(t);
+                    });
+  // Before any tile: an empty tileset of imr, marking the folder.
+  EXPECT_EQ(json::parse(std::ifstream(dir / "tileset.json"))["asset"]["extras"]["imr"]["tiles"], 0);
+  engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(eo));
+  std::size_t before_last = 0;
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    ASSERT_EQ(surface.Add(parts[p]), "");
+    writer.Add(surface.TakeReleased());
+    if (p + 1 == parts.size() / 2) before_last = written.size();
+  }
+  const std::size_t during = written.size();
+  writer.Finish();
+  ASSERT_EQ(surface.Finish(), "");
+  // Tiles were written while the parts came, not only at the end; few were open at once.
+  EXPECT_GT(before_last, 3u);
+  EXPECT_GT(during, written.size() / 2);
+  EXPECT_LT(writer.stats().open_tiles_peak, static_cast<int64_t>(written.size() / 2));
+  // Every released triangle in exactly one tile (by its keys), none over max_triangles.
+  std::multiset<std::array<int64_t, 3>> triangles;
+  for (const TileMesh& t : written) {
+    EXPECT_LE(t.mesh.faces.size() / 3, 150u);
+    for (std::size_t f = 0; f < t.mesh.faces.size(); f += 3) {
+      std::array<int64_t, 3> k = {t.keys[t.mesh.faces[f]], t.keys[t.mesh.faces[f + 1]], t.keys[t.mesh.faces[f + 2]]};
+      std::rotate(k.begin(), std::min_element(k.begin(), k.end()), k.end());
+      triangles.insert(k);
+    }
+    for (std::size_t i = 0; i < t.mesh.vertices.size(); ++i) {  // the box holds the tile
+      EXPECT_GE(t.mesh.vertices[i], t.box[i % 3]);
+      EXPECT_LE(t.mesh.vertices[i], t.box[3 + i % 3]);
+    }
+    for (int k = 0; k < 3; ++k)  // the origin is its cell's centre
+      EXPECT_EQ(std::fmod(t.origin[k] - 5.0, 10.0), 0.0);
+  }
+  EXPECT_EQ(static_cast<int64_t>(triangles.size()), surface.stats().triangles_released);
+  const std::set<std::array<int64_t, 3>> distinct(triangles.begin(), triangles.end());
+  EXPECT_EQ(distinct.size(), triangles.size());
+  // The tileset: every tile once, in writing order, under nodes of at most 8.
+  const json ts = json::parse(std::ifstream(dir / "tileset.json"));
+  EXPECT_EQ(ts["asset"]["extras"]["imr"]["complete"], true);
+  const std::vector<std::string> uris = TileContentUris(ts["root"]);
+  ASSERT_EQ(uris.size(), written.size());
+  for (std::size_t i = 0; i < uris.size(); ++i) {
+    char name[64];
+    std::snprintf(name, sizeof(name), "tiles/tile_%06zu.glb", i + 1);
+    EXPECT_EQ(uris[i], name);
+    EXPECT_TRUE(fs::exists(dir / name));
+  }
+  std::vector<const json*> nodes = {&ts["root"]};
+  while (!nodes.empty()) {
+    const json* n = nodes.back();
+    nodes.pop_back();
+    EXPECT_LE(n->value("children", json::array()).size(), 8u);
+    EXPECT_EQ((*n)["boundingVolume"]["box"].size(), 12u);
+    if (n->contains("children"))
+      for (const json& c : (*n)["children"]) nodes.push_back(&c);
+  }
+  EXPECT_EQ(writer.files().size(), written.size() + 1);
+}
+
+// The local frame: a KITTI-style camera (x right, y down, z forward) driving along world +z,
+// world up -y: up becomes +Z, the viewing direction +Y.
+TEST(TileWriterTest, TilesetFrameTurnsTheCamerasUpToZ) {
+  const std::array<double, 16> m = TilesetFrame({{1, 0, 0, 0, 1, 0, 0, 0, 1}});
+  auto apply = [&](std::array<double, 3> v) {
+    return std::array<double, 3>{m[0] * v[0] + m[4] * v[1] + m[8] * v[2], m[1] * v[0] + m[5] * v[1] + m[9] * v[2],
+                                 m[2] * v[0] + m[6] * v[1] + m[10] * v[2]};
+  };
+  EXPECT_EQ(apply({0, -1, 0}), (std::array<double, 3>{0, 0, 1}));
+  EXPECT_EQ(apply({0, 0, 1}), (std::array<double, 3>{0, 1, 0}));
+  EXPECT_EQ(apply({1, 0, 0}), (std::array<double, 3>{1, 0, 0}));
+  EXPECT_EQ(m[15], 1.0);
+  EXPECT_EQ(TilesetFrame({}), (std::array<double, 16>{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}));
+  // glTF content: z-up to y-up.
+  EXPECT_EQ(TileGltfRotation(), (std::array<double, 9>{1, 0, 0, 0, 0, 1, 0, -1, 0}));
+}
+
+TEST(TileWriterTest, ForeignTilesAreNamed) {
+  io::testing::TempDir dir("imr-tiles-foreign");
+  EXPECT_EQ(ForeignTiles(dir.path(), "/j.json", "street"), "");
+  fs::create_directories(dir / "tiles");
+  std::ofstream(dir / "tiles" / "tile_000001.glb") << "x";
+  EXPECT_NE(ForeignTiles(dir.path(), "/j.json", "street").find("tile_000001.glb: a tile with no tileset.json of imr"),
+            std::string::npos);
+  std::ofstream(dir / "tileset.json") << R"({"asset": {"extras": {"imr": {"job": "/j.json", "sequence": "street"}}}})";
+  EXPECT_EQ(ForeignTiles(dir.path(), "/j.json", "street"), "");
+  EXPECT_NE(ForeignTiles(dir.path(), "/other.json", "street").find("not a tileset imr wrote"), std::string::npos);
+  EXPECT_NE(ForeignTiles(dir.path(), "/j.json", "room").find("not a tileset imr wrote"), std::string::npos);
+  // A file of another name in tiles/ is neither ours nor in the way: left alone.
+  std::ofstream(dir / "tiles" / "notes.txt") << "mine";
+  EXPECT_EQ(ForeignTiles(dir.path(), "/j.json", "street"), "");
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 10;
+  TileWriter w(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+               [](const TileMesh&, const fs::path&, const std::string&) {});
+  EXPECT_FALSE(fs::exists(dir / "tiles" / "tile_000001.glb"));  // the earlier run's tile: replaced
+  EXPECT_TRUE(fs::exists(dir / "tiles" / "notes.txt"));
+  // An exporter that leaves `_VERTEX_KEY` out: the tile is refused, naming the file.
+  TileWriter bad(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+                 [](const TileMesh&, const fs::path& staging, const std::string& stem) {
+                   std::ofstream(staging / (stem + ".glb")) << "glTF";
+                 });
+  engine::SurfacePart p;
+  p.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  p.keys = {0, 1, 2};
+  p.point_ids = {0, 1, 2};
+  p.faces = {0, 1, 2};
+  bad.Add(p);
+  try {
+    bad.Finish();
+    ADD_FAILURE() << "a tile without keys was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("tile_000001.glb"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace imr::pipeline

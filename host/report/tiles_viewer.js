@@ -1,0 +1,144 @@
+// The batch viewer page's view of tiled runs (issue 32; viewer_page.h): NASA-AMMOS'
+// 3d-tiles-renderer on three.js (npm, tools/node), bundled by esbuild at build time into
+// imr-tiles-viewer.js (one classic script, as a page opened from disk can only load those).
+//
+// The page works from file://, where fetch() of local files is refused: a run's tileset.json and
+// each tile are written beside the page as scripts (assets/tiles/<n>/<name>.js, the bytes in
+// base64 behind imrTileData(n, path, base64)), and a renderer plugin answers the renderer's
+// requests for https://imr-tiles.invalid/<n>/<path> by loading that script when the tile is
+// first needed: nothing is fetched from the network, and tiles out of view are never loaded.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { TilesRenderer } from '3d-tiles-renderer/three';
+
+const BASE = 'https://imr-tiles.invalid/';
+
+(function () {
+  const table = document.getElementById('imr-tiles');
+  const host = document.getElementById('tiles-viewer');
+  const status = document.getElementById('tiles-status');
+  if (!table || !host) return;
+  const runs = JSON.parse(table.textContent);
+  // For tests and the curious: what the view has done.
+  const state = window.imrTilesViewer = { shown: null, tilesetLoaded: false, models: 0, errors: [],
+                                          done: false, show: null };
+  const say = (text) => { if (status) status.textContent = text; };
+
+  const waiting = {};  // "<n>/<path>" -> [resolve, reject]
+  window.imrTileData = function (n, path, b64) {
+    const key = n + '/' + path;
+    const bin = atob(b64);
+    const bytes = new Uint8Array(bin.length);
+    for (let k = 0; k < bin.length; ++k) bytes[k] = bin.charCodeAt(k);
+    if (waiting[key]) { waiting[key][0](bytes); delete waiting[key]; }
+  };
+  function embedded(n, path) {
+    return new Promise((resolve, reject) => {
+      const run = runs[n];
+      const name = path === 'tileset.json' ? 'tileset' : path.replace(/^tiles\//, '').replace(/\.glb$/, '');
+      if (!run || !/^(tileset|tile_[0-9]{6})$/.test(name)) { reject(new Error('not a tile of this page: ' + path)); return; }
+      waiting[n + '/' + path] = [resolve, reject];
+      const s = document.createElement('script');
+      s.src = run.scripts + '/' + name + '.js';
+      s.onerror = () => reject(new Error('cannot load ' + s.src));
+      document.head.appendChild(s);
+    });
+  }
+  // A 3d-tiles-renderer plugin: every request of the renderer answered from the page's scripts.
+  class EmbeddedTilesPlugin {
+    constructor(n) { this.name = 'IMR_EMBEDDED_TILES'; this.n = n; }
+    fetchData(url) {
+      const prefix = BASE + this.n + '/';
+      if (!url.startsWith(prefix)) return Promise.reject(new Error('not a tile of this page: ' + url));
+      const path = url.slice(prefix.length).split('?')[0];
+      return embedded(this.n, path).then((bytes) => new Response(bytes, {
+        status: 200, headers: { 'content-type': path.endsWith('.json') ? 'application/json' : 'model/gltf-binary' } }));
+    }
+  }
+
+  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.setClearColor(0xeef1f4);
+  host.appendChild(renderer.domElement);
+  const scene = new THREE.Scene();
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x707070, 2.2));
+  const sun = new THREE.DirectionalLight(0xffffff, 1.2);
+  sun.position.set(1, 3, 2);
+  scene.add(sun);
+  const camera = new THREE.PerspectiveCamera(50, 1, 0.1, 1e6);
+  const controls = new OrbitControls(camera, renderer.domElement);
+  const plain = new THREE.MeshStandardMaterial({ color: 0xeba64d, roughness: 0.8, side: THREE.DoubleSide });
+  let tiles = null;
+  let quiet = 0;
+
+  function resize() {
+    const w = host.clientWidth || 800, h = host.clientHeight || 520;
+    renderer.setSize(w, h);
+    camera.aspect = w / h;
+    camera.updateProjectionMatrix();
+    if (tiles) tiles.setResolutionFromRenderer(camera, renderer);
+  }
+
+  function show(n) {
+    const run = runs[n];
+    if (!run) return;
+    if (tiles) { scene.remove(tiles.group); tiles.dispose(); }
+    Object.assign(state, { shown: n, tilesetLoaded: false, models: 0, done: false });
+    quiet = 0;
+    document.querySelectorAll('button[data-tiles]').forEach((b) => { b.disabled = Number(b.dataset.tiles) === n; });
+    say('Loading the tiles of ' + run.name + ' ...');
+    tiles = new TilesRenderer(BASE + n + '/tileset.json');
+    tiles.registerPlugin(new EmbeddedTilesPlugin(n));
+    tiles.group.rotation.x = -Math.PI / 2;  // 3D Tiles is z-up, three.js y-up
+    scene.add(tiles.group);
+    tiles.setCamera(camera);
+    resize();
+    tiles.addEventListener('load-root-tileset', () => {
+      state.tilesetLoaded = true;
+      tiles.group.updateMatrixWorld(true);
+      const sphere = new THREE.Sphere();
+      tiles.getBoundingSphere(sphere);
+      sphere.applyMatrix4(tiles.group.matrixWorld);
+      controls.target.copy(sphere.center);
+      camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(sphere.radius * 2.2));
+      camera.near = Math.max(sphere.radius / 1000, 0.01);
+      camera.far = sphere.radius * 20;
+      camera.updateProjectionMatrix();
+      controls.update();
+    });
+    tiles.addEventListener('load-model', (e) => {
+      state.models += 1;
+      e.scene.traverse((o) => {
+        if (o.isMesh && !o.geometry.attributes.color && !(o.material && o.material.map)) o.material = plain;
+        else if (o.isMesh && o.material) o.material.side = THREE.DoubleSide;
+      });
+      say(run.name + ': ' + state.models + ' of ' + run.tiles + ' tiles loaded (' + run.triangles +
+          ' triangles in all). Drag to turn, scroll to zoom, right-drag to pan.');
+    });
+    tiles.addEventListener('load-error', (e) => {
+      state.errors.push(String(e.url) + ': ' + String(e.error && e.error.message || e.error));
+      say('Could not load ' + String(e.url));
+    });
+  }
+  state.show = show;
+
+  function frame() {
+    requestAnimationFrame(frame);
+    if (!tiles) return;
+    controls.update();
+    camera.updateMatrixWorld();
+    tiles.update();
+    renderer.render(scene, camera);
+    const s = tiles.stats || {};
+    quiet = state.tilesetLoaded && (s.downloading || 0) + (s.parsing || 0) === 0 ? quiet + 1 : 0;
+    state.done = quiet > 30;
+  }
+  window.addEventListener('resize', resize);
+  document.querySelectorAll('button[data-tiles]').forEach((b) => b.addEventListener('click', () => {
+    show(Number(b.dataset.tiles));
+    host.scrollIntoView({ behavior: 'smooth' });
+  }));
+  const first = runs.findIndex((r) => r !== null);
+  if (first >= 0) show(first);
+  requestAnimationFrame(frame);
+})();

@@ -1,0 +1,321 @@
+// 3D Tiles through the imr executable (issue 32; host/pipeline/tiles.h): a job with output.tiles
+// writes tiles and tileset.json beside the same mesh as without them; the tiles merge (imr tiles
+// merge) into that mesh with no duplicate vertex, a 2-manifold with boundary; tiles only; a
+// stopped run keeps only whole tiles, which merge too; a tile folder that cannot be written
+// fails its sequence (the path named) and the other sequence of the batch goes on; a tileset
+// imr did not write is never overwritten.
+#include "host/engine/engine.h"
+#include "host/eval/mesh_io.h"
+#include "host/pipeline/tiles.h"
+#include "test_util.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cstring>
+#include <fstream>
+#include <set>
+#include <string>
+#include <thread>
+
+namespace imr {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using testing::Quote;
+using testing::ReadText;
+using testing::RunShell;
+using testing::ScratchDir;
+using testing::WriteText;
+
+json Job(const json& sequences, const json& formats, const json& tiles, int frames = 60) {
+  json output = {{"directory", "runs/{sequence}"}, {"formats", formats}};
+  if (!tiles.is_null()) output["tiles"] = tiles;
+  return {{"sequences", sequences},
+          {"input", {{"format", "synthetic"}, {"options", {{"frames", frames}, {"seed", 3}}}}},
+          {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+          {"output", output}};
+}
+
+testing::CommandResult RunJob(const fs::path& dir, const std::string& name, const json& job) {
+  WriteText(dir / (name + ".json"), job.dump(2));
+  return RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / (name + ".json")).string()));
+}
+
+
+engine::Mesh AsEngineMesh(const eval::TriangleMesh& t) {
+  engine::Mesh m;
+  for (const auto& v : t.vertices) m.vertices.insert(m.vertices.end(), v.begin(), v.end());
+  for (const auto& f : t.triangles) m.faces.insert(m.faces.end(), f.begin(), f.end());
+  m.point_ids.assign(t.vertices.size(), -1);
+  return m;
+}
+
+// Every leaf's box holds its tile's vertices (the tile read in the sequence's frame).
+void ExpectBoxesHoldTheirTiles(const fs::path& run, const json& tile) {
+  if (tile.contains("content")) {
+    const eval::TriangleMesh m = eval::ReadMesh(run / tile["content"]["uri"].get<std::string>());
+    const json& b = tile["boundingVolume"]["box"];
+    ASSERT_EQ(b.size(), 12u);
+    for (const auto& v : m.vertices)
+      for (int k = 0; k < 3; ++k)
+        EXPECT_LE(std::abs(v[k] - b[k].get<double>()), b[3 + 4 * k].get<double>() + 1e-3)
+            << tile["content"]["uri"] << " axis " << k;
+  }
+  for (const json& c : tile.value("children", json::array())) ExpectBoxesHoldTheirTiles(run, c);
+}
+
+TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
+  ScratchDir dir("tiles");
+  ASSERT_EQ(RunJob(dir.path(), "plain", Job({"street"}, {"ply"}, nullptr)).status, 0);
+  fs::rename(dir / "runs", dir / "plain");
+  const auto run = RunJob(dir.path(), "tiles", Job({"street"}, {"ply"}, {{"size", 20}}));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const fs::path out = dir / "runs" / "street";
+  // Tiles change nothing in the mesh.
+  EXPECT_EQ(ReadText(out / "mesh.ply"), ReadText(dir / "plain" / "street" / "mesh.ply"));
+
+  const json tileset = json::parse(ReadText(out / "tileset.json"));
+  const json report = json::parse(ReadText(out / "report.json"));
+  EXPECT_EQ(tileset["asset"]["version"], "1.1");
+  EXPECT_EQ(tileset["asset"]["extras"]["imr"]["complete"], true);
+  EXPECT_EQ(tileset["asset"]["extras"]["imr"]["sequence"], "street");
+  EXPECT_EQ(tileset["root"]["transform"].size(), 16u);
+  EXPECT_EQ(tileset["root"]["refine"], "ADD");
+  EXPECT_GT(tileset["geometricError"].get<double>(), 0.0);
+  const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
+  ASSERT_GE(uris.size(), 9u);  // more than one level of the tree
+  EXPECT_EQ(report["tiles"]["count"], uris.size());
+  std::set<std::string> on_disk;
+  for (const auto& e : fs::directory_iterator(out / "tiles")) on_disk.insert("tiles/" + e.path().filename().string());
+  EXPECT_EQ(on_disk, std::set<std::string>(uris.begin(), uris.end()));
+  int64_t bytes = 0;
+  for (const std::string& u : uris) bytes += static_cast<int64_t>(fs::file_size(out / u));
+  EXPECT_EQ(report["tiles"]["bytes"], bytes);
+  EXPECT_EQ(report["tiles"]["triangles"], report["mesh"]["faces"]);
+  EXPECT_GT(report["tiles"]["vertices"].get<int64_t>(), report["mesh"]["vertices"].get<int64_t>());
+  ExpectBoxesHoldTheirTiles(out, tileset["root"]);
+  // The manifest lists the tiles (a re-run checks them).
+  const std::string manifest = ReadText(out / "manifest.json");
+  EXPECT_NE(manifest.find("tiles/" + uris.front().substr(6)), std::string::npos);
+  EXPECT_NE(manifest.find("tileset.json"), std::string::npos);
+
+  // Merged by key: the mesh's own vertex and triangle counts (no duplicate along the seams).
+  const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(out.string()) + " --out " +
+                              Quote((dir / "merged.ply").string()));
+  ASSERT_EQ(merge.status, 0) << merge.err;
+  EXPECT_NE(merge.out.find("a 2-manifold with boundary"), std::string::npos) << merge.out;
+  const eval::TriangleMesh merged = eval::ReadMesh(dir / "merged.ply");
+  const eval::TriangleMesh mesh = eval::ReadMesh(out / "mesh.ply");
+  EXPECT_EQ(merged.vertices.size(), mesh.vertices.size());
+  EXPECT_EQ(merged.triangles.size(), mesh.triangles.size());
+  EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(merged), false).ok);
+  // The same surface: each merged vertex within a millimetre of a mesh vertex (float32 tiles).
+  std::multiset<std::array<long, 3>> grid;
+  for (const auto& v : mesh.vertices) grid.insert({std::lround(v[0] * 100), std::lround(v[1] * 100), std::lround(v[2] * 100)});
+  int near = 0;
+  for (const auto& v : merged.vertices)
+    near += grid.count({std::lround(v[0] * 100), std::lround(v[1] * 100), std::lround(v[2] * 100)}) > 0;
+  EXPECT_GT(near, static_cast<int>(merged.vertices.size() * 95 / 100));
+
+  // A re-run with larger tiles replaces them all: no tile of the first run is left.
+  const auto again = RunShell(std::string(IMR_EXE) + " run -q --set output.tiles.size=40 " +
+                              Quote((dir / "tiles.json").string()));
+  ASSERT_EQ(again.status, 0) << again.err;
+  const std::vector<std::string> uris2 = pipeline::TileContentUris(json::parse(ReadText(out / "tileset.json"))["root"]);
+  std::set<std::string> on_disk2;
+  for (const auto& e : fs::directory_iterator(out / "tiles")) on_disk2.insert("tiles/" + e.path().filename().string());
+  EXPECT_LT(uris2.size(), uris.size());
+  EXPECT_EQ(on_disk2, std::set<std::string>(uris2.begin(), uris2.end()));
+}
+
+TEST(Tiles, TilesOnly) {
+  ScratchDir dir("tiles-only");
+  const auto run = RunJob(dir.path(), "job", Job({"street"}, json::array(), json::object()));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const fs::path out = dir / "runs" / "street";
+  const json report = json::parse(ReadText(out / "report.json"));
+  EXPECT_EQ(report["mesh"]["written"], false);
+  EXPECT_GT(report["mesh"]["faces"].get<int64_t>(), 1000);
+  EXPECT_EQ(report["tiles"]["triangles"], report["mesh"]["faces"]);
+  for (const auto& e : fs::directory_iterator(out))
+    EXPECT_NE(e.path().stem().string(), "mesh") << e.path();
+  const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(out.string()) + " -o " +
+                              Quote((dir / "merged.obj").string()));
+  ASSERT_EQ(merge.status, 0) << merge.err;
+  EXPECT_EQ(eval::ReadMesh(dir / "merged.obj").triangles.size(), report["mesh"]["faces"].get<std::size_t>());
+  // formats [] without tiles: nothing would be written.
+  WriteText(dir / "none.json", Job({"street"}, json::array(), nullptr).dump());
+  const auto none = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "none.json").string()));
+  EXPECT_EQ(none.status, 64);
+  EXPECT_NE(none.err.find("output.formats"), std::string::npos) << none.err;
+}
+
+// Texture per tile (imr-synth's colour street through the image pipeline): each tile is coloured
+// from the keyframes that may see it, not all of them, their images decoded for that tile only.
+TEST(Tiles, TexturedFromTheKeyframesThatSeeEachTile) {
+  ScratchDir dir("tiles-texture");
+  const auto synth = RunShell(Quote(IMR_SYNTH_EXE) + " --out " + Quote((dir / "street").string()) +
+                              " --frames 40 --width 621 --height 188 --color --no-lidar -q");
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  const json job = {
+      {"sequences", {(dir / "street").string()}},
+      {"input", {{"format", "kitti_odometry"}}},
+      {"engine", {{"steiner_export", "any_steiner"}}},
+      {"pipeline",
+       {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+        {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}},
+        {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+      {"output", {{"directory", (dir / "out").string()}, {"formats", {"glb"}}, {"tiles", {{"size", 10}}}}}};
+  WriteText(dir / "job.json", job.dump(2));
+  const auto run = RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / "job.json").string()));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const json report = json::parse(ReadText(dir / "out" / "report.json"));
+  const json& tiles = report["tiles"];
+  const int64_t count = tiles["count"], keyframes = report["engine"]["keyframes"];
+  ASSERT_GE(count, 4);
+  EXPECT_GT(tiles["keyframes_given"].get<int64_t>(), 0);
+  EXPECT_LT(tiles["keyframes_given"].get<int64_t>(), count * keyframes) << tiles.dump();
+  EXPECT_EQ(tiles["image_service"]["decodes"], tiles["keyframes_given"]) << tiles.dump();
+  int textured = 0;
+  for (const std::string& uri : pipeline::TileContentUris(json::parse(ReadText(dir / "out" / "tileset.json"))["root"])) {
+    const std::string glb = ReadText(dir / "out" / uri);
+    uint32_t length = 0;
+    std::memcpy(&length, glb.data() + 12, 4);
+    const json g = json::parse(glb.substr(20, length));
+    bool coloured = false;
+    for (const json& m : g.value("materials", json::array()))
+      coloured = coloured || m["pbrMetallicRoughness"].contains("baseColorTexture");
+    textured += coloured;
+    for (const json& p : g["meshes"][0]["primitives"]) {
+      EXPECT_TRUE(p["attributes"].contains("_VERTEX_KEY")) << uri;
+      coloured = coloured || p["attributes"].contains("COLOR_0");
+    }
+    EXPECT_TRUE(coloured) << uri << " has neither texture nor vertex colours";
+  }
+  EXPECT_GT(textured, count / 2);
+  const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote((dir / "out").string()) + " --out " +
+                              Quote((dir / "merged.ply").string()));
+  ASSERT_EQ(merge.status, 0) << merge.err;
+  EXPECT_EQ(eval::ReadMesh(dir / "merged.ply").triangles.size(), report["mesh"]["faces"].get<std::size_t>());
+}
+
+// A run stopped (SIGKILL) while it writes tiles: every tile file is whole, the tileset lists
+// whole tiles only, and what is there merges into a 2-manifold with boundary.
+TEST(Tiles, AStoppedRunKeepsWholeTilesOnly) {
+  ScratchDir dir("tiles-killed");
+  WriteText(dir / "job.json", Job({"street"}, {"ply"}, {{"size", 2}}).dump(2));
+  const fs::path out = dir / "runs" / "street";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::setpgid(0, 0);
+    ::execl(IMR_EXE, IMR_EXE, "run", "-q", (dir / "job.json").c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  ::setpgid(pid, pid);
+  // Until the tileset lists a few tiles (the run writes hundreds of 2 m tiles).
+  bool killed = false;
+  for (int i = 0; i < 60000 && !killed; ++i) {
+    std::error_code ec;
+    if (fs::exists(out / "tileset.json", ec)) {
+      try {
+        if (json::parse(ReadText(out / "tileset.json"))["asset"]["extras"]["imr"]["tiles"].get<int>() >= 5) {
+          ::kill(-pid, SIGKILL);
+          killed = true;
+        }
+      } catch (const std::exception&) {
+      }
+    }
+    int status = 0;
+    if (!killed && ::waitpid(pid, &status, WNOHANG) == pid) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(killed) << "the run ended before it could be stopped";
+  ASSERT_TRUE(WIFSIGNALED(status));
+  const json tileset = json::parse(ReadText(out / "tileset.json"));
+  EXPECT_EQ(tileset["asset"]["extras"]["imr"]["complete"], false);
+  const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
+  EXPECT_GE(uris.size(), 5u);
+  std::size_t whole = 0;
+  for (const auto& e : fs::directory_iterator(out / "tiles")) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(".imr-staging-", 0) == 0) continue;  // what `imr run` clears next time
+    ASSERT_EQ(name.rfind("tile_", 0), 0u) << name;
+    EXPECT_NO_THROW(eval::ReadMesh(e.path())) << name;  // whole, or it would not read
+    ++whole;
+  }
+  EXPECT_GE(whole, uris.size());
+  EXPECT_FALSE(fs::exists(out / "mesh.ply"));
+  const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(out.string()) + " --out " +
+                              Quote((dir / "merged.glb").string()));
+  ASSERT_EQ(merge.status, 0) << merge.err;
+  EXPECT_NE(merge.err.find("the run did not finish"), std::string::npos) << merge.err;
+  EXPECT_NE(merge.out.find("a 2-manifold with boundary (of a run that did not finish)"), std::string::npos);
+  EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(eval::ReadMesh(dir / "merged.glb")), false).ok);
+  // The next run clears what the stopped one left and finishes.
+  const auto again = RunShell(std::string(IMR_EXE) + " run -q --set output.tiles.size=20 " +
+                              Quote((dir / "job.json").string()));
+  ASSERT_EQ(again.status, 0) << again.err;
+  EXPECT_EQ(json::parse(ReadText(out / "tileset.json"))["asset"]["extras"]["imr"]["complete"], true);
+  for (const auto& e : fs::recursive_directory_iterator(out))
+    EXPECT_NE(e.path().filename().string().rfind(".imr-staging-", 0), 0u) << e.path();
+}
+
+// Bad input: a file where the tile folder goes fails that sequence, naming the path, and the
+// batch's other sequence is written; a tileset imr did not write is refused, not overwritten.
+TEST(Tiles, AnUnwritableTileFolderFailsOnlyItsSequence) {
+  ScratchDir dir("tiles-bad");
+  fs::create_directories(dir / "runs" / "street");
+  WriteText(dir / "runs" / "street" / "tiles", "a file, not a folder\n");
+  const auto run = RunJob(dir.path(), "job", Job({"street", "room"}, {"ply"}, {{"size", 20}}));
+  EXPECT_EQ(run.status, 1) << run.out << run.err;
+  const json summary = json::parse(ReadText(dir / "runs" / "summary.json"));
+  std::map<std::string, json> rows;
+  for (const json& s : summary["sequences"]) rows[s["name"]] = s;
+  EXPECT_EQ(rows["street"]["status"], "failed");
+  EXPECT_NE(rows["street"]["error"].get<std::string>().find((dir / "runs" / "street" / "tiles").string()),
+            std::string::npos) << rows["street"].dump();
+  EXPECT_EQ(rows["room"]["status"], "ok");
+  EXPECT_TRUE(fs::exists(dir / "runs" / "room" / "tileset.json"));
+  EXPECT_EQ(ReadText(dir / "runs" / "street" / "tiles"), "a file, not a folder\n");
+
+  // Another tool's tileset.json where the tiles go.
+  ScratchDir other("tiles-foreign");
+  fs::create_directories(other / "runs" / "street");
+  const std::string theirs = R"({"asset": {"version": "1.0"}, "root": {}})";
+  WriteText(other / "runs" / "street" / "tileset.json", theirs);
+  const auto refused = RunJob(other.path(), "job", Job({"street"}, {"ply"}, {{"size", 20}}));
+  EXPECT_EQ(refused.status, 1);
+  const json s2 = json::parse(ReadText(other / "runs" / "summary.json"));
+  EXPECT_NE(s2["sequences"][0]["error"].get<std::string>().find("tileset.json: not a tileset imr wrote"),
+            std::string::npos) << s2.dump();
+  EXPECT_EQ(ReadText(other / "runs" / "street" / "tileset.json"), theirs);
+
+  // imr tiles merge on a folder without tiles, or a tileset naming a path outside tiles/.
+  const auto none = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote((dir / "runs").string()) + " -o " +
+                             Quote((dir / "m.ply").string()));
+  EXPECT_EQ(none.status, 1);
+  EXPECT_NE(none.err.find("tileset.json: no such file"), std::string::npos) << none.err;
+  WriteText(other / "runs" / "street" / "tileset.json",
+            R"({"asset": {"version": "1.1", "extras": {"imr": {"complete": true}}},
+                "root": {"content": {"uri": "../../secret.glb"}}})");
+  const auto outside = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote((other / "runs" / "street").string()) +
+                                " -o " + Quote((dir / "m.ply").string()));
+  EXPECT_EQ(outside.status, 1);
+  EXPECT_NE(outside.err.find("is not a tile of imr"), std::string::npos) << outside.err;
+  const auto usage = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote((dir / "runs").string()) + " -o m.txt");
+  EXPECT_EQ(usage.status, 64);
+  EXPECT_FALSE(fs::exists(dir / "m.ply"));
+}
+
+}  // namespace
+}  // namespace imr
