@@ -606,6 +606,14 @@ Engine::Impl::Impl(const EngineOptions& o, WeightTransferPolicy* p)
 
 Status Engine::Impl::Validate(const KeyframeUpdate& u) const {
   std::unordered_set<uint64_t> update_cams;
+  if (s.opt.visibility_mode == VisibilityMode::kRays) {
+    size_t added = 0;
+    for (const Camera& c : u.cameras) added += s.camera_index.count(c.id) ? 0 : 1;
+    if (s.cameras.size() + added > detail::RayEntry::kMaxCameras)
+      return Status::Error("visibility_mode 'rays' (the baseline of Lovi et al.) keeps at most " +
+                           std::to_string(detail::RayEntry::kMaxCameras) +
+                           " cameras; use 'exact' or 'weights' for longer sequences");
+  }
   for (const Camera& c : u.cameras) {
     if (!Finite(c.center)) {
       std::ostringstream m;
@@ -669,6 +677,10 @@ void Engine::Impl::AddCameras(PointRecord& rec, const std::vector<uint64_t>& ids
   for (uint64_t id : ids) {
     const uint32_t c = s.camera_index.at(id);
     if (std::find(rec.cameras.begin(), rec.cameras.end(), c) != rec.cameras.end()) continue;
+    if (rec.cameras.size() >= detail::RayEntry::kMaxCameras) {  // a cell's entry names the ray
+      ++s.stats.observations_over_limit;                       // by its index in 16 bits
+      continue;
+    }
     rec.cameras.push_back(c);
     if (s.opt.visibility_mode == VisibilityMode::kExact) {
       rec.ray_state.push_back(0);
@@ -1162,7 +1174,7 @@ void Engine::Impl::InsertNewPoint(const NewPoint& np) {
   s.points.push_back({});
   PointRecord& rec0 = s.points.back();
   rec0.id = np.id;
-  rec0.named = s.stats.updates;
+  rec0.named = static_cast<int64_t>(s.cameras.size());
   rec0.position = np.position;
   AddCameras(rec0, np.camera_ids, nullptr);
   Enter(pt, /*again=*/false);
@@ -1279,8 +1291,6 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   const std::unique_ptr<KeyframeUpdate> filtered = WithoutRetired(update);
   const KeyframeUpdate& u = filtered ? *filtered : update;
   const auto t0 = Clock::now();
-  for (const MovedPoint& m : u.moved_points) s.points[s.point_index.at(m.id)].named = s.stats.updates;
-  for (uint64_t id : u.removed_points) s.points[s.point_index.at(id)].named = s.stats.updates;
   std::vector<Point> centres;
   for (const Camera& c : u.cameras) {
     if (s.camera_index.count(c.id)) continue;
@@ -1293,6 +1303,9 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
     s.stats.time.steiner += SecondsSince(ts);
   }
   if (s.opt.forget) forgetting.AddUpdateCameras(std::move(centres));
+  const int64_t known = static_cast<int64_t>(s.cameras.size());
+  for (const MovedPoint& m : u.moved_points) s.points[s.point_index.at(m.id)].named = known;
+  for (uint64_t id : u.removed_points) s.points[s.point_index.at(id)].named = known;
   // Removals and insertions are charged to "insert", moves to "move"; both without their ray
   // casting and shrinking, which have their own timers.
   auto timed = [&](double* phase, auto&& fn) {

@@ -138,7 +138,7 @@ struct EngineOptions {
                                       // (TakeFinalParts) and its cells, rays and points are
                                       // freed, so memory stays flat in the drive's length.
   double forget_distance = 0.0;       // A cell is final once it lies this far (metres) behind
-                                      // every camera of the last `window` updates; 0: derived
+                                      // every one of the last `window` cameras; 0: derived
                                       // from the options (ForgetDistance).
   double forget_step = 0.0;           // Forgetting runs each time the newest camera has moved
                                       // this far (metres) since it last ran; 0: derived
@@ -276,6 +276,8 @@ struct EngineStats {
                                       // spacing: not made.
   int64_t points_reentered = 0;       // Points refused at insertion that entered at a later move.
   int64_t points_removed = 0;
+  int64_t observations_over_limit = 0;  // Observations of a point beyond its 65,535th camera:
+                                        // not kept (their rays are not cast).
   int64_t steiner_points = 0;
   int64_t steiner_dropped = 0;
   int64_t cells_grown = 0;

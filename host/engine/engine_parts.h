@@ -52,15 +52,25 @@ namespace imr::engine::detail {
 
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 
-// One ray stored in a cell. kRays: camera index, point, and the ring (level: 0 = T, 1 = N1,
-// 2 = N2). kExact: the ray's index among its point's cameras (camera), the point, and the ray's
-// generation when it was added (level): an entry whose generation is not the ray's current one
-// is stale (the ray was un-cast since) and is dropped when met.
+// One ray stored in a cell, 8 bytes (the cells' lists are most of the engine's memory: 12 bytes
+// took a third more on the dense street). kRays: camera index (at most kMaxCameras), point, and
+// the ring (level: 0 = T, 1 = N1, 2 = N2). kExact: the ray's index among its point's cameras
+// (camera; a point keeps at most kMaxCameras), the point, and the ray's generation when it was
+// added, modulo 2^16 (level): an entry whose generation is not the ray's current one is stale
+// (the ray was un-cast since) and is dropped when met. Modulo 2^16, a stale entry would pass for
+// current only if it outlived 65,536 un-casts of its ray in a cell never compacted nor
+// destroyed meanwhile.
 struct RayEntry {
-  uint32_t camera;
-  uint32_t point;
-  uint32_t level;
+  static constexpr uint32_t kMaxCameras = 0xFFFF;
+  RayEntry() = default;
+  RayEntry(uint32_t camera_, uint32_t point_, uint32_t level_)
+      : point(point_), camera(static_cast<uint16_t>(camera_)),
+        level(static_cast<uint16_t>(level_)) {}
+  uint32_t point = 0;
+  uint16_t camera = 0;
+  uint16_t level = 0;
 };
+static_assert(sizeof(RayEntry) == 8);
 
 struct VertexInfo {
   int64_t id = -1;     // >= 0: internal point index; < 0: Steiner point number -(k + 1).
@@ -158,7 +168,9 @@ struct PointRecord {
   bool retired = false;        // forget: its vertex was forgotten (or it never had one and lies
                                // where everything is final): its updates are ignored; the record
                                // stays only while a live cell holds one of its rays.
-  int64_t named = 0;           // The update (EngineStats::updates before it) that last named it.
+  int64_t named = 0;           // The cameras known when an update last named it (the newest
+                               // camera's index + 1): a point named with the last `window`
+                               // cameras may still move (Forgetting::Live).
   Vec3 position{};             // Latest estimate received.
   std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
   // kExact, parallel to cameras: each ray's state, its generation (+1 at each un-cast: entries
@@ -373,7 +385,7 @@ struct EngineState {
     const PointRecord& rec = points[e.point];
     if (e.camera >= rec.ray_state.size()) return false;
     const uint32_t state = rec.ray_state[e.camera];
-    return (state & PointRecord::kCast) && (state >> 2) == e.level;
+    return (state & PointRecord::kCast) && static_cast<uint16_t>(state >> 2) == e.level;
   }
   // Where a point's last W cameras start in its list: the rays a move re-casts.
   size_t WindowBegin(const PointRecord& rec) const {
@@ -848,9 +860,9 @@ class RetiredIds {
 
 // Long drives (EngineOptions::forget, DESIGN.md section 10). At each step, the cells that no live
 // change can reach any more become final: those lying forget_distance (ForgetDistance) from
-// every camera of the last `window` updates and behind the newest camera (on the side it came
-// from), with no vertex of a point named in those updates. A final cell is never destroyed (an
-// insertion or a move that would is refused: EngineState::TouchesFinal), toggled or weighted
+// every one of the last `window` cameras and behind the newest camera (on the side it came
+// from), with no vertex of a point named while one of them was the newest. A final cell is never destroyed (an
+// insertion or a move that would is refused: EngineState::BlockedByFinal), toggled or weighted
 // again, and its ray list is freed; a facet of dO between two final cells is final (handed out
 // as a SurfacePart). A vertex whose cells are all final is deep; a deep vertex whose neighbours
 // are all deep can leave the triangulation without a live cell noticing (the cells it takes
@@ -878,6 +890,11 @@ class Forgetting {
   void MaybeRebuild();
   bool Retired(uint64_t id) const { return retired_.Contains(id); }
   const RetiredIds& retired() const { return retired_; }
+  // Whether an update named the point while one of the last `window` cameras was the newest
+  // (a point still tracked may move; its rays come from those cameras).
+  bool Live(const PointRecord& rec) const {
+    return rec.named + s_.opt.window > static_cast<int64_t>(s_.cameras.size());
+  }
   // Whether the newest camera is back where the cameras were forget_distance away from (a
   // place left behind: what was made there may be forgotten, and O must start again there).
   bool Returned() const;
@@ -890,7 +907,7 @@ class Forgetting {
   EngineState& s_;
   RayCaster& caster_;
   SteinerGrid& steiner_;
-  std::deque<std::vector<Point>> recent_;  // the cameras of the last `window` updates
+  std::deque<std::vector<Point>> recent_;  // the updates that hold the last `window` cameras
   std::vector<Point> live_;                // recent_'s cameras at the step, thinned
   double live_radius_ = 0.0;               // each stands for those this close to it
   Point newest_, last_step_;

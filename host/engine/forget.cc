@@ -69,7 +69,13 @@ void Forgetting::AddUpdateCameras(std::vector<Point> centres) {
     path_.pop_front();
   }
   recent_.push_back(std::move(centres));
-  while (recent_.size() > static_cast<size_t>(s_.opt.window)) recent_.pop_front();
+  // The updates that hold the last `window` cameras (every camera of the newest one).
+  size_t held = 0;
+  for (const auto& update : recent_) held += update.size();
+  while (recent_.size() > 1 && held - recent_.front().size() >= static_cast<size_t>(s_.opt.window)) {
+    held -= recent_.front().size();
+    recent_.pop_front();
+  }
 }
 
 bool Forgetting::Due() const {
@@ -90,7 +96,7 @@ bool Forgetting::FarBehind(const Point& p, double radius) const {
 }
 
 // A cell becomes final when the ball around its vertices is far behind (FarBehind) and none of
-// them is a point named by the last `window` updates (a point still tracked may move).
+// them is a point named with the last `window` cameras (a point still tracked may move).
 bool Forgetting::BecomesFinal(Cell_handle c) const {
   // Most cells are on the newest camera's side of the plane: one vertex there says no.
   for (int i = 0; i < 4; ++i) {
@@ -108,8 +114,7 @@ bool Forgetting::BecomesFinal(Cell_handle c) const {
     const Vertex_handle v = c->vertex(i);
     if (s_.dt.is_infinite(v)) continue;
     const int64_t id = v->info().id;
-    if (id >= 0 && s_.points[static_cast<size_t>(id)].named + s_.opt.window > s_.stats.updates)
-      return false;
+    if (id >= 0 && Live(s_.points[static_cast<size_t>(id)])) return false;
     p[n++] = &v->point();
     m[0] += v->point().x(), m[1] += v->point().y(), m[2] += v->point().z();
   }
@@ -228,8 +233,7 @@ void Forgetting::MaybeRebuild() {
     if (!v->info().deep) continue;
     ++deep;
     const int64_t id = v->info().id;
-    if (id >= 0 && s_.points[static_cast<size_t>(id)].named + s_.opt.window > s_.stats.updates)
-      continue;
+    if (id >= 0 && Live(s_.points[static_cast<size_t>(id)])) continue;
     around.clear();
     s_.dt.adjacent_vertices(v, std::back_inserter(around));
     bool all = true;
@@ -281,7 +285,7 @@ void Forgetting::Rebuild(const std::vector<Vertex_handle>& gone) {
     } else if (rec.in_triangulation) {
       retire[pt] = goes(rec.vertex) ? 1 : 0;
     } else {
-      retire[pt] = rec.named + s_.opt.window <= s_.stats.updates &&
+      retire[pt] = !Live(rec) &&
                    FarBehind(ToPoint(rec.position), 0.0);
     }
   }

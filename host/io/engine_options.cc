@@ -130,7 +130,7 @@ std::vector<EngineOption> MakeTable() {
              "CGAL's vertex removal and insertion)"),
       Option("forget", &E::forget, kNone, "",
              "long drives: the part of the scene the cameras have left behind (forget_distance "
-             "behind every camera of the last `window` keyframes) is final: its surface is "
+             "behind every one of the last `window` cameras) is final: its surface is "
              "handed out (tiles) and its cells, rays and points leave memory"),
       Option("forget_distance", &E::forget_distance, Min(0.0), "m",
              "forget: how far behind the cameras a cell is final; 0: max_ray_length + "

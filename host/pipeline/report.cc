@@ -15,6 +15,18 @@ using nlohmann::json;
 
 namespace {
 
+// forget: the live part over the run, at most 200 of the engine's samples (evenly chosen, the
+// last one always): [update, live cells, points kept, vertices].
+json LiveSamplesJson(const std::vector<engine::EngineStats::LiveSample>& samples) {
+  json out = json::array();
+  const size_t n = samples.size(), keep = std::min<size_t>(n, 200);
+  for (size_t i = 0; i < keep; ++i) {
+    const auto& x = samples[keep == n ? i : (i + 1) * n / keep - 1];
+    out.push_back({x.update, x.live_cells, x.points, x.vertices});
+  }
+  return out;
+}
+
 json StatsJson(const engine::EngineStats& s) {
   const auto& t = s.time;
   // Every counter engine::EngineStats keeps (REPORT.md lists them).
@@ -48,6 +60,7 @@ json StatsJson(const engine::EngineStats& s) {
           {"moves_below_min", s.moves_below_min},
           {"points_reentered", s.points_reentered},
           {"points_removed", s.points_removed},
+          {"observations_over_limit", s.observations_over_limit},
           {"steiner_points", s.steiner_points},
           {"steiner_dropped", s.steiner_dropped},
           {"cells_grown", s.cells_grown},
@@ -56,7 +69,25 @@ json StatsJson(const engine::EngineStats& s) {
           {"rays_scan_cells", s.rays_scan_cells},
           {"vertices", s.vertices},
           {"cells", s.cells},
-          {"cells_in_o", s.cells_in_o}};
+          {"cells_in_o", s.cells_in_o},
+          {"forget",
+           {{"steps", s.forget_steps},
+            {"cells_finalized", s.cells_finalized},
+            {"cells_final", s.cells_final},
+            {"final_cells_replaced", s.final_cells_replaced},
+            {"rebuilds", s.rebuilds},
+            {"rebuilds_abandoned", s.rebuilds_abandoned},
+            {"vertices_forgotten", s.vertices_forgotten},
+            {"points_forgotten", s.points_forgotten},
+            {"point_records_freed", s.point_records_freed},
+            {"updates_of_forgotten_points", s.updates_of_forgotten_points},
+            {"changes_refused_final", s.changes_refused_final},
+            {"components_started", s.components_started},
+            {"parts", s.parts},
+            {"part_triangles", s.part_triangles},
+            {"seconds", t.forget},
+            {"rebuild_seconds", t.rebuild},
+            {"live", LiveSamplesJson(s.live_samples)}}}};
 }
 
 // What the sequence was made from, by content: SHA-256 of each file of the source (a file, or the
