@@ -1,7 +1,9 @@
 // 3D Tiles through the imr executable (issue 32; host/pipeline/tiles.h): a job with output.tiles
 // writes tiles and tileset.json beside the same mesh as without them; the tiles merge (imr tiles
 // merge) into that mesh with no duplicate vertex, a 2-manifold with boundary; tiles only; a
-// stopped run keeps only whole tiles, which merge too; a tile folder that cannot be written
+// stopped run keeps only whole tiles, which merge too; with the engine's forgetting the surface
+// is handed out in parts as the drive goes, and the tiles still merge into the run's mesh, the
+// one without forgetting; a tile folder that cannot be written
 // fails its sequence (the path named) and the other sequence of the batch goes on; a tileset
 // imr did not write is never overwritten.
 #include "host/engine/engine.h"
@@ -133,6 +135,40 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   for (const auto& e : fs::directory_iterator(out / "tiles")) on_disk2.insert("tiles/" + e.path().filename().string());
   EXPECT_LT(uris2.size(), uris.size());
   EXPECT_EQ(on_disk2, std::set<std::string>(uris2.begin(), uris2.end()));
+}
+
+// The real thing end to end: a street long enough that the engine forgets (engine.forget) hands
+// its surface out in parts while the drive goes on; the tiles merge into the run's own mesh (no
+// duplicate vertex along the parts' seams, a 2-manifold with boundary), and that mesh has the
+// surface of the run without forgetting (the same triangles, here counted).
+TEST(Tiles, WithForgettingThePartsMergeIntoTheMeshWithoutIt) {
+  ScratchDir dir("tiles-forget");
+  ASSERT_EQ(RunJob(dir.path(), "plain", Job({"street"}, {"ply"}, nullptr, 300)).status, 0);
+  fs::rename(dir / "runs", dir / "plain");
+  json job = Job({"street"}, {"ply"}, json::object(), 300);
+  job["engine"] = {{"forget", true}};
+  const auto run = RunJob(dir.path(), "forget", job);
+  ASSERT_EQ(run.status, 0) << run.err;
+  const fs::path out = dir / "runs" / "street";
+  const json report = json::parse(ReadText(out / "report.json"));
+  const json& forget = report["engine"]["forget"];
+  EXPECT_GE(forget["parts"].get<int>(), 3) << forget.dump();  // handed out on the way
+  EXPECT_GT(forget["cells_final"].get<int>(), 0) << forget.dump();
+  EXPECT_EQ(forget["changes_refused_final"], 0) << forget.dump();
+  EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
+
+  const eval::TriangleMesh mesh = eval::ReadMesh(out / "mesh.ply");
+  const eval::TriangleMesh plain = eval::ReadMesh(dir / "plain" / "street" / "mesh.ply");
+  EXPECT_EQ(mesh.triangles.size(), plain.triangles.size());
+  EXPECT_EQ(mesh.vertices.size(), plain.vertices.size());
+  const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(out.string()) + " --out " +
+                              Quote((dir / "merged.ply").string()));
+  ASSERT_EQ(merge.status, 0) << merge.err;
+  EXPECT_NE(merge.out.find("a 2-manifold with boundary"), std::string::npos) << merge.out;
+  const eval::TriangleMesh merged = eval::ReadMesh(dir / "merged.ply");
+  EXPECT_EQ(merged.vertices.size(), mesh.vertices.size());
+  EXPECT_EQ(merged.triangles.size(), mesh.triangles.size());
+  EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(merged), false).ok);
 }
 
 TEST(Tiles, TilesOnly) {

@@ -884,9 +884,10 @@ class Forgetting {
   // One step: the cells that became final, the facets of dO that did (between two final
   // cells, oriented toward the cell in O), and the vertices that became deep.
   void Freeze(std::vector<Triangle>* facets, std::vector<Vertex_handle>* deep);
-  // Rebuilds the triangulation without the vertices that can go when enough can (a third of
-  // all: a rebuild costs about what the vertices it keeps cost to insert). Only while no ray
-  // lists are kept (between a keyframe's un-cast batch and its cast batch).
+  // Rebuilds the triangulation without the vertices that can go when enough can (half of all:
+  // a rebuild costs about what the vertices it keeps cost to insert, so its cost per frame goes
+  // as (1 - x) / x of the vertices forgotten per frame; the cells kept meanwhile hold no rays).
+  // Only while no ray lists are kept (between a keyframe's un-cast batch and its cast batch).
   void MaybeRebuild();
   bool Retired(uint64_t id) const { return retired_.Contains(id); }
   const RetiredIds& retired() const { return retired_; }

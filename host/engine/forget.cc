@@ -224,7 +224,7 @@ void Forgetting::Freeze(std::vector<Triangle>* facets, std::vector<Vertex_handle
 
 void Forgetting::MaybeRebuild() {
   const int64_t vertices = static_cast<int64_t>(s_.dt.number_of_vertices());
-  if (3 * deep_since_rebuild_ < vertices) return;
+  if (2 * deep_since_rebuild_ < vertices) return;
   // The vertices that can go: deep, and every neighbour deep (or the infinite vertex); a
   // point's only when no update of the window named it (a move of this update may follow).
   std::vector<Vertex_handle> gone, around;
@@ -242,7 +242,7 @@ void Forgetting::MaybeRebuild() {
   }
   // The deep vertices that stay count toward the next rebuild.
   deep_since_rebuild_ = deep - static_cast<int64_t>(gone.size());
-  if (3 * static_cast<int64_t>(gone.size()) < vertices) return;
+  if (2 * static_cast<int64_t>(gone.size()) < vertices) return;
   const auto t0 = Clock::now();
   Rebuild(gone);
   s_.stats.time.rebuild += SecondsSince(t0);

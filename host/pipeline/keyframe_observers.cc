@@ -38,7 +38,8 @@ void TraceWriter::OnKeyframe(KeyframeEvent& e) {
   json line = {{"keyframe", e.keyframes},        {"frame", e.info.frame},
                {"points", engine_.NumPoints()},  {"vertices", es.vertices},
                {"cells", es.cells},              {"cells_in_o", es.cells_in_o},
-               {"rss_bytes", ResidentBytes()},   {"engine_seconds", e.engine_seconds}};
+               {"rss_bytes", ResidentBytes()},   {"engine_seconds", e.engine_seconds},
+               {"seconds", SecondsSince(start_)}};
   if (e.check_seconds >= 0.0) line["check_seconds"] = e.check_seconds;
   out_ << DumpJson(line) << '\n';
   out_.flush();

@@ -84,6 +84,7 @@ class TraceWriter : public KeyframeObserver {
   std::filesystem::path path_, partial_;
   const engine::Engine& engine_;
   std::ofstream out_;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
 // output.snapshot_every: the mesh after every N-th keyframe, exported at once into

@@ -12,6 +12,7 @@ int RunPipelineBench(int argc, char** argv);
 int RunPaperBench(int argc, char** argv);
 int RunScalingBench(int argc, char** argv);
 int RunStreamBench(int argc, char** argv);
+int RunDriveBench(int argc, char** argv);
 #ifdef IMR_BENCH_EVALUATE
 int RunEvaluateBench(int argc, char** argv);
 int RunPeersBench(int argc, char** argv);
@@ -48,6 +49,11 @@ const std::vector<Subcommand>& Subcommands() {
        "time per frame and memory per tenth of a long drive, observations, moves,\n"
        "track lengths; the scene's build time and Sees cost at both ends",
        &RunStreamBench},
+      {"drive", "[--frames 20000] [--reference-frames 2000] [--no-long] ...",
+       "long drives in bounded memory (issue 32): imr run on the dense street with and\n"
+       "without engine.forget: peak RSS, its slope, frames/s per tenth, tiles, the\n"
+       "surface beside the run without forgetting; the street stream both ways",
+       &RunDriveBench},
 #ifdef IMR_BENCH_EVALUATE
       {"peers", "[--frames N] [--colmap PATH]",
        "imr vs COLMAP's delaunay_mesher on identical input (needs\n"

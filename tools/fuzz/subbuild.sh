@@ -28,6 +28,15 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1}
 # ubsan.supp: one known, harmless report inside CGAL (see there).
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1:suppressions=$src/tools/fuzz/ubsan.supp}
 
+# The tests are discovered when ctest first reads the tree (gtest DISCOVERY_MODE PRE_TEST): each
+# test executable newer than its list is run and the list rewritten. The sanitize tests run as
+# parallel ctest calls on one tree, and one of them read a list another was writing (CI, a
+# "Parse error" in io_readers_test[1]_tests.cmake). So the build, a fixture every one of them
+# waits for, writes the lists once; later calls only read them.
+list_tests() {
+  ctest --test-dir "$1" -N >"$1/discovery.log" 2>&1 || { cat "$1/discovery.log"; exit 1; }
+}
+
 case $mode in
   build)
     mkdir -p "$bin"
@@ -42,6 +51,7 @@ case $mode in
         -DCMAKE_CXX_COMPILER=clang++ -DIMR_FUZZ=ON >"$bin/configure.log" 2>&1 ||
         { cat "$bin/configure.log"; exit 1; }
       time cmake --build "$bin" --target imr_fuzzers "${sanitize_targets[@]}" -j "$jobs"
+      list_tests "$bin"
     else
       echo "clang++ with libFuzzer is not available (Debian: clang libclang-rt-14-dev; tools/setup.sh" \
            "installs them): $(head -c 300 "$probe/err" 2>/dev/null)" | tee "$bin/SKIPPED"
@@ -51,6 +61,7 @@ case $mode in
         -DCMAKE_CXX_COMPILER=g++ -DIMR_SANITIZE=address,undefined >"$bin/gcc-configure.log" 2>&1 ||
         { cat "$bin/gcc-configure.log"; exit 1; }
       time cmake --build "$bin/gcc-sanitize" --target "${sanitize_targets[@]}" -j "$jobs"
+      list_tests "$bin/gcc-sanitize"
     fi
     ;;
   smoke)
@@ -96,6 +107,7 @@ case $mode in
       -DCMAKE_CXX_COMPILER=g++ -DIMR_SANITIZE=thread >"$bin/tsan-configure.log" 2>&1 ||
       { cat "$bin/tsan-configure.log"; exit 1; }
     time cmake --build "$bin/tsan" --target util_thread_pool_test engine_engine_property_test -j "$jobs"
+    list_tests "$bin/tsan"
     ;;
   tsan-test)
     regex=$4

@@ -1,0 +1,466 @@
+// imr-bench drive (issue 32): does memory stay flat on a long drive with the engine forgetting
+// what the cameras left behind (engine.forget), and does the surface stay what it was? The real
+// `imr run` on imr's dense synthetic street (configs/dense-street.json: the tracked stream at the
+// street stream's density, moving points), three runs:
+//   1. the first --reference-frames (2,000) without forgetting: the reference surface;
+//   2. the same frames with forgetting and tiles: completeness and precision at 0.2 m beside the
+//      reference, the merged mesh a manifold, time per frame beside the reference's;
+//   3. --frames (20,000) with forgetting and tiles, the generator keeping only its live tracks:
+//      peak RSS, RSS at the reference length and at the end, the RSS slope over the second half,
+//      frames per second per tenth of the run, tiles written.
+// And, when ../shared/data/street-stream is there, its SLAM stream with and without forgetting
+// (the same mesh bytes, or the figures of both); and the README's default job (configs/default.json:
+// imr-synth's street through the image pipeline, --synth-frames long) with and without forgetting,
+// both against the scene's exact surface (`imr evaluate`), with the RSS at its middle and end.
+// Prints the targets met or not, and a JSON line.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#ifdef IMR_BENCH_EVALUATE
+#include <algorithm>
+#include <array>
+#include <cstdint>
+
+#include "host/eval/mesh_io.h"
+#endif
+#include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/subprocess.h"
+
+namespace imr::bench {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const char kUsage[] =
+    "usage: imr-bench drive [--frames N] [--reference-frames N] [--keyframe-every K]\n"
+    "                       [--work DIR] [--imr PATH] [--no-long] [--no-street]\n"
+    "                       [--synth-frames N] [--no-default]\n"
+    "  --frames N            the long drive (default 20000)\n"
+    "  --reference-frames N  the stretch run with and without forgetting (default 2000)\n"
+    "  --keyframe-every K    frames per keyframe of the dense street (default 5, as the config)\n"
+    "  --work DIR            where the runs go (default: a new folder in /tmp)\n"
+    "  --imr PATH            the imr to measure (default: beside imr-bench)\n"
+    "  --no-long             only the reference stretch (and the street stream)\n"
+    "  --no-street           skip ../shared/data/street-stream\n"
+    "  --synth-frames N      frames of imr-synth's street for the default job (default 500)\n"
+    "  --no-default          skip the default job\n";
+
+struct Run {
+  std::string name;
+  bool ok = false;
+  json report;                  // report.json of its one sequence
+  std::vector<json> trace;      // one object per keyframe
+  double wall = 0.0;            // the whole imr run
+};
+
+std::string ReadFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// The dense street job (configs/dense-street.json's input), with forgetting and tiles or not.
+json DenseJob(int frames, int keyframe_every, bool forget, bool keep_truth, const fs::path& out) {
+  const json config = json::parse(ReadFile(fs::path(IMR_SOURCE_DIR) / "configs/dense-street.json"));
+  json job = {{"sequences", {"street"}}, {"input", config.at("input")}};
+  job["input"]["options"]["frames"] = frames;
+  job["input"]["options"]["keyframe_every"] = keyframe_every;
+  job["input"]["options"]["keep_truth"] = keep_truth;
+  job["engine"] = {{"forget", forget}};
+  job["pipeline"] = json::array({{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}});
+  job["output"] = {{"directory", out.string()}, {"formats", {"ply"}}};
+  if (forget) job["output"]["tiles"] = json::object();
+  return job;
+}
+
+Run RunJob(const std::string& name, const json& job, const fs::path& work, const std::string& imr) {
+  Run r;
+  r.name = name;
+  const fs::path dir = work / name;
+  fs::create_directories(dir);
+  const fs::path job_file = dir / "job.json", trace = dir / "trace.jsonl";
+  std::ofstream(job_file) << job.dump(2) << "\n";
+  const ProcessResult p = RunProcess({imr, "run", job_file.string(), "-q", "--no-viewer", "--force",
+                                      "--trace", trace.string()},
+                                     "", dir / "log.txt", 0);
+  r.wall = p.seconds;
+  const fs::path out = job["output"]["directory"].get<std::string>();
+  const fs::path report = out / "report.json";
+  r.ok = p.ok() && fs::exists(report);
+  if (!r.ok) {
+    std::fprintf(stderr, "drive: %s failed (%s); see %s\n", name.c_str(),
+                 p.error.empty() ? "exit status" : p.error.c_str(), (dir / "log.txt").c_str());
+    return r;
+  }
+  r.report = json::parse(ReadFile(report));
+  std::ifstream t(trace);
+  for (std::string line; std::getline(t, line);)
+    if (!line.empty()) r.trace.push_back(json::parse(line));
+  return r;
+}
+
+double Get(const json& j, const std::vector<std::string>& path, double otherwise = NAN) {
+  const json* x = &j;
+  for (const std::string& k : path) {
+    if (!x->is_object() || !x->contains(k) || (*x)[k].is_null()) return otherwise;
+    x = &(*x)[k];
+  }
+  return x->is_number() ? x->get<double>() : otherwise;
+}
+
+// The trace's keyframes as (frame, value).
+struct Series {
+  std::vector<double> frame, rss, seconds, engine;
+};
+Series SeriesOf(const Run& r) {
+  Series s;
+  for (const json& k : r.trace) {
+    s.frame.push_back(k.value("frame", 0.0));
+    s.rss.push_back(k.value("rss_bytes", 0.0));
+    s.seconds.push_back(k.value("seconds", 0.0));
+    s.engine.push_back(k.value("engine_seconds", 0.0));
+  }
+  return s;
+}
+
+// Least-squares slope of y over x for the keyframes from `from` on.
+double Slope(const std::vector<double>& x, const std::vector<double>& y, size_t from) {
+  double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (size_t i = from; i < x.size(); ++i) {
+    n += 1, sx += x[i], sy += y[i], sxx += x[i] * x[i], sxy += x[i] * y[i];
+  }
+  const double d = n * sxx - sx * sx;
+  return n > 1 && d != 0.0 ? (n * sxy - sx * sy) / d : 0.0;
+}
+
+// RSS at the first keyframe at or after `frame`.
+double RssAt(const Series& s, double frame) {
+  for (size_t i = 0; i < s.frame.size(); ++i)
+    if (s.frame[i] >= frame) return s.rss[i];
+  return s.rss.empty() ? 0.0 : s.rss.back();
+}
+
+std::string Mb(double bytes) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.0f MB", bytes / 1e6);
+  return b;
+}
+
+std::string Md5(const fs::path& p) {
+  const std::string cmd = "md5sum " + Quote(p.string()) + " 2>/dev/null";
+  std::string out;
+  if (FILE* f = popen(cmd.c_str(), "r")) {
+    char buf[128];
+    if (std::fgets(buf, sizeof buf, f)) out = buf;
+    pclose(f);
+  }
+  return out.substr(0, out.find(' '));
+}
+
+// Two meshes with other bytes may hold the same surface in another order: the triangles that
+// are in one only (oriented, by their corners' positions to 1e-5), -1 when it cannot tell.
+long TrianglesNotShared(const fs::path& a, const fs::path& b) {
+#ifdef IMR_BENCH_EVALUATE
+  using Corner = std::array<long long, 3>;
+  auto triangles = [](const fs::path& p) {
+    const eval::TriangleMesh m = eval::ReadMesh(p);
+    std::vector<std::array<Corner, 3>> out;
+    for (const auto& t : m.triangles) {
+      std::array<Corner, 3> c;
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 3; ++d) c[k][d] = std::llround(m.vertices[t[k]][d] * 1e5);
+      std::rotate(c.begin(), std::min_element(c.begin(), c.end()), c.end());  // keeps orientation
+      out.push_back(c);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  try {
+    const auto x = triangles(a), y = triangles(b);
+    std::vector<std::array<Corner, 3>> d;
+    std::set_symmetric_difference(x.begin(), x.end(), y.begin(), y.end(), std::back_inserter(d));
+    return static_cast<long>(d.size());
+  } catch (const std::exception&) {
+    return -1;
+  }
+#else
+  (void)a, (void)b;
+  return -1;
+#endif
+}
+
+}  // namespace
+
+int RunDriveBench(int argc, char** argv) {
+  int frames = 20000, reference = 2000, keyframe_every = 5, synth_frames = 500;
+  bool long_run = true, street = true, default_job = true;
+  fs::path work;
+  std::string imr = (ExeDir() / "imr").string();
+  for (int i = 0; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "drive: %s needs %s\n%s", a.c_str(), what, kUsage);
+        std::exit(64);
+      }
+      return argv[++i];
+    };
+    if (a == "--frames") frames = std::atoi(value("a number").c_str());
+    else if (a == "--reference-frames") reference = std::atoi(value("a number").c_str());
+    else if (a == "--keyframe-every") keyframe_every = std::atoi(value("a number").c_str());
+    else if (a == "--work") work = value("a folder");
+    else if (a == "--imr") imr = value("a path");
+    else if (a == "--no-long") long_run = false;
+    else if (a == "--no-street") street = false;
+    else if (a == "--synth-frames") synth_frames = std::atoi(value("a number").c_str());
+    else if (a == "--no-default") default_job = false;
+    else if (a == "--help" || a == "-h") {
+      std::printf("%s", kUsage);
+      return 0;
+    } else {
+      std::fprintf(stderr, "drive: unknown option %s\n%s", a.c_str(), kUsage);
+      return 64;
+    }
+  }
+  if (frames < reference || reference < 100 || keyframe_every < 1 || synth_frames < 20) {
+    std::fprintf(stderr, "drive: need 100 <= --reference-frames <= --frames, --keyframe-every >= 1, "
+                         "--synth-frames >= 20\n");
+    return 64;
+  }
+  if (work.empty()) {
+    char tmpl[] = "/tmp/imr-drive-XXXXXX";
+    if (!mkdtemp(tmpl)) {
+      std::perror("drive: mkdtemp");
+      return 1;
+    }
+    work = tmpl;
+  }
+  std::printf("imr-bench drive: %s; %s, load %s; work %s\n", imr.c_str(), MachineLine().c_str(),
+              LoadAverage().c_str(), work.c_str());
+
+  // 1 and 2: the reference stretch, without and with forgetting.
+  const Run off = RunJob("reference_off", DenseJob(reference, keyframe_every, false, true, work / "reference_off/out"), work, imr);
+  const Run on = RunJob("reference_on", DenseJob(reference, keyframe_every, true, true, work / "reference_on/out"), work, imr);
+  if (!off.ok || !on.ok) return 1;
+  auto acc = [](const Run& r, const char* k) { return Get(r.report, {"accuracy", k}); };
+  const double c_off = acc(off, "completeness"), p_off = acc(off, "precision");
+  const double c_on = acc(on, "completeness"), p_on = acc(on, "precision");
+  const double ms_off = 1000.0 * Get(off.report, {"engine", "seconds", "total"}) / reference;
+  const double ms_on = 1000.0 * Get(on.report, {"engine", "seconds", "total"}) / reference;
+  const bool manifold_on = on.report["mesh"].value("manifold", false);
+  std::printf("\nThe first %d frames (keyframe every %d), without and with forgetting:\n", reference,
+              keyframe_every);
+  std::printf("| run | completeness 0.2 m | precision 0.2 m | engine ms/frame | wall s | peak RSS | "
+              "faces | manifold | tiles |\n|---|---|---|---|---|---|---|---|---|\n");
+  for (const Run* r : {&off, &on})
+    std::printf("| %s | %.4f | %.4f | %.1f | %.1f | %s | %.0f | %s | %.0f |\n",
+                r == &off ? "forget off" : "forget on", acc(*r, "completeness"),
+                acc(*r, "precision"), r == &off ? ms_off : ms_on, r->wall,
+                Mb(Get(r->report, {"memory", "peak_rss_bytes"})).c_str(),
+                Get(r->report, {"mesh", "faces"}),
+                r->report["mesh"].value("manifold", false) ? "yes" : "no",
+                Get(r->report, {"tiles", "count"}, 0.0));
+  const bool same_quality = c_on >= c_off - 0.01 && p_on >= p_off - 0.01 && manifold_on;
+  // "No slower per frame than today": the whole run's wall time, what a user waits for (the
+  // engine alone pays for forgetting what the smaller memory wins back elsewhere); 2 % is noise.
+  const double wall_ms_off = 1000.0 * off.wall / reference, wall_ms_on = 1000.0 * on.wall / reference;
+  const bool no_slower = wall_ms_on <= wall_ms_off * 1.02;
+
+  json out = {{"bench", "drive"}, {"frames", frames}, {"reference_frames", reference},
+              {"keyframe_every", keyframe_every}, {"load", LoadAverage()},
+              {"reference", {{"completeness_off", c_off}, {"precision_off", p_off},
+                             {"completeness_on", c_on}, {"precision_on", p_on},
+                             {"engine_ms_per_frame_off", ms_off},
+                             {"engine_ms_per_frame_on", ms_on},
+                             {"wall_ms_per_frame_off", wall_ms_off},
+                             {"wall_ms_per_frame_on", wall_ms_on}, {"manifold_on", manifold_on}}}};
+  bool flat = true, peak_ok = true, steady = true;
+  if (long_run) {
+    const Run lr = RunJob("long", DenseJob(frames, keyframe_every, true, false, work / "long/out"), work, imr);
+    if (!lr.ok) return 1;
+    const Series s = SeriesOf(lr);
+    const double peak = Get(lr.report, {"memory", "peak_rss_bytes"});
+    const double at_ref = RssAt(s, reference), at_end = s.rss.empty() ? 0.0 : s.rss.back();
+    const double slope = Slope(s.frame, s.rss, s.frame.size() / 2);  // bytes per frame
+    std::printf("\nA drive of %d frames with forgetting (tiles on, the generator keeping its live "
+                "tracks only):\n", frames);
+    std::printf("| tenth | frames | frames/s (wall) | frames/s (engine) | RSS at its end |\n"
+                "|---|---|---|---|---|\n");
+    std::vector<double> fps;
+    const size_t n = s.frame.size();
+    json tenths = json::array();
+    for (int t = 0; t < 10 && n >= 10; ++t) {
+      const size_t a = t * n / 10, b = (t + 1) * n / 10 - 1;
+      const double f0 = a == 0 ? 0.0 : s.frame[a - 1], f1 = s.frame[b];
+      const double w0 = a == 0 ? 0.0 : s.seconds[a - 1], w1 = s.seconds[b];
+      double e = 0.0;
+      for (size_t i = a; i <= b; ++i) e += s.engine[i];
+      const double wall_fps = (f1 - f0) / std::max(1e-9, w1 - w0), engine_fps = (f1 - f0) / e;
+      fps.push_back(wall_fps);
+      std::printf("| %d | %.0f-%.0f | %.1f | %.1f | %s |\n", t + 1, f0, f1, wall_fps, engine_fps,
+                  Mb(s.rss[b]).c_str());
+      tenths.push_back({{"frames", {f0, f1}}, {"fps_wall", wall_fps}, {"fps_engine", engine_fps},
+                        {"rss_bytes", s.rss[b]}});
+    }
+    const json& fg = lr.report["engine"]["forget"];
+    std::printf("\npeak RSS %s; RSS %s at frame %d, %s at the end (x%.2f); slope over the second "
+                "half %.1f kB per frame (%.1f MB per 1,000 frames); tiles %.0f; mesh %.0f faces, "
+                "manifold %s; rebuilds %d, vertices forgotten %d, changes refused %d\n",
+                Mb(peak).c_str(), Mb(at_ref).c_str(), reference, Mb(at_end).c_str(),
+                at_ref > 0 ? at_end / at_ref : 0.0, slope / 1e3, slope * 1000 / 1e6,
+                Get(lr.report, {"tiles", "count"}, 0.0), Get(lr.report, {"mesh", "faces"}),
+                lr.report["mesh"].value("manifold", false) ? "yes" : "no", fg.value("rebuilds", 0),
+                fg.value("vertices_forgotten", 0), fg.value("changes_refused_final", 0));
+    flat = at_end <= 1.2 * at_ref;
+    peak_ok = peak <= 400e6;
+    steady = fps.size() == 10 && fps.back() >= 0.9 * fps.front();
+    out["long"] = {{"peak_rss_bytes", peak}, {"rss_at_reference", at_ref}, {"rss_at_end", at_end},
+                   {"rss_slope_bytes_per_frame", slope}, {"tenths", tenths},
+                   {"tiles", Get(lr.report, {"tiles", "count"}, 0.0)},
+                   {"manifold", lr.report["mesh"].value("manifold", false)},
+                   {"wall_seconds", lr.wall}, {"forget", fg}};
+    out["long"]["forget"].erase("live");
+  }
+
+  // The independent street stream, without and with forgetting.
+  const char* shared = std::getenv("IMR_SHARED_DIR");
+  const fs::path stream = fs::path(shared ? shared : (fs::path(IMR_SOURCE_DIR) / "../shared").string()) /
+                          "data/street-stream/slam.json";
+  if (street && fs::exists(stream)) {
+    std::string md5[2];
+    double peak[2] = {0, 0};
+    fs::path mesh[2];
+    for (int f = 0; f < 2; ++f) {
+      const fs::path o = work / (f ? "street_on" : "street_off") / "out";
+      json job = {{"sequences", {stream.string()}},
+                  {"input", {{"format", "slam_json"}, {"options", {{"views_per_keyframe", 1}}}}},
+                  {"engine", {{"forget", f == 1}}},
+                  {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+                  {"output", {{"directory", o.string()}, {"formats", {"ply"}}}}};
+      const Run r = RunJob(f ? "street_on" : "street_off", job, work, imr);
+      if (!r.ok) return 1;
+      mesh[f] = o / "mesh.ply";
+      md5[f] = Md5(mesh[f]);
+      peak[f] = Get(r.report, {"memory", "peak_rss_bytes"});
+    }
+    // With forgetting the mesh is put together from the parts in the order they became final.
+    const long differ = md5[0] == md5[1] ? 0 : TrianglesNotShared(mesh[0], mesh[1]);
+    const std::string same = md5[0] == md5[1] ? "the same bytes"
+                             : differ == 0    ? "the same triangles in another order"
+                             : differ > 0     ? std::to_string(differ) + " triangles not shared"
+                                              : "other bytes";
+    std::printf("\nStreet stream (%s, every view a keyframe): mesh md5 %s without, %s with "
+                "forgetting (%s); peak RSS %s and %s\n", stream.c_str(), md5[0].c_str(),
+                md5[1].c_str(), same.c_str(), Mb(peak[0]).c_str(), Mb(peak[1]).c_str());
+    out["street_stream"] = {{"same_mesh", md5[0] == md5[1]}, {"triangles_not_shared", differ},
+                            {"md5_off", md5[0]},
+                            {"md5_on", md5[1]}, {"peak_rss_off", peak[0]}, {"peak_rss_on", peak[1]}};
+  } else if (street) {
+    std::printf("\nStreet stream: %s not found (set IMR_SHARED_DIR); not measured\n", stream.c_str());
+  }
+
+  // The README's default job: the image pipeline (features, refiner, exporter) on imr-synth's
+  // street, without and with forgetting, against the scene's exact surface.
+  bool default_same = true, default_flat = true;
+  if (default_job) {
+    const fs::path seq = work / "synth-street";
+    const std::string synth = (fs::path(imr).parent_path() / "imr-synth").string();
+    if (Sh(Quote(synth) + " --out " + Quote(seq.string()) + " --frames " +
+           std::to_string(synth_frames) + " --color --no-lidar --force -q >" +
+           Quote((work / "synth.log").string()) + " 2>&1") != 0) {
+      std::fprintf(stderr, "drive: imr-synth failed; see %s\n", (work / "synth.log").c_str());
+      return 1;
+    }
+    const json config = json::parse(ReadFile(fs::path(IMR_SOURCE_DIR) / "configs/default.json"));
+    Run runs[2];
+    double c[2] = {NAN, NAN}, p[2] = {NAN, NAN};
+    for (int f = 0; f < 2; ++f) {
+      const std::string name = f ? "default_on" : "default_off";
+      const fs::path o = work / name / "out";
+      json job = config;
+      job.erase("description");
+      job["sequences"] = {seq.string()};
+      job["engine"]["forget"] = f == 1;
+      job["output"] = {{"directory", o.string()}, {"stem", "mesh"}, {"formats", {"ply"}}};
+      if (f) job["output"]["tiles"] = json::object();
+      runs[f] = RunJob(name, job, work, imr);
+      if (!runs[f].ok) return 1;
+      const fs::path eval = work / name / "evaluation.json";
+      if (Sh(Quote(imr) + " evaluate " + Quote((o / "mesh.ply").string()) + " --truth " +
+             Quote((seq / "ground_truth/scene.ply").string()) + " --velodyne-seq " +
+             Quote(seq.string()) + " --tau 0.2 --out " + Quote(eval.string()) + " >" +
+             Quote((work / name / "evaluate.log").string()) + " 2>&1") != 0) {
+        std::fprintf(stderr, "drive: imr evaluate failed; see %s\n",
+                     (work / name / "evaluate.log").c_str());
+        return 1;
+      }
+      const json e = json::parse(ReadFile(eval));
+      c[f] = e["completeness"][0].get<double>();
+      p[f] = e["precision"][0].get<double>();
+    }
+    const Series s = SeriesOf(runs[1]);
+    const double mid = RssAt(s, synth_frames / 2.0), end = s.rss.empty() ? 0.0 : s.rss.back();
+    std::printf("\nThe README's default job (configs/default.json, imr-synth's street of %d frames, "
+                "the image pipeline), without and with forgetting:\n", synth_frames);
+    std::printf("| run | completeness 0.2 m | precision 0.2 m | wall s | peak RSS | RSS at frame %d "
+                "| RSS at the end | faces | manifold |\n|---|---|---|---|---|---|---|---|---|\n",
+                synth_frames / 2);
+    for (int f = 0; f < 2; ++f) {
+      const Series sf = SeriesOf(runs[f]);
+      std::printf("| %s | %.4f | %.4f | %.1f | %s | %s | %s | %.0f | %s |\n",
+                  f ? "forget on" : "forget off", c[f], p[f], runs[f].wall,
+                  Mb(Get(runs[f].report, {"memory", "peak_rss_bytes"})).c_str(),
+                  Mb(RssAt(sf, synth_frames / 2.0)).c_str(),
+                  Mb(sf.rss.empty() ? 0.0 : sf.rss.back()).c_str(),
+                  Get(runs[f].report, {"mesh", "faces"}),
+                  runs[f].report["mesh"].value("manifold", false) ? "yes" : "no");
+    }
+    default_same = c[1] >= c[0] - 0.01 && p[1] >= p[0] - 0.01 &&
+                   runs[1].report["mesh"].value("manifold", false);
+    default_flat = end <= 1.2 * mid;
+    out["default_job"] = {{"synth_frames", synth_frames}, {"completeness_off", c[0]},
+                          {"precision_off", p[0]}, {"completeness_on", c[1]},
+                          {"precision_on", p[1]}, {"wall_off", runs[0].wall},
+                          {"wall_on", runs[1].wall}, {"rss_mid_on", mid}, {"rss_end_on", end},
+                          {"peak_rss_off", Get(runs[0].report, {"memory", "peak_rss_bytes"})},
+                          {"peak_rss_on", Get(runs[1].report, {"memory", "peak_rss_bytes"})}};
+  }
+
+  auto line = [](bool met, const char* what) {
+    std::printf("- %s: %s\n", met ? "met" : "NOT MET", what);
+  };
+  std::printf("\nTargets:\n");
+  if (long_run) {
+    line(flat, "RSS at the end <= 1.2 x RSS at the reference length");
+    line(peak_ok, "peak RSS <= 400 MB");
+    line(steady, "frames/s over the last tenth >= 0.9 x the first tenth");
+  }
+  line(no_slower, "the whole run's wall time per frame with forgetting no more than 2 % above "
+                  "without");
+  line(same_quality,
+       "completeness and precision within 0.01 of the run without forgetting, a manifold");
+  if (default_job) {
+    line(default_same, "the default job: completeness and precision within 0.01 of the run "
+                       "without forgetting, a manifold");
+    std::printf("- %s: the default job's RSS at the end <= 1.2 x RSS at its middle (%d frames%s)\n",
+                default_flat ? "met" : "NOT MET", synth_frames,
+                synth_frames < 5000 ? "; the target is for 5,000" : "");
+  }
+  out["targets"] = {{"flat", flat}, {"peak", peak_ok}, {"steady", steady},
+                    {"no_slower", no_slower}, {"same_quality", same_quality},
+                    {"default_same", default_same}, {"default_flat", default_flat}};
+  std::printf("%s\n", out.dump().c_str());
+  return 0;
+}
+
+}  // namespace imr::bench
