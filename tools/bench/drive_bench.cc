@@ -13,6 +13,7 @@
 // imr-synth's street through the image pipeline, --synth-frames long) with and without forgetting,
 // both against the scene's exact surface (`imr evaluate`), with the RSS at its middle and end.
 // Prints the targets met or not, and a JSON line.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -25,7 +26,6 @@
 #include <nlohmann/json.hpp>
 
 #ifdef IMR_BENCH_EVALUATE
-#include <algorithm>
 #include <array>
 #include <cstdint>
 
@@ -290,6 +290,9 @@ int RunDriveBench(int argc, char** argv) {
     if (!lr.ok) return 1;
     const Series s = SeriesOf(lr);
     const double peak = Get(lr.report, {"memory", "peak_rss_bytes"});
+    // The process's peak may come after the drive: the single mesh is put together in memory.
+    double drive_peak = 0.0;
+    for (double r : s.rss) drive_peak = std::max(drive_peak, r);
     const double at_ref = RssAt(s, reference), at_end = s.rss.empty() ? 0.0 : s.rss.back();
     const double slope = Slope(s.frame, s.rss, s.frame.size() / 2);  // bytes per frame
     std::printf("\nA drive of %d frames with forgetting (tiles on, the generator keeping its live "
@@ -313,10 +316,12 @@ int RunDriveBench(int argc, char** argv) {
                         {"rss_bytes", s.rss[b]}});
     }
     const json& fg = lr.report["engine"]["forget"];
-    std::printf("\npeak RSS %s; RSS %s at frame %d, %s at the end (x%.2f); slope over the second "
-                "half %.1f kB per frame (%.1f MB per 1,000 frames); tiles %.0f; mesh %.0f faces, "
-                "manifold %s; rebuilds %d, vertices forgotten %d, changes refused %d\n",
-                Mb(peak).c_str(), Mb(at_ref).c_str(), reference, Mb(at_end).c_str(),
+    std::printf("\npeak RSS %s (%s during the drive, at its keyframes; the rest when the single "
+                "mesh is put together at the end); RSS %s at frame %d, %s at the end (x%.2f); "
+                "slope over the second half %.1f kB per frame (%.1f MB per 1,000 frames); tiles "
+                "%.0f; mesh %.0f faces, manifold %s; rebuilds %d, vertices forgotten %d, changes "
+                "refused %d\n",
+                Mb(peak).c_str(), Mb(drive_peak).c_str(), Mb(at_ref).c_str(), reference, Mb(at_end).c_str(),
                 at_ref > 0 ? at_end / at_ref : 0.0, slope / 1e3, slope * 1000 / 1e6,
                 Get(lr.report, {"tiles", "count"}, 0.0), Get(lr.report, {"mesh", "faces"}),
                 lr.report["mesh"].value("manifold", false) ? "yes" : "no", fg.value("rebuilds", 0),
@@ -324,7 +329,8 @@ int RunDriveBench(int argc, char** argv) {
     flat = at_end <= 1.2 * at_ref;
     peak_ok = peak <= 400e6;
     steady = fps.size() == 10 && fps.back() >= 0.9 * fps.front();
-    out["long"] = {{"peak_rss_bytes", peak}, {"rss_at_reference", at_ref}, {"rss_at_end", at_end},
+    out["long"] = {{"peak_rss_bytes", peak}, {"drive_peak_rss_bytes", drive_peak},
+                   {"rss_at_reference", at_ref}, {"rss_at_end", at_end},
                    {"rss_slope_bytes_per_frame", slope}, {"tenths", tenths},
                    {"tiles", Get(lr.report, {"tiles", "count"}, 0.0)},
                    {"manifold", lr.report["mesh"].value("manifold", false)},
@@ -442,7 +448,7 @@ int RunDriveBench(int argc, char** argv) {
   std::printf("\nTargets:\n");
   if (long_run) {
     line(flat, "RSS at the end <= 1.2 x RSS at the reference length");
-    line(peak_ok, "peak RSS <= 400 MB");
+    line(peak_ok, "peak RSS <= 400 MB (the whole process, the single mesh at the end included)");
     line(steady, "frames/s over the last tenth >= 0.9 x the first tenth");
   }
   line(no_slower, "the whole run's wall time per frame with forgetting no more than 2 % above "
