@@ -1,6 +1,7 @@
 // Unit tests of the engine: options, errors as values, degenerate input.
 #include "host/engine/engine.h"
 #include "host/engine/engine_internal.h"
+#include "host/engine/mesh_topology.h"
 
 #include <gtest/gtest.h>
 
@@ -543,6 +544,62 @@ TEST(CheckMeshTest, DetectsNonManifoldMeshes) {
   open.faces = {0, 1, 2};
   EXPECT_TRUE(CheckMesh(open, false).ok);
   EXPECT_FALSE(CheckMesh(open, true).ok);
+}
+
+// CheckMesh's lean pass decides ok or not as the reference does, on meshes broken in every way
+// a few random edits of a closed grid torus can break them (a face dropped, flipped, repeated,
+// degenerate, out of range; two vertices merged; a face moved to other vertices); when not ok
+// the message and counts are the reference's.
+TEST(CheckMeshTest, LeanPassAgreesWithTheReference) {
+  const uint32_t n = 6;  // an n x n torus: closed, every vertex one fan of six
+  Mesh torus;
+  for (uint32_t i = 0; i < n * n; ++i) torus.vertices.insert(torus.vertices.end(), {double(i % n), double(i / n), 0.0});
+  for (uint32_t y = 0; y < n; ++y)
+    for (uint32_t x = 0; x < n; ++x) {
+      const uint32_t a = y * n + x, b = y * n + (x + 1) % n, c = ((y + 1) % n) * n + x,
+                     d = ((y + 1) % n) * n + (x + 1) % n;
+      torus.faces.insert(torus.faces.end(), {a, b, d, a, d, c});
+    }
+  ASSERT_TRUE(CheckMesh(torus, true).ok);
+  uint64_t state = 7;
+  auto rnd = [&](uint32_t k) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<uint32_t>((state >> 33) % k);
+  };
+  int not_ok = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    Mesh m = torus;
+    const int edits = 1 + static_cast<int>(rnd(3));
+    for (int e = 0; e < edits; ++e) {
+      const uint32_t faces = static_cast<uint32_t>(m.faces.size() / 3);
+      if (faces == 0) break;
+      const uint32_t f = rnd(faces), nv = static_cast<uint32_t>(m.vertices.size() / 3);
+      switch (rnd(8)) {
+        case 0: m.faces.erase(m.faces.begin() + 3 * f, m.faces.begin() + 3 * f + 3); break;
+        case 1: std::swap(m.faces[3 * f + 1], m.faces[3 * f + 2]); break;
+        case 2: m.faces.insert(m.faces.end(), {m.faces[3 * f], m.faces[3 * f + 1], m.faces[3 * f + 2]}); break;
+        case 3: m.faces[3 * f + 1] = m.faces[3 * f]; break;
+        case 4: m.faces[3 * f + rnd(3)] = nv + rnd(2); break;
+        case 5: {  // vertex b merged into a
+          const uint32_t a = rnd(nv), b = rnd(nv);
+          for (uint32_t& i : m.faces) i = i == b ? a : i;
+          break;
+        }
+        case 6: m.faces[3 * f + rnd(3)] = rnd(nv); break;
+        default: m.faces.erase(m.faces.begin() + 3 * f, m.faces.begin() + 3 * f + 3);  // a hole
+                 if (m.faces.size() >= 3) m.faces.erase(m.faces.begin(), m.faces.begin() + 3);
+      }
+    }
+    for (bool closed : {false, true}) {
+      const ManifoldCheckResult lean = CheckMesh(m, closed), ref = CheckMeshReference(m, closed);
+      ASSERT_EQ(lean.ok, ref.ok) << "trial " << trial << " closed " << closed << ": " << ref.message;
+      EXPECT_EQ(lean.message, ref.message);
+      EXPECT_EQ(lean.boundary_triangles, ref.boundary_triangles);
+      EXPECT_EQ(lean.boundary_vertices, ref.boundary_vertices);
+      not_ok += !ref.ok;
+    }
+  }
+  EXPECT_GT(not_ok, 1000);  // the edits did break meshes, both ways
 }
 
 }  // namespace

@@ -10,4 +10,8 @@ namespace imr::engine {
 // give each extra fan its own copy of the vertex so the result is a 2-manifold with boundary.
 void SplitPinchedVertices(Mesh* m);
 
+// CheckMesh as first written (node-based maps, ~0.2 kB per face): what CheckMesh falls back on
+// for a mesh its lean pass finds wrong, so the first message stays the same; for tests.
+ManifoldCheckResult CheckMeshReference(const Mesh& mesh, bool closed);
+
 }  // namespace imr::engine
