@@ -128,7 +128,7 @@ double EngineOptions::ForgetDistance() const {
 }
 
 double EngineOptions::ForgetStep() const {
-  return forget_step > 0.0 ? forget_step : 4.0 * steiner_spacing;
+  return forget_step > 0.0 ? forget_step : 2.0 * steiner_spacing;
 }
 
 }  // namespace imr::engine

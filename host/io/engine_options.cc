@@ -136,7 +136,7 @@ std::vector<EngineOption> MakeTable() {
              "forget: how far behind the cameras a cell is final; 0: max_ray_length + "
              "steiner_margin + shrink_radius + steiner_spacing (which engine.scale auto scales)"),
       Option("forget_step", &E::forget_step, Min(0.0), "m",
-             "forget: forgetting runs each time the newest camera has moved this far; 0: 4 x "
+             "forget: forgetting runs each time the newest camera has moved this far; 0: 2 x "
              "steiner_spacing"),
       Option("threads", &E::num_threads, json{{"minimum", 0}, {"maximum", 1024}}, "threads",
              "threads casting rays and planning moves (exact mode); 0: every core the process "
