@@ -120,8 +120,8 @@ TEST_F(OutOfTree, PluginOfAnotherAbiMajorIsRefused) {
   const fs::path so = where / "build" / "example_max_policy.so";
   auto r = RunShell("IMR_PLUGIN_PATH=" + Quote(so.string()) + " " + IMR_EXE + " plugins");
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.out.find(so.string() + ": plugin #0 refused: built for plugin ABI 2.2, this host "
-                                     "speaks ABI 1.2"),
+  EXPECT_NE(r.out.find(so.string() + ": plugin #0 refused: built for plugin ABI 2.3, this host "
+                                     "speaks ABI 1.3"),
             std::string::npos)
       << r.out;
   EXPECT_EQ(r.out.find("org.imr.example.policy.max "), std::string::npos) << r.out;

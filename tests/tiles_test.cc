@@ -18,6 +18,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstring>
 #include <fstream>
@@ -169,6 +171,97 @@ TEST(Tiles, WithForgettingThePartsMergeIntoTheMeshWithoutIt) {
   EXPECT_EQ(merged.vertices.size(), mesh.vertices.size());
   EXPECT_EQ(merged.triangles.size(), mesh.triangles.size());
   EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(merged), false).ok);
+}
+
+// The triangles of a mesh file as corner positions (float), each rotated to start at its
+// smallest corner, sorted: two files with the same surface in another order compare equal.
+std::vector<std::array<float, 9>> SortedTriangles(const eval::TriangleMesh& m) {
+  std::vector<std::array<float, 9>> out;
+  for (const auto& t : m.triangles) {
+    std::array<std::array<float, 3>, 3> c;
+    for (int k = 0; k < 3; ++k)
+      for (int j = 0; j < 3; ++j) c[k][j] = static_cast<float>(m.vertices[t[k]][j]);
+    const int s = static_cast<int>(std::min_element(c.begin(), c.end()) - c.begin());
+    std::array<float, 9> r;
+    for (int k = 0; k < 3; ++k) std::copy(c[(s + k) % 3].begin(), c[(s + k) % 3].end(), r.begin() + 3 * k);
+    out.push_back(r);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// A forgetting run on an input without ground truth (a SLAM stream: nothing asks for the mesh
+// whole) writes its single PLY and OBJ in blocks from the spool (SDK 1.3) and its glTF from the
+// mesh read whole; all three have the surface of the run without forgetting, and the report the
+// topology measured while the mesh was spooled.
+TEST(Tiles, ForgettingWritesTheSingleMeshInBlocks) {
+  ScratchDir dir("tiles-blocks");
+  const fs::path stream = dir / "stream.json";
+  WriteText(dir / "synth.json", Job({"street"}, {"ply"}, nullptr, 300).dump(2));
+  const auto exported = RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / "synth.json").string()) +
+                                 " --export-stream " + Quote(stream.string()));
+  ASSERT_EQ(exported.status, 0) << exported.err;
+  auto slam_job = [&](bool forget, const std::string& out) {
+    json job = {{"sequences", {stream.string()}},
+                {"input", {{"format", "slam_json"}}},
+                {"engine", {{"forget", forget}}},
+                {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+                {"output", {{"directory", (dir / out).string()}, {"formats", {"ply", "obj", "glb"}}}}};
+    return job;
+  };
+  ASSERT_EQ(RunJob(dir.path(), "plain", slam_job(false, "plain")).status, 0);
+  const auto run = RunJob(dir.path(), "forget", slam_job(true, "forget"));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const json report = json::parse(ReadText(dir / "forget" / "report.json"));
+  const json plain_report = json::parse(ReadText(dir / "plain" / "report.json"));
+  EXPECT_GE(report["engine"]["forget"]["parts"].get<int>(), 3);
+  EXPECT_EQ(report["mesh"]["written_in_blocks"], 2) << report["mesh"].dump();
+  EXPECT_EQ(plain_report["mesh"]["written_in_blocks"], 0);
+  EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
+  for (const char* key : {"vertices", "faces", "edges", "euler_characteristic", "components",
+                          "boundary_edges", "boundary_loops", "genus", "manifold"})
+    EXPECT_EQ(report["mesh"]["stats"][key], plain_report["mesh"]["stats"][key]) << key;
+  EXPECT_NEAR(report["mesh"]["stats"]["area"].get<double>(),
+              plain_report["mesh"]["stats"]["area"].get<double>(), 1e-6);
+  const auto plain = SortedTriangles(eval::ReadMesh(dir / "plain" / "mesh.ply"));
+  EXPECT_GT(plain.size(), 1000u);
+  for (const char* file : {"mesh.ply", "mesh.obj", "mesh.glb"}) {
+    SCOPED_TRACE(file);
+    const eval::TriangleMesh m = eval::ReadMesh(dir / "forget" / file);
+    EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(m), false).ok);
+    EXPECT_TRUE(SortedTriangles(m) == plain);
+  }
+  const std::string ply = ReadText(dir / "forget" / "mesh.ply");
+  EXPECT_NE(ply.find("comment Written in blocks"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "forget" / ".imr-staging"));  // the spool went with the run
+  for (const auto& e : fs::directory_iterator(dir / "forget"))
+    EXPECT_EQ(e.path().filename().string().find("staging"), std::string::npos) << e.path();
+}
+
+// With forgetting on a source that measures the mesh triangle by triangle (the synthetic
+// street without its true points: precision only), the evaluation reads the mesh in blocks too;
+// the figures are those of the run without forgetting (the same triangles, summed in another
+// order).
+TEST(Tiles, ForgettingMeasuresPrecisionInBlocks) {
+  ScratchDir dir("tiles-precision");
+  auto job = [&](bool forget, const std::string& out) {
+    json j = Job({"street"}, {"ply"}, nullptr, 300);
+    j["input"]["options"]["keep_truth"] = false;
+    j["engine"] = {{"forget", forget}};
+    j["output"]["directory"] = (dir / out).string();
+    return j;
+  };
+  ASSERT_EQ(RunJob(dir.path(), "plain", job(false, "plain")).status, 0);
+  const auto run = RunJob(dir.path(), "forget", job(true, "forget"));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const json on = json::parse(ReadText(dir / "forget" / "report.json"));
+  const json off = json::parse(ReadText(dir / "plain" / "report.json"));
+  EXPECT_EQ(on["mesh"]["written_in_blocks"], 1) << on["mesh"].dump();
+  EXPECT_EQ(on["mesh"]["faces"], off["mesh"]["faces"]);
+  for (const char* key : {"precision", "mean_mesh_to_scene"})
+    EXPECT_NEAR(on["accuracy"][key].get<double>(), off["accuracy"][key].get<double>(), 1e-12) << key;
+  EXPECT_GT(on["accuracy"]["precision"].get<double>(), 0.5);
+  EXPECT_TRUE(on["accuracy"].contains("completeness_omitted"));
 }
 
 TEST(Tiles, TilesOnly) {

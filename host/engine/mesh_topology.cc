@@ -179,42 +179,50 @@ ManifoldCheckResult CheckMesh(const Mesh& mesh, bool closed) {
   std::vector<std::pair<uint32_t, uint32_t>> by_first;
   std::vector<uint32_t> seconds;
   for (size_t v = 0; v < nv; ++v) {
-    const auto* l = links.data() + offset[v];
     const size_t n = offset[v + 1] - offset[v];
     if (n == 0) continue;
     ++r.boundary_vertices;
-    by_first.assign(l, l + n);
-    std::sort(by_first.begin(), by_first.end());
-    seconds.clear();
-    for (size_t i = 0; i < n; ++i) seconds.push_back(l[i].second);
-    std::sort(seconds.begin(), seconds.end());
-    bool bad = std::adjacent_find(seconds.begin(), seconds.end()) != seconds.end();
-    for (size_t i = 1; i < n && !bad; ++i) bad = by_first[i].first == by_first[i - 1].first;
-    // As the reference: the last link edge (in face order) whose first has no predecessor.
-    uint32_t start = l[0].first;
-    int starts = 0;
-    for (size_t i = 0; i < n; ++i)
-      if (!std::binary_search(seconds.begin(), seconds.end(), l[i].first)) {
-        start = l[i].first;
-        ++starts;
-      }
-    if (bad || starts > 1 || (closed && starts == 1)) return reference();
-    auto next = [&](uint32_t a, uint32_t* b) {
-      const auto it = std::lower_bound(by_first.begin(), by_first.end(),
-                                       std::make_pair(a, uint32_t{0}));
-      if (it == by_first.end() || it->first != a) return false;
-      *b = it->second;
-      return true;
-    };
-    size_t steps = 0;
-    uint32_t cur = start;
-    while (steps <= n && next(cur, &cur)) {
-      ++steps;
-      if (cur == start) break;
-    }
-    if (steps != n) return reference();
+    const LinkShape shape = CheckLink(links.data() + offset[v], n, &by_first, &seconds);
+    if (shape == LinkShape::kNotOneFan || (closed && shape == LinkShape::kPath)) return reference();
   }
   return r;
+}
+
+LinkShape CheckLink(const std::pair<uint32_t, uint32_t>* l, std::size_t n,
+                    std::vector<std::pair<uint32_t, uint32_t>>* by_first_scratch,
+                    std::vector<uint32_t>* seconds_scratch) {
+  auto& by_first = *by_first_scratch;
+  auto& seconds = *seconds_scratch;
+  by_first.assign(l, l + n);
+  std::sort(by_first.begin(), by_first.end());
+  seconds.clear();
+  for (size_t i = 0; i < n; ++i) seconds.push_back(l[i].second);
+  std::sort(seconds.begin(), seconds.end());
+  bool bad = std::adjacent_find(seconds.begin(), seconds.end()) != seconds.end();
+  for (size_t i = 1; i < n && !bad; ++i) bad = by_first[i].first == by_first[i - 1].first;
+  // As the reference: the last link edge (in face order) whose first has no predecessor.
+  uint32_t start = l[0].first;
+  int starts = 0;
+  for (size_t i = 0; i < n; ++i)
+    if (!std::binary_search(seconds.begin(), seconds.end(), l[i].first)) {
+      start = l[i].first;
+      ++starts;
+    }
+  if (bad || starts > 1) return LinkShape::kNotOneFan;
+  auto next = [&](uint32_t a, uint32_t* b) {
+    const auto it = std::lower_bound(by_first.begin(), by_first.end(), std::make_pair(a, uint32_t{0}));
+    if (it == by_first.end() || it->first != a) return false;
+    *b = it->second;
+    return true;
+  };
+  size_t steps = 0;
+  uint32_t cur = start;
+  while (steps <= n && next(cur, &cur)) {
+    ++steps;
+    if (cur == start) break;
+  }
+  if (steps != n) return LinkShape::kNotOneFan;
+  return starts == 1 ? LinkShape::kPath : LinkShape::kCycle;
 }
 
 }  // namespace imr::engine

@@ -4,6 +4,11 @@
 
 #include "host/engine/engine.h"
 
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
 namespace imr::engine {
 
 // After dropping triangles from a closed 2-manifold, a vertex may keep several separate fans;
@@ -13,5 +18,13 @@ void SplitPinchedVertices(Mesh* m);
 // CheckMesh as first written (node-based maps, ~0.2 kB per face): what CheckMesh falls back on
 // for a mesh its lean pass finds wrong, so the first message stays the same; for tests.
 ManifoldCheckResult CheckMeshReference(const Mesh& mesh, bool closed);
+
+// The link of one vertex: per triangle at it, in triangle order, the opposite edge (b, c) of
+// the triangle (v, b, c). One fan is one cycle (an interior vertex) or one path (on the boundary)
+// of consistently oriented edges. `by_first` and `seconds` are scratch space.
+enum class LinkShape { kCycle, kPath, kNotOneFan };
+LinkShape CheckLink(const std::pair<uint32_t, uint32_t>* link, std::size_t n,
+                    std::vector<std::pair<uint32_t, uint32_t>>* by_first,
+                    std::vector<uint32_t>* seconds);
 
 }  // namespace imr::engine

@@ -22,6 +22,16 @@ struct KeyframeInfo {
   int frame = 0;  // frame (or view) number of this keyframe in the sequence
 };
 
+// KeyframeSource::Evaluate over a mesh given in blocks of triangles (a long drive's single mesh,
+// read back from disk in blocks): the same JSON as Evaluate with the whole mesh.
+class BlockEvaluation {
+ public:
+  virtual ~BlockEvaluation() = default;
+  // The next triangles in the mesh's order: packed xyz, and 3 indices into them per triangle.
+  virtual void AddTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces) = 0;
+  virtual nlohmann::json Finish() const = 0;
+};
+
 class KeyframeSource {
  public:
   virtual ~KeyframeSource() = default;
@@ -36,6 +46,11 @@ class KeyframeSource {
     (void)mesh;
     return nullptr;
   }
+  // Whether Evaluate gives anything (it needs the mesh whole: a run that keeps its mesh on disk
+  // reads it back for it).
+  virtual bool CanEvaluate() const { return false; }
+  // Evaluate in blocks, or null when this source needs the mesh whole (or has no ground truth).
+  virtual std::unique_ptr<BlockEvaluation> EvaluateInBlocks() const { return nullptr; }
   // What the source knows of a camera beyond its centre (rotation, intrinsics, image name), for
   // the stream and COLMAP exports; null when it knows only the centre.
   virtual const CameraGeometry* Camera(uint64_t camera_id) const {

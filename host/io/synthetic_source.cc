@@ -49,13 +49,36 @@ class SyntheticSource : public KeyframeSource {
     return it == cameras_.end() ? nullptr : &it->second;
   }
 
+  bool CanEvaluate() const override { return true; }
   nlohmann::json Evaluate(const engine::Mesh& mesh) const override {
-    const double tau = 0.2;  // metres
     const bool truth = stream_.options().keep_truth;
     // Mesh -> scene needs only the scene; truth -> mesh needs every point the stream reported.
-    const synthetic::MeshAccuracy a =
-        synthetic::EvaluateMesh(stream_.scene(), mesh.vertices, mesh.faces,
-                                truth ? stream_.TruePoints() : std::vector<Vec3>{}, tau);
+    return AccuracyJson(synthetic::EvaluateMesh(stream_.scene(), mesh.vertices, mesh.faces,
+                                                truth ? stream_.TruePoints() : std::vector<Vec3>{},
+                                                kTau));
+  }
+  // Without the true points only mesh -> scene is measured: triangle by triangle, so in blocks.
+  std::unique_ptr<BlockEvaluation> EvaluateInBlocks() const override {
+    if (stream_.options().keep_truth) return nullptr;
+    class Blocks : public BlockEvaluation {
+     public:
+      explicit Blocks(const SyntheticSource& s) : source_(s), acc_(s.stream_.scene(), kTau) {}
+      void AddTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces) override {
+        acc_.AddTriangles(vertices, faces);
+      }
+      nlohmann::json Finish() const override { return source_.AccuracyJson(acc_.Result()); }
+
+     private:
+      const SyntheticSource& source_;
+      synthetic::MeshToScene acc_;
+    };
+    return std::make_unique<Blocks>(*this);
+  }
+
+ private:
+  static constexpr double kTau = 0.2;  // metres
+  nlohmann::json AccuracyJson(const synthetic::MeshAccuracy& a) const {
+    const bool truth = stream_.options().keep_truth;
     nlohmann::json j = {{"reference", "known synthetic scene"},
                         {"tau", a.tau},
                         {"mean_mesh_to_scene", a.mean_mesh_to_scene},
@@ -72,6 +95,7 @@ class SyntheticSource : public KeyframeSource {
     return j;
   }
 
+ public:
   // What the stream generated: observations per frame, moves, and in the tracked model the
   // tracks' lengths; the generator's own time (without the engine).
   nlohmann::json Summary() const override {

@@ -78,6 +78,7 @@ class ImageFrontEndSource : public io::KeyframeSource {
   bool Next(engine::KeyframeUpdate* update, io::KeyframeInfo* info) override;
   int KeyframeCount() const override;
   nlohmann::json Evaluate(const engine::Mesh& mesh) const override;
+  bool CanEvaluate() const override { return truth_ != nullptr; }
   const io::CameraGeometry* Camera(uint64_t camera_id) const override;
   nlohmann::json Summary() const override;
 

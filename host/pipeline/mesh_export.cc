@@ -1,8 +1,12 @@
 #include "host/pipeline/mesh_export.h"
 
+#include "host/pipeline/streamed_surface.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <optional>
 
 namespace imr::pipeline {
@@ -47,6 +51,98 @@ std::array<double, 3> ExportOrigin(const engine::Mesh& mesh) {
   return origin;
 }
 
+std::array<double, 3> ExportOrigin(const std::array<double, 6>& bounds) {
+  engine::Mesh corners;
+  corners.vertices.assign(bounds.begin(), bounds.end());
+  return ExportOrigin(corners);
+}
+
+namespace {
+
+// Every format through the first exporter stage that lists it, with the request all formats
+// share; `call` hands it to the stage's instance and says whether it was taken (false: the
+// format goes to `left`).
+using ExportCall = std::function<bool(const plugin::LoadedInstance&, imr_export_request*)>;
+ExportImageStats ExportFormats(const ExportContext& context, const std::vector<std::string>& formats,
+                               const Exporters& exporters, const std::filesystem::path& directory,
+                               const std::string& stem, StageWatch& watch, double stage_timeout,
+                               const TileExportExtras* tile, const ExportCall& call,
+                               std::vector<std::string>* left) {
+  std::optional<plugin::KeyframeImageStore> images;
+  if (!context.image_paths.empty()) images.emplace(context.image_paths);
+  const plugin::ScopedKeyframeImages scope(images ? &*images : nullptr);
+  std::set<std::string> written;
+  const std::string dir = directory.string();
+  for (const std::string& mesh_format : formats) {
+    for (const auto& [stage, inst] : exporters) {
+      const std::string list = std::string(",") + inst.instance.descriptor()->exporter->formats + ",";
+      if (list.find("," + mesh_format + ",") == std::string::npos || written.count(mesh_format))
+        continue;
+      imr_export_request req{};
+      req.directory = dir.c_str();
+      req.stem = stem.c_str();
+      req.format = mesh_format.c_str();
+      req.keyframes = context.keyframes.empty() ? nullptr : context.keyframes.data();
+      req.keyframe_count = context.keyframes.size();
+      req.keyframe_images = images ? 1 : 0;
+      if (tile != nullptr) {
+        req.origin = tile->origin.data();
+        req.gltf_rotation = tile->gltf_rotation.data();
+      }
+      const WatchedStage watched = WatchedStageOf(*stage, stage_timeout);
+      bool taken = false;
+      {
+        const StageWatch::Call watched_call = watch.Enter(watched);
+        taken = call(inst, &req);
+      }
+      written.insert(mesh_format);
+      if (!taken && left != nullptr) left->push_back(mesh_format);
+      if (images) images->ReleaseAll();  // holds end with the call (plugin.h)
+    }
+  }
+  ExportImageStats stats;
+  stats.keyframes = static_cast<int>(context.keyframes.size());
+  if (images) stats.store = images->stats();
+  return stats;
+}
+
+// The streamed mesh behind imr_mesh_stream's calls.
+imr_status Guarded(imr_error* error, const std::function<void()>& body) {
+  try {
+    body();
+    return IMR_OK;
+  } catch (const std::exception& e) {
+    std::snprintf(error->message, sizeof(error->message), "%s", e.what());
+    return IMR_ERROR;
+  }
+}
+imr_status ReadStreamVertices(void* context, uint64_t first, uint64_t count, double* xyz,
+                              int64_t* point_ids, double* normal_sums, imr_error* error) {
+  return Guarded(error, [&] {
+    static_cast<const StreamedSurface*>(context)->ReadVertices(first, count, xyz, point_ids, normal_sums);
+  });
+}
+imr_status ReadStreamFaces(void* context, uint64_t first, uint64_t count, uint32_t* faces,
+                           imr_error* error) {
+  return Guarded(error, [&] { static_cast<const StreamedSurface*>(context)->ReadFaces(first, count, faces); });
+}
+
+// Whether the source gives a colour to some vertex's point (the whole-mesh export carries them).
+bool AnyPointColor(const StreamedSurface& mesh, const io::KeyframeSource& source) {
+  constexpr uint64_t kBlock = 1 << 16;
+  std::vector<int64_t> ids(kBlock);
+  std::array<uint8_t, 3> rgb{};
+  for (uint64_t i = 0; i < mesh.vertex_count(); i += kBlock) {
+    const uint64_t n = std::min(kBlock, mesh.vertex_count() - i);
+    mesh.ReadVertices(i, n, nullptr, ids.data(), nullptr);
+    for (uint64_t k = 0; k < n; ++k)
+      if (ids[k] >= 0 && source.PointColor(static_cast<uint64_t>(ids[k]), &rgb)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& context,
                             const std::vector<std::string>& formats, const Exporters& exporters,
                             const std::filesystem::path& directory, const std::string& stem,
@@ -74,39 +170,38 @@ ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& conte
     if (!any) colors.clear();
   }
   view.vertex_colors = colors.empty() ? nullptr : colors.data();
-  std::optional<plugin::KeyframeImageStore> images;
-  if (!context.image_paths.empty()) images.emplace(context.image_paths);
-  const plugin::ScopedKeyframeImages scope(images ? &*images : nullptr);
-  std::set<std::string> written;
-  const std::string dir = directory.string();
-  for (const std::string& mesh_format : formats) {
-    for (const auto& [stage, inst] : exporters) {
-      const std::string list = std::string(",") + inst.instance.descriptor()->exporter->formats + ",";
-      if (list.find("," + mesh_format + ",") == std::string::npos || written.count(mesh_format))
-        continue;
-      imr_export_request req{};
-      req.mesh = &view;
-      req.directory = dir.c_str();
-      req.stem = stem.c_str();
-      req.format = mesh_format.c_str();
-      req.keyframes = context.keyframes.empty() ? nullptr : context.keyframes.data();
-      req.keyframe_count = context.keyframes.size();
-      req.keyframe_images = images ? 1 : 0;
-      if (tile != nullptr) {
-        req.origin = tile->origin.data();
-        req.gltf_rotation = tile->gltf_rotation.data();
-      }
-      const WatchedStage watched = WatchedStageOf(*stage, stage_timeout);
-      const StageWatch::Call call = watch.Enter(watched);
-      inst.instance.ExportMesh(&req);
-      written.insert(mesh_format);
-      if (images) images->ReleaseAll();  // holds end with the call (plugin.h)
-    }
+  return ExportFormats(context, formats, exporters, directory, stem, watch, stage_timeout, tile,
+                       [&](const plugin::LoadedInstance& inst, imr_export_request* req) {
+                         req->mesh = &view;
+                         inst.instance.ExportMesh(req);
+                         return true;
+                       },
+                       nullptr);
+}
+
+ExportImageStats ExportStreamedMesh(const StreamedSurface& mesh, const ExportContext& context,
+                                    const std::vector<std::string>& formats,
+                                    const Exporters& exporters, const std::filesystem::path& directory,
+                                    const std::string& stem, StageWatch& watch, double stage_timeout,
+                                    std::vector<std::string>* left) {
+  // Colours from the input's points ride in the whole mesh's view only.
+  if (context.source != nullptr && context.image_paths.empty() && AnyPointColor(mesh, *context.source)) {
+    *left = formats;
+    return {};
   }
-  ExportImageStats stats;
-  stats.keyframes = static_cast<int>(context.keyframes.size());
-  if (images) stats.store = images->stats();
-  return stats;
+  imr_mesh_stream stream{};
+  stream.struct_size = sizeof(stream);
+  stream.vertex_count = mesh.vertex_count();
+  stream.face_count = mesh.face_count();
+  std::copy(mesh.bounds().begin(), mesh.bounds().end(), stream.bounds);
+  stream.context = const_cast<StreamedSurface*>(&mesh);
+  stream.read_vertices = &ReadStreamVertices;
+  stream.read_faces = &ReadStreamFaces;
+  return ExportFormats(context, formats, exporters, directory, stem, watch, stage_timeout, nullptr,
+                       [&](const plugin::LoadedInstance& inst, imr_export_request* req) {
+                         return inst.instance.ExportMeshStream(req, &stream);
+                       },
+                       left);
 }
 
 }  // namespace imr::pipeline

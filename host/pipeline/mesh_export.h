@@ -52,6 +52,8 @@ struct ExportImageStats {
 // the bounding box's centre rounded to a whole kilometre. The same rule as the plugin's
 // ExportOrigin (plugins/exporter_assimp/point_id_channel.hpp); report.json records it.
 std::array<double, 3> ExportOrigin(const engine::Mesh& mesh);
+// The same from the vertices' bounds (min xyz, max xyz).
+std::array<double, 3> ExportOrigin(const std::array<double, 6>& bounds);
 
 // What a 3D Tiles tile's export carries beyond the mesh (SDK 1.2; host/pipeline/tiles.h).
 struct TileExportExtras {
@@ -69,6 +71,18 @@ ExportImageStats ExportMesh(const engine::Mesh& mesh, const ExportContext& conte
                             const std::filesystem::path& directory, const std::string& stem,
                             StageWatch& watch, double stage_timeout,
                             const TileExportExtras* tile = nullptr);
+
+class StreamedSurface;  // streamed_surface.h
+
+// ExportMesh for the single mesh of a streamed run, which stays on disk: each format through
+// its first exporter stage as an SDK 1.3 mesh stream, read in blocks. The formats whose stage
+// cannot take a stream (no such call, or a request it writes from the whole mesh only: colours,
+// a texture) go to `left`, nothing of theirs written: ExportMesh with the whole mesh writes them.
+ExportImageStats ExportStreamedMesh(const StreamedSurface& mesh, const ExportContext& context,
+                                    const std::vector<std::string>& formats,
+                                    const Exporters& exporters, const std::filesystem::path& directory,
+                                    const std::string& stem, StageWatch& watch, double stage_timeout,
+                                    std::vector<std::string>* left);
 
 // The keyframes of `context` (with their images) that may see the box (min xyz, max xyz): a
 // corner or the centre in front of the camera within its image, within `max_distance` of the

@@ -200,6 +200,10 @@ class PrefetchingSource : public io::KeyframeSource {
   }
   int KeyframeCount() const override { return inner_->KeyframeCount(); }
   nlohmann::json Evaluate(const engine::Mesh& mesh) const override { return inner_->Evaluate(mesh); }
+  bool CanEvaluate() const override { return inner_->CanEvaluate(); }
+  std::unique_ptr<io::BlockEvaluation> EvaluateInBlocks() const override {
+    return inner_->EvaluateInBlocks();
+  }
   const io::CameraGeometry* Camera(uint64_t camera_id) const override {
     return inner_->Camera(camera_id);
   }

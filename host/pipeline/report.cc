@@ -176,10 +176,14 @@ json EvaluateAgainstTruth(const json& options, const engine::Mesh& mesh,
             {"seconds", e.seconds_crop + e.seconds_truth_to_mesh + e.seconds_mesh_to_truth}}}};
 }
 
-std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mesh& mesh) {
+bool MostPointsRefused(const engine::EngineStats& s) {
   const int64_t entered = s.points_inserted + s.points_reentered;
   const int64_t refused = s.points_dropped + s.points_duplicate - s.points_reentered;
-  if (refused <= 0 || 2 * refused <= entered + refused) return {};
+  return refused > 0 && 2 * refused > entered + refused;
+}
+
+std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mesh& mesh) {
+  if (!MostPointsRefused(s)) return {};
   std::size_t steiner_only = 0;
   if (mesh.point_ids.size() * 3 == mesh.vertices.size())
     for (std::size_t f = 0; f + 2 < mesh.faces.size(); f += 3)
@@ -198,7 +202,6 @@ std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mes
 
 json BuildReport(const ReportInputs& in) {
   const engine::EngineStats& stats = *in.stats;
-  const engine::Mesh& mesh = *in.mesh;
   json report;
   report["imr_version"] = Version();
   report["job"] = fs::absolute(in.job->job.file).lexically_normal().string();
@@ -240,10 +243,26 @@ json BuildReport(const ReportInputs& in) {
                       {"manifold", nullptr},
                       {"boundary_closed_manifold", in.boundary_check.ok},
                       {"boundary_triangles", in.boundary_check.boundary_triangles}};
+  } else if (in.mesh == nullptr) {
+    // Written in blocks from the spool (streamed_surface.h): its counts, check and topology as
+    // measured while it was spooled; no per-component list (that needs the mesh whole).
+    const StreamedSurface& s = *in.streamed_mesh;
+    report["mesh"] = {{"vertices", s.vertex_count()},
+                      {"faces", s.face_count()},
+                      {"written", true},
+                      {"written_in_blocks", in.formats_streamed},
+                      {"manifold", in.mesh_check.ok},
+                      {"boundary_closed_manifold", in.boundary_check.ok},
+                      {"boundary_triangles", in.boundary_check.boundary_triangles}};
+    const std::array<double, 3> origin = ExportOrigin(s.bounds());
+    report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
+    report["mesh"]["stats"] = s.statistics().ToJson();
   } else {
+    const engine::Mesh& mesh = *in.mesh;
     report["mesh"] = {{"vertices", mesh.vertices.size() / 3},
                       {"faces", mesh.faces.size() / 3},
                       {"written", true},
+                      {"written_in_blocks", in.formats_streamed},
                       {"manifold", in.mesh_check.ok},
                       {"boundary_closed_manifold", in.boundary_check.ok},
                       {"boundary_triangles", in.boundary_check.boundary_triangles}};

@@ -37,6 +37,8 @@ nlohmann::json EvaluateAgainstTruth(const nlohmann::json& evaluation, const engi
 // grid's: "ok" alone would hide it. Empty when a half or less was refused (points refused at
 // first and entered later, as they moved, count as entered).
 std::string RefusedPointsWarning(const engine::EngineStats& stats, const engine::Mesh& mesh);
+// Whether RefusedPointsWarning has something to say (it needs the mesh whole; this does not).
+bool MostPointsRefused(const engine::EngineStats& stats);
 
 // What the report is made of, gathered by the run (host/pipeline/run.cc) as it goes.
 struct ReportInputs {
@@ -54,7 +56,9 @@ struct ReportInputs {
   const engine::EngineStats* stats = nullptr;
   engine::EngineMemory engine_memory;  // at the end of the run
   uint64_t peak_rss_bytes = 0, final_rss_bytes = 0;  // the process's (one sequence per process in a batch)
-  const engine::Mesh* mesh = nullptr;
+  const engine::Mesh* mesh = nullptr;  // null: tiles only, or the single mesh written in blocks
+  const StreamedSurface* streamed_mesh = nullptr;  // the single mesh on disk (streamed runs)
+  std::size_t formats_streamed = 0;    // of the job's formats, written in blocks
   engine::ManifoldCheckResult boundary_check, mesh_check;
   nlohmann::json accuracy, accuracy_known_scene;  // null: none
   double engine_seconds = 0.0, export_seconds = 0.0, evaluation_seconds = 0.0;

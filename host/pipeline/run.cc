@@ -27,6 +27,7 @@
 #include <chrono>
 #include <cstdio>
 #include <deque>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
@@ -89,13 +90,14 @@ class SequenceRun {
   std::string BehindMessage() const;
   void Finish();
   engine::Mesh CheckedMesh();
-  engine::Mesh StreamedMesh();
+  void FinishStreamedSurface();
+  const engine::Mesh& WholeMesh();
   const engine::EngineStats& EngineStats() const { return engine_ ? engine_->Stats() : engine_stats_; }
-  void WarnAbout(const engine::Mesh& mesh);
+  void WarnAbout();
   void Warn(const std::string& warning);
   void WriteStreamExports();
   void EvaluateMesh(const engine::Mesh& mesh);
-  void WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>* evaluation);
+  void WriteMeshAndReport(std::future<void>* evaluation);
 
   const ValidatedJob& v_;
   const io::JobSpec& job_;
@@ -159,6 +161,10 @@ class SequenceRun {
   std::optional<StreamedSurface> streamed_;
   ExportImageStats tile_images_;          // summed over the tiles' exports
   engine::EngineStats engine_stats_;      // the engine's, kept when it is destroyed early
+  // The last mesh in memory: ExtractMesh's, or the streamed surface's read back whole (WholeMesh)
+  // when something needs it whole; a forgetting run's single mesh is otherwise exported in blocks
+  // from the spool and never held (ExportStreamedMesh).
+  std::optional<engine::Mesh> mesh_;
 
   // The keyframe loop.
   io::CanonicalOrder canonical_;
@@ -341,7 +347,7 @@ void SequenceRun::StartStreamedSurface() {
   fs::path spool;
   if (!job_.output.formats.empty()) {
     spool_dir_.emplace(out);
-    spool = spool_dir_->path() / "surface.spool";
+    spool = spool_dir_->path();
   }
   streamed_.emplace(engine_options_, spool, tiles_ ? &*tiles_ : nullptr);
 }
@@ -487,16 +493,44 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 // The last mesh, checked and with its warnings; then exports first (each whole or absent), the
 // evaluation, the mesh and the report. With the overlap (2 cores or more) the evaluation, which
 // only reads the mesh and the source, runs beside the mesh's export; its error still comes first.
+// A streamed run's mesh stays on disk unless the evaluation needs it whole (a source with ground
+// truth, the job's "evaluation"), or forgetting is off (tiles only: the single mesh in canonical
+// order, today's bytes).
 void SequenceRun::Finish() {
-  const engine::Mesh mesh = streamed_ ? StreamedMesh() : CheckedMesh();
-  WarnAbout(mesh);
-  WriteStreamExports();
-  std::future<void> evaluation;
-  if (prefetch_)
-    evaluation = std::async(std::launch::async, [&] { EvaluateMesh(mesh); });
+  if (streamed_)
+    FinishStreamedSurface();
   else
-    EvaluateMesh(mesh);
-  WriteMeshAndReport(mesh, &evaluation);
+    mesh_ = CheckedMesh();
+  WarnAbout();
+  WriteStreamExports();
+  // A source that measures the mesh triangle by triangle reads it in blocks too.
+  std::unique_ptr<io::BlockEvaluation> blocks;
+  if (streamed_ && engine_options_.forget && v_.evaluation.is_null() && !job_.output.formats.empty())
+    blocks = source_->EvaluateInBlocks();
+  if (streamed_ && (!engine_options_.forget || (source_->CanEvaluate() && !blocks) ||
+                    !v_.evaluation.is_null()))
+    WholeMesh();
+  std::function<void()> evaluate;
+  if (mesh_) {
+    evaluate = [this] { EvaluateMesh(*mesh_); };
+  } else if (blocks) {
+    evaluate = [this, &blocks] {
+      streamed_->ForEachTriangleBlock(
+          [&](const std::vector<double>& v, const std::vector<uint32_t>& f) { blocks->AddTriangles(v, f); });
+      report_.accuracy = blocks->Finish();
+    };
+  }
+  std::future<void> evaluation;
+  if (evaluate && prefetch_)
+    evaluation = std::async(std::launch::async, evaluate);
+  else if (evaluate)
+    evaluate();
+  WriteMeshAndReport(&evaluation);
+}
+
+const engine::Mesh& SequenceRun::WholeMesh() {
+  if (!mesh_) mesh_ = streamed_->ReadMesh(/*canonical=*/!engine_options_.forget);
+  return *mesh_;
 }
 
 // The mesh after the last keyframe; throws when dO or the mesh is not what it must be.
@@ -514,8 +548,8 @@ engine::Mesh SequenceRun::CheckedMesh() {
 }
 
 // The streamed surface's end: the engine's last part, the last tiles, dO checked; then the engine
-// goes (its memory with it) before the single mesh is read back from the spool and checked.
-engine::Mesh SequenceRun::StreamedMesh() {
+// goes (its memory with it). The single mesh was checked as it was spooled, one vertex at a time.
+void SequenceRun::FinishStreamedSurface() {
   watch_.SetPosition("the last part of the surface and its tiles");
   streamed_->Finish(*engine_);
   if (tiles_)
@@ -527,14 +561,11 @@ engine::Mesh SequenceRun::StreamedMesh() {
   engine_stats_ = engine_->Stats();
   report_.engine_memory = engine_->Memory();
   engine_.reset();
-  engine::Mesh mesh = streamed_->ReadMesh(/*canonical=*/!engine_options_.forget);
-  spool_dir_.reset();
   if (!job_.output.formats.empty()) {
-    report_.mesh_check = engine::CheckMesh(mesh, /*closed=*/false);
+    report_.mesh_check = streamed_->mesh_check();
     if (!report_.mesh_check.ok)
       throw std::runtime_error("exported mesh check failed: " + report_.mesh_check.message);
   }
-  return mesh;
 }
 
 // Warnings: on stderr and in report.json (the summary lists them).
@@ -544,7 +575,7 @@ void SequenceRun::Warn(const std::string& warning) {
 }
 
 // What looks wrong though a mesh was made; no surface at all fails the sequence.
-void SequenceRun::WarnAbout(const engine::Mesh& mesh) {
+void SequenceRun::WarnAbout() {
   // A short sequence never reached the 100 observations of CheckInFront; a few behind is noise,
   // more than 5 % is worth a word.
   if (2 * observations_behind_ > observations_checked_ && observations_checked_ > 0)
@@ -575,9 +606,11 @@ void SequenceRun::WarnAbout(const engine::Mesh& mesh) {
       Warn(scale_hint);
     }
   }
-  if (const std::string w = RefusedPointsWarning(stats, mesh); !w.empty()) Warn(w);
+  if (MostPointsRefused(stats))
+    if (const std::string w = RefusedPointsWarning(stats, mesh_ ? *mesh_ : WholeMesh()); !w.empty())
+      Warn(w);
   const int64_t triangles = streamed_ ? streamed_->stats().stream.triangles_released
-                                      : static_cast<int64_t>(mesh.faces.size() / 3);
+                                      : static_cast<int64_t>(mesh_->faces.size() / 3);
   if (triangles == 0)
     throw std::runtime_error("no surface was reconstructed (0 triangles after " +
                              std::to_string(keyframes_) + " keyframes): nothing to export" +
@@ -621,14 +654,25 @@ void SequenceRun::EvaluateMesh(const engine::Mesh& mesh) {
 // The mesh in every format and report.json, staged together and moved into the output folder,
 // the glTF and report.json last: when the report cannot be written (a full disk) no mesh of the
 // failed run is left under a final name either.
-void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>* evaluation) {
+void SequenceRun::WriteMeshAndReport(std::future<void>* evaluation) {
   const auto export_start = std::chrono::steady_clock::now();
   StagingDirectory staging(result_->output_directory);
   watch_.SetPosition("writing the mesh after the last keyframe");
   try {
-    report_.export_images = ExportMesh(mesh, export_context_, job_.output.formats, exporters_,
-                                       staging.path(), job_.output.stem, watch_,
-                                       options_.stage_timeout);
+    // A mesh on disk in blocks to each exporter that takes them; whole to the others.
+    std::vector<std::string> whole = job_.output.formats;
+    if (!mesh_ && !whole.empty()) {
+      whole.clear();
+      report_.export_images = ExportStreamedMesh(*streamed_, export_context_, job_.output.formats,
+                                                 exporters_, staging.path(), job_.output.stem,
+                                                 watch_, options_.stage_timeout, &whole);
+      report_.formats_streamed = job_.output.formats.size() - whole.size();
+    }
+    if (!whole.empty())
+      report_.export_images = ExportMesh(WholeMesh(), export_context_, whole, exporters_,
+                                         staging.path(), job_.output.stem, watch_,
+                                         options_.stage_timeout);
+    if (streamed_) spool_dir_.reset();
   } catch (...) {
     if (evaluation->valid()) evaluation->get();  // its error first, as without the overlap
     throw;
@@ -654,7 +698,8 @@ void SequenceRun::WriteMeshAndReport(const engine::Mesh& mesh, std::future<void>
   }
   report_.peak_rss_bytes = PeakResidentBytes();
   report_.final_rss_bytes = ResidentBytes();
-  report_.mesh = &mesh;
+  report_.mesh = mesh_ ? &*mesh_ : nullptr;
+  if (streamed_ && !job_.output.formats.empty()) report_.streamed_mesh = &*streamed_;
   report_.engine_seconds = engine_seconds_;
   report_.keyframe_images = !export_context_.image_paths.empty();
   report_.snapshots = snapshots_;

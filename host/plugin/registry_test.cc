@@ -23,7 +23,7 @@ TEST(Registry, LoadsTheBuiltInPolicies) {
     const PluginInfo* p = r.Find(id);
     ASSERT_NE(p, nullptr) << id;
     EXPECT_EQ(p->kind(), "weight_policy");
-    EXPECT_EQ(p->abi(), "1.2");
+    EXPECT_EQ(p->abi(), "1.3");
   }
   EXPECT_EQ(r.Ids("weight_policy").size(), 3u);
 }
@@ -33,7 +33,7 @@ TEST(Registry, RefusesWithTheFileNamed) {
   r.Scan({IMR_BAD_ABI_PLUGIN, IMR_NO_ENTRY_PLUGIN, "/no/such/folder"});
   ASSERT_EQ(r.refusals().size(), 3u);
   EXPECT_NE(r.refusals()[0].ToString().find("test_bad_abi_plugin.so: plugin #0 refused: built "
-                                            "for plugin ABI 2.3, this host speaks ABI 1.2"),
+                                            "for plugin ABI 2.3, this host speaks ABI 1.3"),
             std::string::npos)
       << r.refusals()[0].ToString();
   EXPECT_NE(r.refusals()[1].ToString().find("no entry symbol"), std::string::npos);

@@ -157,45 +157,9 @@ std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
 MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertices,
                           const std::vector<uint32_t>& faces, const std::vector<Vec3>& truth,
                           double tau, double cap) {
-  MeshAccuracy r;
-  r.tau = tau;
-  r.triangles = faces.size() / 3;
-  auto vert = [&](uint32_t i) -> Vec3 {
-    return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
-  };
-  // Mesh -> scene: four samples per triangle (centroid and three inner points), area-weighted.
-  // The samples' distances on several threads, then summed in triangle order (the same sums as
-  // one thread makes).
-  struct Samples {
-    double area = 0.0;
-    double d[4] = {0.0, 0.0, 0.0, 0.0};
-  };
-  std::vector<Samples> samples(r.triangles);
-  scene.Distance({0.0, 0.0, 0.0});  // builds the scene's lazy index before the threads read it
-  ForEachIndex(r.triangles, [&](size_t t) {
-    const Vec3 a = vert(faces[3 * t]), b = vert(faces[3 * t + 1]), c = vert(faces[3 * t + 2]);
-    const double area = 0.5 * Norm(Cross(Sub(b, a), Sub(c, a)));
-    if (area <= 0.0) return;
-    const Vec3 g = Scale(Add(a, Add(b, c)), 1.0 / 3.0);
-    const Vec3 q[4] = {g, Scale(Add(Scale(a, 4), Add(b, c)), 1.0 / 6.0),
-                       Scale(Add(Scale(b, 4), Add(a, c)), 1.0 / 6.0),
-                       Scale(Add(Scale(c, 4), Add(a, b)), 1.0 / 6.0)};
-    samples[t].area = area;
-    for (int k = 0; k < 4; ++k) samples[t].d[k] = scene.Distance(q[k]);
-  });
-  double sum = 0.0, within = 0.0;
-  for (const Samples& x : samples) {
-    if (x.area <= 0.0) continue;
-    for (const double d : x.d) {
-      sum += 0.25 * x.area * d;
-      if (d <= tau) within += 0.25 * x.area;
-    }
-    r.area += x.area;
-  }
-  if (r.area > 0.0) {
-    r.mean_mesh_to_scene = sum / r.area;
-    r.precision = within / r.area;
-  }
+  MeshToScene mesh_to_scene(scene, tau);
+  mesh_to_scene.AddTriangles(vertices, faces);
+  MeshAccuracy r = mesh_to_scene.Result();
   // Truth -> mesh: the grid's cells at least as large as the cap (so two rings at most).
   if (truth.empty()) return r;
   double tsum = 0.0;
@@ -206,6 +170,55 @@ MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertice
   }
   r.mean_truth_to_mesh = tsum / truth.size();
   r.completeness = static_cast<double>(near) / truth.size();
+  return r;
+}
+
+void MeshToScene::AddTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces) {
+  const Scene& scene = scene_;
+  const size_t triangles = faces.size() / 3;
+  triangles_ += triangles;
+  auto vert = [&](uint32_t i) -> Vec3 {
+    return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
+  };
+  // Mesh -> scene: four samples per triangle (centroid and three inner points), area-weighted.
+  // The samples' distances on several threads, then summed in triangle order (the same sums as
+  // one thread makes).
+  struct Samples {
+    double area = 0.0;
+    double d[4] = {0.0, 0.0, 0.0, 0.0};
+  };
+  std::vector<Samples> samples(triangles);
+  scene.Distance({0.0, 0.0, 0.0});  // builds the scene's lazy index before the threads read it
+  ForEachIndex(triangles, [&](size_t t) {
+    const Vec3 a = vert(faces[3 * t]), b = vert(faces[3 * t + 1]), c = vert(faces[3 * t + 2]);
+    const double area = 0.5 * Norm(Cross(Sub(b, a), Sub(c, a)));
+    if (area <= 0.0) return;
+    const Vec3 g = Scale(Add(a, Add(b, c)), 1.0 / 3.0);
+    const Vec3 q[4] = {g, Scale(Add(Scale(a, 4), Add(b, c)), 1.0 / 6.0),
+                       Scale(Add(Scale(b, 4), Add(a, c)), 1.0 / 6.0),
+                       Scale(Add(Scale(c, 4), Add(a, b)), 1.0 / 6.0)};
+    samples[t].area = area;
+    for (int k = 0; k < 4; ++k) samples[t].d[k] = scene.Distance(q[k]);
+  });
+  for (const Samples& x : samples) {
+    if (x.area <= 0.0) continue;
+    for (const double d : x.d) {
+      sum_ += 0.25 * x.area * d;
+      if (d <= tau_) within_ += 0.25 * x.area;
+    }
+    area_ += x.area;
+  }
+}
+
+MeshAccuracy MeshToScene::Result() const {
+  MeshAccuracy r;
+  r.tau = tau_;
+  r.triangles = triangles_;
+  r.area = area_;
+  if (r.area > 0.0) {
+    r.mean_mesh_to_scene = sum_ / r.area;
+    r.precision = within_ / r.area;
+  }
   return r;
 }
 

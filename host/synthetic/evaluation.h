@@ -21,6 +21,23 @@ struct MeshAccuracy {
   double tau = 0.0;
 };
 
+// Mesh -> scene over blocks of triangles, for a mesh never whole in memory (a long drive's, read
+// back from disk): the same sums in the same triangle order as EvaluateMesh, so the same figures
+// bit for bit as one call with the whole mesh. Result() has no truth -> mesh figures.
+class MeshToScene {
+ public:
+  MeshToScene(const Scene& scene, double tau) : scene_(scene), tau_(tau) {}
+  // vertices: packed xyz; faces: 3 indices into them per triangle.
+  void AddTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces);
+  MeshAccuracy Result() const;
+
+ private:
+  const Scene& scene_;
+  double tau_;
+  size_t triangles_ = 0;
+  double sum_ = 0.0, within_ = 0.0, area_ = 0.0;
+};
+
 // vertices: packed xyz; faces: 3 indices per triangle. Distances truth -> mesh are capped at `cap`.
 MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertices,
                           const std::vector<uint32_t>& faces, const std::vector<Vec3>& truth,

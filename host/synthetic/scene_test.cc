@@ -197,6 +197,23 @@ TEST(EvaluationTest, MeshAccuracyIsTheSerialSumOnAnyNumberOfThreads) {
   EXPECT_EQ(a.completeness, static_cast<double>(near) / truth.size());
   EXPECT_GT(a.completeness, 0.0);
   EXPECT_GT(a.precision, 0.0);
+
+  // The same mesh in blocks of uneven size, each with its own vertices (as a long drive's mesh
+  // is read back from disk): the same mesh -> scene figures, bit for bit.
+  MeshToScene blocks(street, tau);
+  for (size_t first = 0, n = 1; first < f.size() / 3; first += n, n = 2 * n + 1) {
+    const size_t count = std::min(n, f.size() / 3 - first);
+    std::vector<double> bv(v.begin() + static_cast<std::ptrdiff_t>(9 * first),
+                           v.begin() + static_cast<std::ptrdiff_t>(9 * (first + count)));
+    std::vector<uint32_t> bf;
+    for (uint32_t i = 0; i < 3 * count; ++i) bf.push_back(i);
+    blocks.AddTriangles(bv, bf);
+  }
+  const MeshAccuracy b = blocks.Result();
+  EXPECT_EQ(b.triangles, a.triangles);
+  EXPECT_EQ(b.area, a.area);
+  EXPECT_EQ(b.mean_mesh_to_scene, a.mean_mesh_to_scene);
+  EXPECT_EQ(b.precision, a.precision);
 }
 
 TEST(SampleRoadSurfaceTest, GroundOnlyNotUnderBoxesDenseAndDeterministic) {

@@ -34,6 +34,7 @@
 #include <unordered_map>
 
 #include "obj_writer.hpp"
+#include "streamed_writers.hpp"
 #include "point_id_channel.hpp"
 #include "texturing.hpp"
 
@@ -56,6 +57,8 @@ using imr::exporter_assimp::ObjGroup;
 using imr::exporter_assimp::ObjMesh;
 using imr::exporter_assimp::ObjNeedsMtl;
 using imr::exporter_assimp::ObjText;
+using imr::exporter_assimp::WriteStreamedObj;
+using imr::exporter_assimp::WriteStreamedPly;
 using imr::exporter_assimp::SetUprightNode;
 using imr::exporter_assimp::TexturedMesh;
 using imr::exporter_assimp::TexturingOptions;
@@ -468,7 +471,7 @@ uint64_t Hash(uint64_t h, const void* data, std::size_t bytes) {
 class AssimpExporter : public imr::sdk::Exporter {
  public:
   static constexpr const char* kId = "org.imr.exporter.assimp";
-  static constexpr const char* kVersion = "1.2.0";
+  static constexpr const char* kVersion = "1.3.0";
   static constexpr const char* kDescription =
       "Mesh files through assimp: OBJ, binary PLY, glTF 2.0, GLB; normals in all, point ids in "
       "PLY and glTF/GLB, colours and a texture atlas from the keyframe images, glTF upright";
@@ -627,6 +630,59 @@ class AssimpExporter : public imr::sdk::Exporter {
                 (shifted ? ", relative to the origin " + std::to_string(origin[0]) + " " +
                                std::to_string(origin[1]) + " " + std::to_string(origin[2])
                          : ""));
+  }
+
+  // A long drive's single mesh in blocks (SDK 1.3): PLY and OBJ of a plain mesh, written as
+  // they are read (streamed_writers.hpp); glTF/GLB, colours and a texture need the whole mesh.
+  bool ExportMeshStream(const imr::sdk::ExportRequest& request, const imr::sdk::MeshStream& mesh) override {
+    const Format& f = FindFormat(request.format);
+    const std::string& stem = request.stem;
+    if (stem.empty() || stem.find('/') != std::string::npos || stem == "." || stem == "..")
+      throw InvalidArgument("stem \"" + stem + "\" is not a plain file name");
+    const bool coloured = (vertex_colors_ || texturing_.texture) && request.keyframe_images &&
+                          !request.keyframes.empty();
+    const std::string name = f.name;
+    if ((name != "ply" && name != "obj") || coloured) return false;
+    if (mesh.face_count() == 0) throw InvalidArgument("mesh has no faces: nothing to export");
+    if (mesh.vertex_count() > std::numeric_limits<uint32_t>::max())
+      throw InvalidArgument("mesh has " + std::to_string(mesh.vertex_count()) + " vertices, more than 2^32 - 1");
+    const std::array<double, 6> b = mesh.bounds();
+    constexpr double kFloatMax = std::numeric_limits<float>::max();
+    for (double x : b)
+      if (!std::isfinite(x) || std::fabs(x) > kFloatMax)
+        throw InvalidArgument("a vertex coordinate is " + std::to_string(x) + ": not a finite float");
+    const fs::path path = fs::path(request.directory) / (stem + f.extension);
+    const auto poll = [&] { host_.CheckCancelled(); };
+    if (name == "obj") {
+      WriteStreamedObj(mesh, path, stem, poll);
+    } else {
+      // Every id must fit PLY's int: checked in blocks before a byte is written.
+      if (point_ids_) {
+        std::vector<int64_t> ids(1 << 16);
+        for (std::size_t i = 0; i < mesh.vertex_count(); i += ids.size()) {
+          const std::size_t n = std::min(ids.size(), mesh.vertex_count() - i);
+          mesh.ReadVertices(i, n, nullptr, ids.data(), nullptr);
+          for (std::size_t k = 0; k < n; ++k)
+            if (ids[k] < kMinPointId || ids[k] > f.max_point_id)
+              throw InvalidArgument("point id of vertex " + std::to_string(i + k) + " is " +
+                                    std::to_string(ids[k]) + ": ply holds ids -1 (Steiner) .. " +
+                                    std::to_string(f.max_point_id) +
+                                    " exactly (export without point ids: \"point_ids\": false)");
+        }
+      }
+      // The local origin of ExportOrigin, from the bounds (the same rule).
+      std::array<double, 3> origin{};
+      if (request.origin) {
+        origin = *request.origin;
+      } else {
+        const double corners[6] = {b[0], b[1], b[2], b[3], b[4], b[5]};
+        origin = ExportOrigin(corners, 2);
+      }
+      WriteStreamedPly(mesh, path, point_ids_, origin, poll);
+    }
+    host_.Debug("wrote " + path.string() + " in blocks: " + std::to_string(mesh.vertex_count()) +
+                " vertices, " + std::to_string(mesh.face_count()) + " triangles");
+    return true;
   }
 
  private:

@@ -304,8 +304,8 @@ TEST_F(AssimpExporter, DescriptorDeclaresFormatsAndParams) {
   EXPECT_EQ(imr::sdk::CheckDescriptor(descriptor_), "");
   EXPECT_EQ(descriptor_->kind, IMR_KIND_EXPORTER);
   EXPECT_STREQ(descriptor_->id, kId);
-  EXPECT_STREQ(descriptor_->version, "1.2.0");
-  EXPECT_EQ(descriptor_->abi_minor, 2);
+  EXPECT_STREQ(descriptor_->version, "1.3.0");
+  EXPECT_EQ(descriptor_->abi_minor, 3);
   EXPECT_STREQ(descriptor_->exporter->formats, "obj,ply,gltf,glb");
   const json schema = json::parse(descriptor_->params_schema);
   ASSERT_TRUE(schema.contains("point_ids"));
@@ -686,6 +686,167 @@ TEST_F(AssimpExporter, UnwritableDirectoryIsAnErrorNamingThePath) {
     }
   }
   EXPECT_FALSE(fs::exists(missing));
+}
+
+// ---- meshes in blocks (SDK 1.3) ---------------------------------------------------------------
+
+// A TestMesh behind imr_mesh_stream, as the host serves a long drive's spool: normal sums as
+// plugin.h defines them (face order, (b - a) x (c - a)); every read counted.
+struct StreamedTestMesh {
+  const TestMesh* mesh = nullptr;
+  std::vector<double> sums;
+  int reads = 0;
+  std::size_t largest_read = 0;
+  std::size_t claimed_faces = 0;  // non-zero: the face count the stream claims
+
+  explicit StreamedTestMesh(const TestMesh& m) : mesh(&m), sums(m.vertices.size(), 0.0) {
+    const auto& v = m.vertices;
+    for (std::size_t f = 0; f + 2 < m.faces.size(); f += 3) {
+      const uint32_t a = m.faces[f], b = m.faces[f + 1], c = m.faces[f + 2];
+      const double u[3] = {v[3 * b] - v[3 * a], v[3 * b + 1] - v[3 * a + 1], v[3 * b + 2] - v[3 * a + 2]};
+      const double w[3] = {v[3 * c] - v[3 * a], v[3 * c + 1] - v[3 * a + 1], v[3 * c + 2] - v[3 * a + 2]};
+      const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+      for (uint32_t i : {a, b, c})
+        for (int k = 0; k < 3; ++k) sums[3 * i + k] += n[k];
+    }
+  }
+  imr_mesh_stream Stream() {
+    imr_mesh_stream s{};
+    s.struct_size = sizeof(s);
+    s.vertex_count = mesh->vertices.size() / 3;
+    s.face_count = claimed_faces != 0 ? claimed_faces : mesh->faces.size() / 3;
+    for (int k = 0; k < 3; ++k) {
+      s.bounds[k] = s.bounds[3 + k] = mesh->vertices[k];
+      for (std::size_t i = 0; i < s.vertex_count; ++i) {
+        s.bounds[k] = std::min(s.bounds[k], mesh->vertices[3 * i + k]);
+        s.bounds[3 + k] = std::max(s.bounds[3 + k], mesh->vertices[3 * i + k]);
+      }
+    }
+    s.context = this;
+    s.read_vertices = [](void* c, uint64_t first, uint64_t count, double* xyz, int64_t* ids,
+                         double* normal_sums, imr_error*) -> imr_status {
+      auto* self = static_cast<StreamedTestMesh*>(c);
+      ++self->reads;
+      self->largest_read = std::max<std::size_t>(self->largest_read, count);
+      for (uint64_t i = first; i < first + count; ++i) {
+        for (int k = 0; k < 3; ++k) {
+          if (xyz) xyz[3 * (i - first) + k] = self->mesh->vertices[3 * i + k];
+          if (normal_sums) normal_sums[3 * (i - first) + k] = self->sums[3 * i + k];
+        }
+        if (ids) ids[i - first] = self->mesh->ids.empty() ? -1 : self->mesh->ids[i];
+      }
+      return IMR_OK;
+    };
+    s.read_faces = [](void* c, uint64_t first, uint64_t count, uint32_t* faces, imr_error* e) -> imr_status {
+      auto* self = static_cast<StreamedTestMesh*>(c);
+      ++self->reads;
+      if (first + count > self->mesh->faces.size() / 3) {
+        std::snprintf(e->message, sizeof(e->message), "faces %llu.. beyond the mesh",
+                      static_cast<unsigned long long>(first));
+        return IMR_ERROR;
+      }
+      std::copy_n(self->mesh->faces.begin() + static_cast<std::ptrdiff_t>(3 * first), 3 * count, faces);
+      return IMR_OK;
+    };
+    return s;
+  }
+};
+
+// Whether the plugin took the stream (false: it asked for the whole mesh and wrote nothing).
+bool ExportStream(const imr_plugin_descriptor* d, StreamedTestMesh& m, const std::string& format,
+                  const fs::path& dir, const std::string& params = "{}", bool images = false) {
+  imr::sdk::Instance inst(d, params, nullptr);
+  const imr_mesh_stream stream = m.Stream();
+  const std::string dir_text = dir.string();
+  imr_export_request req{};
+  req.directory = dir_text.c_str();
+  req.stem = "mesh";
+  req.format = format.c_str();
+  imr_camera camera{};
+  if (images) {
+    req.keyframes = &camera;
+    req.keyframe_count = 1;
+    req.keyframe_images = 1;
+  }
+  return inst.ExportMeshStream(&req, &stream);
+}
+
+// The mesh with its vertices renumbered in the order the faces first name them: the order the
+// host's spool gives a long drive's vertices (the order they are first released), and the one
+// the whole-mesh PLY writes (assimp's vertices are made corner by corner).
+TestMesh InFirstUseOrder(const TestMesh& m) {
+  TestMesh out;
+  std::vector<uint32_t> index(m.vertices.size() / 3, UINT32_MAX);
+  for (uint32_t v : m.faces) {
+    if (index[v] == UINT32_MAX) {
+      index[v] = static_cast<uint32_t>(out.vertices.size() / 3);
+      out.vertices.insert(out.vertices.end(), &m.vertices[3 * v], &m.vertices[3 * v] + 3);
+      if (!m.ids.empty()) out.ids.push_back(m.ids[v]);
+    }
+    out.faces.push_back(index[v]);
+  }
+  return out;
+}
+
+// PLY and OBJ in blocks are the whole-mesh files byte for byte (PLY: but the line that names the
+// writer), far from the origin too; a grid larger than one block is read in several.
+TEST_F(AssimpExporter, MeshInBlocksWritesTheSameFilesAsTheWholeMesh) {
+  TestMesh far = Grid(300);  // 89,401 vertices, 178,802 triangles: more than a block of each
+  for (std::size_t i = 0; i < far.vertices.size(); ++i) far.vertices[i] += 5e5 + 0.123456 * (i % 3);
+  far = InFirstUseOrder(far);
+  for (const TestMesh* m : {&far}) {
+    for (const std::string format : {"ply", "obj"})
+      for (const std::string params : {"{}", R"({"point_ids": false})"}) {
+        SCOPED_TRACE(format + " " + params);
+        const fs::path whole_dir = dir_ / "whole", blocks_dir = dir_ / "blocks";
+        fs::create_directories(whole_dir);
+        fs::create_directories(blocks_dir);
+        const fs::path whole = Export(*m, format, params, "mesh", whole_dir);
+        StreamedTestMesh streamed(*m);
+        ASSERT_TRUE(ExportStream(descriptor_, streamed, format, blocks_dir, params));
+        EXPECT_GT(streamed.reads, 4);
+        EXPECT_LE(streamed.largest_read, std::size_t{1} << 16);
+        std::string a = [&] { auto b = Slurp(whole); return std::string(b.begin(), b.end()); }();
+        std::string b = [&] { auto x = Slurp(blocks_dir / ("mesh." + format)); return std::string(x.begin(), x.end()); }();
+        if (format == "ply") {
+          const std::size_t at = a.find("comment Created by Open Asset Import Library");
+          const std::size_t bt = b.find("comment Written in blocks by org.imr.exporter.assimp");
+          ASSERT_NE(at, std::string::npos);
+          ASSERT_NE(bt, std::string::npos);
+          a.erase(at, a.find('\n', at) - at);
+          b.erase(bt, b.find('\n', bt) - bt);
+          EXPECT_NE(a.find("comment imr_origin 500000 500000 500000"), std::string::npos);
+        }
+        EXPECT_EQ(a.size(), b.size());
+        const auto diff = std::mismatch(a.begin(), a.end(), b.begin(), b.end());
+        EXPECT_TRUE(a == b) << "the files differ from byte " << (diff.first - a.begin()) << " of "
+                            << a.size() << " (the header ends at " << a.find("end_header") + 11 << ")";
+        fs::remove_all(whole_dir);
+        fs::remove_all(blocks_dir);
+      }
+  }
+}
+
+// What needs the whole mesh is refused with nothing written: glTF/GLB, and colours or a texture
+// from keyframe images; a host that fails to read is an error naming what it read.
+TEST_F(AssimpExporter, MeshInBlocksRefusesWhatNeedsTheWholeMesh) {
+  const TestMesh cube = Cube();
+  StreamedTestMesh streamed(cube);
+  for (const char* format : {"gltf", "glb"}) EXPECT_FALSE(ExportStream(descriptor_, streamed, format, dir_));
+  EXPECT_FALSE(ExportStream(descriptor_, streamed, "ply", dir_, "{}", /*images=*/true));
+  EXPECT_TRUE(fs::is_empty(dir_));
+  EXPECT_TRUE(ExportStream(descriptor_, streamed, "ply", dir_,
+                           R"({"vertex_colors": false, "texture": false})", /*images=*/true));
+  StreamedTestMesh lying(cube);
+  lying.claimed_faces = 13;  // one more than it can read
+  try {
+    ExportStream(descriptor_, lying, "ply", dir_);
+    ADD_FAILURE() << "a failed read was not an error";
+  } catch (const imr::sdk::PluginCallError& e) {
+    EXPECT_EQ(e.status(), IMR_ERROR);
+    EXPECT_NE(std::string(e.what()).find("reading the mesh's faces: faces 0.. beyond the mesh"),
+              std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -6,15 +6,17 @@
 namespace imr::exporter_assimp {
 namespace {
 
-// The shortest text that reads back to the same value.
 template <typename T>
-void Append(std::string* out, T x) {
+void AppendShortestOf(std::string* out, T x) {
   char buf[32];
   const auto r = std::to_chars(buf, buf + sizeof(buf), x);
   out->append(buf, r.ptr);
 }
 
 }  // namespace
+
+void Append(std::string* out, double x) { AppendShortestOf(out, x); }
+void Append(std::string* out, float x) { AppendShortestOf(out, x); }
 
 bool ObjNeedsMtl(const ObjMesh& mesh) {
   for (const ObjGroup& g : mesh.groups)

@@ -33,6 +33,10 @@ struct ObjMesh {
   std::vector<ObjGroup> groups;
 };
 
+// The shortest text that reads back to the same value, appended.
+void Append(std::string* out, double x);
+void Append(std::string* out, float x);
+
 // The .obj text (and `mtl_file` named by mtllib when some group has a texture).
 std::string ObjText(const ObjMesh& mesh, const std::string& mtl_file);
 // The .mtl text: each material the groups name, once, in group order.

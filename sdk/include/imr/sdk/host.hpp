@@ -123,6 +123,23 @@ class Instance {
     request->struct_size = sizeof(imr_export_request);
     Check(d_->exporter->export_mesh(h_, request, &error_), "export");
   }
+  // export_mesh_stream (since 1.3): false when the plugin has no such call or answers
+  // IMR_UNSUPPORTED (it needs the whole mesh: call ExportMesh), else as ExportMesh.
+  bool ExportMeshStream(imr_export_request* request, const imr_mesh_stream* stream) const {
+    const imr_exporter_api* api = d_->exporter;
+    if (api->struct_size < offsetof(imr_exporter_api, export_mesh_stream) + sizeof(void*) ||
+        api->export_mesh_stream == nullptr)
+      return false;
+    request->struct_size = sizeof(imr_export_request);
+    request->mesh = nullptr;
+    const imr_status s = api->export_mesh_stream(h_, request, stream, &error_);
+    if (s == IMR_UNSUPPORTED) {
+      error_.message[0] = '\0';
+      return false;
+    }
+    Check(s, "export");
+    return true;
+  }
   imr_track_view ProcessFrame(const imr_camera& camera, const imr_image_view& image,
                               bool is_keyframe) const {
     imr_track_view out{};

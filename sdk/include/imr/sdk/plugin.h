@@ -88,7 +88,7 @@ extern "C" {
  * or newer than its own) and reads only the fields their struct_size covers, and a plugin does
  * the same with what the host passes. */
 #define IMR_ABI_MAJOR 1
-#define IMR_ABI_MINOR 2
+#define IMR_ABI_MINOR 3
 
 #define IMR_ENTRY_SYMBOL "imr_plugin_entry"
 
@@ -274,6 +274,28 @@ typedef struct imr_export_request { /* growing; filled by the host */
   const double* gltf_rotation;
 } imr_export_request;
 
+/* Since ABI 1.3: a mesh too large to hand over whole (the single mesh of a long drive, which the
+ * host keeps on disk as the engine forgets: engine.forget), read in blocks during the call, as
+ * often and in whatever order the exporter likes. The same mesh as an imr_mesh_view would show,
+ * in the same vertex and face order. */
+typedef struct imr_mesh_stream { /* growing; filled by the host */
+  uint32_t struct_size;
+  uint32_t reserved0;
+  uint64_t vertex_count;
+  uint64_t face_count;
+  double bounds[6];        /* min x y z, max x y z of the vertices */
+  void* context;           /* the host's; passed back to the calls below */
+  /* Copies vertices [first, first + count): `xyz` 3 per vertex, `point_ids` 1 per vertex (-1
+   * for Steiner points), `normal_sums` 3 per vertex: the sum over the vertex's faces, in face
+   * order, of (b - a) x (c - a) for the face (a, b, c) (twice the area-weighted normal; zero
+   * length for a vertex of degenerate faces only). Any of the three may be NULL. */
+  imr_status (*read_vertices)(void* context, uint64_t first, uint64_t count, double* xyz,
+                              int64_t* point_ids, double* normal_sums, imr_error* error);
+  /* Copies faces [first, first + count): 3 vertex indices each, oriented as imr_mesh_view's. */
+  imr_status (*read_faces)(void* context, uint64_t first, uint64_t count, uint32_t* faces,
+                           imr_error* error);
+} imr_mesh_stream;
+
 typedef struct imr_exporter_api {
   uint32_t struct_size;
   uint32_t reserved0;
@@ -292,6 +314,14 @@ typedef struct imr_exporter_api {
    * each fails the sequence. Keyframe images held by the plugin are released when it returns. */
   imr_status (*export_mesh)(imr_instance* instance, const imr_export_request* request,
                             imr_error* error);
+  /* --- since ABI 1.3: read only when struct_size covers it; may be NULL --- */
+  /* export_mesh for a mesh the host holds on disk: `request->mesh` is NULL and the mesh is read
+   * from `stream` in blocks, so the export need not hold it whole. Same contract as export_mesh,
+   * and one more answer: IMR_UNSUPPORTED, with nothing written, for a request this exporter can
+   * only write from the whole mesh (a format, colours or a texture it builds over the whole
+   * mesh); the host then reads the mesh whole and calls export_mesh. */
+  imr_status (*export_mesh_stream)(imr_instance* instance, const imr_export_request* request,
+                                   const imr_mesh_stream* stream, imr_error* error);
 } imr_exporter_api;
 
 /* --- features ---------------------------------------------------------------------------- */
@@ -478,7 +508,10 @@ IMR_STATIC_ASSERT(offsetof(imr_export_request, origin) == IMR_EXPORT_REQUEST_SIZ
 IMR_STATIC_ASSERT(sizeof(imr_image_view) == IMR_IMAGE_VIEW_SIZE_1_0, "ABI: image view");
 IMR_STATIC_ASSERT(sizeof(imr_weight_policy_api) == IMR_WEIGHT_POLICY_API_SIZE_1_0,
                   "ABI: weight policy table");
-IMR_STATIC_ASSERT(sizeof(imr_exporter_api) == IMR_EXPORTER_API_SIZE_1_0, "ABI: exporter table");
+IMR_STATIC_ASSERT(offsetof(imr_exporter_api, export_mesh_stream) == IMR_EXPORTER_API_SIZE_1_0,
+                  "ABI: exporter table 1.3");
+IMR_STATIC_ASSERT(sizeof(imr_exporter_api) == 32, "ABI: exporter table");
+IMR_STATIC_ASSERT(sizeof(imr_mesh_stream) == 96, "ABI: mesh stream");
 IMR_STATIC_ASSERT(sizeof(imr_features_api) == IMR_FEATURES_API_SIZE_1_0, "ABI: features table");
 IMR_STATIC_ASSERT(sizeof(imr_refiner_api) == IMR_REFINER_API_SIZE_1_0, "ABI: refiner table");
 IMR_STATIC_ASSERT(sizeof(imr_camera) == 184, "ABI: camera (frozen)");

@@ -267,9 +267,42 @@ struct ExportRequest {
   std::optional<std::array<double, 9>> gltf_rotation;
 };
 
+// Since 1.3 (plugin.h, imr_mesh_stream): a mesh read in blocks, the same vertices and faces in
+// the same order as a MeshView of it. The calls throw std::runtime_error with the host's message.
+class MeshStream {
+ public:
+  explicit MeshStream(const imr_mesh_stream& s) : s_(s) {}
+  std::size_t vertex_count() const { return static_cast<std::size_t>(s_.vertex_count); }
+  std::size_t face_count() const { return static_cast<std::size_t>(s_.face_count); }
+  // Min x y z, max x y z.
+  std::array<double, 6> bounds() const {
+    std::array<double, 6> b;
+    std::copy_n(s_.bounds, 6, b.begin());
+    return b;
+  }
+  // Vertices [first, first + count): xyz (3 each), point ids, normal sums (3 each: plugin.h);
+  // a null pointer skips that array.
+  void ReadVertices(std::size_t first, std::size_t count, double* xyz, int64_t* point_ids,
+                    double* normal_sums) const {
+    imr_error e{};
+    if (s_.read_vertices(s_.context, first, count, xyz, point_ids, normal_sums, &e) != IMR_OK)
+      throw std::runtime_error(std::string("reading the mesh's vertices: ") + e.message);
+  }
+  // Faces [first, first + count): 3 indices each.
+  void ReadFaces(std::size_t first, std::size_t count, uint32_t* faces) const {
+    imr_error e{};
+    if (s_.read_faces(s_.context, first, count, faces, &e) != IMR_OK)
+      throw std::runtime_error(std::string("reading the mesh's faces: ") + e.message);
+  }
+
+ private:
+  imr_mesh_stream s_;
+};
+
 // Mesh exporter: declare `static constexpr const char* kFormats = "obj,ply";` and override one
 // of the two calls: Export (geometry only, the 1.0 call) or ExportMesh (the whole request, with
-// the keyframe cameras and images).
+// the keyframe cameras and images). A long drive's single mesh may come as a MeshStream
+// (ExportMeshStream, since 1.3) to an exporter that overrides that call too.
 class Exporter : public PluginBase {
  public:
   static constexpr imr_plugin_kind kKind = IMR_KIND_EXPORTER;
@@ -282,6 +315,13 @@ class Exporter : public PluginBase {
   // The same with the keyframes (since 1.1). By default, Export with the geometry.
   virtual void ExportMesh(const ExportRequest& request) {
     Export(request.mesh, request.directory, request.stem, request.format);
+  }
+  // The same for a mesh read in blocks (since 1.3; `request.mesh` is empty). Return false, with
+  // nothing written, when this request needs the whole mesh: the host then reads it whole and
+  // calls ExportMesh. By default, false.
+  virtual bool ExportMeshStream(const ExportRequest& request, const MeshStream& mesh) {
+    (void)request, (void)mesh;
+    return false;
   }
 };
 
@@ -422,6 +462,28 @@ imr_status Transfer(imr_instance* instance, const imr_transfer_request* r,
   });
 }
 
+// The request's fields but the mesh, as this SDK's minor reads them from the host's struct.
+inline ExportRequest RequestOf(const imr_export_request* r) {
+  ExportRequest req;
+  req.directory = r->directory ? r->directory : ".";
+  req.stem = r->stem ? r->stem : "mesh";
+  req.format = r->format ? r->format : "";
+  if (r->struct_size >= offsetof(imr_export_request, reserved1) + sizeof(uint32_t) &&
+      r->keyframes != nullptr) {
+    req.keyframes = {r->keyframes, static_cast<std::size_t>(r->keyframe_count)};
+    req.keyframe_images = r->keyframe_images != 0;
+  }
+  if (r->struct_size >= offsetof(imr_export_request, gltf_rotation) + sizeof(void*)) {
+    if (r->origin != nullptr) req.origin = std::array<double, 3>{r->origin[0], r->origin[1], r->origin[2]};
+    if (r->gltf_rotation != nullptr) {
+      std::array<double, 9> rotation;
+      std::copy_n(r->gltf_rotation, 9, rotation.begin());
+      req.gltf_rotation = rotation;
+    }
+  }
+  return req;
+}
+
 template <typename T>
 imr_status ExportMesh(imr_instance* instance, const imr_export_request* r,
                       imr_error* error) noexcept {
@@ -436,30 +498,30 @@ imr_status ExportMesh(imr_instance* instance, const imr_export_request* r,
                         m.vertex_colors != nullptr;
     const bool keys = m.struct_size >= offsetof(imr_mesh_view, vertex_keys) + sizeof(void*) &&
                       m.vertex_keys != nullptr;
-    ExportRequest req;
+    ExportRequest req = RequestOf(r);
     req.mesh = MeshView{{m.vertices, 3 * nv},
                         {m.faces, 3 * static_cast<std::size_t>(m.face_count)},
                         {m.point_ids, m.point_ids ? nv : 0},
                         {m.vertex_colors, colors ? 3 * nv : 0},
                         {m.vertex_keys, keys ? nv : 0}};
-    req.directory = r->directory ? r->directory : ".";
-    req.stem = r->stem ? r->stem : "mesh";
-    req.format = r->format ? r->format : "";
-    if (r->struct_size >= offsetof(imr_export_request, reserved1) + sizeof(uint32_t) &&
-        r->keyframes != nullptr) {
-      req.keyframes = {r->keyframes, static_cast<std::size_t>(r->keyframe_count)};
-      req.keyframe_images = r->keyframe_images != 0;
-    }
-    if (r->struct_size >= offsetof(imr_export_request, gltf_rotation) + sizeof(void*)) {
-      if (r->origin != nullptr) req.origin = std::array<double, 3>{r->origin[0], r->origin[1], r->origin[2]};
-      if (r->gltf_rotation != nullptr) {
-        std::array<double, 9> rotation;
-        std::copy_n(r->gltf_rotation, 9, rotation.begin());
-        req.gltf_rotation = rotation;
-      }
-    }
     static_cast<Exporter*>(Self<T>(instance))->ExportMesh(req);
   });
+}
+
+template <typename T>
+imr_status ExportMeshStream(imr_instance* instance, const imr_export_request* r,
+                            const imr_mesh_stream* stream, imr_error* error) noexcept {
+  bool written = false;
+  const imr_status s = Guard(error, [&] {
+    if (r == nullptr || r->struct_size < IMR_EXPORT_REQUEST_SIZE_1_0 || stream == nullptr ||
+        stream->struct_size < sizeof(imr_mesh_stream) || stream->read_vertices == nullptr ||
+        stream->read_faces == nullptr)
+      throw InvalidArgument("export: no mesh stream, or a request or stream struct too small");
+    written = static_cast<Exporter*>(Self<T>(instance))->ExportMeshStream(RequestOf(r), MeshStream(*stream));
+  });
+  if (s != IMR_OK || written) return s;
+  WriteError(error, "this request needs the whole mesh");
+  return IMR_UNSUPPORTED;
 }
 
 template <typename T>
@@ -514,7 +576,8 @@ const imr_plugin_descriptor* DescriptorFor() noexcept {
       static const imr_refiner_api api{sizeof(api), 0, &AddFrame<T>};
       x.refiner = &api;
     } else if constexpr (T::kKind == IMR_KIND_EXPORTER) {
-      static const imr_exporter_api api{sizeof(api), 0, T::kFormats, &ExportMesh<T>};
+      static const imr_exporter_api api{sizeof(api), 0, T::kFormats, &ExportMesh<T>,
+                                        &ExportMeshStream<T>};
       x.exporter = &api;
     }
     return x;
