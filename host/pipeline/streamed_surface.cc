@@ -68,12 +68,78 @@ void StreamedSurface::Fail(const std::string& what) {
   throw std::runtime_error(spool_dir_.string() + ": cannot write the surface's spool (" + what + ")");
 }
 
-uint32_t StreamedSurface::Find(std::vector<uint32_t>& parent, uint32_t i) const {
-  while (parent[i] != i) {
-    parent[i] = parent[parent[i]];
-    i = parent[i];
+uint32_t StreamedSurface::NewSet(OpenSets& sets, int64_t open) {
+  sets[next_label_] = {next_label_, open};
+  return next_label_++;
+}
+
+uint32_t StreamedSurface::FindSet(OpenSets& sets, uint32_t label) {
+  while (true) {
+    OpenSet& s = sets.at(label);
+    if (s.parent == label) return label;
+    s.parent = sets.at(s.parent).parent;  // path halving
+    label = s.parent;
   }
-  return i;
+}
+
+uint32_t StreamedSurface::UnionSets(OpenSets& sets, uint32_t a, uint32_t b) {
+  a = FindSet(sets, a);
+  b = FindSet(sets, b);
+  if (a == b) return a;
+  sets.at(b).parent = a;
+  sets.at(a).open += sets.at(b).open;
+  return a;
+}
+
+// The boundary edges (v, first) and (last, v) of a boundary vertex completed: each closes when
+// its other end completes too; a loop with no edge left open is complete.
+void StreamedSurface::CloseBoundary(const SeamVertex& v, uint32_t first, uint32_t last) {
+  uint32_t label = NewSet(loops_, 0);
+  std::vector<std::pair<uint32_t, uint32_t>> waiting;
+  if (const auto it = loop_ends_.find(v.index); it != loop_ends_.end()) {
+    waiting = std::move(it->second);
+    loop_ends_.erase(it);
+  }
+  for (const uint32_t u : {first, last}) {
+    const auto match = std::find_if(waiting.begin(), waiting.end(), [&](const auto& w) { return w.first == u; });
+    if (match != waiting.end()) {
+      label = UnionSets(loops_, label, match->second);
+      --loops_.at(label).open;
+      waiting.erase(match);
+    } else {
+      loop_ends_[u].emplace_back(v.index, label);
+      ++loops_.at(FindSet(loops_, label)).open;
+    }
+  }
+  const uint32_t root = FindSet(loops_, label);
+  if (loops_.at(root).open == 0) {
+    ++loops_done_;
+    loops_.erase(root);
+  }
+}
+
+// Keeps the labels something still names (a seam vertex's component, a waiting boundary edge's
+// loop), each as its root: the sets stay as many as the seam's open things.
+void StreamedSurface::CompactSets() {
+  if (components_.size() > 2 * seam_.size() + 1024) {
+    OpenSets kept;
+    for (auto& [key, v] : seam_) {
+      v.component = FindSet(components_, v.component);
+      kept.emplace(v.component, components_.at(v.component));
+    }
+    components_.swap(kept);
+  }
+  std::size_t ends = 0;
+  for (const auto& [u, w] : loop_ends_) ends += w.size();
+  if (loops_.size() > 2 * ends + 1024) {
+    OpenSets kept;
+    for (auto& [u, w] : loop_ends_)
+      for (auto& [from, label] : w) {
+        label = FindSet(loops_, label);
+        kept.emplace(label, loops_.at(label));
+      }
+    loops_.swap(kept);
+  }
 }
 
 void StreamedSurface::Feed(const engine::SurfacePart& part) {
@@ -104,8 +170,7 @@ void StreamedSurface::Spool(const engine::SurfacePart& r) {
       }
       vertices_.write(reinterpret_cast<const char*>(p), 3 * sizeof(double));
       vertices_.write(reinterpret_cast<const char*>(&r.point_ids[i]), sizeof(int64_t));
-      component_.push_back(it->second.index);
-      loop_.push_back(kNone);
+      it->second.component = NewSet(components_, 1);
     }
     local[i] = &it->second;
   }
@@ -125,9 +190,7 @@ void StreamedSurface::Spool(const engine::SurfacePart& r) {
       for (int j = 0; j < 3; ++j) v[k]->normal_sum[static_cast<std::size_t>(j)] += n[j];
       v[k]->link.emplace_back(v[(k + 1) % 3]->index, v[(k + 2) % 3]->index);
     }
-    const uint32_t ra = Find(component_, v[0]->index);
-    component_[Find(component_, v[1]->index)] = ra;
-    component_[Find(component_, v[2]->index)] = ra;
+    UnionSets(components_, v[0]->component, UnionSets(components_, v[1]->component, v[2]->component));
   }
   faces_file_.write(reinterpret_cast<const char*>(faces.data()),
                     static_cast<std::streamsize>(faces.size() * sizeof(uint32_t)));
@@ -137,6 +200,7 @@ void StreamedSurface::Spool(const engine::SurfacePart& r) {
       Complete(it->second);
       seam_.erase(it);
     }
+  CompactSets();
   stats_.peak_seam_vertices = std::max(stats_.peak_seam_vertices, static_cast<int64_t>(seam_.size()));
   if (!vertices_ || !faces_file_) Fail("disk full?");
   stats_.spool_bytes = static_cast<int64_t>(next_vertex_ * (kVertexRecord + kNormalRecord) +
@@ -153,6 +217,11 @@ void StreamedSurface::Complete(SeamVertex& v) {
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) Fail(Errno());
     done += static_cast<std::size_t>(n);
+  }
+  const uint32_t component = FindSet(components_, v.component);
+  if (--components_.at(component).open == 0) {
+    ++components_done_;
+    components_.erase(component);
   }
   if (v.link.empty()) return;
   static thread_local std::vector<std::pair<uint32_t, uint32_t>> by_first;
@@ -173,11 +242,7 @@ void StreamedSurface::Complete(SeamVertex& v) {
       last = e.second;
   }
   boundary_edges_ += 2;  // each counted again at its other end: halved in Finish
-  for (uint32_t u : {v.index, first, last})
-    if (loop_[u] == kNone) loop_[u] = u;
-  const uint32_t root = Find(loop_, v.index);
-  loop_[Find(loop_, first)] = root;
-  loop_[Find(loop_, last)] = root;
+  CloseBoundary(v, first, last);
 }
 
 void StreamedSurface::Take(engine::Engine& engine) {
@@ -208,10 +273,8 @@ void StreamedSurface::Finish(engine::Engine& engine) {
     s.boundary_edges = boundary_edges_ / 2;
     s.edges = (3 * s.faces + s.boundary_edges) / 2;
     s.euler_characteristic = s.vertices - s.edges + s.faces;
-    for (uint32_t i = 0; i < next_vertex_; ++i) {
-      s.components += Find(component_, i) == i;
-      s.boundary_loops += loop_[i] != kNone && Find(loop_, i) == i;
-    }
+    s.components = components_done_;
+    s.boundary_loops = loops_done_;
     s.manifold = s.orientable = s.consistently_oriented = check_.ok;
     s.closed = s.boundary_edges == 0;
     // Every component orientable and manifold: the sum of (2 - chi_i - b_i) / 2 over them.
@@ -221,8 +284,9 @@ void StreamedSurface::Finish(engine::Engine& engine) {
     std::copy(bounds_.begin() + 3, bounds_.end(), s.bbox_max.begin());
     check_.boundary_triangles = static_cast<int64_t>(faces_);
     check_.boundary_vertices = static_cast<int64_t>(next_vertex_);
-    component_ = {};
-    loop_ = {};
+    components_ = {};
+    loops_ = {};
+    loop_ends_ = {};
   }
   stats_.seconds += SecondsSince(start);
 }

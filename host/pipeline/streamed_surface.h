@@ -9,7 +9,8 @@
 // What the spool holds stays on disk; what memory holds is the seam: the vertices released and
 // not yet completed (surface_stream.h), each with its normal sum and its link, which is checked
 // when the vertex completes (the manifold check CheckMesh makes on a whole mesh, one vertex at a
-// time), and a union-find word per vertex for the mesh's components and boundary loops.
+// time), and the components and boundary loops still open (union-find over sets, each counted
+// when its last vertex or boundary edge is closed).
 #pragma once
 
 #include "host/engine/engine.h"
@@ -79,13 +80,26 @@ class StreamedSurface {
  private:
   struct SeamVertex {
     uint32_t index = 0;
+    uint32_t component = 0;  // its set in components_
     std::array<double, 3> normal_sum{};
     std::vector<std::pair<uint32_t, uint32_t>> link;  // per face at it: the opposite edge
   };
+  // Union-find over sets of the mesh (components, boundary loops), each root with how much of
+  // it is still open: its seam vertices, its boundary edges with one end complete. A set whose
+  // count falls to 0 is complete and counted. Merged labels are dropped now and then (Compact*).
+  struct OpenSet {
+    uint32_t parent = 0;
+    int64_t open = 0;
+  };
+  using OpenSets = std::unordered_map<uint32_t, OpenSet>;
+  uint32_t NewSet(OpenSets& sets, int64_t open);
+  static uint32_t FindSet(OpenSets& sets, uint32_t label);
+  static uint32_t UnionSets(OpenSets& sets, uint32_t a, uint32_t b);
+  void CloseBoundary(const SeamVertex& v, uint32_t first, uint32_t last);
+  void CompactSets();
   void Feed(const engine::SurfacePart& part);
   void Spool(const engine::SurfacePart& released);
   void Complete(SeamVertex& v);
-  uint32_t Find(std::vector<uint32_t>& parent, uint32_t i) const;
   void Fail(const std::string& what);
 
   engine::SurfaceStream stream_;
@@ -98,8 +112,12 @@ class StreamedSurface {
   std::unordered_map<int64_t, SeamVertex> seam_;  // by the stream's key
   uint64_t next_vertex_ = 0, faces_ = 0;
   std::array<double, 6> bounds_{};
-  std::vector<uint32_t> component_;  // union-find over vertices (faces through shared vertices)
-  std::vector<uint32_t> loop_;       // union-find over boundary vertices; kNone elsewhere
+  OpenSets components_, loops_;
+  uint32_t next_label_ = 0;
+  // Per vertex index: the boundary edges to it whose other end completed first, as (that end,
+  // its loop's label); matched when this vertex completes.
+  std::unordered_map<uint32_t, std::vector<std::pair<uint32_t, uint32_t>>> loop_ends_;
+  int64_t components_done_ = 0, loops_done_ = 0;
   int64_t boundary_edges_ = 0;
   double area_ = 0.0;
   engine::ManifoldCheckResult check_;
