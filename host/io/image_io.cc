@@ -1,14 +1,19 @@
-// The one host translation unit that includes OpenCV (imgcodecs): see image_io.h.
+// Image files for the image front end: sizes from their headers here, pixels through the codec
+// module (image_codecs.h), loaded on first use.
 #include "host/io/image_io.h"
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include "host/io/image_codecs.h"
+
+#include <boost/dll/runtime_symbol_info.hpp>
+#include <boost/dll/shared_library.hpp>
 
 #include <array>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace imr::io {
 namespace {
@@ -19,6 +24,39 @@ void CheckIsFile(const std::string& path) {
   const fs::file_status s = fs::status(path, ec);
   if (!fs::exists(s)) throw std::runtime_error(path + ": no such file");
   if (fs::is_directory(s)) throw std::runtime_error(path + ": is a folder, not an image file");
+}
+
+// The codec module (image_codecs.cc), loaded once, on first use: beside the plugins' folder,
+// <prefix>/lib/imr, in the build tree and after install alike (bin/ and tests/ are both one level
+// under it), else where this build put it.
+const ImageCodecs& Codecs() {
+  static const ImageCodecs* const codecs = [] {
+    const fs::path exe = boost::dll::program_location().native();
+    const std::vector<fs::path> candidates = {
+        exe.parent_path().parent_path() / "lib" / "imr" / IMR_IMAGE_CODECS_FILE,
+        fs::path(IMR_IMAGE_CODECS_BUILD_PATH)};
+    std::string tried;
+    for (const fs::path& p : candidates) {
+      if (!fs::exists(p)) {
+        tried += (tried.empty() ? "" : ", ") + p.string();
+        continue;
+      }
+      // Kept loaded for the process's life (the function table lives in it).
+      static boost::dll::shared_library library;
+      try {
+        library.load(boost::dll::fs::path(p.string()), boost::dll::load_mode::rtld_now);
+      } catch (const std::exception& e) {
+        throw std::runtime_error("cannot load the image codecs " + p.string() + ": " + e.what());
+      }
+      const ImageCodecs* c = library.get<const ImageCodecs*()>("imr_image_codecs")();
+      if (c == nullptr || c->version != ImageCodecs::kVersion)
+        throw std::runtime_error(p.string() + ": image codecs of another imr build");
+      return c;
+    }
+    throw std::runtime_error("the image codecs (" + std::string(IMR_IMAGE_CODECS_FILE) +
+                             ", OpenCV) are not installed: looked for " + tried);
+  }();
+  return *codecs;
 }
 
 [[noreturn]] void FailDecode(const std::string& path, const std::string& detail = "") {
@@ -96,68 +134,13 @@ bool HeaderSize(const std::string& path, ImageSize* size) {
 
 }  // namespace
 
-void CheckImageSize(const std::string& path, const ImageSize& size, const ImageLimits& limits) {
-  const int64_t pixels = int64_t{size.width} * size.height;
-  const std::string is = path + ": image is " + std::to_string(size.width) + "x" +
-                         std::to_string(size.height);
-  const auto megapixels = [](int64_t p) { return std::to_string((p + 500000) / 1000000); };
-  if (limits.max_pixels > 0 && pixels > limits.max_pixels)
-    throw std::runtime_error(is + " (" + megapixels(pixels) + " megapixels), more than " +
-                             limits.max_pixels_name);
-  if (pixels > kDecoderMaxPixels)
-    throw std::runtime_error(is + " (" + megapixels(pixels) + " megapixels), more than the " +
-                             "image decoder reads (" + megapixels(kDecoderMaxPixels) + ")");
-  if (limits.expected.width > 0 &&
-      (size.width != limits.expected.width || size.height != limits.expected.height))
-    throw std::runtime_error(is + ", " + limits.expected_name + " is " +
-                             std::to_string(limits.expected.width) + "x" +
-                             std::to_string(limits.expected.height));
-}
-
 Image ReadImage(const std::string& path, const ImageLimits& limits) {
   CheckIsFile(path);
   // From the header first: nothing is decoded that would be refused.
   if (ImageSize declared; HeaderSize(path, &declared)) CheckImageSize(path, declared, limits);
-  cv::Mat m;
-  try {
-    m = cv::imread(path, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    FailDecode(path, e.what());
-  }
-  if (m.empty()) FailDecode(path);
-  CheckImageSize(path, {m.cols, m.rows}, limits);  // formats without a header read above
-
-  if (m.depth() == CV_16U) {
-    cv::Mat m8;
-    m.convertTo(m8, CV_8U, 255.0 / 65535.0);
-    m = m8;
-  } else if (m.depth() != CV_8U) {
-    throw std::runtime_error(path + ": pixels are neither 8- nor 16-bit unsigned (OpenCV depth " +
-                             std::to_string(m.depth()) + "); convert the image first");
-  }
-  const int in_channels = m.channels();
-  if (in_channels < 1 || in_channels > 4)
-    throw std::runtime_error(path + ": " + std::to_string(in_channels) +
-                             " channels, expected 1 to 4");
-  // Gray + alpha keeps the gray, BGRA keeps BGR: the alpha channel is dropped.
-  const int channels = in_channels <= 2 ? 1 : 3;
-
   Image image;
-  image.width = m.cols;
-  image.height = m.rows;
-  image.channels = channels;
-  image.stride_bytes = static_cast<int64_t>(m.cols) * channels;
-  image.pixels.resize(static_cast<std::size_t>(image.stride_bytes) * m.rows);
-  for (int y = 0; y < m.rows; ++y) {
-    const uint8_t* src = m.ptr<uint8_t>(y);
-    uint8_t* dst = image.pixels.data() + static_cast<std::size_t>(y) * image.stride_bytes;
-    if (in_channels == channels) {
-      std::memcpy(dst, src, static_cast<std::size_t>(image.stride_bytes));
-      continue;
-    }
-    for (int x = 0; x < m.cols; ++x)
-      for (int c = 0; c < channels; ++c) dst[x * channels + c] = src[x * in_channels + c];
-  }
+  if (const std::string e = Codecs().decode(path, limits, &image); !e.empty())
+    throw std::runtime_error(e);
   return image;
 }
 
@@ -181,17 +164,8 @@ void WriteImage(const std::string& path, const Image& image) {
       image.pixels.size() < static_cast<std::size_t>(image.stride_bytes) * image.height)
     throw std::runtime_error(path + ": image of " + std::to_string(image.width) + "x" +
                              std::to_string(image.height) + " has too few pixels for its stride");
-  const cv::Mat m(image.height, image.width, image.channels == 1 ? CV_8UC1 : CV_8UC3,
-                  const_cast<uint8_t*>(image.pixels.data()),
-                  static_cast<std::size_t>(image.stride_bytes));
-  bool ok = false;
-  std::string detail;
-  try {
-    ok = cv::imwrite(path, m);
-  } catch (const cv::Exception& e) {
-    detail = std::string(": ") + e.what();
-  }
-  if (!ok) throw std::runtime_error("cannot write " + path + detail);
+  if (const std::string e = Codecs().encode(path, image); !e.empty())
+    throw std::runtime_error(e);
 }
 
 }  // namespace imr::io

@@ -27,13 +27,11 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <unordered_map>
 
 #include "obj_writer.hpp"
+#include "page_encoder.hpp"
 #include "streamed_writers.hpp"
 #include "point_id_channel.hpp"
 #include "texturing.hpp"
@@ -426,18 +424,10 @@ std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::s
   return scene;
 }
 
-// An atlas page encoded as PNG or JPEG (OpenCV's imgcodecs).
+// An atlas page encoded as PNG or JPEG (page_encoder.hpp).
 std::vector<uint8_t> EncodePage(const AtlasPage& page, const std::string& format, int jpeg_quality) {
-  cv::Mat rgb(page.height, page.width, CV_8UC3, const_cast<uint8_t*>(page.rgb.data()));
-  cv::Mat bgr;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  std::vector<uint8_t> bytes;
-  const std::vector<int> params = format == "png" ? std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 3}
-                                                  : std::vector<int>{cv::IMWRITE_JPEG_QUALITY, jpeg_quality};
-  if (!cv::imencode("." + format, bgr, bytes, params))
-    throw std::runtime_error("cannot encode a " + std::to_string(page.width) + "x" +
-                             std::to_string(page.height) + " atlas page as " + format);
-  return bytes;
+  return imr::exporter_assimp::EncodeAtlasPage(page.rgb.data(), page.width, page.height, format,
+                                               jpeg_quality);
 }
 
 void WriteBytes(const fs::path& path, const void* bytes, std::size_t size) {

@@ -290,7 +290,8 @@ int RunDriveBench(int argc, char** argv) {
     if (!lr.ok) return 1;
     const Series s = SeriesOf(lr);
     const double peak = Get(lr.report, {"memory", "peak_rss_bytes"});
-    // The process's peak may come after the drive: the single mesh is put together in memory.
+    // The process's peak may come after the drive: the last parts, tiles and the single mesh's
+    // export (in blocks from the spool) and evaluation.
     double drive_peak = 0.0;
     for (double r : s.rss) drive_peak = std::max(drive_peak, r);
     const double at_ref = RssAt(s, reference), at_end = s.rss.empty() ? 0.0 : s.rss.back();
@@ -316,8 +317,8 @@ int RunDriveBench(int argc, char** argv) {
                         {"rss_bytes", s.rss[b]}});
     }
     const json& fg = lr.report["engine"]["forget"];
-    std::printf("\npeak RSS %s (%s during the drive, at its keyframes; the rest when the single "
-                "mesh is put together at the end); RSS %s at frame %d, %s at the end (x%.2f); "
+    std::printf("\npeak RSS %s (%s during the drive, at its keyframes; the rest at the end: the "
+                "last tiles, the single mesh written and measured in blocks); RSS %s at frame %d, %s at the end (x%.2f); "
                 "slope over the second half %.1f kB per frame (%.1f MB per 1,000 frames); tiles "
                 "%.0f; mesh %.0f faces, manifold %s; rebuilds %d, vertices forgotten %d, changes "
                 "refused %d\n",
