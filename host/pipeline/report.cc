@@ -283,6 +283,7 @@ json BuildReport(const ReportInputs& in) {
                                {"peak_held_triangles", ss.stream.peak_held_triangles},
                                {"peak_held_vertices", ss.stream.peak_held_vertices},
                                {"spool_bytes", ss.spool_bytes},
+                               {"peak_seam_vertices", ss.peak_seam_vertices},
                                {"seconds", ss.seconds},
                                {"max_keyframe_seconds", ss.max_update_seconds}};
   }

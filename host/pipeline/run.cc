@@ -672,13 +672,13 @@ void SequenceRun::WriteMeshAndReport(std::future<void>* evaluation) {
       report_.export_images = ExportMesh(WholeMesh(), export_context_, whole, exporters_,
                                          staging.path(), job_.output.stem, watch_,
                                          options_.stage_timeout);
-    if (streamed_) spool_dir_.reset();
   } catch (...) {
     if (evaluation->valid()) evaluation->get();  // its error first, as without the overlap
     throw;
   }
   report_.export_seconds = SecondsSince(export_start);
   if (evaluation->valid()) evaluation->get();
+  spool_dir_.reset();  // the evaluation may read it in blocks until here
   const std::vector<std::string> commit_last = {job_.output.stem + ".gltf", "report.json"};
 
   report_.job = &v_;
