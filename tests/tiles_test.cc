@@ -191,9 +191,9 @@ std::vector<std::array<float, 9>> SortedTriangles(const eval::TriangleMesh& m) {
 }
 
 // A forgetting run on an input without ground truth (a SLAM stream: nothing asks for the mesh
-// whole) writes its single PLY and OBJ in blocks from the spool (SDK 1.3) and its glTF from the
-// mesh read whole; all three have the surface of the run without forgetting, and the report the
-// topology measured while the mesh was spooled.
+// whole) writes its single PLY and OBJ in blocks from the spool (SDK 1.3), and its GLB and the
+// OFF of an exporter built against ABI 1.0 from the mesh read whole; all have the surface of the
+// run without forgetting, and the report the topology measured while the mesh was spooled.
 TEST(Tiles, ForgettingWritesTheSingleMeshInBlocks) {
   ScratchDir dir("tiles-blocks");
   const fs::path stream = dir / "stream.json";
@@ -205,8 +205,10 @@ TEST(Tiles, ForgettingWritesTheSingleMeshInBlocks) {
     json job = {{"sequences", {stream.string()}},
                 {"input", {{"format", "slam_json"}}},
                 {"engine", {{"forget", forget}}},
-                {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
-                {"output", {{"directory", (dir / out).string()}, {"formats", {"ply", "obj", "glb"}}}}};
+                {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}},
+                              {{"kind", "exporter"}, {"plugin", "org.imr.test.exporter.off_sdk_1_0"}}}},
+                {"plugin_paths", {IMR_SDK_TEST_PLUGIN_DIR}},
+                {"output", {{"directory", (dir / out).string()}, {"formats", {"ply", "obj", "glb", "off"}}}}};
     return job;
   };
   ASSERT_EQ(RunJob(dir.path(), "plain", slam_job(false, "plain")).status, 0);
@@ -231,6 +233,14 @@ TEST(Tiles, ForgettingWritesTheSingleMeshInBlocks) {
     EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(m), false).ok);
     EXPECT_TRUE(SortedTriangles(m) == plain);
   }
+  // The exporter built against ABI 1.0 has no mesh streams: its OFF from the mesh read whole.
+  std::ifstream off(dir / "forget" / "mesh.off");
+  std::string magic;
+  std::size_t nv = 0, nf = 0;
+  off >> magic >> nv >> nf;
+  EXPECT_EQ(magic, "OFF");
+  EXPECT_EQ(nv, report["mesh"]["vertices"].get<std::size_t>());
+  EXPECT_EQ(nf, plain.size());
   const std::string ply = ReadText(dir / "forget" / "mesh.ply");
   EXPECT_NE(ply.find("comment Written in blocks"), std::string::npos);
   EXPECT_FALSE(fs::exists(dir / "forget" / ".imr-staging"));  // the spool went with the run
