@@ -1371,6 +1371,15 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   s.stats.vertices = static_cast<int64_t>(s.dt.number_of_vertices());
   s.stats.cells = static_cast<int64_t>(s.dt.tds().number_of_cells());
   s.stats.cells_in_o = s.cells_in_o;
+  // Where the new cameras are now: in O (free space), or inside matter. Not in the keyframe's time.
+  for (const Point& c : centres) {
+    ++s.stats.cameras_checked;
+    if (s.dt.dimension() < 3) continue;
+    // From the newest point's cell: the cameras are near what they just saw.
+    const Cell_handle cell =
+        s.dt.locate(c, s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle());
+    if (!s.dt.is_infinite(cell) && cell->info().in_o) ++s.stats.cameras_in_o;
+  }
   if (s.opt.check_invariants) {
     ManifoldCheckResult r = detail::InvariantChecker(s).Check();
     if (!r.ok) return Status::Error("invariant broken after update: " + r.message);

@@ -289,6 +289,11 @@ struct EngineStats {
   int64_t vertices = 0;               // Current finite vertices (points + Steiner).
   int64_t cells = 0;                  // Current finite cells.
   int64_t cells_in_o = 0;
+  // Each keyframe's new cameras, after the update: how many, and how many have their centre in a
+  // cell of O (free space). A camera inside matter means the surface closes over the path the
+  // cameras took (issue 34: the camera path should be free space).
+  int64_t cameras_checked = 0;
+  int64_t cameras_in_o = 0;
   // forget (EngineOptions::forget):
   int64_t forget_steps = 0;           // Steps run (the newest camera moved forget_step).
   int64_t cells_finalized = 0;        // Cells that became final.

@@ -228,6 +228,9 @@ TEST_P(SmallSceneTest, WallIsCarvedAndMovesKeepTheManifold) {
   ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
   ExpectManifold();
   EXPECT_GT(engine_->Stats().cells_in_o, 0);
+  // Both cameras, in the space their rays carved, are in O (free space), not inside matter.
+  EXPECT_EQ(engine_->Stats().cameras_checked, 2);
+  EXPECT_EQ(engine_->Stats().cameras_in_o, 2);
   // Move every point 20 cm toward the camera, with a new observing camera.
   KeyframeUpdate u;
   u.cameras = {{3, {0.0, 1.0, 1.5}}};
