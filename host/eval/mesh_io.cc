@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -767,9 +768,16 @@ class GltfReader {
       std::vector<uint64_t> idx;
       if (prim.contains("indices")) {
         for (double v : ReadAccessor(Index(prim["indices"], name + ".indices"), 1, name + " indices")) {
+          // Any component type reads as a double here: a signed, fractional or huge value is no
+          // index (and would be undefined as an integer).
+          char text[32];
+          std::snprintf(text, sizeof(text), "%.17g", v);
+          if (!(v >= 0.0) || v != std::floor(v))
+            Fail(path_, name + ": index " + text + " is not a vertex index (glTF indices are "
+                            "unsigned integers)");
           if (v >= static_cast<double>(nv))
-            Fail(path_, name + ": index " + std::to_string(static_cast<uint64_t>(v)) +
-                            " but POSITION has " + std::to_string(nv) + " vertices");
+            Fail(path_, name + ": index " + text + " but POSITION has " + std::to_string(nv) +
+                            " vertices");
           idx.push_back(static_cast<uint64_t>(v));
         }
       } else {

@@ -355,6 +355,34 @@ void ExpectSquareScene(const TriangleMesh& m) {
   EXPECT_NEAR(MeshArea(m), 8.0, 1e-9);
 }
 
+// Indices read through a signed or float accessor (a writer's mistake, or a fuzzer's): a
+// negative or fractional index is refused by name, not cast to an integer (undefined: the fuzz
+// smoke test's UBSan found it).
+TEST_F(MeshIo, GltfIndicesThatAreNoVertexIndexAreRefused) {
+  const std::string buf = SquareBuffer();
+  for (const int type : {5122, 5126}) {  // SHORT, FLOAT
+    std::string b = buf.substr(0, 64);
+    json doc = SquareGltf({});
+    if (type == 5122) {
+      for (int16_t i : {0, 1, 2, 0, 2, -30208}) Put<int16_t>(&b, i);
+    } else {
+      for (float f : {0.0f, 1.0f, 2.0f, 0.0f, 2.0f, 2.5f}) Put<float>(&b, f);
+      doc["bufferViews"][1]["byteLength"] = 24;
+    }
+    doc["accessors"][1]["componentType"] = type;
+    doc["buffers"] = {{{"byteLength", b.size()},
+                       {"uri", "data:application/octet-stream;base64," + Base64(b)}}};
+    const fs::path f = Write("bad_indices.gltf", doc.dump());
+    try {
+      ReadMesh(f);
+      ADD_FAILURE() << "indices of component type " << type << " accepted";
+    } catch (const std::exception& e) {
+      const std::string want = type == 5122 ? "index -30208 is not a vertex index" : "index 2.5 is not a vertex index";
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST_F(MeshIo, GltfWithDataUriExternalBinAndGlb) {
   const std::string buf = SquareBuffer();
   // Data URI.
