@@ -161,6 +161,12 @@ const Format& FindFormat(const std::string& name) {
   throw InvalidArgument("unknown format \"" + name + "\": expected one of obj, ply, gltf, glb");
 }
 
+// The request's file name: no folder, no "." or "..".
+void CheckStem(const std::string& stem) {
+  if (stem.empty() || stem.find('/') != std::string::npos || stem == "." || stem == "..")
+    throw InvalidArgument("stem \"" + stem + "\" is not a plain file name");
+}
+
 // Everything assimp would choke on, or silently write wrong, named precisely.
 void CheckMesh(const imr::sdk::MeshView& mesh, const Format& format, bool check_point_ids) {
   const std::size_t nv = mesh.vertex_count(), nf = mesh.face_count();
@@ -504,8 +510,7 @@ class AssimpExporter : public imr::sdk::Exporter {
     const imr::sdk::MeshView& mesh = request.mesh;
     const std::string& stem = request.stem;
     const Format& f = FindFormat(request.format);
-    if (stem.empty() || stem.find('/') != std::string::npos || stem == "." || stem == "..")
-      throw InvalidArgument("stem \"" + stem + "\" is not a plain file name");
+    CheckStem(stem);
     const bool write_ids = point_ids_ && f.max_point_id > 0 && !mesh.point_ids.empty();
     CheckMesh(mesh, f, write_ids);
     host_.CheckCancelled();
@@ -627,8 +632,7 @@ class AssimpExporter : public imr::sdk::Exporter {
   bool ExportMeshStream(const imr::sdk::ExportRequest& request, const imr::sdk::MeshStream& mesh) override {
     const Format& f = FindFormat(request.format);
     const std::string& stem = request.stem;
-    if (stem.empty() || stem.find('/') != std::string::npos || stem == "." || stem == "..")
-      throw InvalidArgument("stem \"" + stem + "\" is not a plain file name");
+    CheckStem(stem);
     const bool coloured = (vertex_colors_ || texturing_.texture) && request.keyframe_images &&
                           !request.keyframes.empty();
     const std::string name = f.name;
@@ -646,20 +650,6 @@ class AssimpExporter : public imr::sdk::Exporter {
     if (name == "obj") {
       WriteStreamedObj(mesh, path, stem, poll);
     } else {
-      // Every id must fit PLY's int: checked in blocks before a byte is written.
-      if (point_ids_) {
-        std::vector<int64_t> ids(1 << 16);
-        for (std::size_t i = 0; i < mesh.vertex_count(); i += ids.size()) {
-          const std::size_t n = std::min(ids.size(), mesh.vertex_count() - i);
-          mesh.ReadVertices(i, n, nullptr, ids.data(), nullptr);
-          for (std::size_t k = 0; k < n; ++k)
-            if (ids[k] < kMinPointId || ids[k] > f.max_point_id)
-              throw InvalidArgument("point id of vertex " + std::to_string(i + k) + " is " +
-                                    std::to_string(ids[k]) + ": ply holds ids -1 (Steiner) .. " +
-                                    std::to_string(f.max_point_id) +
-                                    " exactly (export without point ids: \"point_ids\": false)");
-        }
-      }
       // The local origin of ExportOrigin, from the bounds (the same rule).
       std::array<double, 3> origin{};
       if (request.origin) {
@@ -668,7 +658,7 @@ class AssimpExporter : public imr::sdk::Exporter {
         const double corners[6] = {b[0], b[1], b[2], b[3], b[4], b[5]};
         origin = ExportOrigin(corners, 2);
       }
-      WriteStreamedPly(mesh, path, point_ids_, origin, poll);
+      WriteStreamedPly(mesh, path, point_ids_, f.max_point_id, origin, poll);
     }
     host_.Debug("wrote " + path.string() + " in blocks: " + std::to_string(mesh.vertex_count()) +
                 " vertices, " + std::to_string(mesh.face_count()) + " triangles");

@@ -56,7 +56,8 @@ std::array<float, 3> UnitNormal(const double* sum) {
 }  // namespace
 
 void WriteStreamedPly(const imr::sdk::MeshStream& mesh, const fs::path& path, bool point_ids,
-                      const std::array<double, 3>& origin, const std::function<void()>& poll) {
+                      int64_t max_point_id, const std::array<double, 3>& origin,
+                      const std::function<void()>& poll) {
   const std::size_t nv = mesh.vertex_count(), nf = mesh.face_count();
   std::ostringstream h;
   h << "ply\nformat binary_little_endian 1.0\n";
@@ -91,6 +92,11 @@ void WriteStreamedPly(const imr::sdk::MeshStream& mesh, const fs::path& path, bo
       unsigned char* r = bytes.data() + i * record;
       std::memcpy(r, f, sizeof(f));
       if (point_ids) {
+        if (ids[i] < -1 || ids[i] > max_point_id)
+          throw imr::sdk::InvalidArgument(
+              "point id of vertex " + std::to_string(first + i) + " is " + std::to_string(ids[i]) +
+              ": ply holds ids -1 (Steiner) .. " + std::to_string(max_point_id) +
+              " exactly (export without point ids: \"point_ids\": false)");
         const auto id = static_cast<int32_t>(ids[i]);
         std::memcpy(r + sizeof(f), &id, sizeof(id));
       }

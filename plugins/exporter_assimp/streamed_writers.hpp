@@ -9,6 +9,7 @@
 #include <imr/sdk/plugin.hpp>
 
 #include <array>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -17,9 +18,11 @@ namespace imr::exporter_assimp {
 
 // Binary little-endian PLY: x y z nx ny nz (float) [int point_id], faces as uchar 3 + 3 int.
 // `origin` non-zero: "comment imr_origin" and positions relative to it. Throws
-// std::runtime_error naming the file when a write fails. `poll` runs between blocks.
+// std::runtime_error naming the file when a write fails, imr::sdk::InvalidArgument naming the
+// vertex when a point id is outside -1 .. max_point_id (the host discards what was written).
+// `poll` runs between blocks.
 void WriteStreamedPly(const imr::sdk::MeshStream& mesh, const std::filesystem::path& path,
-                      bool point_ids, const std::array<double, 3>& origin,
+                      bool point_ids, int64_t max_point_id, const std::array<double, 3>& origin,
                       const std::function<void()>& poll);
 
 // OBJ as ObjText writes a mesh with one untextured group named `name`.
