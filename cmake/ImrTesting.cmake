@@ -14,5 +14,8 @@ function(imr_add_test)
   gtest_discover_tests(${exe}
     TEST_PREFIX "${T_NAME}."
     DISCOVERY_MODE PRE_TEST
+    # Listing the tests loads the executable's libraries: OpenCV's imgcodecs pulls in 143 of them,
+    # 9 s from a cold disk cache on a fresh CI machine (CMake's default timeout is 5 s).
+    DISCOVERY_TIMEOUT 300
     PROPERTIES ${props})
 endfunction()
