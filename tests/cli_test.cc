@@ -122,7 +122,7 @@ TEST_F(Cli, PluginsRefusesBadLibrariesByName) {
   ASSERT_EQ(r.status, 0) << r.err;
   // Another ABI major: the file and both versions are named.
   EXPECT_NE(r.out.find("test_bad_abi_plugin.so"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("built for plugin ABI 2.3, this host speaks ABI 1.3"), std::string::npos)
+  EXPECT_NE(r.out.find("built for plugin ABI 2.3, this host speaks ABI 1.4"), std::string::npos)
       << r.out;
   // No entry symbol.
   EXPECT_NE(r.out.find("test_no_entry_plugin.so: not an imr plugin: no entry symbol "

@@ -34,7 +34,8 @@ import tempfile
 NOT_OPTIONS = {
     # the SDK's structs and fields (docs/plugins.md, docs/tiles.md), glTF extras
     "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "imr_upright",
-    "imr_mesh_stream", "export_mesh_stream",
+    "imr_mesh_stream", "export_mesh_stream", "recent_keyframes_begin", "keyframe_images",
+    "final_call", "imr_refine_request", "imr_refine_result",
     # report.json, summary.json, evaluation output
     "stage_seconds", "engine_scale", "export_input", "invariant_checks", "rays_walked_exact",
     "rays_uncast_listed", "ray_mismatches", "road_surface", "completeness_visible", "log_tail",
@@ -215,7 +216,7 @@ class Knowledge:
         # plugin ids' last parts name them in prose (`weighted_mean`: org.imr.policy.weighted_mean)
         self.plugin_names = {k.rsplit(".", 1)[-1] for k in self.sections if k.startswith("plugin:")}
         self.names = (self.all_options | self.values | self.formats | self.all_job_keys |
-                      self.plugin_names | {"weight_policy", "features", "refiner", "exporter"})
+                      self.plugin_names | {"weight_policy", "features", "refiner", "mesh_refiner", "exporter"})
         self.all_flags = set().union(*self.commands.values()) | self.synth
         self.tool_flags = tool_source_flags(args.source)
         self.imr = args.imr

@@ -8,6 +8,8 @@
 
 #include "test_util.h"
 
+#include <imr/sdk/plugin.h>
+
 namespace imr::testing {
 namespace {
 namespace fs = std::filesystem;
@@ -120,8 +122,9 @@ TEST_F(OutOfTree, PluginOfAnotherAbiMajorIsRefused) {
   const fs::path so = where / "build" / "example_max_policy.so";
   auto r = RunShell("IMR_PLUGIN_PATH=" + Quote(so.string()) + " " + IMR_EXE + " plugins");
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.out.find(so.string() + ": plugin #0 refused: built for plugin ABI 2.3, this host "
-                                     "speaks ABI 1.3"),
+  const std::string minor = std::to_string(IMR_ABI_MINOR);
+  EXPECT_NE(r.out.find(so.string() + ": plugin #0 refused: built for plugin ABI 2." + minor +
+                       ", this host speaks ABI 1." + minor),
             std::string::npos)
       << r.out;
   EXPECT_EQ(r.out.find("org.imr.example.policy.max "), std::string::npos) << r.out;

@@ -253,6 +253,17 @@ void ParseStage(const json& v, std::size_t index, JobSpec* job, std::vector<Prob
                                std::to_string(static_cast<long>(kMaxStageTimeoutSeconds)) +
                                " (a year), got " + Describe(*t)});
   }
+  // A mesh refiner's schedule is the host's, not the plugin's: refine every this many keyframes.
+  if (const json* e = r.Get("every_keyframes", false)) {
+    if (stage.kind != "mesh_refiner")
+      problems->push_back({r.Path("every_keyframes"), "only a mesh_refiner stage has a schedule"});
+    else if (e->is_number_integer() && e->get<int64_t>() >= 0 && e->get<int64_t>() <= 1000000)
+      stage.every_keyframes = e->get<int>();
+    else
+      problems->push_back({r.Path("every_keyframes"),
+                           "expected an integer from 0 (only at the end) to 1000000, got " +
+                               Describe(*e)});
+  }
   r.RejectUnknown();
   job->pipeline.push_back(std::move(stage));
 }
@@ -261,7 +272,7 @@ void ParseStage(const json& v, std::size_t index, JobSpec* job, std::vector<Prob
 
 const std::vector<std::string>& StageKinds() {
   static const std::vector<std::string> kinds = {"features", "refiner", "weight_policy",
-                                                 "exporter"};
+                                                 "mesh_refiner", "exporter"};
   return kinds;
 }
 

@@ -24,13 +24,16 @@ inline constexpr double kMaxStageTimeoutSeconds = 365.0 * 24 * 3600;
 
 // One stage of the pipeline: a plugin of a given kind with its params.
 struct StageSpec {
-  std::string kind;       // "features", "refiner", "weight_policy" or "exporter"
+  std::string kind;       // "features", "refiner", "weight_policy", "mesh_refiner" or "exporter"
   std::string plugin;     // plugin id, e.g. "org.imr.policy.nearest"
   nlohmann::json params = nlohmann::json::object();  // as written in the job
   std::string json_path;  // "pipeline[2]", for messages
   // A call into the plugin that takes longer fails the sequence (a hung plugin cannot be
   // stopped otherwise); 0: imr run's --stage-timeout, whose default is none.
   double timeout_seconds = 0.0;
+  // mesh_refiner only: refine every this many keyframes as the run goes (0: only at the end,
+  // which every mesh refiner stage does, before the exports).
+  int every_keyframes = 0;
 };
 
 struct InputSpec {

@@ -275,6 +275,11 @@ json BuildReport(const ReportInputs& in) {
     report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
     // Topology of what was written: components, Euler characteristic, genus, boundary loops.
     report["mesh"]["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
+    if (in.back_facing)
+      report["mesh"]["back_facing"] = {{"views", in.back_facing->views},
+                                       {"pixels", in.back_facing->pixels},
+                                       {"back_pixels", in.back_facing->back_pixels},
+                                       {"share", in.back_facing->Share()}};
   }
   if (in.streamed != nullptr) {
     const StreamedSurfaceStats& ss = *in.streamed;
@@ -310,6 +315,7 @@ json BuildReport(const ReportInputs& in) {
                                           {"peak_bytes", ti.store.peak_bytes},
                                           {"decode_seconds", ti.store.decode_seconds}};
   }
+  if (in.refinement != nullptr) report["refinement"] = in.refinement->ToJson();
   if (!in.accuracy.is_null()) report["accuracy"] = in.accuracy;
   if (!in.accuracy_known_scene.is_null()) report["accuracy_known_scene"] = in.accuracy_known_scene;
   // Wall time per stage of the chain (reader -> features -> refiner -> engine -> exporter).
@@ -334,6 +340,7 @@ json BuildReport(const ReportInputs& in) {
   const bool snapshots = in.snapshots != nullptr && !in.snapshots->list().empty();
   if (snapshots) stages["snapshots"] = in.snapshots->seconds();
   if (in.tiles != nullptr) stages["tiles"] = in.tiles->seconds;
+  if (in.refinement != nullptr) stages["mesh_refiner"] = in.refinement->seconds;
   if (!in.job->evaluation.is_null()) stages["evaluation"] = in.evaluation_seconds;
   report["stage_seconds"] = stages;
   if (snapshots) report["snapshots"] = in.snapshots->list();

@@ -10,12 +10,15 @@
 #include "host/pipeline/mesh_export.h"
 #include "host/pipeline/scale.h"
 #include "host/pipeline/streamed_surface.h"
+#include "host/pipeline/surface_refinement.h"
 #include "host/pipeline/tiles.h"
 #include "host/plugin/registry.h"
+#include "host/render/rasterizer.h"
 
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -68,6 +71,8 @@ struct ReportInputs {
   const StreamedSurfaceStats* streamed = nullptr;  // null: the surface was taken whole
   const TilesStats* tiles = nullptr;          // null: no tiles asked
   ExportImageStats tile_images;               // the tiles' exports, summed
+  const SurfaceRefinementStats* refinement = nullptr;  // null: no mesh_refiner stage
+  std::optional<render::BackFacing> back_facing;       // of the final mesh in the keyframes
   const InvariantCheck* checks = nullptr;     // null: no check during the loop
   std::filesystem::path trace;                // empty: no trace
   nlohmann::json exports = nlohmann::json::object();  // stream, colmap: absolute paths

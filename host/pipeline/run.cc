@@ -117,6 +117,8 @@ class SequenceRun {
   std::optional<plugin::PluginWeightPolicy> policy_;
   Exporters exporters_;
   std::optional<plugin::LoadedInstance> features_, refiner_;
+  // The mesh_refiner stage (surface_refinement.h): during the run on its schedule, and at the end.
+  std::optional<SurfaceRefinement> refinement_;
   // Every call into a plugin is watched against its stage's timeout: a hung plugin fails the
   // sequence (stage_watch.h). Declared before the source, the policy adapter and the engine,
   // which call plugins through it.
@@ -201,6 +203,8 @@ SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistr
 
 namespace {
 
+std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh, const ExportContext& context);
+
 // Creates one instance per stage of the job, each creation watched against its stage's timeout.
 void SequenceRun::InstantiateStages() {
   for (const io::StageSpec& stage : job_.pipeline)
@@ -242,6 +246,8 @@ void SequenceRun::InstantiateStages() {
     } else if (stage.kind == "refiner") {
       refiner_.emplace(std::move(*instance));
       refiner_stage_ = i;
+    } else if (stage.kind == "mesh_refiner") {
+      refinement_.emplace(stage, std::move(*instance), watched_[i]);
     }
   }
 }
@@ -439,6 +445,7 @@ void SequenceRun::ProcessKeyframes() {
       streamed_->Take(*engine_);
     }
     event.keyframes = ++keyframes_;
+    if (refinement_) refinement_->OnKeyframe(*engine_, export_context_, watch_, keyframes_);
     for (const auto& observer : observers_) observer->OnKeyframe(event);
   }
 }
@@ -501,6 +508,11 @@ void SequenceRun::Finish() {
     FinishStreamedSurface();
   else
     mesh_ = CheckedMesh();
+  if (refinement_) {  // the mesh written and measured is the refined one
+    refinement_->Finish(&*mesh_, export_context_, watch_);
+    report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
+  }
+  if (mesh_ && !mesh_->faces.empty()) report_.back_facing = BackFacingInKeyframes(*mesh_, export_context_);
   WarnAbout();
   WriteStreamExports();
   // A source that measures the mesh triangle by triangle reads it in blocks too.
@@ -566,6 +578,31 @@ void SequenceRun::FinishStreamedSurface() {
     if (!report_.mesh_check.ok)
       throw std::runtime_error("exported mesh check failed: " + report_.mesh_check.message);
   }
+}
+
+// The share of what the keyframes see that faces away from them (report.json mesh.back_facing):
+// at most 60 keyframes spread over the run, each drawn at a quarter of its size. Nothing for
+// inputs without intrinsics.
+std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh, const ExportContext& context) {
+  std::vector<const imr_camera*> usable;
+  for (const imr_camera& c : context.keyframes)
+    if (c.K[0] > 0.0 && c.K[4] > 0.0 && c.width > 0 && c.height > 0) usable.push_back(&c);
+  if (usable.empty()) return std::nullopt;
+  constexpr std::size_t kViews = 60;
+  std::vector<render::Camera> cameras;
+  for (std::size_t i = 0; i < std::min(kViews, usable.size()); ++i) {
+    const imr_camera& c = *usable[i * usable.size() / std::min(kViews, usable.size())];
+    render::Camera r;
+    r.width = c.width, r.height = c.height;
+    r.fx = c.K[0], r.fy = c.K[4], r.cx = c.K[2], r.cy = c.K[5];
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) r.rotation[a][b] = c.R[3 * a + b];
+      r.translation[a] = c.t[a];
+    }
+    if (r.Check().empty()) cameras.push_back(r);
+  }
+  if (cameras.empty()) return std::nullopt;
+  return render::MeasureBackFacing(render::MeshRefOf(mesh.vertices, mesh.faces), cameras, 0.25);
 }
 
 // Warnings: on stderr and in report.json (the summary lists them).
@@ -692,6 +729,7 @@ void SequenceRun::WriteMeshAndReport(std::future<void>* evaluation) {
   report_.explicit_keys = explicit_keys_;
   report_.stats = &EngineStats();
   if (streamed_) report_.streamed = &streamed_->stats();
+  if (refinement_) report_.refinement = &refinement_->stats();
   if (tiles_) {
     report_.tiles = &tiles_->stats();
     report_.tile_images = tile_images_;

@@ -23,7 +23,7 @@ TEST(Registry, LoadsTheBuiltInPolicies) {
     const PluginInfo* p = r.Find(id);
     ASSERT_NE(p, nullptr) << id;
     EXPECT_EQ(p->kind(), "weight_policy");
-    EXPECT_EQ(p->abi(), "1.3");
+    EXPECT_EQ(p->abi(), "1." + std::to_string(IMR_ABI_MINOR));
   }
   EXPECT_EQ(r.Ids("weight_policy").size(), 3u);
 }
@@ -33,7 +33,7 @@ TEST(Registry, RefusesWithTheFileNamed) {
   r.Scan({IMR_BAD_ABI_PLUGIN, IMR_NO_ENTRY_PLUGIN, "/no/such/folder"});
   ASSERT_EQ(r.refusals().size(), 3u);
   EXPECT_NE(r.refusals()[0].ToString().find("test_bad_abi_plugin.so: plugin #0 refused: built "
-                                            "for plugin ABI 2.3, this host speaks ABI 1.3"),
+                                            "for plugin ABI 2.3, this host speaks ABI 1.4"),
             std::string::npos)
       << r.refusals()[0].ToString();
   EXPECT_NE(r.refusals()[1].ToString().find("no entry symbol"), std::string::npos);
@@ -132,6 +132,39 @@ TEST(Registry, CheckDescriptorWantsTheAbi10Sizes) {
   empty.transfer = nullptr;
   d.weight_policy = &empty;
   EXPECT_EQ(imr::sdk::CheckDescriptor(&d), "weight_policy table lacks its function");
+}
+
+// A mesh refiner (a kind of ABI 1.4) needs the descriptor's 1.4 tail, where its table is.
+TEST(Registry, CheckDescriptorWantsTheMeshRefinersTable) {
+  static const imr_mesh_refiner_api api{
+      sizeof(imr_mesh_refiner_api), 0,
+      [](imr_instance*, const imr_refine_request*, imr_refine_result*, imr_error*) -> imr_status {
+        return IMR_OK;
+      }};
+  imr_plugin_descriptor d{};
+  d.struct_size = sizeof(imr_plugin_descriptor);
+  d.abi_major = IMR_ABI_MAJOR;
+  d.abi_minor = 4;
+  d.kind = IMR_KIND_MESH_REFINER;
+  d.id = "org.imr.test.refine";
+  d.version = "1";
+  d.create = [](const char*, const imr_host_services*, imr_instance**, imr_error*) -> imr_status {
+    return IMR_ERROR;
+  };
+  d.destroy = [](imr_instance*) {};
+  d.mesh_refiner = &api;
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d), "");
+  d.struct_size = IMR_DESCRIPTOR_SIZE_1_0;  // a 1.0-1.3 descriptor cannot carry the table
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d),
+            "kind is mesh_refiner (ABI 1.4) but the descriptor is 96 bytes, expected at least 104");
+  d.struct_size = sizeof(imr_plugin_descriptor);
+  d.mesh_refiner = nullptr;
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d), "kind is mesh_refiner but its function table is missing");
+  imr_mesh_refiner_api small = api;
+  small.struct_size = 8;
+  d.mesh_refiner = &small;
+  EXPECT_EQ(imr::sdk::CheckDescriptor(&d),
+            "mesh_refiner table is 8 bytes, expected at least 16 (its ABI 1.4 size)");
 }
 
 TEST(PolicyAdapter, DrivesAPluginThroughTheEngineInterface) {

@@ -307,6 +307,33 @@ std::string TopDownOptions::Check() const {
   return "";
 }
 
+BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
+  if (!(scale > 0.0 && scale <= 1.0)) throw std::invalid_argument("back-facing share: scale must be in (0, 1]");
+  BackFacing out;
+  RenderOptions o;
+  o.opacity = 1.0;
+  for (const Camera& full : cameras) {
+    Camera c = full;
+    c.width = std::max(1, static_cast<int>(std::lround(full.width * scale)));
+    c.height = std::max(1, static_cast<int>(std::lround(full.height * scale)));
+    c.fx = full.fx * scale, c.fy = full.fy * scale;
+    c.cx = (full.cx + 0.5) * scale - 0.5, c.cy = (full.cy + 0.5) * scale - 0.5;
+    const Rendering r = RenderIntoCamera(mesh, c, nullptr, o);
+    const Vec3 center = c.Center();
+    std::vector<int8_t> back(mesh.face_count, -1);  // per face: unknown, front 0, back 1
+    for (int32_t f : r.face) {
+      if (f < 0) continue;
+      if (back[f] < 0)
+        back[f] = Dot(FaceNormal(mesh, static_cast<std::size_t>(f)),
+                      Sub(center, FaceCentroid(mesh, static_cast<std::size_t>(f)))) < 0.0 ? 1 : 0;
+      ++out.pixels;
+      out.back_pixels += back[f];
+    }
+    ++out.views;
+  }
+  return out;
+}
+
 double Rendering::Coverage() const {
   if (face.empty()) return 0.0;
   std::size_t n = 0;

@@ -98,6 +98,19 @@ struct Rendering {
 Rendering RenderIntoCamera(const MeshRef& mesh, const Camera& camera, const io::Image* background,
                            const RenderOptions& options);
 
+// How much of what the cameras see is seen from behind (issue 34): the cameras are in free space,
+// so every surface they see should face them. Over every camera (drawn at `scale` of its size:
+// fx, fy, cx, cy and the image scaled, pixel centres kept), the pixels showing a face whose
+// normal (right-hand rule over its vertex order) points away from the camera centre.
+struct BackFacing {
+  int64_t views = 0;        // cameras drawn
+  int64_t pixels = 0;       // pixels showing the mesh, summed over them
+  int64_t back_pixels = 0;  // of those, showing a face from behind
+  double Share() const { return pixels > 0 ? static_cast<double>(back_pixels) / static_cast<double>(pixels) : 0.0; }
+};
+// Throws as RenderIntoCamera does; `scale` in (0, 1].
+BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale);
+
 // The camera path of the top-down view: one entry per frame, in order.
 struct CameraPath {
   std::vector<Camera> cameras;  // only rotation and translation are used

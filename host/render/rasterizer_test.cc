@@ -95,6 +95,33 @@ TEST(Rasterizer, BackFacesGetTheBackColour) {
   EXPECT_GT(c[0], c[2]);  // blue
 }
 
+// The share of what the cameras see from behind: none for the fan facing them, all once it is
+// flipped, and the visible half of a mix when a front fan hides a flipped one behind it.
+TEST(Rasterizer, BackFacingShareCountsWhatTheCamerasSeeFromBehind) {
+  Mesh m = FanFacingCamera({6.0, 1.5, 1.0}, 0.5);
+  const std::vector<Camera> cameras = {TestCamera(), TestCamera()};
+  BackFacing b = MeasureBackFacing(m.ref(), cameras, 0.5);
+  EXPECT_EQ(b.views, 2);
+  EXPECT_GT(b.pixels, 100);
+  EXPECT_EQ(b.back_pixels, 0);
+  for (std::size_t f = 0; f < m.faces.size(); f += 3) std::swap(m.faces[f + 1], m.faces[f + 2]);
+  b = MeasureBackFacing(m.ref(), cameras, 1.0);
+  EXPECT_EQ(b.back_pixels, b.pixels);
+  EXPECT_DOUBLE_EQ(b.Share(), 1.0);
+  // A small front-facing fan in front hides part of the flipped one behind it (10 of its 20
+  // pixels across).
+  const Mesh front = FanFacingCamera({4.0, 1.5, 1.0}, 0.15);
+  Mesh both = m;
+  const auto base = static_cast<uint32_t>(both.xyz.size() / 3);
+  both.xyz.insert(both.xyz.end(), front.xyz.begin(), front.xyz.end());
+  for (uint32_t i : front.faces) both.faces.push_back(base + i);
+  b = MeasureBackFacing(both.ref(), cameras, 1.0);
+  EXPECT_GT(b.pixels, 0);
+  EXPECT_LT(b.Share(), 1.0);
+  EXPECT_GT(b.Share(), 0.5);
+  EXPECT_THROW(MeasureBackFacing(m.ref(), cameras, 0.0), std::invalid_argument);
+}
+
 TEST(Rasterizer, NearTriangleHidesFarOneWhateverTheOrder) {
   const Mesh near_fan = FanFacingCamera({4.0, 1.5, 1.0}, 0.2);   // depth 3
   const Mesh far_fan = FanFacingCamera({9.0, 1.5, 1.0}, 1.0);    // depth 8, larger

@@ -305,7 +305,7 @@ TEST_F(AssimpExporter, DescriptorDeclaresFormatsAndParams) {
   EXPECT_EQ(descriptor_->kind, IMR_KIND_EXPORTER);
   EXPECT_STREQ(descriptor_->id, kId);
   EXPECT_STREQ(descriptor_->version, "1.3.0");
-  EXPECT_EQ(descriptor_->abi_minor, 3);
+  EXPECT_EQ(descriptor_->abi_minor, IMR_ABI_MINOR);
   EXPECT_STREQ(descriptor_->exporter->formats, "obj,ply,gltf,glb");
   const json schema = json::parse(descriptor_->params_schema);
   ASSERT_TRUE(schema.contains("point_ids"));

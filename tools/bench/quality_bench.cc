@@ -23,6 +23,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +31,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -75,6 +77,8 @@ struct Row {
   double p2 = 0.0, p5 = 0.0;      // precision at 0.2 / 0.5 m
   double t2m_mean = 0.0, t2m_median = 0.0, m2t_mean = 0.0;
   std::optional<double> road;     // synth: completeness of the road alone at 0.2 m
+  double roughness = 0.0;         // mean angle between neighbouring face normals, degrees
+  bool refined = false;           // the job had a mesh_refiner stage
   eval::MeshStatistics stats;
 };
 
@@ -87,6 +91,42 @@ std::string ManifoldText(const eval::MeshStatistics& s) {
   return s.closed ? "yes (closed)" : "yes (" + std::to_string(s.boundary_loops) + " holes)";
 }
 
+// Roughness: the mean angle, in degrees, between the normals of the two faces of each edge that
+// has two (a plane meshed flat: 0; the spikes of a surface through noisy points: tens).
+double Roughness(const std::vector<double>& xyz, const std::vector<uint32_t>& faces) {
+  const std::size_t nf = faces.size() / 3;
+  std::vector<std::array<double, 3>> normal(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const double* a = &xyz[3 * faces[3 * f]];
+    const double* b = &xyz[3 * faces[3 * f + 1]];
+    const double* c = &xyz[3 * faces[3 * f + 2]];
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    std::array<double, 3> n = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                               u[0] * v[1] - u[1] * v[0]};
+    const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (double& x : n) x = len > 0.0 ? x / len : 0.0;
+    normal[f] = n;
+  }
+  std::map<std::pair<uint32_t, uint32_t>, std::vector<std::size_t>> edges;
+  for (std::size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = faces[3 * f + k], b = faces[3 * f + (k + 1) % 3];
+      edges[{std::min(a, b), std::max(a, b)}].push_back(f);
+    }
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (const auto& [edge, list] : edges) {
+    if (list.size() != 2) continue;
+    const auto& n = normal[list[0]];
+    const auto& m = normal[list[1]];
+    const double dot = std::clamp(n[0] * m[0] + n[1] * m[1] + n[2] * m[2], -1.0, 1.0);
+    sum += std::acos(dot) * 180.0 / M_PI;
+    ++count;
+  }
+  return count > 0 ? sum / static_cast<double>(count) : 0.0;
+}
+
 // A mesh file as packed coordinates and indices, with its statistics (manifoldness, holes) in
 // *row; false (and row->note) when it cannot be read.
 bool ReadPacked(const fs::path& mesh, Row* row, std::vector<double>* xyz,
@@ -96,6 +136,7 @@ bool ReadPacked(const fs::path& mesh, Row* row, std::vector<double>* xyz,
     for (const auto& v : m.vertices) xyz->insert(xyz->end(), v.begin(), v.end());
     for (const auto& t : m.triangles) faces->insert(faces->end(), t.begin(), t.end());
     row->stats = eval::ComputeMeshStatistics(*xyz, *faces);
+    row->roughness = Roughness(*xyz, *faces);
     return true;
   } catch (const std::exception& e) {
     row->note = std::string("reading the mesh: ") + e.what();
@@ -193,6 +234,7 @@ void RunBefore(const QualityArgs& args, json job, const json& engine, const json
   for (const json& stage : job["pipeline"]) has_policy |= stage["kind"] == "weight_policy";
   json pipeline = json::array();
   for (const json& stage : job["pipeline"]) {
+    if (stage["kind"] == "mesh_refiner") continue;  // a kind earlier builds do not know
     if (stage["kind"] == "exporter" && !has_policy)
       pipeline.push_back({{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}});
     pipeline.push_back(stage);
@@ -258,22 +300,22 @@ void Print(const std::string& title, const std::vector<Row>& rows,
            const std::vector<Target>& targets, json* out) {
   std::printf("\n### %s\n\n", title.c_str());
   std::printf("| mesher | wall s | RSS MB | compl. 0.2 | prec. 0.2 | F 0.2 | F 0.5 | truth→mesh "
-              "mean / median (m) | mesh→truth mean (m) | manifold |%s\n",
+              "mean / median (m) | mesh→truth mean (m) | manifold | roughness ° |%s\n",
               rows.size() && rows[0].road ? " road compl. 0.2 |" : "");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|%s\n",
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|%s\n",
               rows.size() && rows[0].road ? "---|" : "");
   json list = json::array();
   for (const Row& r : rows) {
     json j = {{"mesher", r.mesher}, {"ok", r.ok}, {"note", r.note}};
     if (!r.ok) {
-      std::printf("| %s | %s | | | | | | | | |\n", r.mesher.c_str(),
+      std::printf("| %s | %s | | | | | | | | | |\n", r.mesher.c_str(),
                   (r.note.empty() ? std::string("failed") : r.note).c_str());
       list.push_back(j);
       continue;
     }
-    std::printf("| %s | %.1f | %.0f | %.3f | %.3f | %.3f | %.3f | %.3f / %.3f | %.3f | %s |",
+    std::printf("| %s | %.1f | %.0f | %.3f | %.3f | %.3f | %.3f | %.3f / %.3f | %.3f | %s | %.1f |",
                 r.mesher.c_str(), r.seconds, r.rss_mb, r.c2, r.p2, F(r.c2, r.p2), F(r.c5, r.p5),
-                r.t2m_mean, r.t2m_median, r.m2t_mean, ManifoldText(r.stats).c_str());
+                r.t2m_mean, r.t2m_median, r.m2t_mean, ManifoldText(r.stats).c_str(), r.roughness);
     if (r.road) std::printf(" %.3f |", *r.road);
     std::printf("\n");
     j.update({{"seconds", r.seconds},
@@ -287,7 +329,8 @@ void Print(const std::string& title, const std::vector<Row>& rows,
               {"manifold", r.stats.manifold},
               {"closed", r.stats.closed},
               {"boundary_loops", r.stats.boundary_loops},
-              {"faces", r.stats.faces}});
+              {"faces", r.stats.faces},
+              {"roughness_deg", r.roughness}});
     if (r.road) j["road_completeness"] = *r.road;
     list.push_back(j);
   }
@@ -401,6 +444,44 @@ std::vector<Row> RunImageJob(const QualityArgs& args, const json& job, const std
              &imr))
     evaluate(work / "imr/mesh.ply", &imr);
   rows.push_back(imr);
+  // The same job with the photometric refinement (issue 34) when the config has none, without
+  // it when it has one (configs/default.json): rows[1]. Row::refined tells which is which.
+  bool has_refiner = false;
+  for (const json& stage : job["pipeline"]) has_refiner |= stage["kind"] == "mesh_refiner";
+  rows[0].refined = has_refiner;
+  Row other;
+  other.refined = !has_refiner;
+  other.mesher = "imr (configs/" + config + ")" +
+                 (has_refiner ? " without its mesh_refiner" : " + org.imr.refine.photometric every 10 keyframes");
+  json other_job = job;
+  json pipeline = json::array();
+  for (const json& stage : job["pipeline"]) {
+    if (stage["kind"] == "mesh_refiner") continue;
+    if (stage["kind"] == "exporter" && !has_refiner && pipeline.size() + 1 == job["pipeline"].size())
+      pipeline.push_back({{"kind", "mesh_refiner"}, {"plugin", "org.imr.refine.photometric"},
+                          {"every_keyframes", 10}});
+    pipeline.push_back(stage);
+  }
+  other_job["pipeline"] = pipeline;
+  other_job["output"]["directory"] = (work / "other").string();
+  if (RunImr(other_job, work, "other", "", &other)) evaluate(work / "other/mesh.ply", &other);
+  rows.push_back(other);
+  // The refinement's time per call, per tenth of the calls: bounded when it stays flat.
+  const fs::path report = has_refiner ? work / "imr/report.json" : work / "other/report.json";
+  std::ifstream in(report);
+  const json r = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (r.is_object() && r.contains("refinement")) {
+    const std::vector<double> calls = r["refinement"]["call_seconds"].get<std::vector<double>>();
+    std::printf("refinement: %zu calls, %.1f s; mean seconds per call by tenth of the calls:",
+                calls.size(), r["refinement"]["seconds"].get<double>());
+    for (int t = 0; t < 10 && !calls.empty(); ++t) {
+      const std::size_t a = calls.size() * t / 10, b = std::max(a + 1, calls.size() * (t + 1) / 10);
+      double sum = 0.0;
+      for (std::size_t i = a; i < b && i < calls.size(); ++i) sum += calls[i];
+      std::printf(" %.2f", sum / static_cast<double>(b - a));
+    }
+    std::printf("\n");
+  }
   RunBefore(args, job,
             {{"window", 15}, {"steiner_spacing", 5.0}, {"visibility_mode", "weights"},
              {"steiner_export", "any_steiner"}},
@@ -434,12 +515,21 @@ json Synth(const QualityArgs& args, const fs::path& work) {
   const std::vector<Row> rows =
       RunImageJob(args, job, "default.json", {{"max_distance", 30.0}}, work, evaluate);
   const Row& r = rows[0];
+  const Row& refined = rows[0].refined ? rows[0] : rows[1];
+  const Row& plain = rows[0].refined ? rows[1] : rows[0];
+  // Issue 34's targets for the refined surface; its wall time against the same run unrefined.
   Print("imr-synth street, " + std::to_string(args.synth_frames) +
             " frames, default image job (points from imr's front end for every mesher)",
         rows,
         {{"completeness 0.2 m", 0.70, true, r.c2},
          {"precision 0.2 m", 0.75, true, r.p2},
-         {"road completeness 0.2 m", 0.60, true, r.road.value_or(0.0)}},
+         {"road completeness 0.2 m", 0.60, true, r.road.value_or(0.0)},
+         {"refined: precision 0.2 m", 0.85, true, refined.p2},
+         {"refined: completeness 0.2 m", 0.70, true, refined.c2},
+         {"refined: F 0.2 m", 0.80, true, F(refined.c2, refined.p2)},
+         {"refined: truth→mesh mean (m)", 0.15, false, refined.t2m_mean},
+         {"refined: wall time / unrefined", 1.5, false, refined.seconds / std::max(plain.seconds, 1e-9)},
+         {"refined: manifold (1 = yes)", 1.0, true, refined.stats.manifold ? 1.0 : 0.0}},
         &out);
   return out;
 }
@@ -464,9 +554,17 @@ json Kitti(const QualityArgs& args, const fs::path& work) {
       RunImageJob(args, job, "kitti-raw-sample.json", json::object(), work, evaluate);
   // The target: truth -> mesh mean at most half of what imr gave before (the --before row).
   std::vector<Target> targets;
-  if (rows.size() > 1 && rows[1].ok && !args.before.empty())
+  if (rows.size() > 2 && rows[2].ok && !args.before.empty())
     targets.push_back({"truth→mesh mean (m), half of " + args.before_label + "'s",
-                       rows[1].t2m_mean / 2, false, rows[0].t2m_mean});
+                       rows[2].t2m_mean / 2, false, rows[0].t2m_mean});
+  // Issue 34: the refined surface better by a quarter than the same run unrefined.
+  const Row& refined = rows[0].refined ? rows[0] : rows[1];
+  const Row& plain = rows[0].refined ? rows[1] : rows[0];
+  if (refined.ok && plain.ok) {
+    targets.push_back({"refined: precision 0.2 m, 1.25 x unrefined", 1.25 * plain.p2, true, refined.p2});
+    targets.push_back({"refined: truth→mesh mean (m), 0.75 x unrefined", 0.75 * plain.t2m_mean,
+                       false, refined.t2m_mean});
+  }
   Print("KITTI raw sample (78 frames, camera 2) against its Velodyne scans", rows, targets, &out);
   return out;
 }

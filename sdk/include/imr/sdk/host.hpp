@@ -17,6 +17,7 @@ inline const char* KindName(int32_t kind) {
     case IMR_KIND_REFINER: return "refiner";
     case IMR_KIND_WEIGHT_POLICY: return "weight_policy";
     case IMR_KIND_EXPORTER: return "exporter";
+    case IMR_KIND_MESH_REFINER: return "mesh_refiner";
     default: return "unknown";
   }
 }
@@ -66,7 +67,8 @@ inline std::string CheckDescriptor(const imr_plugin_descriptor* d) {
     if (t == nullptr) return "kind is " + kind + " but its function table is missing";
     if (t->struct_size < min_size)
       return kind + " table is " + std::to_string(t->struct_size) + " bytes, expected at least " +
-             std::to_string(min_size) + " (its ABI 1.0 size)";
+             std::to_string(min_size) + " (its ABI " +
+             (d->kind == IMR_KIND_MESH_REFINER ? "1.4" : "1.0") + " size)";
     if (!complete) return kind + " table lacks its function";
     return {};
   };
@@ -81,6 +83,13 @@ inline std::string CheckDescriptor(const imr_plugin_descriptor* d) {
     case IMR_KIND_EXPORTER:
       return table(d->exporter, IMR_EXPORTER_API_SIZE_1_0,
                    d->exporter && d->exporter->formats && d->exporter->export_mesh);
+    case IMR_KIND_MESH_REFINER:  // a kind of 1.4: its table is in the descriptor's 1.4 tail
+      if (d->struct_size < IMR_DESCRIPTOR_SIZE_1_4)
+        return "kind is mesh_refiner (ABI 1.4) but the descriptor is " +
+               std::to_string(d->struct_size) + " bytes, expected at least " +
+               std::to_string(IMR_DESCRIPTOR_SIZE_1_4);
+      return table(d->mesh_refiner, IMR_MESH_REFINER_API_SIZE_1_4,
+                   d->mesh_refiner && d->mesh_refiner->refine);
     default: return "unknown plugin kind " + std::to_string(d->kind);
   }
 }
@@ -146,6 +155,12 @@ class Instance {
     Check(d_->features->process_frame(h_, &camera, &image, is_keyframe ? 1 : 0, &out, &error_),
           "process_frame");
     return out;
+  }
+  // refine (a mesh refiner, since 1.4): `*out` is the plugin's, valid until its next call.
+  void Refine(imr_refine_request* request, imr_refine_result* out) const {
+    request->struct_size = sizeof(imr_refine_request);
+    *out = imr_refine_result{};
+    Check(d_->mesh_refiner->refine(h_, request, out, &error_), "refine");
   }
   imr_refiner_update AddFrame(const imr_camera& camera, const imr_track_observation* obs,
                               uint64_t count, bool is_keyframe) const {

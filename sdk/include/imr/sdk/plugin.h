@@ -31,8 +31,10 @@
  *  and never create an instance. For each sequence it creates one instance per job stage, in the
  *  job's stage order, then per frame of an image input: features.process_frame(frame), then
  *  refiner.add_frame(same frame, those tracks); each keyframe then updates the engine, which calls
- *  weight_policy.transfer zero or more times; exporters' export_mesh runs for snapshots and at the
- *  end, once per output format (each format through the first exporter stage that lists it). Then
+ *  weight_policy.transfer zero or more times; a mesh refiner's refine runs every N keyframes (the
+ *  stage's every_keyframes) and once at the end, before the exports; exporters' export_mesh runs
+ *  for snapshots and at the end, once per output format (each format through the first exporter
+ *  stage that lists it). Then
  *  it destroys every instance it created, in no promised order, and only then unloads the library.
  *
  *  Threads. Every call on an instance (create, its calls, destroy) comes from one thread, and
@@ -88,7 +90,7 @@ extern "C" {
  * or newer than its own) and reads only the fields their struct_size covers, and a plugin does
  * the same with what the host passes. */
 #define IMR_ABI_MAJOR 1
-#define IMR_ABI_MINOR 3
+#define IMR_ABI_MINOR 4
 
 #define IMR_ENTRY_SYMBOL "imr_plugin_entry"
 
@@ -151,10 +153,11 @@ typedef struct imr_host_services {
   /* Non-zero when the host wants the current call to stop early (return IMR_CANCELLED). */
   int32_t (*is_cancelled)(void* host_data);
   /* --- since ABI 1.1 (version 2) --- */
-  /* The image of keyframe `index` (0 .. keyframe_count - 1 of the imr_export_request being
-   * served; only during export_mesh, and only when the request's keyframe_images is non-zero),
+  /* The image of keyframe `index` (0 .. keyframe_count - 1 of the imr_export_request or, since
+   * ABI 1.4, the imr_refine_request being served; only during export_mesh or refine, and only
+   * when the request's keyframe_images is non-zero),
    * decoded by the host: 8-bit gray or BGR, the size of the keyframe's imr_camera. `*out` stays
-   * valid until release_keyframe_image(index) or the end of the export_mesh call, whichever comes
+   * valid until release_keyframe_image(index) or the end of the export_mesh (refine) call, whichever comes
    * first. The host decodes an image once and keeps it while it is held or while its cache has
    * room (a bounded budget): release what you no longer need. Fails with IMR_INVALID_ARGUMENT
    * (an index out of range, no export call in progress) or IMR_ERROR (the file cannot be
@@ -173,7 +176,8 @@ typedef enum imr_plugin_kind {
   IMR_KIND_FEATURES = 1,      /* images -> 2D tracks */
   IMR_KIND_REFINER = 2,       /* 2D tracks + cameras -> new / moved / removed 3D points */
   IMR_KIND_WEIGHT_POLICY = 3, /* removed cells' weights -> new cells' weights */
-  IMR_KIND_EXPORTER = 4       /* mesh -> files */
+  IMR_KIND_EXPORTER = 4,      /* mesh -> files */
+  IMR_KIND_MESH_REFINER = 5   /* since ABI 1.4: mesh + keyframe images -> better vertex positions */
 } imr_plugin_kind;
 
 typedef struct imr_instance imr_instance; /* opaque; defined by each plugin */
@@ -397,6 +401,69 @@ typedef struct imr_refiner_api {
                           int32_t is_keyframe, imr_refiner_update* out, imr_error* error);
 } imr_refiner_api;
 
+/* --- mesh refiner (since ABI 1.4) --------------------------------------------------------- */
+/* Moves the vertices of the surface (and may subdivide its faces) so that it agrees with the
+ * keyframe images: e.g. photo-consistency between keyframes that see a face, plus a smoothness
+ * term. The Delaunay points and the carving are not touched: the refined surface is the
+ * pipeline's, kept between calls so that later calls start from it. */
+
+/* Per-vertex flags of an imr_refine_request. */
+#define IMR_REFINE_VERTEX_FIXED 1u   /* must not move (e.g. shared with a part already written) */
+#define IMR_REFINE_VERTEX_CHANGED 2u /* new, or moved by the reconstruction, since the last call
+                                        (every vertex on the first call): its position is the
+                                        reconstruction's, not a refined one */
+
+typedef struct imr_refine_request { /* growing; filled by the host */
+  uint32_t struct_size;
+  uint32_t reserved0;
+  /* The surface: vertices where the last call left them (refined) unless flagged CHANGED; faces
+   * oriented as for an export (counter-clockwise seen from free space, where the cameras are);
+   * point ids (-1: Steiner); colours when the input has them. vertex_keys is NULL. */
+  const imr_mesh_view* mesh;
+  const uint8_t* vertex_flags; /* vertex_count IMR_REFINE_VERTEX_* bits */
+  /* Every keyframe so far, in order (imr_camera's convention; K all zero when the input gives
+   * no intrinsics). Their images through host services' keyframe_image when keyframe_images is
+   * non-zero. Keyframes [recent_keyframes_begin, keyframe_count) arrived since the last call. */
+  const imr_camera* keyframes;
+  uint64_t keyframe_count;
+  uint64_t recent_keyframes_begin;
+  int32_t keyframe_images;
+  int32_t final_call; /* non-zero: the last call of the sequence, before the exports */
+} imr_refine_request;
+
+/* Filled by the plugin; it and its arrays stay owned by the plugin, valid until its next call
+ * on the same instance or its destruction. */
+typedef struct imr_refine_result { /* growing; filled by the plugin */
+  uint32_t struct_size; /* the plugin's sizeof(imr_refine_result) */
+  uint32_t reserved0;
+  /* 3 * vertex_count: the request's vertices at their new positions, in their order, then the
+   * vertices the plugin added (subdivision; they are no 3D point: point id -1, grey). */
+  const double* vertices;
+  uint64_t vertex_count; /* >= the request's vertex_count */
+  /* 3 * face_count indices into `vertices`, oriented as the request's; NULL: the request's faces
+   * unchanged (then vertex_count equals the request's). */
+  const uint32_t* faces;
+  uint64_t face_count;
+} imr_refine_result;
+
+typedef struct imr_mesh_refiner_api {
+  uint32_t struct_size;
+  uint32_t reserved0;
+  /* Refine the surface of `request` into `out`.
+   * When: every `every_keyframes` keyframes of the stage (0: never during the run), and once at
+   * the end (final_call non-zero) before the mesh is exported or evaluated.
+   * Pre: *out is zeroed; the request and everything it points to are valid during the call only.
+   * Post: the result is a 2-manifold with the request's boundary loops, every position finite,
+   * no FIXED vertex moved: the host checks and fails the sequence naming what broke. Vertices
+   * the plugin added do not survive to the next call (the host passes the request's vertices
+   * only, at their refined positions, with the faces the reconstruction has then).
+   * Returns IMR_OK, or IMR_INVALID_ARGUMENT (a request it cannot take: e.g. no intrinsics),
+   * IMR_ERROR (an image that cannot be read), IMR_CANCELLED, with a message; each fails the
+   * sequence. Keyframe images held by the plugin are released when it returns. */
+  imr_status (*refine)(imr_instance* instance, const imr_refine_request* request,
+                       imr_refine_result* out, imr_error* error);
+} imr_mesh_refiner_api;
+
 /* ------------------------------------------------------------------------------------------ */
 /* The descriptor                                                                              */
 
@@ -432,13 +499,17 @@ typedef struct imr_plugin_descriptor { /* growing; filled by the plugin */
    * and not called when the process is ended (see "The process may end during any call"). */
   void (*destroy)(imr_instance* instance);
 
-  /* Exactly one is non-NULL, matching `kind`; its struct_size covers at least its ABI 1.0 size. */
+  /* Exactly one is non-NULL, matching `kind` (mesh_refiner, below, for a mesh refiner); its
+   * struct_size covers at least its ABI 1.0 size (1.4 for the mesh refiner's). */
   const imr_features_api* features;
   const imr_refiner_api* refiner;
   const imr_weight_policy_api* weight_policy;
   const imr_exporter_api* exporter;
+  /* --- since ABI 1.4: read only when struct_size covers it (a 1.0-1.3 plugin's reserved[0],
+   * zero) --- */
+  const imr_mesh_refiner_api* mesh_refiner;
 
-  void* reserved[8]; /* for future minor versions; zero */
+  void* reserved[7]; /* for future minor versions; zero */
 } imr_plugin_descriptor;
 
 /* The entry point every plugin library exports. Returns the index-th descriptor of the library,
@@ -470,6 +541,10 @@ typedef const imr_plugin_descriptor* (*imr_plugin_entry_fn)(uint32_t index);
 #define IMR_EXPORTER_API_SIZE_1_0 24
 #define IMR_FEATURES_API_SIZE_1_0 16
 #define IMR_REFINER_API_SIZE_1_0 16
+#define IMR_DESCRIPTOR_SIZE_1_4 104 /* up to mesh_refiner: what a mesh refiner's needs */
+#define IMR_REFINE_REQUEST_SIZE_1_4 56
+#define IMR_REFINE_RESULT_SIZE_1_4 40
+#define IMR_MESH_REFINER_API_SIZE_1_4 16
 
 /* Pin the layout: these offsets are the ABI. Changing one is an ABI major bump. Checked by C11
  * and C++ compilers alike. */
@@ -486,8 +561,14 @@ IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, id) == 16, "ABI: descriptor la
 IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, params_schema) == 40, "ABI: descriptor layout");
 IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, create) == 48, "ABI: descriptor layout");
 IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, exporter) == 88, "ABI: descriptor layout");
-IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, reserved) == IMR_DESCRIPTOR_SIZE_1_0,
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, mesh_refiner) == IMR_DESCRIPTOR_SIZE_1_0,
                   "ABI: descriptor 1.0 size");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, reserved) == IMR_DESCRIPTOR_SIZE_1_4,
+                  "ABI: descriptor 1.4");
+IMR_STATIC_ASSERT(sizeof(imr_refine_request) == IMR_REFINE_REQUEST_SIZE_1_4, "ABI: refine request");
+IMR_STATIC_ASSERT(sizeof(imr_refine_result) == IMR_REFINE_RESULT_SIZE_1_4, "ABI: refine result");
+IMR_STATIC_ASSERT(sizeof(imr_mesh_refiner_api) == IMR_MESH_REFINER_API_SIZE_1_4,
+                  "ABI: mesh refiner table");
 IMR_STATIC_ASSERT(sizeof(imr_plugin_descriptor) == 160, "ABI: descriptor size");
 IMR_STATIC_ASSERT(sizeof(imr_host_services) == 56, "ABI: host services size");
 IMR_STATIC_ASSERT(offsetof(imr_host_services, keyframe_image) == IMR_HOST_SERVICES_SIZE_1_0,

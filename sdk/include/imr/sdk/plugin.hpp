@@ -13,6 +13,8 @@
 //   };
 //   IMR_PLUGIN_EXPORT(MyPolicy)            // several classes: IMR_PLUGIN_EXPORT(A, B, C)
 //
+// A mesh refiner (since ABI 1.4) derives from imr::sdk::MeshRefiner and overrides Refine: see
+// plugins/refine_photometric in imr's source.
 // An exporter overrides Export (geometry) or, since ABI 1.1, ExportMesh (the request with the
 // keyframe cameras; Host::GetKeyframeImage fetches their images): see the example
 // vertex_color_exporter (installed with the SDK in share/doc/imr_sdk/examples).
@@ -179,7 +181,7 @@ class Host {
     return Has(offsetof(imr_host_services, release_keyframe_image)) && s_->keyframe_image &&
            s_->release_keyframe_image;
   }
-  // The image of keyframe `index` of the export in progress (ExportRequest::keyframes). Throws
+  // The image of keyframe `index` of the export (or refine) in progress (its keyframes). Throws
   // InvalidArgument with the host's message for an index out of range, std::runtime_error when
   // the host cannot give it (an older host, an image that does not decode, its budget exhausted).
   KeyframeImage GetKeyframeImage(uint64_t index) const {
@@ -381,6 +383,51 @@ class Refiner : public PluginBase {
   RefinerUpdate update_;
 };
 
+// Everything a refine call carries (since 1.4; plugin.h, imr_refine_request).
+struct RefineRequest {
+  MeshView mesh;                           // the surface (vertex_keys empty)
+  std::span<const uint8_t> vertex_flags;   // 1 per vertex: IMR_REFINE_VERTEX_* bits
+  std::span<const imr_camera> keyframes;   // every keyframe so far; images: Host::GetKeyframeImage
+  std::size_t recent_keyframes_begin = 0;  // keyframes from here on arrived since the last call
+  bool keyframe_images = false;            // Host::GetKeyframeImage(i) gives keyframe i's image
+  bool final_call = false;                 // the last call, before the exports
+  bool Fixed(std::size_t v) const { return (vertex_flags[v] & IMR_REFINE_VERTEX_FIXED) != 0; }
+  bool Changed(std::size_t v) const { return (vertex_flags[v] & IMR_REFINE_VERTEX_CHANGED) != 0; }
+};
+
+// What a refine call returns; the wrapper keeps it until the next call.
+struct RefineResult {
+  std::vector<double> vertices;  // 3 per vertex: the request's at their new positions, then added
+  std::vector<uint32_t> faces;   // 3 per face; empty: the request's faces unchanged
+};
+
+// Mesh refiner (since 1.4): move the surface's vertices (and perhaps subdivide) to agree with the
+// keyframe images (plugin.h, "mesh refiner"). `result` is empty on entry.
+class MeshRefiner : public PluginBase {
+ public:
+  static constexpr imr_plugin_kind kKind = IMR_KIND_MESH_REFINER;
+  virtual void Refine(const RefineRequest& request, RefineResult* result) = 0;
+  // The C view of the call: by default, Refine into storage the wrapper keeps.
+  virtual void RefineC(const RefineRequest& request, imr_refine_result* out) {
+    result_.vertices.clear();
+    result_.faces.clear();
+    Refine(request, &result_);
+    const std::size_t n = request.mesh.vertex_count();
+    if (result_.vertices.size() % 3 != 0 || result_.vertices.size() / 3 < n)
+      throw std::logic_error("refine: the result holds fewer vertices than the request");
+    if (result_.faces.empty() && result_.vertices.size() / 3 != n)
+      throw std::logic_error("refine: vertices added without faces");
+    out->struct_size = sizeof(imr_refine_result);
+    out->vertices = result_.vertices.data();
+    out->vertex_count = result_.vertices.size() / 3;
+    out->faces = result_.faces.empty() ? nullptr : result_.faces.data();
+    out->face_count = result_.faces.size() / 3;
+  }
+
+ private:
+  RefineResult result_;
+};
+
 // ---- the wrapper behind IMR_PLUGIN_EXPORT ----------------------------------------------------
 namespace detail {
 
@@ -551,6 +598,36 @@ imr_status AddFrame(imr_instance* instance, const imr_camera* camera,
 }
 
 template <typename T>
+imr_status RefineMesh(imr_instance* instance, const imr_refine_request* r, imr_refine_result* out,
+                      imr_error* error) noexcept {
+  return Guard(error, [&] {
+    if (r == nullptr || out == nullptr || r->struct_size < IMR_REFINE_REQUEST_SIZE_1_4 ||
+        r->mesh == nullptr || r->mesh->struct_size < IMR_MESH_VIEW_SIZE_1_0)
+      throw InvalidArgument("refine: no mesh or result, or a request or mesh struct too small");
+    const imr_mesh_view& m = *r->mesh;
+    const auto nv = static_cast<std::size_t>(m.vertex_count);
+    const bool colors = m.struct_size >= offsetof(imr_mesh_view, vertex_colors) + sizeof(void*) &&
+                        m.vertex_colors != nullptr;
+    if (r->vertex_flags == nullptr && nv > 0) throw InvalidArgument("refine: no vertex flags");
+    RefineRequest req;
+    req.mesh = MeshView{{m.vertices, 3 * nv},
+                        {m.faces, 3 * static_cast<std::size_t>(m.face_count)},
+                        {m.point_ids, m.point_ids ? nv : 0},
+                        {m.vertex_colors, colors ? 3 * nv : 0},
+                        {}};
+    req.vertex_flags = {r->vertex_flags, nv};
+    if (r->keyframes != nullptr)
+      req.keyframes = {r->keyframes, static_cast<std::size_t>(r->keyframe_count)};
+    req.recent_keyframes_begin =
+        std::min(static_cast<std::size_t>(r->recent_keyframes_begin), req.keyframes.size());
+    req.keyframe_images = r->keyframe_images != 0;
+    req.final_call = r->final_call != 0;
+    *out = imr_refine_result{};
+    static_cast<MeshRefiner*>(Self<T>(instance))->RefineC(req, out);
+  });
+}
+
+template <typename T>
 const imr_plugin_descriptor* DescriptorFor() noexcept {
   static_assert(std::is_base_of_v<PluginBase, T>, "a plugin class derives from an imr::sdk kind");
   static const imr_plugin_descriptor d = [] {
@@ -579,6 +656,9 @@ const imr_plugin_descriptor* DescriptorFor() noexcept {
       static const imr_exporter_api api{sizeof(api), 0, T::kFormats, &ExportMesh<T>,
                                         &ExportMeshStream<T>};
       x.exporter = &api;
+    } else if constexpr (T::kKind == IMR_KIND_MESH_REFINER) {
+      static const imr_mesh_refiner_api api{sizeof(api), 0, &RefineMesh<T>};
+      x.mesh_refiner = &api;
     }
     return x;
   }();

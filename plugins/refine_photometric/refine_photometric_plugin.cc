@@ -1,0 +1,304 @@
+// org.imr.refine.photometric: the surface refined from the keyframe images (SDK 1.4 mesh
+// refiner). The work is photometric_refinement.cc's; this file turns the host's request into
+// its inputs: which vertices to refine (all at the end; during the run, those the engine changed
+// and those the recent keyframes see), which keyframes to use, their images in gray.
+#include "photometric_refinement.hpp"
+#include "subdivision.hpp"
+
+#include <imr/sdk/plugin.hpp>
+
+#include <opencv2/imgproc.hpp>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using imr::photometric::View;
+
+// Median edge length: the mesh's own scale, so that the lengths below work in any unit.
+double MedianEdge(const imr::sdk::MeshView& mesh) {
+  std::vector<double> lengths;
+  const std::size_t faces = mesh.face_count();
+  const std::size_t step = std::max<std::size_t>(1, faces / 20000);  // a sample is enough
+  for (std::size_t f = 0; f < faces; f += step)
+    for (int k = 0; k < 3; ++k) {
+      const double* a = &mesh.vertices[3 * mesh.faces[3 * f + k]];
+      const double* b = &mesh.vertices[3 * mesh.faces[3 * f + (k + 1) % 3]];
+      lengths.push_back(std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]));
+    }
+  if (lengths.empty()) return 1.0;
+  std::nth_element(lengths.begin(), lengths.begin() + lengths.size() / 2, lengths.end());
+  return lengths[lengths.size() / 2] > 0.0 ? lengths[lengths.size() / 2] : 1.0;
+}
+
+// The camera's centre in the world: -R^T t.
+Eigen::Vector3d Center(const imr_camera& c) {
+  Eigen::Vector3d x;
+  for (int i = 0; i < 3; ++i) x[i] = -(c.R[i] * c.t[0] + c.R[3 + i] * c.t[1] + c.R[6 + i] * c.t[2]);
+  return x;
+}
+
+bool HasIntrinsics(const imr_camera& c) { return c.K[0] > 0.0 && c.K[4] > 0.0 && c.width > 0 && c.height > 0; }
+
+// Whether world point p is in front of camera c, at most max_depth deep, and inside its image.
+bool Sees(const imr_camera& c, const double* p, double max_depth) {
+  double x[3];
+  for (int r = 0; r < 3; ++r) x[r] = c.R[3 * r] * p[0] + c.R[3 * r + 1] * p[1] + c.R[3 * r + 2] * p[2] + c.t[r];
+  if (x[2] <= 0.0 || x[2] > max_depth) return false;
+  const double u = (c.K[0] * x[0] + c.K[1] * x[1] + c.K[2] * x[2]) / x[2];
+  const double v = (c.K[4] * x[1] + c.K[5] * x[2]) / x[2];
+  return u >= 0.0 && v >= 0.0 && u <= c.width - 1.0 && v <= c.height - 1.0;
+}
+
+class PhotometricRefiner : public imr::sdk::MeshRefiner {
+ public:
+  static constexpr const char* kId = "org.imr.refine.photometric";
+  static constexpr const char* kVersion = "1.0.0";
+  static constexpr const char* kDescription =
+      "Moves the surface's vertices along their normals to where the keyframe images agree "
+      "(ZNCC of tangent-plane patches, coarse to fine) with an umbrella smoothness term; no "
+      "triangle flips or crosses another";
+  static constexpr const char* kParamsSchema = R"json({
+    "levels": {"type": "integer", "default": 3, "minimum": 1, "maximum": 8,
+               "description": "coarse-to-fine rounds; the search range halves each round"},
+    "iterations_per_level": {"type": "integer", "default": 2, "minimum": 1, "maximum": 50,
+                             "description": "search and update passes per round"},
+    "search_range": {"type": "number", "default": 0.6, "minimum": 0.001, "maximum": 100,
+                     "description": "distance searched along the normal in the first round, +-, in median edge lengths of the mesh"},
+    "search_steps": {"type": "integer", "default": 9, "minimum": 1, "maximum": 100,
+                     "description": "candidate offsets per side of the search range"},
+    "patch_size": {"type": "integer", "default": 11, "minimum": 3, "maximum": 31,
+                   "description": "patch samples per side (odd)"},
+    "patch_pixels": {"type": "number", "default": 3, "minimum": 0.1, "maximum": 20,
+                     "description": "patch sample spacing in pixels of the reference keyframe"},
+    "min_zncc": {"type": "number", "default": 0.6, "minimum": 0, "maximum": 1,
+                 "description": "a vertex moves to a match only when its ZNCC reaches this"},
+    "min_gain": {"type": "number", "default": 0.05, "minimum": 0, "maximum": 2,
+                 "description": "... and beats the ZNCC at the vertex's own position by this much"},
+    "normal_smoothing": {"type": "integer", "default": 2, "minimum": 0, "maximum": 100,
+                         "description": "1-ring averagings of the normals the patches lie on"},
+    "subdivide": {"type": "number", "default": 0, "minimum": 0, "maximum": 100,
+                  "description": "split edges longer than this many median edge lengths before refining (0: none)"},
+    "max_views": {"type": "integer", "default": 5, "minimum": 2, "maximum": 64,
+                  "description": "keyframes compared per vertex (the most frontal that see it)"},
+    "max_view_angle_deg": {"type": "number", "default": 75, "minimum": 1, "maximum": 89,
+                           "description": "a keyframe further than this from a vertex's normal does not count"},
+    "step": {"type": "number", "default": 0.7, "minimum": 0.01, "maximum": 1,
+             "description": "fraction of the way to the match taken per pass"},
+    "smoothness": {"type": "number", "default": 0, "minimum": 0, "maximum": 1,
+                   "description": "umbrella (Laplacian) step per pass (it flattens spikes and shrinks corners: precision for completeness)"},
+    "smooth_along_normal": {"type": "boolean", "default": false,
+                            "description": "the umbrella step projected on the vertex normal"},
+    "flatten_spikes": {"type": "number", "default": 5, "minimum": 0, "maximum": 1000,
+                       "description": "a vertex the images do not place, farther from its neighbours' plane than this many times their own spread about it, goes onto that plane (0: never)"},
+    "max_move": {"type": "number", "default": 1.0, "minimum": 0.001, "maximum": 100,
+                 "description": "how far a vertex may move in one call, in median edge lengths"},
+    "max_depth": {"type": "number", "default": 40, "minimum": 0.001, "maximum": 100000,
+                  "description": "a keyframe refines and compares what it sees up to this deep, in median edge lengths"},
+    "threads": {"type": "integer", "default": 0, "minimum": 0, "maximum": 256,
+                "description": "threads for the per-vertex search (0: one per core)"},
+    "missing_image": {"type": "string", "default": "fail", "enum": ["fail", "skip"],
+                      "description": "a keyframe image that cannot be read: fail the stage (naming it) or leave that keyframe out with a warning"}
+  })json";
+
+  PhotometricRefiner(const imr::sdk::Params& p, const imr::sdk::Host& host) : host_(host) {
+    o_.levels = p.Get<int>("levels");
+    o_.iterations_per_level = p.Get<int>("iterations_per_level");
+    search_range_ = p.Get<double>("search_range");
+    o_.search_steps = p.Get<int>("search_steps");
+    o_.patch_size = p.Get<int>("patch_size");
+    o_.patch_pixels = p.Get<double>("patch_pixels");
+    o_.min_zncc = p.Get<double>("min_zncc");
+    o_.min_gain = p.Get<double>("min_gain");
+    o_.normal_smoothing = p.Get<int>("normal_smoothing");
+    subdivide_ = p.Get<double>("subdivide");
+    o_.max_views = p.Get<int>("max_views");
+    o_.max_view_angle_deg = p.Get<double>("max_view_angle_deg");
+    o_.step = p.Get<double>("step");
+    o_.smoothness = p.Get<double>("smoothness");
+    o_.smooth_along_normal = p.Get<bool>("smooth_along_normal");
+    o_.flatten_spikes = p.Get<double>("flatten_spikes");
+    max_move_ = p.Get<double>("max_move");
+    max_depth_ = p.Get<double>("max_depth");
+    o_.threads = p.Get<int>("threads");
+    if (o_.threads == 0) o_.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    skip_missing_ = p.Get<std::string>("missing_image") == "skip";
+    std::string error;
+    if (!o_.Check(&error)) throw imr::sdk::InvalidArgument("params: " + error);
+  }
+
+  void Refine(const imr::sdk::RefineRequest& r, imr::sdk::RefineResult* out) override {
+    const std::size_t n = r.mesh.vertex_count();
+    out->vertices.assign(r.mesh.vertices.begin(), r.mesh.vertices.end());
+    if (n == 0 || r.keyframes.empty()) return;
+    if (!r.keyframe_images)
+      throw imr::sdk::InvalidArgument(
+          std::string(kId) + " needs the keyframe images, and this input has none (a SLAM/SfM "
+          "export or a synthetic stream): refine a run from images, or remove the stage");
+
+    // Which vertices: all at the end of a run refined only then; otherwise those the engine
+    // changed since the last call and those a recent keyframe sees within max_depth (kept
+    // positions elsewhere).
+    const double edge = MedianEdge(r.mesh);
+    const double max_depth = max_depth_ * edge;
+    std::vector<uint8_t> active(n, 0);
+    const bool all = r.final_call && r.recent_keyframes_begin == 0;
+    std::size_t active_count = 0;
+    for (std::size_t v = 0; v < n; ++v) {
+      if (r.Fixed(v)) continue;
+      bool a = all || r.Changed(v);
+      for (std::size_t k = r.recent_keyframes_begin; !a && k < r.keyframes.size(); ++k)
+        a = HasIntrinsics(r.keyframes[k]) && Sees(r.keyframes[k], &r.mesh.vertices[3 * v], max_depth);
+      active[v] = a ? 1 : 0;
+      active_count += a ? 1 : 0;
+    }
+    if (active_count == 0) return;
+
+    // The keyframes that see an active vertex within max_depth, their images in gray; the
+    // region of the work: the active vertices and those keyframes' centres.
+    std::vector<View> views;
+    Eigen::AlignedBox3d region;
+    for (std::size_t v = 0; v < n; ++v)
+      if (active[v]) region.extend(Eigen::Vector3d(r.mesh.vertices[3 * v], r.mesh.vertices[3 * v + 1], r.mesh.vertices[3 * v + 2]));
+    for (std::size_t k = 0; k < r.keyframes.size(); ++k) {
+      const imr_camera& c = r.keyframes[k];
+      if (!HasIntrinsics(c)) continue;
+      bool useful = false;
+      for (std::size_t v = 0; v < n && !useful; v += 1)
+        useful = active[v] && Sees(c, &r.mesh.vertices[3 * v], max_depth);
+      if (!useful) continue;
+      host_.CheckCancelled();
+      View view;
+      try {
+        imr::sdk::KeyframeImage image = host_.GetKeyframeImage(k);
+        if (image.width() != c.width || image.height() != c.height)
+          throw std::runtime_error("keyframe " + std::to_string(k) + ": its image is " +
+                                   std::to_string(image.width()) + "x" + std::to_string(image.height()) +
+                                   ", its camera says " + std::to_string(c.width) + "x" +
+                                   std::to_string(c.height));
+        const cv::Mat wrapped(image.height(), image.width(), image.channels() == 1 ? CV_8UC1 : CV_8UC3,
+                              const_cast<uint8_t*>(image.view().pixels),
+                              static_cast<std::size_t>(image.view().stride_bytes));
+        if (image.channels() == 1)
+          wrapped.copyTo(view.gray);
+        else
+          cv::cvtColor(wrapped, view.gray, cv::COLOR_BGR2GRAY);
+      } catch (const imr::sdk::InvalidArgument&) {
+        throw;
+      } catch (const std::exception& e) {
+        if (!skip_missing_) throw std::runtime_error(std::string("keyframe image: ") + e.what());
+        host_.Warning(std::string(kId) + ": keyframe " + std::to_string(k) + " left out: " + e.what());
+        continue;
+      }
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          view.K(i, j) = c.K[3 * i + j];
+          view.R(i, j) = c.R[3 * i + j];
+        }
+      view.t = Eigen::Vector3d(c.t[0], c.t[1], c.t[2]);
+      views.push_back(std::move(view));
+      region.extend(Center(c));
+    }
+    if (views.size() < 2) return;  // nothing to compare
+
+    // The part of the surface in that region (every face with a corner in it): the active
+    // vertices, and around them the rest as fixed context (occluders, neighbours). The work of a
+    // call is bounded by what the recent keyframes see, not by the surface so far.
+    region.extend(region.min() - Eigen::Vector3d::Constant(2 * edge));
+    region.extend(region.max() + Eigen::Vector3d::Constant(2 * edge));
+    std::vector<uint32_t> local(n, UINT32_MAX), global;
+    std::vector<std::array<uint32_t, 3>> faces;
+    std::vector<std::size_t> faces_taken;
+    for (std::size_t f = 0; f < r.mesh.face_count(); ++f) {
+      bool inside = false;
+      for (int k = 0; k < 3 && !inside; ++k) {
+        const double* q = &r.mesh.vertices[3 * r.mesh.faces[3 * f + k]];
+        inside = region.contains(Eigen::Vector3d(q[0], q[1], q[2]));
+      }
+      if (!inside) continue;
+      std::array<uint32_t, 3> face;
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t g = r.mesh.faces[3 * f + k];
+        if (local[g] == UINT32_MAX) {
+          local[g] = static_cast<uint32_t>(global.size());
+          global.push_back(g);
+        }
+        face[k] = local[g];
+      }
+      faces.push_back(face);
+      faces_taken.push_back(f);
+    }
+    std::vector<Eigen::Vector3d> vertices(global.size());
+    std::vector<uint8_t> local_active(global.size());
+    for (std::size_t i = 0; i < global.size(); ++i) {
+      const double* q = &r.mesh.vertices[3 * global[i]];
+      vertices[i] = Eigen::Vector3d(q[0], q[1], q[2]);
+      local_active[i] = active[global[i]];
+    }
+
+    imr::photometric::RefineOptions o = o_;
+    o.search_range = search_range_ * edge;
+    o.max_move = max_move_ * edge;
+    // New vertices where long edges between active vertices are split (the host checks the
+    // result is a manifold with the same boundary), at the end only: the host keeps the positions
+    // of its own vertices between calls, not added ones.
+    imr::photometric::SubdivisionStats split;
+    if (subdivide_ > 0.0 && r.final_call)
+      split = imr::photometric::SubdivideLongEdges(subdivide_ * edge, 1, &vertices, &faces, &local_active);
+    imr::photometric::RefineStats stats;
+    try {
+      imr::photometric::Refine(views, faces, local_active, o, &vertices, &stats,
+                               [this] { return host_.IsCancelled(); });
+    } catch (const std::invalid_argument& e) {
+      throw imr::sdk::InvalidArgument(e.what());
+    }
+    host_.CheckCancelled();
+    // Back to the request's numbering; added vertices after the request's.
+    const std::size_t added = vertices.size() - global.size();
+    out->vertices.resize(3 * (n + added));
+    for (std::size_t i = 0; i < vertices.size(); ++i) {
+      const std::size_t g = i < global.size() ? global[i] : n + (i - global.size());
+      for (int k = 0; k < 3; ++k) out->vertices[3 * g + k] = vertices[i][k];
+    }
+    if (split.edges_split > 0) {
+      std::vector<uint8_t> taken(r.mesh.face_count(), 0);
+      for (std::size_t f : faces_taken) taken[f] = 1;
+      out->faces.reserve(3 * (r.mesh.face_count() + faces.size()));
+      for (std::size_t f = 0; f < r.mesh.face_count(); ++f)
+        if (!taken[f]) out->faces.insert(out->faces.end(), &r.mesh.faces[3 * f], &r.mesh.faces[3 * f] + 3);
+      for (const auto& f : faces)
+        for (uint32_t i : f)
+          out->faces.push_back(i < global.size() ? global[i] : static_cast<uint32_t>(n + (i - global.size())));
+    }
+    char line[320];
+    std::snprintf(line, sizeof(line),
+                  "%s: %lld of %lld vertices refined from %zu keyframes (%lld seen twice, %lld "
+                  "moved, mean %.3g), ZNCC %.3f -> %.3f, %lld steps undone, %.2f s",
+                  kId, static_cast<long long>(stats.vertices_active), static_cast<long long>(n),
+                  views.size(), static_cast<long long>(stats.vertices_seen),
+                  static_cast<long long>(stats.vertices_moved), stats.mean_move,
+                  stats.mean_zncc_before, stats.mean_zncc_after,
+                  static_cast<long long>(stats.moves_undone), stats.seconds);
+    host_.Info(line);
+  }
+
+ private:
+  imr::sdk::Host host_;
+  imr::photometric::RefineOptions o_;
+  double search_range_ = 0.6;  // in median edge lengths
+  double max_move_ = 1.0;      // in median edge lengths
+  double subdivide_ = 0.0;     // in median edge lengths; 0: no subdivision
+  double max_depth_ = 40.0;    // in median edge lengths
+  bool skip_missing_ = false;
+};
+
+}  // namespace
+
+IMR_PLUGIN_EXPORT(PhotometricRefiner)

@@ -1,0 +1,131 @@
+// org.imr.refine.photometric through its shared object, as the host drives it: a keyframe image
+// the host cannot give fails the call naming it, or is left out with a warning (missing_image
+// "skip"); the answer keeps the request's vertices; an input without images is refused.
+#include "plugins/testing/plugin_fixture.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace imr::testing {
+namespace {
+
+// Host services serving noise images of 64 x 48, except keyframe `broken`, which fails as a file
+// that does not decode does.
+struct FakeHost {
+  uint64_t broken = UINT64_MAX;
+  std::vector<std::string> warnings;
+  std::vector<uint8_t> pixels;
+  imr_host_services services{};
+
+  FakeHost() {
+    std::mt19937 rng(7);
+    pixels.resize(64 * 48);
+    for (uint8_t& p : pixels) p = static_cast<uint8_t>(rng() & 0xff);
+    services.struct_size = sizeof(services);
+    services.version = IMR_HOST_SERVICES_VERSION;
+    services.host_data = this;
+    services.log = [](void* self, int32_t level, const char* m) {
+      if (level == IMR_LOG_WARNING) static_cast<FakeHost*>(self)->warnings.push_back(m);
+    };
+    services.progress = [](void*, double, const char*) {};
+    services.is_cancelled = [](void*) -> int32_t { return 0; };
+    services.keyframe_image = [](void* self, uint64_t index, imr_image_view* out, imr_error* e) -> imr_status {
+      FakeHost* h = static_cast<FakeHost*>(self);
+      if (index == h->broken) {
+        std::snprintf(e->message, sizeof(e->message), "/data/seq/image_2/%06llu.png: cannot decode",
+                      static_cast<unsigned long long>(index * 5));
+        return IMR_ERROR;
+      }
+      *out = imr_image_view{sizeof(imr_image_view), 64, 48, 1, 64, h->pixels.data()};
+      return IMR_OK;
+    };
+    services.release_keyframe_image = [](void*, uint64_t) {};
+  }
+};
+
+imr_camera Camera(double x) {  // looking down +z from (x, 0, -5)
+  imr_camera c{};
+  const double K[9] = {50, 0, 31.5, 0, 50, 23.5, 0, 0, 1};
+  const double R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  std::memcpy(c.K, K, sizeof(K));
+  std::memcpy(c.R, R, sizeof(R));
+  c.t[0] = -x, c.t[1] = 0, c.t[2] = 5;
+  c.width = 64, c.height = 48;
+  return c;
+}
+
+class PhotometricPlugin : public PluginFixture {
+ protected:
+  void SetUp() override { LoadPlugin(IMR_REFINE_PHOTOMETRIC_SO); }
+
+  // One refine call on a 1 m square facing the cameras; the status and the message.
+  imr_status Refine(const std::string& params, FakeHost* host, bool images, std::string* message,
+                    uint64_t* vertex_count = nullptr) {
+    imr::sdk::Instance inst(d_, params, &host->services);
+    const double v[12] = {-0.5, -0.5, 0, 0.5, -0.5, 0, 0.5, 0.5, 0, -0.5, 0.5, 0};
+    const uint32_t f[6] = {0, 2, 1, 0, 3, 2};  // normals toward -z, the cameras
+    const int64_t ids[4] = {1, 2, 3, 4};
+    const uint8_t flags[4] = {IMR_REFINE_VERTEX_CHANGED, IMR_REFINE_VERTEX_CHANGED,
+                              IMR_REFINE_VERTEX_CHANGED, IMR_REFINE_VERTEX_CHANGED};
+    const imr_camera cams[3] = {Camera(-0.5), Camera(0.0), Camera(0.5)};
+    imr_mesh_view mesh{};
+    mesh.struct_size = sizeof(mesh);
+    mesh.vertices = v, mesh.vertex_count = 4, mesh.faces = f, mesh.face_count = 2, mesh.point_ids = ids;
+    imr_refine_request r{};
+    r.mesh = &mesh, r.vertex_flags = flags, r.keyframes = cams, r.keyframe_count = 3;
+    r.keyframe_images = images ? 1 : 0, r.final_call = 1;
+    imr_refine_result out{};
+    try {
+      inst.Refine(&r, &out);
+    } catch (const imr::sdk::PluginCallError& e) {
+      *message = e.what();
+      return e.status();
+    }
+    if (vertex_count != nullptr) *vertex_count = out.vertex_count;
+    return IMR_OK;
+  }
+};
+
+TEST_F(PhotometricPlugin, DescribesItselfAsAMeshRefiner) {
+  EXPECT_EQ(imr::sdk::CheckDescriptor(d_), "");
+  EXPECT_EQ(d_->kind, IMR_KIND_MESH_REFINER);
+  EXPECT_STREQ(d_->id, "org.imr.refine.photometric");
+  std::string message;
+  EXPECT_EQ(CreateStatus(R"({"patch_size": 4})", &message), IMR_INVALID_ARGUMENT);
+  EXPECT_NE(message.find("patch_size"), std::string::npos) << message;
+  EXPECT_EQ(CreateStatus(R"({"missing_image": "ignore"})", &message), IMR_INVALID_ARGUMENT);
+}
+
+TEST_F(PhotometricPlugin, AnUnreadableImageFailsTheCallNamingIt) {
+  FakeHost host;
+  host.broken = 1;
+  std::string message;
+  EXPECT_EQ(Refine("{}", &host, true, &message), IMR_ERROR);
+  EXPECT_NE(message.find("/data/seq/image_2/000005.png: cannot decode"), std::string::npos) << message;
+}
+
+TEST_F(PhotometricPlugin, OrLeavesItOutWithAWarning) {
+  FakeHost host;
+  host.broken = 1;
+  std::string message;
+  uint64_t vertices = 0;
+  EXPECT_EQ(Refine(R"({"missing_image": "skip"})", &host, true, &message, &vertices), IMR_OK) << message;
+  EXPECT_EQ(vertices, 4u);
+  ASSERT_EQ(host.warnings.size(), 1u);
+  EXPECT_NE(host.warnings[0].find("keyframe 1 left out"), std::string::npos) << host.warnings[0];
+  EXPECT_NE(host.warnings[0].find("000005.png"), std::string::npos) << host.warnings[0];
+}
+
+TEST_F(PhotometricPlugin, AnInputWithoutImagesIsRefused) {
+  FakeHost host;
+  std::string message;
+  EXPECT_EQ(Refine("{}", &host, false, &message), IMR_INVALID_ARGUMENT);
+  EXPECT_NE(message.find("needs the keyframe images"), std::string::npos) << message;
+}
+
+}  // namespace
+}  // namespace imr::testing

@@ -1,0 +1,220 @@
+// The mesh_refiner stage end to end (SDK 1.4, issue 34): what the host sends a mesh refiner and
+// keeps between calls, what it refuses of a refiner's answer, the job checks, and the photometric
+// plugin on imr-synth's images.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <sstream>
+
+#include "test_util.h"
+
+namespace imr::testing {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const std::string kImr = IMR_EXE;
+
+json ReadJson(const fs::path& p) {
+  std::ifstream in(p);
+  json j;
+  in >> j;
+  return j;
+}
+
+std::vector<json> ReadLines(const fs::path& p) {
+  std::vector<json> out;
+  std::ifstream in(p);
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty()) out.push_back(json::parse(line));
+  return out;
+}
+
+class Refinement : public ::testing::Test {
+ protected:
+  Refinement() : dir_("refinement") {}
+
+  // An engine-only job on the synthetic street with the test refiner as its mesh_refiner.
+  json EngineJob(const json& refiner_params, int every_keyframes) const {
+    json stage = {{"kind", "mesh_refiner"}, {"plugin", "org.imr.test.refine.shift"},
+                  {"params", refiner_params}};
+    if (every_keyframes > 0) stage["every_keyframes"] = every_keyframes;
+    return {{"description", "refinement test"},
+            {"sequences", {"street"}},
+            {"input", {{"format", "synthetic"}, {"options", {{"frames", 40}, {"seed", 3}}}}},
+            {"plugin_paths", {IMR_TEST_PLUGIN_DIR}},
+            {"pipeline",
+             {{{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
+              stage,
+              {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+            {"output", {{"directory", (dir_ / "runs/{sequence}").string()}, {"formats", {"ply"}}}}};
+  }
+  CommandResult Run(const json& job, const std::string& name = "job.json") {
+    const fs::path p = dir_ / name;
+    WriteText(p, job.dump(2));
+    return RunShell(kImr + " run -q " + Quote(p.string()));
+  }
+  fs::path Report() const { return dir_ / "runs/street/report.json"; }
+
+  ScratchDir dir_;
+};
+
+// Every call gets the surface with what changed since the last one flagged; a vertex the engine
+// did not move since keeps the position the refiner gave it, so moves accumulate over calls.
+TEST_F(Refinement, TheHostKeepsRefinedPositionsBetweenCalls) {
+  const fs::path log = dir_ / "calls.jsonl";
+  const CommandResult r =
+      Run(EngineJob({{"dz", 0.01}, {"only_changed", false}, {"log", log.string()}}, 2));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const std::vector<json> calls = ReadLines(log);
+  const json report = ReadJson(Report());
+  const int64_t keyframes = report["engine"]["keyframes"].get<int64_t>();
+  ASSERT_GE(keyframes, 4);
+  // Every second keyframe (those with a surface), and the final call.
+  ASSERT_GE(calls.size(), 2u);
+  EXPECT_LE(calls.size(), static_cast<std::size_t>(keyframes / 2 + 1));
+  EXPECT_EQ(report["refinement"]["calls"].get<std::size_t>(), calls.size());
+  for (std::size_t i = 0; i < calls.size(); ++i) {
+    EXPECT_EQ(calls[i]["final"].get<bool>(), i + 1 == calls.size()) << i;
+    EXPECT_EQ(calls[i]["fixed"].get<int64_t>(), 0) << i;
+    if (i > 0) {
+      EXPECT_GE(calls[i]["recent_begin"].get<int64_t>(), calls[i - 1]["recent_begin"].get<int64_t>());
+      EXPECT_EQ(calls[i]["recent_begin"].get<int64_t>(), calls[i - 1]["keyframes"].get<int64_t>());
+    }
+  }
+  EXPECT_EQ(calls[0]["changed"], calls[0]["vertices"]);  // nothing refined before the first call
+  EXPECT_EQ(calls[0]["recent_begin"].get<int64_t>(), 0);
+  // Later calls: most of the surface did not change since the call before.
+  EXPECT_LT(calls.back()["changed"].get<int64_t>(), calls.back()["vertices"].get<int64_t>());
+  EXPECT_GT(report["refinement"]["vertices_kept"].get<int64_t>(), 0);
+  // A vertex sent to k calls ends k * dz above the engine's position.
+  EXPECT_GE(report["refinement"]["max_move"].get<double>(), 0.02 - 1e-9);
+  EXPECT_GT(report["refinement"]["mean_move"].get<double>(), 0.01);
+  EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
+  EXPECT_GT(report["stage_seconds"]["mesh_refiner"].get<double>(), 0.0);
+}
+
+// Refining only what changed: each vertex moves once, by dz exactly.
+TEST_F(Refinement, UnchangedVerticesAreNotSentAsChanged) {
+  const CommandResult r = Run(EngineJob({{"dz", 0.01}, {"only_changed", true}}, 3));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const json report = ReadJson(Report());
+  EXPECT_NEAR(report["refinement"]["max_move"].get<double>(), 0.01, 1e-9);
+  EXPECT_NEAR(report["refinement"]["mean_move"].get<double>(), 0.01, 1e-9);
+}
+
+// A refiner's answer the host must not use fails the sequence, naming the stage and what broke;
+// no mesh is written. A proper subdivision is taken.
+TEST_F(Refinement, WhatTheHostRefusesOfARefiner) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"nan", "non-finite coordinate"},
+      {"few", "vertices for"},
+      {"bad_faces", "not a manifold"},
+      {"throw", "failed on purpose"}};
+  for (const auto& [misbehave, expected] : cases) {
+    fs::remove_all(dir_ / "runs");
+    const CommandResult r = Run(EngineJob({{"misbehave", misbehave}}, 0));
+    EXPECT_NE(r.status, 0) << misbehave;
+    EXPECT_NE(r.err.find("pipeline[1] (mesh_refiner org.imr.test.refine.shift)"), std::string::npos)
+        << misbehave << ": " << r.err;
+    EXPECT_NE(r.err.find(expected), std::string::npos) << misbehave << ": " << r.err;
+    EXPECT_FALSE(fs::exists(dir_ / "runs/street/mesh.ply")) << misbehave;
+  }
+  fs::remove_all(dir_ / "runs");
+  const CommandResult ok = Run(EngineJob({{"misbehave", "subdivide"}}, 0));
+  ASSERT_EQ(ok.status, 0) << ok.err;
+  const json report = ReadJson(Report());
+  EXPECT_GT(report["refinement"]["vertices_added"].get<int64_t>(), 0);
+  // One centroid per face of the engine's mesh, three faces in its place.
+  EXPECT_EQ(report["refinement"]["vertices_added"].get<int64_t>() * 3,
+            report["mesh"]["faces"].get<int64_t>());
+  EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
+}
+
+// The job's checks: the schedule belongs to mesh_refiner stages, one stage at most, and not
+// (yet) with a surface written in parts.
+TEST_F(Refinement, JobChecks) {
+  json on_exporter = EngineJob({}, 0);
+  on_exporter["pipeline"][2]["every_keyframes"] = 5;
+  CommandResult r = Run(on_exporter);
+  EXPECT_EQ(r.status, 64) << r.err;
+  EXPECT_NE(r.err.find("pipeline[2].every_keyframes: only a mesh_refiner stage has a schedule"),
+            std::string::npos) << r.err;
+
+  json negative = EngineJob({}, 0);
+  negative["pipeline"][1]["every_keyframes"] = -1;
+  r = Run(negative);
+  EXPECT_EQ(r.status, 64) << r.err;
+  EXPECT_NE(r.err.find("pipeline[1].every_keyframes: expected an integer from 0"), std::string::npos)
+      << r.err;
+
+  json twice = EngineJob({}, 0);
+  twice["pipeline"].insert(twice["pipeline"].begin() + 1, twice["pipeline"][1]);
+  r = Run(twice);
+  EXPECT_EQ(r.status, 64) << r.err;
+  EXPECT_NE(r.err.find("at most one mesh_refiner stage, found 2"), std::string::npos) << r.err;
+
+  json forget = EngineJob({}, 0);
+  forget["engine"] = {{"forget", true}};
+  r = Run(forget);
+  EXPECT_EQ(r.status, 64) << r.err;
+  EXPECT_NE(r.err.find("does not work with engine.forget yet"), std::string::npos) << r.err;
+}
+
+// The photometric refiner needs images: an engine-only input fails the sequence saying so.
+TEST_F(Refinement, PhotometricRefinerOnAnInputWithoutImages) {
+  json job = EngineJob({}, 0);
+  job["pipeline"][1] = {{"kind", "mesh_refiner"}, {"plugin", "org.imr.refine.photometric"}};
+  const CommandResult r = Run(job);
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("org.imr.refine.photometric needs the keyframe images"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "runs/street/mesh.ply"));
+}
+
+// imr-synth's street through the image pipeline with the photometric refiner every 4 keyframes
+// and at the end: the refined surface is still a manifold, and it is no further from the known
+// scene than the same run's surface unrefined.
+TEST_F(Refinement, PhotometricRefinerOnImrSynth) {
+  const fs::path seq = dir_ / "street";
+  const CommandResult synth = RunShell(Quote(IMR_SYNTH_EXE) + " --out " + Quote(seq.string()) +
+                                       " --frames 60 --width 828 --height 250 --no-lidar -q");
+  ASSERT_EQ(synth.status, 0) << synth.err;
+  auto job = [&](bool refine, const std::string& out) {
+    json j = {{"description", "refinement test"},
+              {"sequences", {seq.string()}},
+              {"input", {{"format", "kitti_odometry"}, {"options", {{"keyframe_every", 5}}}}},
+              {"engine", {{"steiner_export", "any_steiner"}}},
+              {"pipeline",
+               {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+                {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}},
+                {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+              {"output", {{"directory", (dir_ / out / "{sequence}").string()}, {"formats", {"ply"}}}}};
+    if (refine)
+      j["pipeline"].insert(j["pipeline"].begin() + 2,
+                           json{{"kind", "mesh_refiner"}, {"plugin", "org.imr.refine.photometric"},
+                                {"every_keyframes", 4}});
+    return j;
+  };
+  const CommandResult plain = Run(job(false, "plain"), "plain.json");
+  ASSERT_EQ(plain.status, 0) << plain.err;
+  const CommandResult refined = Run(job(true, "refined"), "refined.json");
+  ASSERT_EQ(refined.status, 0) << refined.err;
+  const json a = ReadJson(dir_ / "plain/street/report.json");
+  const json b = ReadJson(dir_ / "refined/street/report.json");
+  EXPECT_GE(b["refinement"]["calls"].get<int>(), 3);  // 13 keyframes: after 4, 8, 12 and at the end
+  EXPECT_GT(b["refinement"]["vertices_moved"].get<int64_t>(), 0);
+  EXPECT_GT(b["refinement"]["vertices_kept"].get<int64_t>(), 0);
+  EXPECT_TRUE(b["mesh"]["manifold"].get<bool>());
+  EXPECT_EQ(b["mesh"]["stats"]["boundary_loops"], a["mesh"]["stats"]["boundary_loops"]);
+  EXPECT_EQ(b["mesh"]["faces"], a["mesh"]["faces"]);  // no subdivision by default
+  const double pa = a["accuracy"]["precision"].get<double>(), pb = b["accuracy"]["precision"].get<double>();
+  const double ca = a["accuracy"]["completeness"].get<double>(), cb = b["accuracy"]["completeness"].get<double>();
+  EXPECT_GE(pb, pa - 0.01) << "precision " << pa << " -> " << pb;
+  EXPECT_GE(cb, ca - 0.01) << "completeness " << ca << " -> " << cb;
+}
+
+}  // namespace
+}  // namespace imr::testing
