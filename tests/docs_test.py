@@ -35,7 +35,7 @@ NOT_OPTIONS = {
     # the SDK's structs and fields (docs/plugins.md, docs/tiles.md), glTF extras
     "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "imr_upright",
     "imr_mesh_stream", "export_mesh_stream", "recent_keyframes_begin", "keyframe_images",
-    "final_call", "imr_refine_request", "imr_refine_result",
+    "final_call", "imr_refine_request", "imr_refine_result", "cameras_in_o", "back_facing",
     # report.json, summary.json, evaluation output
     "stage_seconds", "engine_scale", "export_input", "invariant_checks", "rays_walked_exact",
     "rays_uncast_listed", "ray_mismatches", "road_surface", "completeness_visible", "log_tail",
