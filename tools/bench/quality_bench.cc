@@ -1,8 +1,10 @@
 // imr-bench quality (issue 14): the surface imr makes, input by input, beside other meshers fed
 // the same input in the same run, all evaluated by the same code (host/eval, what `imr evaluate`
 // runs). Per mesher: completeness / precision / F at 0.2 and 0.5 m, truth -> mesh mean and
-// median, mesh -> truth mean, wall time and peak RSS of its process, and whether its mesh is a
-// manifold (closed, or with boundary).
+// median, mesh -> truth mean, wall time and peak RSS of its process, whether its mesh is a
+// manifold (closed, or with boundary), and its roughness (mean angle between neighbouring faces).
+// Each image job (synth, kitti) also runs with and without a mesh_refiner stage (issue 34:
+// org.imr.refine.photometric every 10 keyframes), with the refinement's seconds per call.
 //
 // Inputs (each skipped with a message when absent):
 //   street   ../shared/data/street-stream: an independent generator's SLAM JSON stream, fed to
