@@ -63,8 +63,8 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
   static constexpr const char* kVersion = "1.0.0";
   static constexpr const char* kDescription =
       "Moves the surface's vertices along their normals to where the keyframe images agree "
-      "(ZNCC of tangent-plane patches, coarse to fine) with an umbrella smoothness term; no "
-      "triangle flips or crosses another";
+      "(ZNCC of tangent-plane patches, coarse to fine); spikes the images do not place go onto "
+      "their neighbours' plane; no triangle flips or crosses another";
   static constexpr const char* kParamsSchema = R"json({
     "levels": {"type": "integer", "default": 3, "minimum": 1, "maximum": 8,
                "description": "coarse-to-fine rounds; the search range halves each round"},
@@ -81,7 +81,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     "min_zncc": {"type": "number", "default": 0.6, "minimum": 0, "maximum": 1,
                  "description": "a vertex moves to a match only when its ZNCC reaches this"},
     "min_gain": {"type": "number", "default": 0.05, "minimum": 0, "maximum": 2,
-                 "description": "... and beats the ZNCC at the vertex's own position by this much"},
+                 "description": "a match must also beat the ZNCC at the vertex's own position by this much"},
     "normal_smoothing": {"type": "integer", "default": 2, "minimum": 0, "maximum": 100,
                          "description": "1-ring averagings of the normals the patches lie on"},
     "subdivide": {"type": "number", "default": 0, "minimum": 0, "maximum": 100,
