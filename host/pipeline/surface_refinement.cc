@@ -65,21 +65,7 @@ void SurfaceRefinement::OnKeyframe(const engine::Engine& engine, const ExportCon
 
 void SurfaceRefinement::Finish(engine::Mesh* mesh, const ExportContext& context, StageWatch& watch) {
   if (mesh->faces.empty()) return;
-  const std::vector<double> engine_positions = mesh->vertices;
   Refine(mesh, context, watch, /*final_call=*/true);
-  const std::size_t n = engine_positions.size() / 3;
-  double sum = 0.0, worst = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double dx = mesh->vertices[3 * i] - engine_positions[3 * i];
-    const double dy = mesh->vertices[3 * i + 1] - engine_positions[3 * i + 1];
-    const double dz = mesh->vertices[3 * i + 2] - engine_positions[3 * i + 2];
-    const double d = std::sqrt(dx * dx + dy * dy + dz * dz);
-    sum += d;
-    worst = std::max(worst, d);
-  }
-  stats_.mean_move = n > 0 ? sum / static_cast<double>(n) : 0.0;
-  stats_.max_move = worst;
-  stats_.vertices_added = static_cast<int64_t>(mesh->vertices.size() / 3 - n);
 }
 
 // One call: the kept positions put back where the engine has not moved a vertex since, the
@@ -178,10 +164,16 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
     refined.faces = std::move(mesh->faces);
   }
 
-  // Remember where each vertex of the engine went; the added ones live for this mesh only.
+  // Remember where each vertex of the engine went; the added ones live for this mesh only. The
+  // final mesh's figures: how far from the engine's positions, how many vertices added.
+  double move_sum = 0.0, move_max = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const double* e = &engine_positions[3 * i];
     const double* r = &refined.vertices[3 * i];
+    const double d = std::sqrt((r[0] - e[0]) * (r[0] - e[0]) + (r[1] - e[1]) * (r[1] - e[1]) +
+                               (r[2] - e[2]) * (r[2] - e[2]));
+    move_sum += d;
+    move_max = std::max(move_max, d);
     if (r[0] != mesh->vertices[3 * i] || r[1] != mesh->vertices[3 * i + 1] ||
         r[2] != mesh->vertices[3 * i + 2])
       ++stats_.vertices_moved;
@@ -190,6 +182,11 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
       kept_[mesh->point_ids[i]] = k;
     else
       kept_steiner_[PositionHash(e)] = k;
+  }
+  if (final_call) {
+    stats_.mean_move = n > 0 ? move_sum / static_cast<double>(n) : 0.0;
+    stats_.max_move = move_max;
+    stats_.vertices_added = static_cast<int64_t>(result.vertex_count - n);
   }
   stats_.vertices_sent += static_cast<int64_t>(n);
   ++stats_.calls;
