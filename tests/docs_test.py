@@ -37,7 +37,7 @@ NOT_OPTIONS = {
     "imr_mesh_stream", "export_mesh_stream", "recent_keyframes_begin", "keyframe_images",
     "final_call", "imr_refine_request", "imr_refine_result", "cameras_in_o", "back_facing",
     # report.json, summary.json, evaluation output
-    "stage_seconds", "engine_scale", "export_input", "invariant_checks", "rays_walked_exact",
+    "stage_seconds", "engine_scale", "cells_opened", "camera_regrowths", "export_input", "invariant_checks", "rays_walked_exact",
     "rays_uncast_listed", "ray_mismatches", "road_surface", "completeness_visible", "log_tail",
     # fields of input and output formats (SLAM JSON, OpenMVG, COLMAP, KITTI, imr's stream)
     "slam_data_version", "view_priors", "prior_focal_length", "focal_length", "colmap_model",
@@ -47,6 +47,7 @@ NOT_OPTIONS = {
     "release_keyframe_image", "engine_property_test", "imr_track_observation",
     "imr_point_estimate", "imr_track_view", "imr_refiner_update", "struct_size", "params_schema",
     "removed_count", "is_keyframe", "docs_test", "update_points_position", "delaunay_mesher",
+    "automatic_reconstructor", "feature_extractor", "exhaustive_matcher",
 }
 
 # Flags of other programs the docs name alone.

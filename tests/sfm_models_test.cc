@@ -352,5 +352,40 @@ TEST_F(SfmModels, AFolderOfSubModelsRunsEachAsItsOwnSequence) {
   ExpectSameMeshAsTheBase("1");
 }
 
+// imr mesh on what is not a model (issue 37): a usage error (64) that names --input, says what
+// the folder is and what to do, and writes nothing (no WORK folder beside --out).
+TEST_F(SfmModels, MeshOnWhatIsNotAModelSaysWhatItIsAndWritesNothing) {
+  io::ColmapModel m = Base();
+  Save(m, Case() / "sparse/0", /*binary=*/true);
+  Save(m, Case() / "sparse/1", /*binary=*/false);
+  for (int i = 0; i < 3; ++i) WriteText(Case() / "photos" / ("IMG_00" + std::to_string(i) + ".JPG"), "x");
+  auto mesh = [&](const std::string& input) {
+    return RunShell("cd " + Quote(Case().string()) + " && " + Quote(kImr) + " mesh --input " +
+                    Quote(input) + " --format colmap --out out/mesh.ply");
+  };
+  const CommandResult sub = mesh("sparse");
+  EXPECT_EQ(sub.status, 64) << sub.out << sub.err;
+  EXPECT_NE(sub.err.find("--input: " + (Case() / "sparse").string()), std::string::npos) << sub.err;
+  EXPECT_NE(sub.err.find("2 COLMAP sub-models (0, 1)"), std::string::npos) << sub.err;
+  EXPECT_NE(sub.err.find((Case() / "sparse/0").string()), std::string::npos) << sub.err;
+  const CommandResult photos = mesh("photos");
+  EXPECT_EQ(photos.status, 64) << photos.out << photos.err;
+  EXPECT_NE(photos.err.find("3 images"), std::string::npos) << photos.err;
+  EXPECT_NE(photos.err.find("automatic_reconstructor"), std::string::npos) << photos.err;
+  const CommandResult none = mesh("no-such-model");
+  EXPECT_EQ(none.status, 64) << none.out << none.err;
+  EXPECT_NE(none.err.find("--input: " + (Case() / "no-such-model").string() + " does not exist"),
+            std::string::npos) << none.err;
+  EXPECT_EQ(none.err.find("job.json"), std::string::npos) << none.err;
+  EXPECT_FALSE(fs::exists(Case() / "out")) << "imr mesh created its output folder";
+  // The same folders through a job: the sequence's error says the same.
+  const CommandResult run = Run(ColmapJob({"sparse", "photos"}));
+  EXPECT_NE(run.status, 0);
+  const json summary = ReadJson(Case() / "runs/summary.json");
+  const std::string all = summary.dump();
+  EXPECT_NE(all.find("2 COLMAP sub-models (0, 1)"), std::string::npos) << all;
+  EXPECT_NE(all.find("automatic_reconstructor"), std::string::npos) << all;
+}
+
 }  // namespace
 }  // namespace imr::testing

@@ -7,6 +7,7 @@
 #include "host/batch/summary.h"
 #include "host/cli/command.h"
 #include "host/io/batch_folder.h"
+#include "host/io/colmap_model.h"
 #include "host/io/input_formats.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
@@ -288,6 +289,20 @@ int CmdMesh(const std::vector<std::string>& args) {
                  out.filename().string() + "'");
   const fs::path work = vm.count("work") ? fs::absolute(vm["work"].as<std::string>())
                                          : out.parent_path() / (out.stem().string() + ".imr");
+  // What the input is, before anything is written: a path that does not exist, or a folder that
+  // is something else than the model (a mapper's sparse/ above its sub-models, a folder of
+  // photos), is a usage error that names --input.
+  if (f->sequences_are_paths) {
+    const fs::path in = fs::absolute(input).lexically_normal();
+    std::error_code ec;
+    if (!fs::exists(in, ec))
+      return usage("--input: " + in.string() + " does not exist");
+    if (format == "colmap" && fs::is_directory(in, ec) && !fs::exists(in / "cameras.bin", ec) &&
+        !fs::exists(in / "cameras.txt", ec)) {
+      const std::string hint = io::ColmapFolderHint(in);
+      if (!hint.empty()) return usage("--input: " + in.string() + " is not a COLMAP model: " + hint);
+    }
+  }
 
   // The job imr run would be given. Paths are absolute: the job file lives in WORK.
   nlohmann::json job = {

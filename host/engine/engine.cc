@@ -422,6 +422,92 @@ void Carving::Grow(Cell_handle new_component) {
   }
 }
 
+bool Carving::AddWithRepair(Cell_handle c, std::vector<Cell_handle>* added) {
+  const size_t start = added->size();
+  auto add = [&](Cell_handle x) {
+    SetInO(x, true);
+    added->push_back(x);
+  };
+  auto addable = [&](Cell_handle x) {
+    return !s_.dt.is_infinite(x) && !x->info().in_o && !x->info().final && !s_.HullAdjacent(x);
+  };
+  if (!addable(c)) return false;
+  add(c);
+  std::vector<Vertex_handle> verts;
+  std::vector<Cell_handle> star;
+  for (int round = 0;; ++round) {
+    verts.clear();
+    for (size_t k = start; k < added->size(); ++k)
+      for (int i = 0; i < 4; ++i) verts.push_back((*added)[k]->vertex(i));
+    // By id, not address: which irregular vertex is repaired first decides what joins O.
+    auto by_id = [](Vertex_handle a, Vertex_handle b) { return a->info().id < b->info().id; };
+    std::sort(verts.begin(), verts.end(), by_id);
+    verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+    Vertex_handle bad;
+    for (Vertex_handle v : verts)
+      if (!VertexRegular(v, Cell_handle())) {
+        bad = v;
+        break;
+      }
+    if (bad == Vertex_handle()) break;
+    // The free cells around the irregular vertex join O; none left, or out of rounds: undo.
+    star.clear();
+    s_.dt.incident_cells(bad, std::back_inserter(star));
+    size_t joined = 0;
+    for (Cell_handle x : star)
+      if (addable(x) && s_.IsFree(x)) add(x), ++joined;
+    if (joined == 0) {
+      // Only cells that no ray crossed are left around it: when they are few, a pocket of matter
+      // in free space that no ray happened to cross, they join and the vertex is inside O.
+      size_t rest = 0, blocked = 0;
+      for (Cell_handle x : star)
+        if (!x->info().in_o) ++rest, blocked += addable(x) ? 0 : 1;
+      if (blocked == 0 && rest * 8 <= star.size())
+        for (Cell_handle x : star)
+          if (!x->info().in_o) add(x), ++joined;
+    }
+    if (joined == 0 || round >= s_.opt.camera_path_repair) {
+      for (size_t k = added->size(); k-- > start;) SetInO((*added)[k], false);
+      added->resize(start);
+      return false;
+    }
+  }
+  return true;
+}
+
+bool Carving::ForceCell(Cell_handle c) {
+  std::vector<Cell_handle> added;
+  bool ok = false;
+  if (s_.TouchesO(c)) {
+    ok = AddWithRepair(c, &added);
+  } else if (ToggleKeepsManifold(c)) {  // a component of O of its own until grow joins it
+    SetInO(c, true);
+    added.push_back(c);
+    ok = true;
+  }
+  for (Cell_handle x : added) {
+    s_.MarkDirty(x);
+    for (int i = 0; i < 4; ++i) s_.MarkDirty(x->neighbor(i));
+  }
+  return ok;
+}
+
+int64_t Carving::OpenPath(const std::vector<Cell_handle>& path) {
+  std::vector<Cell_handle> added;
+  // Outward from the cells of the path that touch O: a pass adds those it can; again while any did.
+  for (bool progress = true; progress;) {
+    progress = false;
+    for (Cell_handle c : path)
+      if (!c->info().in_o && s_.TouchesO(c) && AddWithRepair(c, &added)) progress = true;
+  }
+  for (Cell_handle c : added) {
+    s_.MarkDirty(c);
+    for (int i = 0; i < 4; ++i) s_.MarkDirty(c->neighbor(i));
+  }
+  s_.stats.cells_opened += static_cast<int64_t>(added.size());
+  return static_cast<int64_t>(added.size());
+}
+
 // =================================================================================================
 // Weight transfer.
 
@@ -1302,7 +1388,7 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
     PlaceSteinerPoints(s.cameras.back());
     s.stats.time.steiner += SecondsSince(ts);
   }
-  if (s.opt.forget) forgetting.AddUpdateCameras(std::move(centres));
+  if (s.opt.forget) forgetting.AddUpdateCameras(centres);  // a copy: measured below too
   const int64_t known = static_cast<int64_t>(s.cameras.size());
   for (const MovedPoint& m : u.moved_points) s.points[s.point_index.at(m.id)].named = known;
   for (uint64_t id : u.removed_points) s.points[s.point_index.at(id)].named = known;
@@ -1362,7 +1448,13 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
     }
     carving.PeelAround(changed, s.opt.regrow_radius);
   }
+  // The camera path (camera_path) is free space: its cells join O before grow, so that O grows
+  // on from them; after it, again, and a camera whose cell is still outside O has O peeled around
+  // it and grown again from its cell (OpenCameraPath).
+  const bool open_path = s.opt.camera_path > 0 && s.dt.dimension() == 3;
+  if (open_path && s.cells_in_o > 0) carving.OpenPath(CameraPathCells());
   carving.Grow(s.opt.forget ? CameraCell() : Cell_handle());
+  if (open_path && s.cells_in_o > 0) OpenCameraPath();
   s.stats.time.grow += SecondsSince(tg);
   const double dt_s = SecondsSince(t0);
   s.stats.time.total += dt_s;
@@ -1524,6 +1616,67 @@ Engine::Impl::Cell_handle Engine::Impl::CameraCell() {
     }
   }
   return c;
+}
+
+std::vector<Engine::Impl::Cell_handle> Engine::Impl::CameraPathCells() {
+  std::vector<Cell_handle> path;
+  const size_t n = s.cameras.size();
+  const size_t k = std::min(n, static_cast<size_t>(s.opt.camera_path));
+  const uint64_t seen = ++s.stamp;  // stamps are only compared for equality
+  Cell_handle hint = s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle();
+  auto visit = [&](const Point& p) {
+    const Cell_handle c = s.dt.locate(p, hint);
+    if (s.dt.is_infinite(c)) return;
+    hint = c;
+    if (c->info().stamp == seen) return;
+    c->info().stamp = seen;
+    path.push_back(c);
+  };
+  // Samples a tenth of the Steiner spacing apart (cells along the path are larger: the Steiner
+  // grid keeps points around the cameras that far apart), at most 256 per segment.
+  const double step = s.opt.steiner_spacing > 0.0 ? s.opt.steiner_spacing / 10.0 : 0.5;
+  for (size_t i = n - k; i < n; ++i) {
+    const Point& b = s.cameras[i];
+    if (i > n - k) {
+      const Point& a = s.cameras[i - 1];
+      const double len = std::sqrt(CGAL::squared_distance(a, b));
+      const int samples = static_cast<int>(std::min(256.0, std::ceil(len / step)));
+      for (int j = 1; j < samples; ++j) {
+        const double t = static_cast<double>(j) / samples;
+        visit(Point(a.x() + t * (b.x() - a.x()), a.y() + t * (b.y() - a.y()),
+                    a.z() + t * (b.z() - a.z())));
+      }
+    }
+    visit(b);
+  }
+  return path;
+}
+
+void Engine::Impl::OpenCameraPath() {
+  if (carving.OpenPath(CameraPathCells()) > 0) carving.Grow();
+  if (s.opt.camera_path_radius <= 0.0) return;
+  const size_t n = s.cameras.size();
+  const size_t k = std::min(n, static_cast<size_t>(s.opt.camera_path));
+  std::vector<Vertex_handle> around;
+  for (size_t i = n - k; i < n; ++i) {
+    const Cell_handle c = s.dt.locate(
+        s.cameras[i], s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle());
+    if (s.dt.is_infinite(c) || c->info().in_o || c->info().final || s.HullAdjacent(c)) continue;
+    // Its cell could not join O as O is around it: O leaves the cells near it, its cell joins
+    // first (touching O, with the free cells that keep dO manifold; else on its own) and O grows
+    // again into the rest in weight order.
+    // By id: PeelAround's region depends on the order of its centres, and a cell's vertex order
+    // on the cell's history (CGAL's moves and the planned ones make the same cell differently).
+    around.clear();
+    for (int j = 0; j < 4; ++j) around.push_back(c->vertex(j));
+    std::sort(around.begin(), around.end(),
+              [](Vertex_handle a, Vertex_handle b) { return a->info().id < b->info().id; });
+    carving.PeelAround(around, s.opt.camera_path_radius);
+    carving.ForceCell(c);
+    carving.Grow();  // labels only change: c is still a cell
+    ++s.stats.camera_regrowths;
+    if (c->info().in_o) ++s.stats.camera_cells_regrown;
+  }
 }
 
 std::vector<SurfacePart> Engine::TakeFinalParts() {

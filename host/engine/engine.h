@@ -88,6 +88,15 @@ struct EngineOptions {
   VisibilityMode visibility_mode = VisibilityMode::kExact;  // Exact ray sets, the paper's
                                       // weights, or the baseline.
   int rays_per_cell = 5;              // K of the forgetting heuristic (kRays mode only).
+  int camera_path = 20;               // After each update, the cells holding the last this many
+                                      // camera centres and the segments between them join O
+                                      // (free space: the vehicle drove there), each with the
+                                      // free cells around it that keep dO manifold; 0: off.
+  int camera_path_repair = 16;        // Rounds of such free cells per path cell (each round: the
+                                      // free cells around a vertex the cell left irregular).
+  double camera_path_radius = 10.0;   // A path camera whose cell still is not in O: cells within
+                                      // this distance (m) of its cell's vertices leave O and grow
+                                      // again, from the camera's cell first; 0: never.
   double regrow_radius = 2.0;         // After each update, cells within this distance of a moved
                                       // or new point leave O (keeping it manifold) and are grown
                                       // again in weight order; 0: off.
@@ -283,6 +292,10 @@ struct EngineStats {
   int64_t steiner_points = 0;
   int64_t steiner_dropped = 0;
   int64_t cells_grown = 0;
+  int64_t cells_opened = 0;           // Cells that joined O on the camera path (camera_path).
+  int64_t camera_regrowths = 0;       // Cameras whose cell was outside O after grow: O peeled
+                                      // around them and grown again (camera_path_radius).
+  int64_t camera_cells_regrown = 0;   // Of those, the cells in O after it.
   int64_t cells_shrunk = 0;
   int64_t policy_calls = 0;
   int64_t rays_scan_cells = 0;        // kRays: cells visited by the whole-triangulation scans.

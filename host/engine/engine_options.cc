@@ -100,6 +100,11 @@ std::string EngineOptions::Check() const {
     e << "fill_holes_perimeter must be >= 0; ";
   if (smoothing_iterations < 0) e << "smoothing_iterations must be >= 0; ";
   if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";
+  if (camera_path < 0 || camera_path > 100000) e << "camera_path must be in [0, 100000]; ";
+  if (camera_path_repair < 0 || camera_path_repair > 64)
+    e << "camera_path_repair must be in [0, 64]; ";
+  if (!std::isfinite(camera_path_radius) || camera_path_radius < 0.0)
+    e << "camera_path_radius must be >= 0; ";
   if (!(min_move_fraction >= 0.0 && min_move_fraction <= 1.0))
     e << "min_move_fraction must be in [0, 1]; ";
   if (!finite_positive(max_ray_length)) e << "max_ray_length must be > 0; ";

@@ -784,8 +784,19 @@ class Carving {
   // `new_component`: a free cell that may start a component of O of its own (forget: where
   // the cameras come back to space that was forgotten, O is no longer there to grow from).
   void Grow(Cell_handle new_component = Cell_handle());
+  // The camera path: the cells of `path` (in path order) join O even if not free, each with the
+  // fewest free cells around it that keep dO manifold (AddWithRepair); a cell that cannot,
+  // or that touches no cell of O yet, waits for the next pass. Returns the cells that joined.
+  int64_t OpenPath(const std::vector<Cell_handle>& path);
+  // c joins O even if not free: touching O, as AddWithRepair; else alone if that keeps dO
+  // manifold. Returns whether it did; its neighbours are then grow's seeds.
+  bool ForceCell(Cell_handle c);
 
  private:
+  // c joins O; while a vertex of the cells added is not regular, the free cells around it that
+  // are not in O join too (up to camera_path_repair rounds). All or none: on failure O is back
+  // as it was. The cells added are appended to `added`.
+  bool AddWithRepair(Cell_handle c, std::vector<Cell_handle>* added);
   bool VertexRegular(Vertex_handle v, Cell_handle toggled);
   bool VertexTouchesSide(Cell_handle c, int i, bool adding);
   bool EdgeTouchesSide(Cell_handle c, int i, int j, bool adding) const;
@@ -1121,6 +1132,12 @@ struct Engine::Impl {
   void Forget();
   // forget: the cell holding the newest camera (null when it is outside the hull or none).
   Cell_handle CameraCell();
+  // camera_path: the cells holding the last camera_path camera centres and those the segments
+  // between them cross, in path order (finite cells, each once).
+  std::vector<Cell_handle> CameraPathCells();
+  // After grow: the path's cells again (OpenPath), then each path camera whose cell is still
+  // outside O gets O peeled within camera_path_radius and grown again from its cell.
+  void OpenCameraPath();
 
   int64_t steiner_nodes_ = 0;  // grid nodes tried, placed or refused: names the next one
   std::vector<uint32_t> entered_;  // kExact: points that entered during this update

@@ -30,6 +30,9 @@ TEST(EngineOptionsTest, DefaultsAreValid) {
   EXPECT_EQ(o.exact_min_rays, 2);
   EXPECT_EQ(o.steiner_export, SteinerExportRule::kAnySteiner);
   EXPECT_EQ(o.regrow_radius, 2.0);
+  EXPECT_EQ(o.camera_path, 20);
+  EXPECT_EQ(o.camera_path_repair, 16);
+  EXPECT_EQ(o.camera_path_radius, 10.0);
   EXPECT_EQ(o.max_ray_length, 40.0);
   EXPECT_EQ(o.long_rays, LongRays::kNearCamera);
   EXPECT_EQ(o.fill_holes_perimeter, 16.0);

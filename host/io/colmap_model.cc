@@ -4,6 +4,8 @@
 #include "host/util/atomic_file.h"
 #include "host/util/json_text.h"
 
+#include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -296,6 +298,52 @@ ColmapModel ReadColmapBinary(const fs::path& dir) {
   return m;
 }
 
+std::string ColmapFolderHint(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return "";
+  auto is_model = [&](const fs::path& d) {
+    for (const char* ext : {".bin", ".txt"})
+      if (fs::exists(d / (std::string("cameras") + ext), ec) &&
+          fs::exists(d / (std::string("images") + ext), ec))
+        return true;
+    return false;
+  };
+  std::vector<std::string> models;
+  size_t images = 0;
+  std::string first_image;
+  fs::directory_iterator it(dir, ec), end;
+  // At most 100,000 entries looked at: a hint, not a scan of a huge folder.
+  for (size_t seen = 0; !ec && it != end && seen < 100000; it.increment(ec), ++seen) {
+    const fs::path& p = it->path();
+    std::error_code e2;
+    if (fs::is_directory(p, e2)) {
+      if (is_model(p)) models.push_back(p.filename().string());
+      continue;
+    }
+    std::string ext = p.extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".tif" || ext == ".tiff" ||
+        ext == ".bmp" || ext == ".webp" || ext == ".heic" || ext == ".cr2" || ext == ".dng") {
+      if (images++ == 0) first_image = p.filename().string();
+    }
+  }
+  std::sort(models.begin(), models.end());
+  if (!models.empty()) {
+    std::string list;
+    for (size_t i = 0; i < models.size() && i < 10; ++i) list += (i ? ", " : "") + models[i];
+    if (models.size() > 10) list += ", ...";
+    return "it holds " + std::to_string(models.size()) + " COLMAP sub-model" +
+           (models.size() == 1 ? "" : "s") + " (" + list + "), as a mapper's sparse/ does: mesh one, e.g. " +
+           (dir / models[0]).string() + " (the largest is usually the one to mesh)";
+  }
+  if (images > 0)
+    return "it holds " + std::to_string(images) + " image" + (images == 1 ? "" : "s") + " (" +
+           first_image + ", ...), not a model: an SfM run must make one first (COLMAP's "
+           "automatic_reconstructor or feature_extractor, exhaustive_matcher and mapper), then "
+           "mesh its sparse/0";
+  return "";
+}
+
 ColmapModel ReadColmapModel(const fs::path& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
@@ -311,9 +359,11 @@ ColmapModel ReadColmapModel(const fs::path& dir) {
   for (const char* n : {"cameras", "images", "points3D"})
     if (!fs::exists(dir / (std::string(n) + ".txt"), ec) && !fs::exists(dir / (std::string(n) + ".bin"), ec))
       missing += std::string(missing.empty() ? "" : ", ") + n + ".{txt,bin}";
+  const std::string hint = ColmapFolderHint(dir);
   Fail(dir.string(), "not a complete COLMAP model: " +
                          (missing.empty() ? std::string("mixed .txt and .bin files (need all three of one kind)")
-                                          : "missing " + missing));
+                                          : "missing " + missing) +
+                         (hint.empty() ? "" : "; " + hint));
 }
 
 void CheckColmapModel(const ColmapModel& m, const std::string& where, const std::string& ext) {

@@ -61,6 +61,10 @@ struct ColmapModel {
 // (binary) and the id: malformed or truncated files, dangling ids (an image's camera, a track's
 // image or 2D point index, a 2D point's 3D point), a quaternion of zero length.
 ColmapModel ReadColmapModel(const std::filesystem::path& dir);
+// For a folder that is not a COLMAP model: what it is instead, as a sentence that says what to
+// do (sub-models 0, 1, ... of a mapper's sparse/: name one; a folder of photos: an SfM run must
+// make a model first); "" when it is neither.
+std::string ColmapFolderHint(const std::filesystem::path& dir);
 ColmapModel ReadColmapText(const std::filesystem::path& dir);
 ColmapModel ReadColmapBinary(const std::filesystem::path& dir);
 

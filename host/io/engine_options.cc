@@ -92,6 +92,16 @@ std::vector<EngineOption> MakeTable() {
       Option("regrow_radius", &E::regrow_radius, Min(0.0), "m",
              "after each keyframe, O is labelled again in weight order within this distance of "
              "moved and new points; 0: off"),
+      Option("camera_path", &E::camera_path, {{"minimum", 0}, {"maximum", 100000}}, "cameras",
+             "after each keyframe, the cells holding the last this many camera centres and the "
+             "segments between them join O (the vehicle drove there: free space), each with the "
+             "free cells around it that keep the surface a manifold; 0: off"),
+      Option("camera_path_repair", &E::camera_path_repair, {{"minimum", 0}, {"maximum", 64}},
+             "rounds", "camera_path: how many rounds of free cells around a vertex a path cell "
+             "left irregular may join with it"),
+      Option("camera_path_radius", &E::camera_path_radius, Min(0.0), "m",
+             "camera_path: a camera whose cell is still outside O after grow has O peeled within "
+             "this distance of its cell's vertices and grown again from its cell; 0: never"),
       Option("min_move_fraction", &E::min_move_fraction, {{"minimum", 0.0}, {"maximum", 1.0}}, "",
              "a move shorter than this fraction of the distance from the point to its nearest "
              "neighbouring vertex is not made (the vertex and its rays stay); 0: every move "
@@ -151,7 +161,7 @@ std::vector<EngineOption> MakeTable() {
       {"enum", {"auto", "metric"}},
       {"description",
        "lengths in scene units (steiner_spacing, steiner_margin, max_ray_length, shrink_radius, "
-       "regrow_radius, fill_holes_perimeter): auto scales those the job does not set by the "
+       "regrow_radius, camera_path_radius, fill_holes_perimeter): auto scales those the job does not set by the "
        "median ray of the first keyframes / 25; metric keeps the defaults (a street in metres). "
        "Default: auto for colmap, openmvg, slam_json and middlebury, metric for the others"}};
   t.push_back(std::move(scale));

@@ -18,6 +18,7 @@ const std::vector<std::pair<std::string, double engine::EngineOptions::*>>& Leng
       {"max_ray_length", &engine::EngineOptions::max_ray_length},
       {"shrink_radius", &engine::EngineOptions::shrink_radius},
       {"regrow_radius", &engine::EngineOptions::regrow_radius},
+      {"camera_path_radius", &engine::EngineOptions::camera_path_radius},
       {"fill_holes_perimeter", &engine::EngineOptions::fill_holes_perimeter},
   };
   return fields;

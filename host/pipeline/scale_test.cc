@@ -87,10 +87,11 @@ TEST(ScaleTest, EveryLengthTheJobDoesNotSetIsScaled) {
   EXPECT_DOUBLE_EQ(o.max_ray_length, 0.1 * metric.max_ray_length);
   EXPECT_DOUBLE_EQ(o.shrink_radius, 0.1 * metric.shrink_radius);
   EXPECT_DOUBLE_EQ(o.regrow_radius, 0.1 * metric.regrow_radius);
+  EXPECT_DOUBLE_EQ(o.camera_path_radius, 0.1 * metric.camera_path_radius);
   EXPECT_DOUBLE_EQ(o.fill_holes_perimeter, 0.1 * metric.fill_holes_perimeter);
   EXPECT_EQ(o.window, 9);
   EXPECT_EQ(o.Check(), "");
-  EXPECT_EQ(ScaledOptionNames().size(), 6u);
+  EXPECT_EQ(ScaledOptionNames().size(), 7u);
 
   const json j = ScaleJson(ScaleMode::kAuto, e, o, {"steiner_spacing"});
   EXPECT_EQ(j["mode"], "auto");

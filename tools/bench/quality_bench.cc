@@ -81,6 +81,9 @@ struct Row {
   std::optional<double> road;     // synth: completeness of the road alone at 0.2 m
   double roughness = 0.0;         // mean angle between neighbouring face normals, degrees
   bool refined = false;           // the job had a mesh_refiner stage
+  // imr rows, from report.json: the share of the keyframes' camera centres in O (free space)
+  // after their update, and of the visible area seen from behind over the keyframe views.
+  std::optional<double> cameras_in_o, back_facing;
   eval::MeshStatistics stats;
 };
 
@@ -200,6 +203,15 @@ bool RunImr(const json& job, const fs::path& work, const std::string& name,
     row->note = "imr run failed (" + (work / (name + ".log")).string() + ")";
     return false;
   }
+  // One sequence: its report.json is in the output folder.
+  if (job.contains("output") && job["output"].contains("directory")) {
+    std::ifstream in(fs::path(job["output"]["directory"].get<std::string>()) / "report.json");
+    const json report = json::parse(in, nullptr, /*allow_exceptions=*/false);
+    if (report.is_object() && report.contains("engine") && report["engine"].contains("cameras_in_o"))
+      row->cameras_in_o = report["engine"]["cameras_in_o"].value("share", 0.0);
+    if (report.is_object() && report.contains("mesh") && report["mesh"].contains("back_facing"))
+      row->back_facing = report["mesh"]["back_facing"].value("share", 0.0);
+  }
   return true;
 }
 
@@ -299,7 +311,7 @@ struct Target {
 };
 
 void Print(const std::string& title, const std::vector<Row>& rows,
-           const std::vector<Target>& targets, json* out) {
+           std::vector<Target> targets, json* out) {
   std::printf("\n### %s\n\n", title.c_str());
   std::printf("| mesher | wall s | RSS MB | compl. 0.2 | prec. 0.2 | F 0.2 | F 0.5 | truth→mesh "
               "mean / median (m) | mesh→truth mean (m) | manifold | roughness ° |%s\n",
@@ -334,7 +346,19 @@ void Print(const std::string& title, const std::vector<Row>& rows,
               {"faces", r.stats.faces},
               {"roughness_deg", r.roughness}});
     if (r.road) j["road_completeness"] = *r.road;
+    if (r.cameras_in_o) j["cameras_in_o"] = *r.cameras_in_o;
+    if (r.back_facing) j["back_facing"] = *r.back_facing;
     list.push_back(j);
+  }
+  // The camera path (issue 34): cameras in free space, and no surface seen from behind.
+  for (const Row& r : rows)
+    if (r.ok && r.cameras_in_o && r.back_facing)
+      std::printf("%s: keyframe camera centres in O %.1f %%, visible area seen from behind "
+                  "%.2f %% (keyframe views)\n",
+                  r.mesher.c_str(), 100.0 * *r.cameras_in_o, 100.0 * *r.back_facing);
+  if (!rows.empty() && rows[0].ok && rows[0].cameras_in_o && rows[0].back_facing) {
+    targets.push_back({"keyframe camera centres in O", 1.0, true, *rows[0].cameras_in_o});
+    targets.push_back({"visible area seen from behind", 0.01, false, *rows[0].back_facing});
   }
   for (const Row& r : rows)
     if (!r.ok || r.note.empty()) continue;
