@@ -1608,7 +1608,7 @@ TEST_F(BadSfm, ColmapModelOfTwoImages) {
   WriteText(model / "points3D.txt", text);
   ExpectOnlyTheBadSequenceFails(EngineJob("colmap", {"bad", Fixture("colmap")}), "bad", "colmap",
                                 {(model / "images.txt").string(), "nothing to mesh: only 2 posed views",
-                                 "at least 3"});
+                                 "at least 3", "register more images"});
 }
 
 TEST_F(BadSfm, OpenMvgWithoutStructure) {

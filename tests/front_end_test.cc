@@ -218,6 +218,31 @@ TEST_F(FrontEnd, OverlapWithTheEngineChangesNoOutput) {
   EXPECT_EQ(report[1]["engine"]["keyframes"], 13);
 }
 
+// A short image set gets keyframes it can mesh unless the job chose keyframe_every (issue 37:
+// the Middlebury rings of 16 images made 4 keyframes and no surface); when the job did choose
+// and nothing is meshed, the message says what would change it.
+TEST_F(FrontEnd, ShortImageSetGetsMoreKeyframesUnlessTheJobChose) {
+  for (const bool chosen : {false, true}) {
+    json options = {{"frame_count", 16}};
+    if (chosen) options["keyframe_every"] = 5;
+    const std::string name = chosen ? "short-chosen" : "short";
+    json job = ImageJob("kitti_odometry", {Sequence().string()}, options);
+    job["output"]["directory"] = (*dir_ / (name + "/{sequence}")).string();
+    const CommandResult r = RunJob(job, name);
+    const fs::path out = *dir_ / name / "street";
+    if (!chosen) {
+      ASSERT_EQ(r.status, 0) << r.err;
+      EXPECT_EQ(ReadJson(out / "report.json")["engine"]["keyframes"], 16);
+    } else if (r.status == 0) {
+      EXPECT_EQ(ReadJson(out / "report.json")["engine"]["keyframes"], 4);
+    } else {
+      const std::string summary = ReadText(*dir_ / name / "summary.json");
+      EXPECT_NE(summary.find("0 triangles after 4 keyframes"), std::string::npos) << summary;
+      EXPECT_NE(summary.find("--set input.options.keyframe_every=1"), std::string::npos) << summary;
+    }
+  }
+}
+
 // host/pipeline/REPORT.md, key by key, on a real report of the image pipeline with ground truth.
 TEST_F(FrontEnd, ReportFollowsTheDocumentedSchema) {
   json job = ImageJob("kitti_odometry", {Sequence().string()});

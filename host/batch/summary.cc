@@ -111,6 +111,7 @@ std::filesystem::path WriteViewerPage(const std::filesystem::path& batch_dir, co
   try {
     const report::ViewerPageResult page = report::WriteBatchPage(batch_dir, summary);
     for (const std::string& note : page.notes) LogWarning("viewer page: " + note);
+    for (const std::string& line : page.info) LogInfo("viewer page: " + line);
     return page.page;
   } catch (const std::exception& e) {
     LogWarning(std::string("viewer page not written: ") + e.what());

@@ -547,6 +547,7 @@ int CmdReport(const std::vector<std::string>& args) {
     try {
       const auto page = imr::report::WriteBatchPage(dir, summary);
       for (const std::string& note : page.notes) imr::LogWarning("viewer page: " + note);
+      for (const std::string& line : page.info) imr::LogInfo("viewer page: " + line);
       std::printf("viewer page: %s (%d mesh%s in 3D%s)\n", page.page.string().c_str(),
                   page.meshes_viewable, page.meshes_viewable == 1 ? "" : "es",
                   page.tilesets_viewable == 0   ? ""

@@ -847,7 +847,7 @@ TEST(ColmapInTheWild, NothingToMeshIsSaidWithTheFileAndWhy) {
                                     "3 1 0 0 0 -3 -2 -3 1 c.png\n120 340 7\n");
   Write(dir / "two" / "points3D.txt", "7 2 2.5 7 255 0 0 0.5 1 0 3 0\n");
   EXPECT_ERROR(ErrorOf("colmap", dir / "two"), (dir / "two" / "images.txt").string(),
-               "nothing to mesh: only 2 posed views", "at least 3");
+               "nothing to mesh: only 2 posed views", "at least 3", "register more images");
 
   // Every point seen by one image only (min_views 2).
   WriteColmapTextScene(dir / "single");

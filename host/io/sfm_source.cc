@@ -64,7 +64,9 @@ class SfmSource : public PrecomputedKeyframeSource {
       nothing(model_.views_file.empty() ? model_.file : model_.views_file,
               "only " + std::to_string(n) + " posed view" + (n == 1 ? "" : "s") +
                   " (images with a pose); a mesh needs rays from at least " +
-                  std::to_string(kMinViewsToMesh) + " (a model of the initial pair only?)");
+                  std::to_string(kMinViewsToMesh) + " (a model of the initial pair only?): register "
+                  "more images (COLMAP: image_registrator, or mapper with more overlap between "
+                  "images; with COLMAP 3.12 rigs, every image of each frame), then mesh again");
     std::vector<std::size_t> order(n);
     for (std::size_t i = 0; i < n; ++i) {
       order[i] = i;

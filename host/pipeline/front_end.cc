@@ -11,6 +11,18 @@
 #include <stdexcept>
 
 namespace imr::pipeline {
+
+int KeyframeCount(int frames, int keyframe_every) {
+  if (frames <= 0 || keyframe_every < 1) return 0;
+  const int last = frames - 1;
+  return last / keyframe_every + 1 + (last % keyframe_every != 0 ? 1 : 0);
+}
+
+int ShortSequenceKeyframeEvery(int frames, int keyframe_every) {
+  int k = keyframe_every;
+  while (k > 1 && KeyframeCount(frames, k) < std::min(frames, kMinKeyframes)) --k;
+  return k;
+}
 using nlohmann::json;
 
 namespace {

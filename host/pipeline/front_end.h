@@ -27,6 +27,14 @@
 
 namespace imr::pipeline {
 
+// Keyframes `frames` frames make at `keyframe_every` (every k-th from frame 0, and the last).
+int KeyframeCount(int frames, int keyframe_every);
+// The fewest keyframes a job that did not choose keyframe_every gets: a short image set (a
+// Middlebury ring of 16) at the default would give the engine too few views to mesh.
+constexpr int kMinKeyframes = 12;
+// keyframe_every, lowered while it gives fewer than kMinKeyframes keyframes (never below 1).
+int ShortSequenceKeyframeEvery(int frames, int keyframe_every);
+
 struct FrontEndOptions {
   int keyframe_every = 5;  // a keyframe every this many frames (paper: 5)
   // Ground-truth evaluation of synthetic sequences: true surface samples are taken by casting

@@ -260,9 +260,21 @@ void SequenceRun::OpenSource() {
     FrontEndOptions fo;
     fo.keyframe_every = io::ImageSequenceOptionsFromJson(v_.input_options).keyframe_every;
     fo.track_ahead = overlap_;
-    auto fe = std::make_unique<ImageFrontEndSource>(
-        format_->open_images(seq_.source, v_.input_options), features_->instance,
-        refiner_->instance, fo);
+    io::ImageSequence images = format_->open_images(seq_.source, v_.input_options);
+    // A short image set (a Middlebury ring of 16) at the default keyframe_every would give the
+    // engine too few keyframes to mesh: unless the job chose it, fewer frames between keyframes.
+    if (!job_.input.options.contains("keyframe_every")) {
+      const int frames = static_cast<int>(images.frames.size());
+      const int chosen = ShortSequenceKeyframeEvery(frames, fo.keyframe_every);
+      if (chosen != fo.keyframe_every)
+        LogInfo("[" + seq_.name + "] " + std::to_string(frames) + " frames: a keyframe every " +
+                std::to_string(chosen) + " (keyframe_every " + std::to_string(fo.keyframe_every) +
+                " would give " + std::to_string(KeyframeCount(frames, fo.keyframe_every)) +
+                " keyframes; input.options.keyframe_every chooses)");
+      fo.keyframe_every = chosen;
+    }
+    auto fe = std::make_unique<ImageFrontEndSource>(std::move(images), features_->instance,
+                                                    refiner_->instance, fo);
     fe->Watch(&watch_, &watched_[features_stage_], &watched_[refiner_stage_]);
     if (overlap_) fe->TrackOn(&*features_lane_);
     front_end_ = fe.get();
@@ -648,10 +660,16 @@ void SequenceRun::WarnAbout() {
       Warn(w);
   const int64_t triangles = streamed_ ? streamed_->stats().stream.triangles_released
                                       : static_cast<int64_t>(mesh_->faces.size() / 3);
-  if (triangles == 0)
+  if (triangles == 0) {
+    // What would change it: more keyframes for a short image set, the scale for a scene of
+    // another size.
+    std::string hint;
+    if (front_end_ != nullptr && keyframes_ < kMinKeyframes)
+      hint = "; few keyframes: --set input.options.keyframe_every=1 makes every frame one";
     throw std::runtime_error("no surface was reconstructed (0 triangles after " +
-                             std::to_string(keyframes_) + " keyframes): nothing to export" +
+                             std::to_string(keyframes_) + " keyframes): nothing to export" + hint +
                              (scale_hint.empty() ? "" : "; " + scale_hint));
+  }
   if (recording_ != nullptr && recording_->recorder().unrepresentable() > 0)
     Warn(std::to_string(recording_->recorder().unrepresentable()) +
          " points entered the engine with no camera: the exported stream cannot hold them, so "

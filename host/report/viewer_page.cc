@@ -126,7 +126,8 @@ fs::path Absolute(const fs::path& p, const fs::path& run_dir) {
   return (p.is_absolute() ? p : run_dir / p).lexically_normal();
 }
 
-Row ReadRow(const json& s, std::size_t index, const fs::path& run_dir, std::vector<std::string>* notes) {
+Row ReadRow(const json& s, std::size_t index, const fs::path& run_dir, std::vector<std::string>* notes,
+            std::vector<std::string>* no_mesh) {
   const std::string where = "summary: sequences[" + std::to_string(index) + "]";
   if (!s.is_object()) throw std::invalid_argument(where + ": expected an object");
   Row r;
@@ -183,8 +184,10 @@ Row ReadRow(const json& s, std::size_t index, const fs::path& run_dir, std::vect
     if (!r.mesh.empty()) break;
   }
   if (!r.output.empty() && fs::is_regular_file(r.output / "tileset.json")) r.tileset = r.output / "tileset.json";
-  if (r.mesh.empty() && r.tileset.empty())
-    notes->push_back(r.name + ": no .glb or .gltf mesh among its outputs: no 3D view");
+  // Only a sequence that finished could have written one.
+  const bool finished = (s.contains("status") && s["status"] == "ok") ||
+                        (s.contains("ok") && s["ok"] == true);
+  if (r.mesh.empty() && r.tileset.empty() && finished) no_mesh->push_back(r.name);
   return r;
 }
 
@@ -508,8 +511,20 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
   result.page = run_dir / "index.html";
 
   std::vector<Row> rows;
+  std::vector<std::string> no_mesh;  // sequences with neither a .glb/.gltf mesh nor tiles
   for (std::size_t i = 0; i < summary["sequences"].size(); ++i)
-    rows.push_back(ReadRow(summary["sequences"][i], i, run_dir, &result.notes));
+    rows.push_back(ReadRow(summary["sequences"][i], i, run_dir, &result.notes, &no_mesh));
+  if (!no_mesh.empty()) {
+    std::string names;
+    for (std::size_t i = 0; i < no_mesh.size() && i < 3; ++i) names += (i ? ", " : "") + no_mesh[i];
+    if (no_mesh.size() > 3) names += ", ...";
+    result.info.push_back(
+        "the 3D view shows .glb and .gltf meshes; " +
+        (no_mesh.size() == 1 ? std::string("1 sequence")
+                             : std::to_string(no_mesh.size()) + " sequences") +
+        " wrote neither (" + names + "): add \"glb\" to output.formats to see " +
+        (no_mesh.size() == 1 ? "it" : "them") + " there");
+  }
 
   // <model-viewer> beside the page.
   const fs::path assets = run_dir / "assets";

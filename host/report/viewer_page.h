@@ -88,6 +88,9 @@ struct ViewerPageResult {
   int tilesets_viewable = 0;                 // sequences with a view of their 3D Tiles
   std::vector<std::string> notes;            // what is missing and why (no model-viewer, a mesh
                                              // too large, a report that could not be read, ...)
+  std::vector<std::string> info;             // what the page leaves out by the job's choice, said
+                                             // once (sequences that wrote no .glb/.gltf: no 3D
+                                             // view): not a problem, no warning
 };
 
 // Writes the page into `run_dir` (which must exist). Throws std::invalid_argument for a summary

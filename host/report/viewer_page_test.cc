@@ -208,6 +208,23 @@ TEST_F(ViewerPage, BatchSummaryRowsReadReportAndMeshFromTheOutputFolder) {
   EXPECT_NE(html.find(">0.25</td>"), std::string::npos);
   EXPECT_NE(html.find("<a href=\"a/mesh.glb\">glb</a>"), std::string::npos);  // not the snapshot
   EXPECT_NE(html.find("<td class=\"status-bad\">not run</td>"), std::string::npos);
+  EXPECT_TRUE(r.info.empty()) << r.info.front();  // b did not run: nothing to say about its mesh
+}
+
+// PLY asked for: not a problem, said once for the batch (issue 37), no warning per sequence.
+TEST_F(ViewerPage, SequencesWithoutAGlbAreNamedOnceAsInfo) {
+  json sequences = json::array();
+  for (const char* name : {"a", "b", "c", "d"}) {
+    Write(std::string("runs/") + name + "/mesh.ply", "ply\n");
+    sequences.push_back({{"name", name}, {"status", "ok"}, {"output", (dir_ / "runs" / name).string()},
+                         {"seconds", 1.0}, {"error", nullptr}});
+  }
+  const ViewerPageResult r = WriteBatchPage(dir_ / "runs", {{"imr_summary", 1}, {"sequences", sequences}}, options_);
+  EXPECT_EQ(r.meshes_viewable, 0);
+  EXPECT_TRUE(r.notes.empty()) << r.notes.front();
+  ASSERT_EQ(r.info.size(), 1u);
+  EXPECT_NE(r.info[0].find("4 sequences wrote neither (a, b, c, ...)"), std::string::npos) << r.info[0];
+  EXPECT_NE(r.info[0].find("add \"glb\" to output.formats"), std::string::npos) << r.info[0];
 }
 
 TEST_F(ViewerPage, WithoutModelViewerThePageSaysSo) {
