@@ -1030,7 +1030,7 @@ TEST_F(Overlap, PolicyHangsWhileTheFrontEndRunsAhead) {
   job["pipeline"][2]["timeout_seconds"] = 1;
   const json row = ExpectTheSameFailureWithAndWithout(
       job, {"stage \"weight_policy\" (pipeline[2], plugin org.imr.test.policy.failing) did not "
-            "return within 1 s (keyframe 2, frame 10); the limit is pipeline[2].timeout_seconds"});
+            "return within 1 s (keyframe 2, frame 6); the limit is pipeline[2].timeout_seconds"});
   EXPECT_EQ(row["exit_code"], 124) << row.dump(2);
 }
 

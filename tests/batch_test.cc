@@ -109,7 +109,7 @@ TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
   EXPECT_NE(md.find("| street | ok | 12 |"), std::string::npos) << md;
 
   // Nothing changed: nothing is redone.
-  r = Imr("run -q " + Quote(job.string()));
+  r = Imr("run " + Quote(job.string()));
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_EQ(Listed(r.out, "skipped"), (std::set<std::string>{"street", "room", "plane"})) << r.out;
   EXPECT_EQ(ReadJson(dir_ / "runs" / "summary.json")["counts"]["reused"], 3);
@@ -123,7 +123,7 @@ TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
   json changed = Job(12);
   changed["pipeline"][1]["params"] = {{"point_ids", true}};
   WriteJob(changed);
-  r = Imr("run -q " + Quote(job.string()));
+  r = Imr("run " + Quote(job.string()));
   EXPECT_EQ(Listed(r.out, "skipped").size(), 3u) << r.out;
   changed["pipeline"][1]["params"] = {{"point_ids", false}};
   WriteJob(changed);
@@ -131,7 +131,7 @@ TEST_F(Batch, ManySequencesGiveASummaryAndARerunSkipsThem) {
   EXPECT_EQ(Listed(r.out, "ok").size(), 3u) << r.out;
   EXPECT_NE(r.err.find("the job changed since the last run (pipeline)"), std::string::npos) << r.err;
   // --force redoes all.
-  r = Imr("run -q --force " + Quote(job.string()));
+  r = Imr("run --force " + Quote(job.string()));
   EXPECT_EQ(Listed(r.out, "ok").size(), 3u) << r.out;
 }
 
@@ -148,8 +148,8 @@ TEST_F(Batch, ARedoneSequenceDropsFilesItNoLongerWrites) {
 
 TEST_F(Batch, TwoShardsCoverEverySequenceExactlyOnce) {
   const fs::path job = WriteJob(Job(15));
-  auto a = Imr("run -q --shard 1/2 " + Quote(job.string()));
-  auto b = Imr("run -q --shard 2/2 " + Quote(job.string()));
+  auto a = Imr("run --shard 1/2 " + Quote(job.string()));
+  auto b = Imr("run --shard 2/2 " + Quote(job.string()));
   ASSERT_EQ(a.status, 0) << a.out << a.err;
   ASSERT_EQ(b.status, 0) << b.out << b.err;
   const auto first = Listed(a.out, "ok"), second = Listed(b.out, "ok");
@@ -169,7 +169,7 @@ TEST_F(Batch, TwoShardsCoverEverySequenceExactlyOnce) {
   EXPECT_EQ(Listed(s.out, "skipped"), second) << s.out << s.err;
   EXPECT_NE(s.err.find("shard 2/2 (Slurm array task 1)"), std::string::npos) << s.err;
   // Listing order does not matter (and the same job in another order is up to date).
-  auto c = Imr("run -q --shard 1/2 " +
+  auto c = Imr("run --shard 1/2 " +
                Quote(WriteJob(Job(15, {"plane", "street", "room"}), "reordered.json").string()));
   EXPECT_EQ(Listed(c.out, "skipped"), first) << c.out;
 

@@ -326,7 +326,11 @@ TEST_F(Cli, RunWritesMeshesAndAReport) {
   // touch Steiner points (engine tests bound the real-point surface).
   EXPECT_LT(report["accuracy"]["mean_truth_to_mesh"].get<double>(), 0.5);
   EXPECT_GT(report["accuracy"]["completeness"].get<double>(), 0.6);
+  // -q: errors and warnings only (issue 37): no ok line, no summary lines on stdout.
+  EXPECT_EQ(r.out, "");
+  r = Imr("run --force " + Quote((dir_ / "job.json").string()));
   EXPECT_NE(r.out.find("1 sequence, 0 failed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ok      street"), std::string::npos) << r.out;
 }
 
 // Two processes (different memory layouts) write the same bytes: outputs are reproducible.
@@ -352,7 +356,7 @@ TEST_F(Cli, OneFailingSequenceDoesNotStopTheOthers) {
   j["input"]["options"]["frames"] = 20;
   // Make room's output folder impossible (root ignores permissions): a file in its way.
   WriteText(dir_ / "runs" / "room", "not a folder");
-  auto r = Imr("run -q " + Quote(WriteJob(j).string()));
+  auto r = Imr("run " + Quote(WriteJob(j).string()));
   EXPECT_EQ(r.status, 1) << r.out << r.err;
   EXPECT_NE(r.out.find("FAILED  room"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("runs/room"), std::string::npos) << r.out;  // the path is named

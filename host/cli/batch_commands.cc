@@ -49,7 +49,8 @@ const char* kRunNotes =
     "--shard I/N runs the I-th of N balanced, deterministic shares (inside a Slurm array task\n"
     "the share comes from SLURM_ARRAY_TASK_ID/COUNT/MIN); a shard writes no summary: run\n"
     "`imr report RUN_DIR` when all are done. Progress: a bar on a terminal, else a line every\n"
-    "few seconds; -q: none.\n"
+    "few seconds; -q: none, and only errors and warnings (a failed sequence's line, no ok lines\n"
+    "and no summary lines: the exit status says the rest).\n"
     "Ctrl-C, SIGTERM and SIGHUP stop the run: no sequence starts, the running ones get SIGTERM\n"
     "(SIGKILL 10 s later) and count as interrupted, and the summary is written.\n"
     "Exit status: 0 every sequence ok or up to date; else the number of sequences that failed,\n"
@@ -164,16 +165,20 @@ int CmdRun(const std::vector<std::string>& args) {
   }
   HandleStopSignals();
   const auto result = imr::batch::RunBatch(v, registry, run_options, batch);
-  // One line per sequence on stdout: where the results are, or why there are none.
+  // One line per sequence on stdout: where the results are, or why there are none; with -q
+  // only the ones that say why (errors), and no summary lines: the exit status tells the rest.
+  const bool quiet = vm.count("quiet") > 0;
   using imr::batch::SequenceStatus;
   for (const auto& s : result.outcomes) {
     const char* name = s.name.c_str();
     switch (s.status) {
       case SequenceStatus::kOk:
-        std::printf("ok      %-20s %7.2f s  %s\n", name, s.seconds, s.output_directory.string().c_str());
+        if (!quiet)
+          std::printf("ok      %-20s %7.2f s  %s\n", name, s.seconds, s.output_directory.string().c_str());
         break;
       case SequenceStatus::kSkipped:
-        std::printf("skipped %-20s up to date  %s\n", name, s.output_directory.string().c_str());
+        if (!quiet)
+          std::printf("skipped %-20s up to date  %s\n", name, s.output_directory.string().c_str());
         break;
       case SequenceStatus::kFailed:
         std::printf("FAILED  %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
@@ -189,20 +194,22 @@ int CmdRun(const std::vector<std::string>& args) {
   const int failed = result.Count(SequenceStatus::kFailed) +
                      result.Count(SequenceStatus::kInterrupted) +
                      result.Count(SequenceStatus::kNotRun);
-  std::printf("%zu sequence%s, %d failed", result.outcomes.size(),
-              result.outcomes.size() == 1 ? "" : "s", result.Count(SequenceStatus::kFailed));
-  if (const int n = result.Count(SequenceStatus::kInterrupted)) std::printf(", %d interrupted", n);
-  if (const int n = result.Count(SequenceStatus::kSkipped)) std::printf(", %d skipped (up to date)", n);
-  if (const int n = result.Count(SequenceStatus::kNotRun)) std::printf(", %d not run", n);
-  if (batch.shard.active())
-    std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
-                batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
-  else if (result.summary_written)
-    std::printf("\nsummary: %s%s%s\n", (result.batch_directory / "summary.md").string().c_str(),
-                result.viewer_page.empty() ? "" : "\nviewer page: ",
-                result.viewer_page.string().c_str());
-  else
-    std::printf("\n");
+  if (!quiet) {
+    std::printf("%zu sequence%s, %d failed", result.outcomes.size(),
+                result.outcomes.size() == 1 ? "" : "s", result.Count(SequenceStatus::kFailed));
+    if (const int n = result.Count(SequenceStatus::kInterrupted)) std::printf(", %d interrupted", n);
+    if (const int n = result.Count(SequenceStatus::kSkipped)) std::printf(", %d skipped (up to date)", n);
+    if (const int n = result.Count(SequenceStatus::kNotRun)) std::printf(", %d not run", n);
+    if (batch.shard.active())
+      std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
+                  batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
+    else if (result.summary_written)
+      std::printf("\nsummary: %s%s%s\n", (result.batch_directory / "summary.md").string().c_str(),
+                  result.viewer_page.empty() ? "" : "\nviewer page: ",
+                  result.viewer_page.string().c_str());
+    else
+      std::printf("\n");
+  }
   // The summary is the batch's result: not writing it is the batch folder's failure (its error
   // is on stderr), whatever the sequences did.
   if (!batch.shard.active() && !result.summary_written) return imr::kExitCantCreate;
@@ -233,7 +240,7 @@ int CmdMesh(const std::vector<std::string>& args) {
       "work", po::value<std::string>()->value_name("DIR"),
       "where the job and its run go (default: beside --out, named after it, ending in .imr)");
   AddJobOverrideFlag(opts);
-  opts.add_options()("help,h", "show this help")("quiet,q", "only errors")("verbose,v",
+  opts.add_options()("help,h", "show this help")("quiet,q", "errors and warnings only")("verbose,v",
                                                                            "debug output");
   po::variables_map vm;
   std::vector<std::string> forwarded;  // options of imr run
@@ -369,8 +376,9 @@ int CmdMesh(const std::vector<std::string>& args) {
   for (const std::string& n : copied)
     if (n != out.filename().string()) companions += (companions.empty() ? " (with " : ", ") + n;
   if (!companions.empty()) companions += ")";
-  std::printf("mesh: %s%s\nthe run (job.json, mesh/report.json): %s\n", out.string().c_str(),
-              companions.c_str(), work.string().c_str());
+  if (!vm.count("quiet"))
+    std::printf("mesh: %s%s\nthe run (job.json, mesh/report.json): %s\n", out.string().c_str(),
+                companions.c_str(), work.string().c_str());
   return kExitOk;
 }
 

@@ -23,7 +23,7 @@ bool ParseCommand(const std::string& name, const std::string& synopsis,
                   po::options_description& opts, po::positional_options_description& pos,
                   const std::vector<std::string>& args, po::variables_map* vm, int* status,
                   const std::vector<std::pair<std::string, std::string>>& missing_hint) {
-  opts.add_options()("help,h", "show this help")("quiet,q", "only errors")(
+  opts.add_options()("help,h", "show this help")("quiet,q", "errors and warnings only")(
       "verbose,v", "debug output");
   try {
     po::store(po::command_line_parser(args).options(opts).positional(pos).run(), *vm);
