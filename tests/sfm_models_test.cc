@@ -352,6 +352,40 @@ TEST_F(SfmModels, AFolderOfSubModelsRunsEachAsItsOwnSequence) {
   ExpectSameMeshAsTheBase("1");
 }
 
+// A share of the model collapsed to one spot (issue 37: 46 of 137 cameras and 1,362 of 3,091
+// points within 1 mm, a failed merge): left out, with a warning in the log and report.json.
+TEST_F(SfmModels, ACollapsedShareOfTheModelIsLeftOutWithAWarning) {
+  io::ColmapModel m = Base();
+  ASSERT_GE(m.images.size(), 9u);
+  // Every third image at image 0's pose (no baseline), every third point at one spot.
+  std::size_t cams = 0, pts = 0;
+  for (std::size_t i = 3; i < m.images.size(); i += 3, ++cams) {
+    m.images[i].qvec = m.images[0].qvec;
+    m.images[i].tvec = m.images[0].tvec;
+  }
+  const Vec3 spot = m.points[0].xyz;
+  for (std::size_t i = 3; i < m.points.size(); i += 3, ++pts)
+    m.points[i].xyz = {spot[0] + 1e-9 * static_cast<double>(i), spot[1], spot[2]};
+  Save(m, Case() / "collapsed", /*binary=*/false);
+  const CommandResult r = Run(ColmapJob({"collapsed"}));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const json report = ReadJson(Case() / "runs/collapsed/report.json");
+  const std::string warnings = report["warnings"].dump();
+  EXPECT_NE(warnings.find("sit at one spot"), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find("they were left out"), std::string::npos) << warnings;
+  EXPECT_NE(r.err.find("sit at one spot"), std::string::npos) << r.err;
+  const json c = report["input"]["summary"]["collapsed"];
+  ASSERT_TRUE(c.is_object()) << report["input"].dump(2);
+  // Image 0 is at the spot too: cams + 1 views; the points: pts plus point 0.
+  EXPECT_EQ(c["views"]["left_out"], cams + 1) << c.dump();
+  EXPECT_EQ(c["points"]["left_out"], pts + 1) << c.dump();
+  // The model as it was meshes without a word about it.
+  Save(Base(), Case() / "whole", /*binary=*/false);
+  const CommandResult w = Run(ColmapJob({"whole"}));
+  ASSERT_EQ(w.status, 0) << w.out << w.err;
+  EXPECT_EQ(w.err.find("sit at one spot"), std::string::npos) << w.err;
+}
+
 // imr mesh on what is not a model (issue 37): a usage error (64) that names --input, says what
 // the folder is and what to do, and writes nothing (no WORK folder beside --out).
 TEST_F(SfmModels, MeshOnWhatIsNotAModelSaysWhatItIsAndWritesNothing) {

@@ -1,6 +1,9 @@
 #include "host/io/sfm_source.h"
 
 #include <algorithm>
+#include <cmath>
+#include <map>
+#include <unordered_set>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -52,7 +55,98 @@ class SfmSource : public PrecomputedKeyframeSource {
   json Summary() const override { return summary_; }
 
  private:
+  // A share of the model collapsed to one spot (a failed merge in the SfM run: cameras with no
+  // baseline, points on top of each other) is left out, and said in the summary ("collapsed"):
+  // meshed, it is a blob of zero-area triangles. The spot: the grid cell of 1e-4 of the scene's
+  // diagonal that holds the most points (or camera centres); what lies within two cells of its
+  // mean is collapsed when it is at least 20 points and 5 % of them (3 centres and 10 %). The
+  // scene's diagonal is that of its 2nd to 98th percentiles.
+  json RemoveCollapsed() {
+    std::vector<Vec3> all;
+    for (const SfmPoint& p : model_.points) all.push_back(p.position);
+    for (const CameraGeometry& g : model_.views) all.push_back(g.center);
+    if (all.size() < 2) return nullptr;
+    // The extent without its outliers (2nd to 98th percentile per axis): a few far points must
+    // not make the cells large enough to hold a real object.
+    Vec3 lo{}, hi{};
+    std::vector<double> axis(all.size());
+    for (int a = 0; a < 3; ++a) {
+      for (std::size_t i = 0; i < all.size(); ++i) axis[i] = all[i][a];
+      std::sort(axis.begin(), axis.end());
+      lo[a] = axis[axis.size() * 2 / 100];
+      hi[a] = axis[axis.size() * 98 / 100];
+    }
+    const double diagonal = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) +
+                                      (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                      (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    if (!(diagonal > 0.0) || !std::isfinite(diagonal)) return nullptr;
+    const double cell = 1e-4 * diagonal;
+    // The spot where most of `points` sit, and how many are within two cells of it.
+    auto spot = [&](const std::vector<Vec3>& points, Vec3* at) {
+      std::map<std::array<int64_t, 3>, std::pair<std::size_t, Vec3>> grid;
+      for (const Vec3& p : points) {
+        std::array<int64_t, 3> k;
+        for (int a = 0; a < 3; ++a) k[a] = static_cast<int64_t>(std::floor((p[a] - lo[a]) / cell));
+        auto& [count, sum] = grid[k];
+        ++count;
+        for (int a = 0; a < 3; ++a) sum[a] += p[a];
+      }
+      std::size_t best = 0;
+      for (const auto& [k, v] : grid)
+        if (v.first > best) {
+          best = v.first;
+          for (int a = 0; a < 3; ++a) (*at)[a] = v.second[a] / static_cast<double>(v.first);
+        }
+      std::size_t near = 0;
+      for (const Vec3& p : points) near += Near(p, *at, 2.0 * cell) ? 1 : 0;
+      return near;
+    };
+    std::vector<Vec3> centres, positions;
+    for (const CameraGeometry& g : model_.views) centres.push_back(g.center);
+    for (const SfmPoint& p : model_.points) positions.push_back(p.position);
+    Vec3 camera_spot{}, point_spot{};
+    const std::size_t cams = spot(centres, &camera_spot);
+    const std::size_t pts = spot(positions, &point_spot);
+    const bool cams_collapsed = cams >= 3 && 10 * cams >= centres.size();
+    const bool pts_collapsed = pts >= 20 && 20 * pts >= positions.size();
+    if (!cams_collapsed && !pts_collapsed) return nullptr;
+    std::unordered_set<uint64_t> gone_views;
+    if (cams_collapsed)
+      for (const CameraGeometry& g : model_.views)
+        if (Near(g.center, camera_spot, 2.0 * cell)) gone_views.insert(g.id);
+    const std::size_t views_before = model_.views.size(), points_before = model_.points.size();
+    model_.views.erase(std::remove_if(model_.views.begin(), model_.views.end(),
+                                      [&](const CameraGeometry& g) { return gone_views.count(g.id) > 0; }),
+                       model_.views.end());
+    std::size_t points_gone = 0;
+    std::vector<SfmPoint> kept;
+    for (SfmPoint& p : model_.points) {
+      if (pts_collapsed && Near(p.position, point_spot, 2.0 * cell)) {
+        ++points_gone;
+        continue;
+      }
+      p.observations.erase(std::remove_if(p.observations.begin(), p.observations.end(),
+                                          [&](const SfmObservation& o) { return gone_views.count(o.view_id) > 0; }),
+                           p.observations.end());
+      kept.push_back(std::move(p));
+    }
+    model_.points = std::move(kept);
+    json c = {{"within", 2.0 * cell}};
+    if (cams_collapsed)
+      c["views"] = {{"left_out", gone_views.size()}, {"of", views_before},
+                    {"at", {camera_spot[0], camera_spot[1], camera_spot[2]}}};
+    if (pts_collapsed)
+      c["points"] = {{"left_out", points_gone}, {"of", points_before},
+                     {"at", {point_spot[0], point_spot[1], point_spot[2]}}};
+    return c;
+  }
+  static bool Near(const Vec3& p, const Vec3& q, double r) {
+    const double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+    return dx * dx + dy * dy + dz * dz <= r * r;
+  }
+
   void Build() {
+    const json collapsed = RemoveCollapsed();
     const std::size_t n = model_.views.size();
     const auto nothing = [](const std::string& where, const std::string& why) {
       throw std::runtime_error(where + ": nothing to mesh: " + why);
@@ -131,6 +225,7 @@ class SfmSource : public PrecomputedKeyframeSource {
                 {"points_skipped_too_few_views", skipped},
                 {"min_views", opt_.min_views},
                 {"keyframes", keyframes}};
+    if (!collapsed.is_null()) summary_["collapsed"] = collapsed;
     for (const SfmPoint& p : model_.points)
       if (p.has_rgb) colors_[p.id] = p.rgb;
     model_.points = {};  // everything needed is in the updates now (and the colours)

@@ -625,6 +625,21 @@ void SequenceRun::Warn(const std::string& warning) {
 
 // What looks wrong though a mesh was made; no surface at all fails the sequence.
 void SequenceRun::WarnAbout() {
+  // A model with a share collapsed to one spot: left out by the reader (sfm_source.cc).
+  if (const json s = source_ ? source_->Summary() : json(); s.is_object() && s.contains("collapsed")) {
+    const json& c = s["collapsed"];
+    std::string what;
+    for (const char* k : {"views", "points"})
+      if (c.contains(k))
+        what += (what.empty() ? "" : " and ") + c[k]["left_out"].dump() + " of " + c[k]["of"].dump() +
+                (std::string(k) == "views" ? " camera centres" : " points");
+    const json& at = c.contains("points") ? c["points"]["at"] : c["views"]["at"];
+    char spot[160];
+    std::snprintf(spot, sizeof spot, "(%.6g, %.6g, %.6g), within %.3g", at[0].get<double>(),
+                  at[1].get<double>(), at[2].get<double>(), c["within"].get<double>());
+    Warn(what + " sit at one spot " + spot + ": a share of the model collapsed (a failed merge "
+         "in the SfM run, cameras with no baseline); they were left out");
+  }
   // A short sequence never reached the 100 observations of CheckInFront; a few behind is noise,
   // more than 5 % is worth a word.
   if (2 * observations_behind_ > observations_checked_ && observations_checked_ > 0)
