@@ -144,6 +144,38 @@ TEST_F(RenderCli, SlamJsonCamerasOnBlack) {
             64);
 }
 
+TEST_F(RenderCli, ColmapModelCamerasOnBlackAndTheUpItUsed) {
+  // The same two cameras as a COLMAP text model (issue 37: imr render could not draw COLMAP
+  // models): q = (0.5, 0.5, -0.5, 0.5) is the rotation above, t = -R C.
+  const fs::path model = dir_ / "colmap-model";
+  WriteText(model / "cameras.txt", "# Camera list\n1 PINHOLE 101 81 100 100 50.5 40.5\n");
+  WriteText(model / "images.txt",
+            "# Image list\n1 0.5 0.5 -0.5 0.5 2 1.5 -1 1 a.png\n\n"
+            "2 0.5 0.5 -0.5 0.5 2 2.5 -1 1 b.png\n\n");
+  WriteText(model / "points3D.txt", "# 3D point list\n");
+  const fs::path out = dir_ / "colmap.png";
+  const Result r = Render({(dir_ / "square.obj").string(), "--sequence", model.string(), "--format",
+                           "colmap", "--frame", "0", "--out", out.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("4 of 4 triangles visible"), std::string::npos) << r.out;
+  const io::Image im = io::ReadImage(out.string());
+  ASSERT_EQ(im.width, 101);
+  ASSERT_EQ(im.height, 81);
+  EXPECT_GT(Bgr(im, 60, 50)[2], 100);  // the square, orange over black
+  EXPECT_EQ(Bgr(im, 10, 10), (std::array<uint8_t, 3>{0, 0, 0}));
+  // From above: up from the cameras (their -y axes: +z here), and the output says which.
+  WriteText(dir_ / "ground.obj", "v 0 0 0\nv 8 0 0\nv 8 4 0\nv 0 4 0\nf 1 2 3\nf 1 3 4\n");
+  const Result top = Render({(dir_ / "ground.obj").string(), "--sequence", model.string(), "--format",
+                             "colmap", "--top-down", "--size", "200", "--out", (dir_ / "ctop.png").string()});
+  ASSERT_EQ(top.status, 0) << top.err;
+  EXPECT_NE(top.out.find("2 cameras"), std::string::npos) << top.out;
+  EXPECT_NE(top.out.find("up (0, 0, 1) (the cameras' mean up)"), std::string::npos) << top.out;
+  EXPECT_EQ(Render({(dir_ / "square.obj").string(), "--sequence", model.string(), "--format", "colmap",
+                    "--camera", "1", "--frame", "0", "--out", out.string()})
+                .status,
+            64);
+}
+
 TEST_F(RenderCli, WireframeAndBothModes) {
   std::vector<std::string> args = Base();
   args.insert(args.end(), {"--frame", "0", "--mode", "wireframe", "--out", (dir_ / "w.png").string()});

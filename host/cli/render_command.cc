@@ -21,7 +21,8 @@ std::string ShortNumber(double x) {
 namespace fs = std::filesystem;
 
 const char* kSynopsis =
-    "imr render MESH --sequence DIR --format kitti_odometry|kitti_raw|middlebury|slam_json [--camera K]\n"
+    "imr render MESH --sequence DIR --format kitti_odometry|kitti_raw|middlebury|slam_json|colmap|openmvg\n"
+    "           [--camera K]\n"
     "           [--frames FIRST[:COUNT[:STEP]]] --frame N [--mode shaded|wireframe|both]\n"
     "           [--opacity A] [--no-image] --out out.png\n"
     "imr render MESH --top-down [--sequence DIR --format F ...] [--keyframe-every N] [--size PX]\n"
@@ -36,8 +37,10 @@ const char* kNotes =
     "(grey lowest, then blue, green, yellow, red highest), with the camera path: red line through\n"
     "the camera centres, blue discs at keyframes (every --keyframe-every frames, as the image\n"
     "front end picks them), a green ring at the first camera. Up is the cameras' mean up\n"
-    "direction unless --up gives it. --format slam_json takes the cameras of a SLAM JSON stream\n"
-    "(one frame per view, in order) and draws on black (--no-image is implied).\n"
+    "direction unless --up gives it (it prints which). --format slam_json takes the cameras of a\n"
+    "SLAM JSON stream (one frame per view, in order), colmap those of a COLMAP model folder and\n"
+    "openmvg those of an sfm_data.json (one frame per posed view, by id); these draw on black\n"
+    "(--no-image is implied).\n"
     "The PNG is written whole or not at all.\n"
     "Exit status: 0 written; 1 a file is missing or bad; 64 bad usage.\n";
 
@@ -126,12 +129,13 @@ int CmdRender(const std::vector<std::string>& args) {
     bool known = false;
     for (const char* f : render::kRenderSequenceFormats) known |= q.format == f;
     if (!known)
-      return usage("--format: expected kitti_odometry, kitti_raw, middlebury or slam_json, got '" +
-                   q.format + "'");
-    if ((q.format == "middlebury" || q.format == "slam_json") && !vm["camera"].defaulted())
+      return usage("--format: expected kitti_odometry, kitti_raw, middlebury, slam_json, colmap or "
+                   "openmvg, got '" + q.format + "'");
+    const bool model = q.format == "slam_json" || q.format == "colmap" || q.format == "openmvg";
+    if ((q.format == "middlebury" || model) && !vm["camera"].defaulted())
       return usage("--camera does not apply to " + q.format + " (each view has its own camera)");
-    if (q.format == "slam_json" && vm.count("frames"))
-      return usage("--frames does not apply to slam_json (every view is a frame)");
+    if (model && vm.count("frames"))
+      return usage("--frames does not apply to " + q.format + " (every view is a frame)");
   } else if (vm.count("frames") || !vm["camera"].defaulted()) {
     return usage("--frames and --camera need --sequence");
   }

@@ -3,6 +3,8 @@
 #include "host/eval/mesh_io.h"
 #include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
+#include "host/io/colmap_model.h"
+#include "host/io/openmvg_reader.h"
 #include "host/io/slam_json.h"
 #include "host/render/rasterizer.h"
 
@@ -78,6 +80,22 @@ io::ImageSequence SlamJsonCameras(const std::string& file) {
   return seq;
 }
 
+// The posed views of an SfM model (COLMAP, OpenMVG) as an image sequence without images: one
+// frame per view, by view id (COLMAP's image ids, OpenMVG's view ids).
+io::ImageSequence SfmCameras(const io::SfmModel& model) {
+  io::ImageSequence seq;
+  for (const io::CameraGeometry& g : model.views) {
+    if (!g.has_intrinsics)
+      throw std::runtime_error(model.file + ": view " + std::to_string(g.id) +
+                               " has no intrinsics: it cannot be drawn into");
+    io::ImageFrame f;
+    f.index = f.source_index = static_cast<int>(seq.frames.size());
+    f.camera = g;
+    seq.frames.push_back(std::move(f));
+  }
+  return seq;
+}
+
 }  // namespace
 
 std::string RenderFiles(const RenderFilesRequest& q) {
@@ -89,6 +107,10 @@ std::string RenderFiles(const RenderFilesRequest& q) {
       seq = io::ReadMiddlebury(q.sequence, q.sequence_options);
     } else if (q.format == "slam_json") {
       seq = SlamJsonCameras(q.sequence);
+    } else if (q.format == "colmap") {
+      seq = SfmCameras(io::ColmapToSfm(io::ReadColmapModel(q.sequence), q.sequence));
+    } else if (q.format == "openmvg") {
+      seq = SfmCameras(io::ReadOpenMvg(q.sequence));
     } else {
       seq = q.format == "kitti_odometry" ? io::ReadKittiOdometry(q.sequence, q.sequence_options)
                                          : io::ReadKittiRaw(q.sequence, q.sequence_options);
@@ -115,7 +137,11 @@ std::string RenderFiles(const RenderFilesRequest& q) {
     said << q.out.string() << ": top-down " << r.rendering.image.width << "x"
          << r.rendering.image.height << ", " << r.rendering.faces_drawn << " of "
          << faces.size() / 3 << " triangles visible, " << path.cameras.size() << " cameras, "
-         << r.view.scale << " px per unit";
+         << r.view.scale << " px per unit, up (" << r.view.up[0] << ", " << r.view.up[1] << ", "
+         << r.view.up[2] << ")"
+         << (q.top_down_options.up ? " (--up)"
+             : path.cameras.empty() ? " (+z: no cameras)"
+                                    : " (the cameras' mean up)");
     return said.str();
   }
   const int n = q.frame;
@@ -125,7 +151,8 @@ std::string RenderFiles(const RenderFilesRequest& q) {
                           std::to_string(static_cast<int>(seq.frames.size()) - 1) + ")");
   const io::ImageFrame& frame = seq.frames[static_cast<std::size_t>(n)];
   io::Image image;
-  const bool no_image = q.no_image || q.format == "slam_json";
+  const bool no_image =
+      q.no_image || q.format == "slam_json" || q.format == "colmap" || q.format == "openmvg";
   if (!no_image) image = io::ReadImage(frame.image_path, seq.image_limits);
   const Camera camera = CameraOf(frame.camera);
   if (!no_image && (image.width != camera.width || image.height != camera.height))

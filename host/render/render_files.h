@@ -31,7 +31,7 @@ struct RenderFilesRequest {
 
 // The formats RenderFiles reads a sequence in.
 inline const char* const kRenderSequenceFormats[] = {"kitti_odometry", "kitti_raw", "middlebury",
-                                                     "slam_json"};
+                                                     "slam_json", "colmap", "openmvg"};
 
 // Thrown when the request's frame is not in the sequence: the caller's mistake, not a file's.
 struct FrameOutOfRange : std::invalid_argument {
