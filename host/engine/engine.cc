@@ -440,8 +440,7 @@ bool Carving::AddWithRepair(Cell_handle c, std::vector<Cell_handle>* added) {
     for (size_t k = start; k < added->size(); ++k)
       for (int i = 0; i < 4; ++i) verts.push_back((*added)[k]->vertex(i));
     // By id, not address: which irregular vertex is repaired first decides what joins O.
-    auto by_id = [](Vertex_handle a, Vertex_handle b) { return a->info().id < b->info().id; };
-    std::sort(verts.begin(), verts.end(), by_id);
+    std::sort(verts.begin(), verts.end(), EngineState::ById);
     verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
     Vertex_handle bad;
     for (Vertex_handle v : verts)
@@ -485,11 +484,15 @@ bool Carving::ForceCell(Cell_handle c) {
     added.push_back(c);
     ok = true;
   }
+  SeedAround(added);
+  return ok;
+}
+
+void Carving::SeedAround(const std::vector<Cell_handle>& added) {
   for (Cell_handle x : added) {
     s_.MarkDirty(x);
     for (int i = 0; i < 4; ++i) s_.MarkDirty(x->neighbor(i));
   }
-  return ok;
 }
 
 int64_t Carving::OpenPath(const std::vector<Cell_handle>& path) {
@@ -500,10 +503,7 @@ int64_t Carving::OpenPath(const std::vector<Cell_handle>& path) {
     for (Cell_handle c : path)
       if (!c->info().in_o && s_.TouchesO(c) && AddWithRepair(c, &added)) progress = true;
   }
-  for (Cell_handle c : added) {
-    s_.MarkDirty(c);
-    for (int i = 0; i < 4; ++i) s_.MarkDirty(c->neighbor(i));
-  }
+  SeedAround(added);
   s_.stats.cells_opened += static_cast<int64_t>(added.size());
   return static_cast<int64_t>(added.size());
 }
@@ -789,7 +789,7 @@ Engine::Impl::Vertex_handle Engine::Impl::InsertPoint(const Point& p, int64_t ve
     // Only Steiner points get here (before the grid spans 3D): O is empty.
     const size_t before = s.dt.number_of_vertices();
     Vertex_handle v =
-        s.dt.insert(p, s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle());
+        s.dt.insert(p, s.WalkHint());
     if (s.dt.number_of_vertices() == before) {
       *duplicate = true;
       return Vertex_handle();
@@ -801,7 +801,7 @@ Engine::Impl::Vertex_handle Engine::Impl::InsertPoint(const Point& p, int64_t ve
   Dt::Locate_type lt;
   int li, lj;
   Cell_handle loc = s.dt.locate(
-      p, lt, li, lj, s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle());
+      p, lt, li, lj, s.WalkHint());
   if (lt == Dt::VERTEX) {
     *duplicate = true;
     return Vertex_handle();
@@ -1452,9 +1452,10 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   // on from them; after it, again, and a camera whose cell is still outside O has O peeled around
   // it and grown again from its cell (OpenCameraPath).
   const bool open_path = s.opt.camera_path > 0 && s.dt.dimension() == 3;
-  if (open_path && s.cells_in_o > 0) carving.OpenPath(CameraPathCells());
+  const std::vector<Cell_handle> path = open_path ? CameraPathCells() : std::vector<Cell_handle>();
+  if (open_path && s.cells_in_o > 0) carving.OpenPath(path);
   carving.Grow(s.opt.forget ? CameraCell() : Cell_handle());
-  if (open_path && s.cells_in_o > 0) OpenCameraPath();
+  if (open_path && s.cells_in_o > 0) OpenCameraPath(path);
   s.stats.time.grow += SecondsSince(tg);
   const double dt_s = SecondsSince(t0);
   s.stats.time.total += dt_s;
@@ -1469,7 +1470,7 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
     if (s.dt.dimension() < 3) continue;
     // From the newest point's cell: the cameras are near what they just saw.
     const Cell_handle cell =
-        s.dt.locate(c, s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle());
+        s.dt.locate(c, s.WalkHint());
     if (!s.dt.is_infinite(cell) && cell->info().in_o) ++s.stats.cameras_in_o;
   }
   if (s.opt.check_invariants) {
@@ -1598,9 +1599,7 @@ Engine::Impl::Cell_handle Engine::Impl::CameraCell() {
   const Point& camera = s.cameras.back();
   Dt::Locate_type lt;
   int li, lj;
-  const Cell_handle c = s.dt.locate(camera, lt, li, lj,
-                                    s.last_vertex != Vertex_handle() ? s.last_vertex->cell()
-                                                                     : Cell_handle());
+  const Cell_handle c = s.dt.locate(camera, lt, li, lj, s.WalkHint());
   if (lt != Dt::CELL || s.dt.is_infinite(c) || c->info().in_o) return Cell_handle();
   const double r = 2.0 * s.opt.steiner_spacing;
   const uint64_t seen = ++s.stamp;  // stamps are only compared for equality
@@ -1623,7 +1622,7 @@ std::vector<Engine::Impl::Cell_handle> Engine::Impl::CameraPathCells() {
   const size_t n = s.cameras.size();
   const size_t k = std::min(n, static_cast<size_t>(s.opt.camera_path));
   const uint64_t seen = ++s.stamp;  // stamps are only compared for equality
-  Cell_handle hint = s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle();
+  Cell_handle hint = s.WalkHint();
   auto visit = [&](const Point& p) {
     const Cell_handle c = s.dt.locate(p, hint);
     if (s.dt.is_infinite(c)) return;
@@ -1652,15 +1651,14 @@ std::vector<Engine::Impl::Cell_handle> Engine::Impl::CameraPathCells() {
   return path;
 }
 
-void Engine::Impl::OpenCameraPath() {
-  if (carving.OpenPath(CameraPathCells()) > 0) carving.Grow();
+void Engine::Impl::OpenCameraPath(const std::vector<Cell_handle>& path) {
+  if (carving.OpenPath(path) > 0) carving.Grow();
   if (s.opt.camera_path_radius <= 0.0) return;
   const size_t n = s.cameras.size();
   const size_t k = std::min(n, static_cast<size_t>(s.opt.camera_path));
   std::vector<Vertex_handle> around;
   for (size_t i = n - k; i < n; ++i) {
-    const Cell_handle c = s.dt.locate(
-        s.cameras[i], s.last_vertex != Vertex_handle() ? s.last_vertex->cell() : Cell_handle());
+    const Cell_handle c = s.dt.locate(s.cameras[i], s.WalkHint());
     if (s.dt.is_infinite(c) || c->info().in_o || c->info().final || s.HullAdjacent(c)) continue;
     // Its cell could not join O as O is around it: O leaves the cells near it, its cell joins
     // first (touching O, with the free cells that keep dO manifold; else on its own) and O grows
@@ -1669,8 +1667,7 @@ void Engine::Impl::OpenCameraPath() {
     // on the cell's history (CGAL's moves and the planned ones make the same cell differently).
     around.clear();
     for (int j = 0; j < 4; ++j) around.push_back(c->vertex(j));
-    std::sort(around.begin(), around.end(),
-              [](Vertex_handle a, Vertex_handle b) { return a->info().id < b->info().id; });
+    std::sort(around.begin(), around.end(), detail::EngineState::ById);
     carving.PeelAround(around, s.opt.camera_path_radius);
     carving.ForceCell(c);
     carving.Grow();  // labels only change: c is still a cell

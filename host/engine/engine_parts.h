@@ -359,6 +359,12 @@ struct EngineState {
     dirty.clear();
   }
   // The cell's vertex ids, sorted: a key that does not depend on memory addresses.
+  // Vertices by id, not address: where their order decides something.
+  static bool ById(Vertex_handle a, Vertex_handle b) { return a->info().id < b->info().id; }
+  // Where to start a walk (locate, insert): the newest point's cell, near the newest cameras.
+  Cell_handle WalkHint() const {
+    return last_vertex != Vertex_handle() ? last_vertex->cell() : Cell_handle();
+  }
   std::array<int64_t, 4> CellKey(Cell_handle c) const {
     std::array<int64_t, 4> k;
     for (int i = 0; i < 4; ++i)
@@ -586,7 +592,7 @@ class RayCaster {
   // there, else any cell near it (the traverser locates the start from it).
   Cell_handle WalkHint(const PointRecord& rec) const {
     if (rec.in_triangulation) return rec.vertex->cell();
-    return s_.last_vertex != Vertex_handle() ? s_.last_vertex->cell() : Cell_handle();
+    return s_.WalkHint();
   }
 
   // Walks the segment a -> b through the cells it crosses (BeginWalk), calling visit(cell) once
@@ -797,6 +803,8 @@ class Carving {
   // are not in O join too (up to camera_path_repair rounds). All or none: on failure O is back
   // as it was. The cells added are appended to `added`.
   bool AddWithRepair(Cell_handle c, std::vector<Cell_handle>* added);
+  // Cells that joined O outside grow: their neighbours become grow's seeds.
+  void SeedAround(const std::vector<Cell_handle>& added);
   bool VertexRegular(Vertex_handle v, Cell_handle toggled);
   bool VertexTouchesSide(Cell_handle c, int i, bool adding);
   bool EdgeTouchesSide(Cell_handle c, int i, int j, bool adding) const;
@@ -1135,9 +1143,10 @@ struct Engine::Impl {
   // camera_path: the cells holding the last camera_path camera centres and those the segments
   // between them cross, in path order (finite cells, each once).
   std::vector<Cell_handle> CameraPathCells();
-  // After grow: the path's cells again (OpenPath), then each path camera whose cell is still
-  // outside O gets O peeled within camera_path_radius and grown again from its cell.
-  void OpenCameraPath();
+  // After grow: the path's cells (CameraPathCells, unchanged since: grow only labels) again
+  // (OpenPath), then each path camera whose cell is still outside O gets O peeled within
+  // camera_path_radius and grown again from its cell.
+  void OpenCameraPath(const std::vector<Cell_handle>& path);
 
   int64_t steiner_nodes_ = 0;  // grid nodes tried, placed or refused: names the next one
   std::vector<uint32_t> entered_;  // kExact: points that entered during this update
