@@ -46,7 +46,7 @@ NOT_OPTIONS = {
     "walk_to_next_3", "side_of_cell", "insert_in_hole", "imr_camera", "keyframe_image",
     "release_keyframe_image", "engine_property_test", "imr_track_observation",
     "imr_point_estimate", "imr_track_view", "imr_refiner_update", "struct_size", "params_schema",
-    "removed_count", "is_keyframe", "docs_test", "update_points_position", "delaunay_mesher",
+    "removed_count", "is_keyframe", "docs_test", "update_points_position", "delaunay_mesher", "model_analyzer",
     "automatic_reconstructor", "feature_extractor", "exhaustive_matcher",
 }
 

@@ -20,6 +20,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev valgrind
   # the cross-check of `imr evaluate` (tests/evaluate_test: CloudCompare's cloud-to-mesh distance)
   cloudcompare
+  # COLMAP's model_analyzer reads imr's --export-colmap (tests/interop_test)
+  colmap
   # tests/slurm_test: a one-node Slurm cluster started on localhost (imr submit, array jobs)
   slurm-wlm munge
   # plots of reports (tools/plots/imr_plots.py) and the viewer page's browser test (headless)

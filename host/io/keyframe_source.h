@@ -63,6 +63,13 @@ class KeyframeSource {
     (void)point_id, (void)rgb;
     return false;
   }
+  // Where the input measured point `point_id` in camera `camera_id`'s image (a keypoint: COLMAP
+  // points2D, OpenMVG observations' x), in the pixel convention of the camera's intrinsics, for
+  // the reprojection errors of the COLMAP export; false when the input gives none.
+  virtual bool Keypoint(uint64_t camera_id, uint64_t point_id, std::array<double, 2>* xy) const {
+    (void)camera_id, (void)point_id, (void)xy;
+    return false;
+  }
   // Figures about the input for the report (views, points, observations, what was skipped and
   // why), as a JSON object; null when there is nothing to say.
   virtual nlohmann::json Summary() const { return nullptr; }

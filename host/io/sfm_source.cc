@@ -47,10 +47,20 @@ class SfmSource : public PrecomputedKeyframeSource {
     return it == by_id_.end() ? nullptr : &model_.views[it->second];
   }
   bool PointColor(uint64_t id, std::array<uint8_t, 3>* rgb) const override {
-    auto it = colors_.find(id);
-    if (it == colors_.end()) return false;
-    *rgb = it->second;
+    const SfmPoint* p = Find(id);
+    if (p == nullptr || !p->has_rgb) return false;
+    *rgb = p->rgb;
     return true;
+  }
+  bool Keypoint(uint64_t view_id, uint64_t point_id, std::array<double, 2>* xy) const override {
+    const SfmPoint* p = Find(point_id);
+    if (p == nullptr) return false;
+    for (const SfmObservation& o : p->observations)
+      if (o.view_id == view_id) {
+        *xy = {o.x, o.y};
+        return true;
+      }
+    return false;
   }
   json Summary() const override { return summary_; }
 
@@ -140,12 +150,19 @@ class SfmSource : public PrecomputedKeyframeSource {
                      {"at", {point_spot[0], point_spot[1], point_spot[2]}}};
     return c;
   }
+  const SfmPoint* Find(uint64_t id) const {
+    auto it = std::lower_bound(model_.points.begin(), model_.points.end(), id,
+                               [](const SfmPoint& p, uint64_t v) { return p.id < v; });
+    return it == model_.points.end() || it->id != id ? nullptr : &*it;
+  }
   static bool Near(const Vec3& p, const Vec3& q, double r) {
     const double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
     return dx * dx + dy * dy + dz * dz <= r * r;
   }
 
   void Build() {
+    std::stable_sort(model_.points.begin(), model_.points.end(),
+                     [](const SfmPoint& a, const SfmPoint& b) { return a.id < b.id; });
     const json collapsed = RemoveCollapsed();
     const std::size_t n = model_.views.size();
     const auto nothing = [](const std::string& where, const std::string& why) {
@@ -226,15 +243,12 @@ class SfmSource : public PrecomputedKeyframeSource {
                 {"min_views", opt_.min_views},
                 {"keyframes", keyframes}};
     if (!collapsed.is_null()) summary_["collapsed"] = collapsed;
-    for (const SfmPoint& p : model_.points)
-      if (p.has_rgb) colors_[p.id] = p.rgb;
-    model_.points = {};  // everything needed is in the updates now (and the colours)
+    // The points stay (sorted by id) for their colours and keypoints; the updates hold the rest.
   }
 
   SfmModel model_;
   SfmReplayOptions opt_;
   std::unordered_map<uint64_t, std::size_t> by_id_;
-  std::unordered_map<uint64_t, std::array<uint8_t, 3>> colors_;  // points the file coloured
   json summary_;
 };
 

@@ -528,10 +528,22 @@ ColmapModel StreamRecorder::Colmap() const {
   for (const View& v : views_) fits &= v.id < 0xFFFFFFFFu;
   std::unordered_map<uint64_t, std::size_t> image_of;
   std::vector<Intrinsics> intr;
+  // Per view: its camera (to project the final points) and the shift from its pixels to
+  // COLMAP's, which puts the centre of the top-left pixel at (0.5, 0.5) where every other
+  // reader of imr (OpenMVG, SLAM JSON, the image front end) puts it at (0, 0).
+  std::vector<CameraGeometry> geometry(views_.size());
+  std::vector<double> shift(views_.size(), 0.0);
   for (std::size_t i = 0; i < views_.size(); ++i) {
     const View& v = views_[i];
     const CameraGeometry* g = v.geometry;
-    const Intrinsics k = g && g->has_intrinsics ? g->intrinsics : PlaceholderIntrinsics();
+    Intrinsics k = g && g->has_intrinsics ? g->intrinsics : PlaceholderIntrinsics();
+    if (g) geometry[i] = *g;
+    geometry[i].intrinsics = k, geometry[i].has_intrinsics = true;
+    SetFromCenter(geometry[i].rotation, v.center, &geometry[i]);
+    if (ColmapModelId(k.source_model) < 0) {
+      shift[i] = 0.5;
+      k.cx += 0.5, k.cy += 0.5;
+    }
     std::size_t j = 0;
     while (j < intr.size() && !SameIntrinsics(intr[j], k)) ++j;
     if (j == intr.size()) {
@@ -557,23 +569,41 @@ ColmapModel StreamRecorder::Colmap() const {
     image_of[v.id] = m.images.size();
     m.images.push_back(std::move(im));
   }
+  // Per view, the estimate of each point when the view first observed it.
+  std::vector<std::unordered_map<uint64_t, Vec3>> seen(views_.size());
+  for (std::size_t i = 0; i < views_.size(); ++i)
+    for (const Observation& o : views_[i].observations) seen[i].emplace(o.point, o.x);
   for (const auto& [id, s] : points_) {
     if (s.removed || s.cameras.empty()) continue;
     ColmapModel::Point3D p;
     p.id = id;
     p.xyz = s.position;
+    double error_sum = 0.0;
+    int errors = 0;
     for (uint64_t cam : s.cameras) {
+      const std::size_t i = view_index_.at(cam);
       ColmapModel::Image& im = m.images[image_of.at(cam)];
-      const View& v = views_[view_index_.at(cam)];
-      CameraGeometry g;
-      if (v.geometry) g = *v.geometry;
-      else g.intrinsics = PlaceholderIntrinsics(), g.has_intrinsics = true;
-      SetFromCenter(g.rotation, v.center, &g);
-      double x = 0.0, y = 0.0;
-      if (!Project(g, s.position, &x, &y)) x = y = 0.0;
+      // The 2D point: the input's keypoint, else where the estimate this view saw projects.
+      std::array<double, 2> xy{};
+      bool measured = source_ && source_->Keypoint(cam, id, &xy);
+      if (!measured) {
+        auto it = seen[i].find(id);
+        measured = it != seen[i].end() && Project(geometry[i], it->second, &xy[0], &xy[1]);
+      }
+      double u = 0.0, v = 0.0;
+      const bool projects = Project(geometry[i], s.position, &u, &v);
+      if (measured && projects) {
+        error_sum += std::hypot(xy[0] - u, xy[1] - v);
+        ++errors;
+      } else if (!measured) {
+        xy = projects ? std::array<double, 2>{u, v} : std::array<double, 2>{-shift[i], -shift[i]};
+      }
       p.track.push_back({im.id, static_cast<uint32_t>(im.points2d.size())});
-      im.points2d.push_back({x, y, static_cast<int64_t>(id)});
+      im.points2d.push_back({xy[0] + shift[i], xy[1] + shift[i], static_cast<int64_t>(id)});
     }
+    // COLMAP's mean reprojection error of the point; -1 (COLMAP's "not computed") when no
+    // track entry has both a 2D point and a projection.
+    p.error = errors > 0 ? error_sum / errors : -1.0;
     m.points.push_back(std::move(p));
   }
   return m;

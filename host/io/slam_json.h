@@ -72,8 +72,11 @@ class StreamRecorder {
 
   std::string SlamJson() const;
   // Live points (not removed, seen by a camera) at their last estimate; every view becomes an
-  // image whose 2D points are the projections of the points it sees (0 0 where it cannot be
-  // projected), and every track entry indexes one of them.
+  // image, every track entry indexes one of its 2D points: the source's keypoint (Keypoint),
+  // else the projection of the estimate the view saw when it observed the point, else that of
+  // the final estimate (0 0 where none projects). A point's ERROR is the mean distance from its
+  // 2D points to the final estimate's projections (-1 when none has both). Pixels in COLMAP's
+  // convention (cameras from other formats shifted by half a pixel).
   ColmapModel Colmap() const;
   // Points that entered with no camera: a SLAM JSON file cannot hold them (replay then differs).
   int64_t unrepresentable() const { return unrepresentable_; }

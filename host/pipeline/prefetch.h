@@ -210,6 +210,9 @@ class PrefetchingSource : public io::KeyframeSource {
   bool PointColor(uint64_t point_id, std::array<uint8_t, 3>* rgb) const override {
     return inner_->PointColor(point_id, rgb);
   }
+  bool Keypoint(uint64_t camera_id, uint64_t point_id, std::array<double, 2>* xy) const override {
+    return inner_->Keypoint(camera_id, point_id, xy);
+  }
   nlohmann::json Summary() const override { return inner_->Summary(); }
 
  private:
