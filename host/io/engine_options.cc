@@ -162,7 +162,9 @@ std::vector<EngineOption> MakeTable() {
       {"description",
        "lengths in scene units (steiner_spacing, steiner_margin, max_ray_length, shrink_radius, "
        "regrow_radius, camera_path_radius, fill_holes_perimeter): auto scales those the job does not set by the "
-       "median ray of the first keyframes / 25; metric keeps the defaults (a street in metres). "
+       "median ray of the first keyframes / 25, or, for cameras along a path that see less than their rays "
+       "say, every one but max_ray_length by the extent each camera sees / 11.4 (docs/interop.md); metric "
+       "keeps the defaults (a street in metres). "
        "Default: auto for colmap, openmvg, slam_json and middlebury, metric for the others"}};
   t.push_back(std::move(scale));
   return t;

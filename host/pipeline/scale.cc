@@ -24,12 +24,30 @@ const std::vector<std::pair<std::string, double engine::EngineOptions::*>>& Leng
   return fields;
 }
 
+// The rays decide how long a ray may be; the scene's own sizes may be smaller.
+double FactorOf(const ScaleEstimate& e, const std::string& option) {
+  return option == "max_ray_length" ? e.reach_factor : e.scene_factor;
+}
+
 // The q-quantile by nearest rank; reorders v.
 double Quantile(std::vector<double>& v, double q) {
   if (v.empty()) return 0.0;
   const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
   return v[k];
+}
+
+// How far `points` spread: the median distance from their per-axis median (robust to outliers).
+double Spread(const std::vector<engine::Vec3>& points) {
+  engine::Vec3 median{};
+  std::vector<double> v(points.size());
+  for (int a = 0; a < 3; ++a) {
+    for (std::size_t i = 0; i < points.size(); ++i) v[i] = points[i][a];
+    median[a] = Quantile(v, 0.5);
+  }
+  for (std::size_t i = 0; i < points.size(); ++i)
+    v[i] = std::hypot(points[i][0] - median[0], points[i][1] - median[1], points[i][2] - median[2]);
+  return Quantile(v, 0.5);
 }
 
 std::string Number(double x) {
@@ -49,6 +67,14 @@ double RoundTo125(double x) {
     if (d < best_distance) best = m * decade, best_distance = d;
   }
   return best;
+}
+
+double RoundToR10(double x) {
+  if (!(x > 0.0) || !std::isfinite(x)) return 1.0;
+  static constexpr double kR10[] = {1.0, 1.25, 1.6, 2.0, 2.5, 3.15, 4.0, 5.0, 6.3, 8.0};
+  const double step = std::round(10.0 * std::log10(x));  // tenths of a decade
+  const double decade = std::floor(step / 10.0);
+  return kR10[static_cast<int>(step - 10.0 * decade)] * std::pow(10.0, decade);
 }
 
 const std::vector<std::string>& ScaledOptionNames() {
@@ -77,7 +103,10 @@ void ScaleProbe::Add(const engine::KeyframeUpdate& update) {
       if (it == centers_.end()) continue;
       const engine::Vec3& c = it->second;
       const double d = std::hypot(x[0] - c[0], x[1] - c[1], x[2] - c[2]);
-      if (std::isfinite(d) && d > 0.0) lengths_.push_back(d);
+      if (std::isfinite(d) && d > 0.0) {
+        lengths_.push_back(d);
+        seen_[id].push_back(x);
+      }
     }
   };
   for (const engine::NewPoint& p : update.new_points) measure(p.position, p.camera_ids);
@@ -101,6 +130,30 @@ ScaleEstimate ScaleProbe::Estimate() const {
   e.p95_ray = Quantile(lengths, 0.95);
   e.ratio = e.median_ray / kReferenceMedianRay;
   e.factor = RoundTo125(e.ratio);
+  e.scene_factor = e.reach_factor = e.factor;
+  std::vector<double> extents;
+  std::vector<engine::Vec3> all, centres;
+  for (const auto& [camera, points] : seen_) {
+    all.insert(all.end(), points.begin(), points.end());
+    if (points.size() >= static_cast<std::size_t>(ScaleEstimate::kMinViewPoints)) {
+      extents.push_back(Spread(points));
+      centres.push_back(centers_.at(camera));
+    }
+  }
+  e.views = static_cast<int64_t>(extents.size());
+  if (!extents.empty()) {
+    e.view_extent = Quantile(extents, 0.5);
+    e.extent_ratio = e.view_extent / kReferenceViewExtent;
+    e.camera_spread = Spread(centres);
+    e.point_spread = Spread(all);
+    e.around_an_object = e.camera_spread > kAroundAnObject * e.point_spread;
+    if (!e.around_an_object && e.view_extent > 0.0 && e.extent_ratio < e.ratio) {
+      e.scene_factor = RoundTo125(e.extent_ratio);
+      e.decided_by = "view extent";
+      if (e.scene_factor < e.factor)
+        e.reach_factor = std::min(e.factor, RoundToR10(e.p95_ray / kReferenceP95Ray));
+    }
+  }
   return e;
 }
 
@@ -109,7 +162,7 @@ engine::EngineOptions ScaledOptions(const engine::EngineOptions& base, const Sca
   const engine::EngineOptions metric;
   engine::EngineOptions o = base;
   for (const auto& [name, field] : LengthFields())
-    if (!explicit_keys.count(name)) o.*field = metric.*field * estimate.factor;
+    if (!explicit_keys.count(name)) o.*field = metric.*field * FactorOf(estimate, name);
   return o;
 }
 
@@ -123,6 +176,16 @@ json ScaleJson(ScaleMode mode, const ScaleEstimate& estimate, const engine::Engi
   j["reference_median_ray"] = kReferenceMedianRay;
   j["ratio"] = estimate.ratio;
   j["factor"] = estimate.factor;
+  j["view_extent"] = estimate.view_extent;
+  j["views"] = estimate.views;
+  j["reference_view_extent"] = kReferenceViewExtent;
+  j["extent_ratio"] = estimate.extent_ratio;
+  j["scene_factor"] = estimate.scene_factor;
+  j["reach_factor"] = estimate.reach_factor;
+  j["camera_spread"] = estimate.camera_spread;
+  j["point_spread"] = estimate.point_spread;
+  j["around_an_object"] = estimate.around_an_object;
+  j["decided_by"] = estimate.decided_by;
   json set = json::object(), kept = json::array();
   for (const auto& [name, field] : LengthFields()) {
     if (explicit_keys.count(name)) kept.push_back(name);
@@ -139,7 +202,18 @@ std::string ScaleLogLine(const ScaleEstimate& estimate, const engine::EngineOpti
                   std::to_string(estimate.rays) + " rays of the first " +
                   std::to_string(estimate.keyframes) + " keyframes; the metric defaults assume " +
                   Number(kReferenceMedianRay) + "): ratio " + Number(estimate.ratio) + ", scale " +
-                  Number(estimate.factor) + ",";
+                  Number(estimate.factor);
+  if (estimate.views > 0)
+    s += "; extent seen per camera " + Number(estimate.view_extent) + " (" +
+         std::to_string(estimate.views) + " cameras; the defaults assume " +
+         Number(kReferenceViewExtent) + "): ratio " + Number(estimate.extent_ratio);
+  if (estimate.scene_factor != estimate.factor)
+    s += ", scale " + Number(estimate.scene_factor) + " for every length but max_ray_length (the " +
+         estimate.decided_by + " decided)";
+  if (estimate.reach_factor != estimate.factor)
+    s += "; max_ray_length from the 95th percentile ray " + Number(estimate.p95_ray) +
+         " (the defaults assume " + Number(kReferenceP95Ray) + "): scale " + Number(estimate.reach_factor);
+  s += ",";
   bool any = false;
   for (const auto& [name, field] : LengthFields()) {
     if (explicit_keys.count(name)) continue;
