@@ -1,5 +1,6 @@
 """pip packaging of the module built by the CMake tree (nothing is compiled or downloaded here):
-the extension and __init__.py from build/lib/python/imr, the plugins from build/lib/imr/plugins.
+imr/__init__.py from here, the extension from build/lib/python/imr, the plugins from
+build/lib/imr/plugins (into imr/plugins, where the package looks first).
 
     cmake --build build --target imr_python
     /usr/bin/python3 -m pip install --no-build-isolation --break-system-packages host/python
@@ -26,6 +27,7 @@ class BinaryDistribution(Distribution):
 
 class CopyBuilt(build_py):
     def run(self):
+        super().run()
         package = os.path.join(BUILD, "lib", "python", "imr")
         extension = glob.glob(os.path.join(package, "_imr*.so"))
         if not extension:
@@ -33,12 +35,12 @@ class CopyBuilt(build_py):
                              "first (or set IMR_BUILD_DIR)" % (package, BUILD))
         target = os.path.join(self.build_lib, "imr")
         os.makedirs(os.path.join(target, "plugins"), exist_ok=True)
-        for f in extension + [os.path.join(package, "__init__.py")]:
+        for f in extension:
             shutil.copy2(f, target)
         for f in glob.glob(os.path.join(BUILD, "lib", "imr", "plugins", "*.so")):
             shutil.copy2(f, os.path.join(target, "plugins"))
 
 
 setup(name="imr", version="0.1.0", description="incremental manifold reconstruction with moving points",
-      packages=[], cmdclass={"build_py": CopyBuilt}, distclass=BinaryDistribution,
+      packages=["imr"], cmdclass={"build_py": CopyBuilt}, distclass=BinaryDistribution,
       install_requires=[], python_requires=">=3.9")

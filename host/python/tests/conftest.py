@@ -43,3 +43,39 @@ def synthetic_job(out, frames=20, formats=("ply",), engine=None):
             "engine": engine or {},
             "pipeline": [{"kind": "exporter", "plugin": "org.imr.exporter.assimp"}],
             "output": {"directory": str(out), "formats": list(formats)}}
+
+
+PLY_TYPES = {"float": "<f4", "double": "<f8", "int": "<i4", "uint": "<u4", "uchar": "u1", "char": "i1",
+             "short": "<i2", "ushort": "<u2"}
+
+
+def read_binary_ply(data):
+    """(xyz float32 (V, 3), faces (F, 3)) of a binary little-endian PLY of triangles, as
+    org.imr.exporter.assimp writes it."""
+    import numpy as np
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    elements, current = [], None
+    for line in data[:end].decode().splitlines():
+        w = line.split()
+        if w[0] == "format":
+            assert w[1] == "binary_little_endian", line
+        elif w[0] == "element":
+            current = [w[1], int(w[2]), []]
+            elements.append(current)
+        elif w[0] == "property":
+            current[2].append(w[1:])
+    offset, vertices, faces = end, None, None
+    for name, count, props in elements:
+        if name == "vertex":
+            dtype = np.dtype([(p[1], PLY_TYPES[p[0]]) for p in props])
+            v = np.frombuffer(data, dtype, count, offset)
+            offset += dtype.itemsize * count
+            vertices = np.stack([v["x"], v["y"], v["z"]], axis=1)
+        elif name == "face":
+            (_, count_type, index_type, _), = props
+            dtype = np.dtype([("n", PLY_TYPES[count_type]), ("i", PLY_TYPES[index_type], 3)])
+            f = np.frombuffer(data, dtype, count, offset)
+            assert (f["n"] == 3).all()
+            offset += dtype.itemsize * count
+            faces = f["i"]
+    return vertices, faces

@@ -94,3 +94,39 @@ def test_evaluate_gives_imr_evaluates_figures(tmp_path, run_imr):
         imr.evaluate(mesh, tmp_path / "truth.xyz", tau=-1)
     with pytest.raises(imr.Error, match="absent.ply"):
         imr.evaluate(tmp_path / "absent.ply", tmp_path / "truth.xyz")
+
+
+def test_long_calls_release_the_gil(tmp_path):
+    """Python threads run while imr.run and add_keyframe work (the GIL is released)."""
+    ticks = []
+    stop = threading.Event()
+
+    def count():
+        while not stop.is_set():
+            ticks.append(time.monotonic())
+            time.sleep(0.005)
+
+    def busy_share(work):
+        ticks.clear()
+        stop.clear()
+        t = threading.Thread(target=count)
+        start = time.monotonic()
+        t.start()
+        work()
+        elapsed = time.monotonic() - start
+        stop.set()
+        t.join()
+        gaps = np.diff(ticks) if len(ticks) > 1 else np.array([elapsed])
+        return elapsed, len(ticks), gaps.max()
+
+    elapsed, n, longest = busy_share(lambda: imr.run(synthetic_job(tmp_path / "gil", frames=200)))
+    assert elapsed > 0.6, "the run was too short to tell (%.2f s)" % elapsed
+    assert longest < 0.3, "the other thread stalled %.2f s during imr.run" % longest
+
+    def feed():
+        engine = imr.Engine()
+        for kf in imr.read("synthetic", "street", frames=200):
+            engine.add_keyframe(kf)
+        engine.mesh()
+    elapsed, n, longest = busy_share(feed)
+    assert longest < 0.3, "the other thread stalled %.2f s during add_keyframe" % longest

@@ -1,36 +1,35 @@
 """The readers fed to imr.Engine give what `imr run` / `imr mesh` give on the same input."""
 import json
 import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 import imr
 
-from conftest import synthetic_job, write_job
+from conftest import read_binary_ply, synthetic_job, write_job
 
 
-def street_stream(shared_dir, tmp_path, views=30):
-    """The independent street stream's first `views` views (the whole one takes ~20 s)."""
+def street_stream(shared_dir):
+    """The independent street stream (../shared/data/street-stream: a SLAM run's views with
+    moving points), whole: about 4 s in each of imr run and the module."""
     path = os.path.join(shared_dir, "data", "street-stream", "slam.json") if shared_dir else ""
     if not path or not os.path.exists(path):
         pytest.skip("the street stream is absent (IMR_SHARED_DIR/data/street-stream/slam.json)")
-    s = json.load(open(path))
-    s["views"] = s["views"][:views]
-    out = tmp_path / "street.json"
-    out.write_text(json.dumps(s))
-    return out
+    return path
 
 
 def test_street_stream_fed_from_python_is_imr_runs_mesh(shared_dir, tmp_path, run_imr):
-    stream = street_stream(shared_dir, tmp_path)
+    stream = street_stream(shared_dir)
     engine = imr.Engine()  # a job's defaults: engine.scale auto for slam_json, as imr run
-    for kf in imr.read_slam_json(stream, views_per_keyframe=1):
+    for kf in imr.read_slam_json(stream):
         engine.add_keyframe(kf)
     engine.write(tmp_path / "py" / "mesh.ply")
 
     job = write_job(tmp_path / "job.json", {
-        "sequences": [str(stream)], "input": {"format": "slam_json", "options": {"views_per_keyframe": 1}},
+        "sequences": [stream], "input": {"format": "slam_json"},
         "pipeline": [{"kind": "exporter", "plugin": "org.imr.exporter.assimp"}],
         "output": {"directory": str(tmp_path / "cli"), "formats": ["ply"]}})
     r = run_imr("run", "-q", job)
@@ -39,16 +38,20 @@ def test_street_stream_fed_from_python_is_imr_runs_mesh(shared_dir, tmp_path, ru
     assert report["engine"]["points_moved"] > 1000  # the stream's points move
 
     cli = (tmp_path / "cli" / "mesh.ply").read_bytes()
-    assert len(cli) > 10000
+    assert len(cli) > 100000
     assert (tmp_path / "py" / "mesh.ply").read_bytes() == cli, "other PLY bytes than imr run's"
     stats = engine.stats()
     for k in ("keyframes", "rays_cast", "rays_cast_backward", "points_inserted", "points_moved",
-              "cells", "cells_in_o", "steiner_points"):
+              "moves_skipped", "cells", "cells_in_o", "steiner_points"):
         assert stats[k] == report["engine"][k], k
-    assert stats["scale"]["factor"] == report["engine_options"]["scale"]["factor"] \
-        if "scale" in report["engine_options"] else True
+    assert stats["scale"]["mode"] == "auto"
+    # The arrays are the mesh the PLY holds: as many vertices and faces, the same positions
+    # (the PLY's are float32).
     vertices, faces = engine.mesh()
     assert len(faces) == report["mesh"]["faces"] and len(vertices) == report["mesh"]["vertices"]
+    ply_vertices, ply_faces = read_binary_ply(cli)
+    assert np.array_equal(ply_faces, faces)
+    assert np.array_equal(ply_vertices, vertices.astype(np.float32))
 
 
 def colmap_model(tmp_path, run_imr):
@@ -75,6 +78,20 @@ def test_colmap_keyframe_by_keyframe_is_imr_meshs_mesh(tmp_path, run_imr):
     cli = (tmp_path / "cli.ply").read_bytes()
     assert len(cli) > 1000
     assert (tmp_path / "py.ply").read_bytes() == cli
+
+
+def test_the_example_writes_imr_meshs_bytes(tmp_path, run_imr):
+    """host/python/examples/mesh_colmap.py: the README's example, on a model made here."""
+    model = colmap_model(tmp_path, run_imr)
+    example = os.path.join(os.path.dirname(__file__), "..", "examples", "mesh_colmap.py")
+    r = subprocess.run([sys.executable, example, str(model), "--out", str(tmp_path / "ex.ply"),
+                        "--views-per-keyframe", "3"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "wrote" in r.stdout and "faces int32" in r.stdout
+    r = run_imr("mesh", "-q", "--input", model, "--format", "colmap", "--out", tmp_path / "cli.ply",
+                "--set", "input.options.mode=replay", "--set", "input.options.views_per_keyframe=3")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert (tmp_path / "ex.ply").read_bytes() == (tmp_path / "cli.ply").read_bytes()
 
 
 def test_reader_errors_are_the_clis(tmp_path, run_imr):
