@@ -461,10 +461,16 @@ PYBIND11_MODULE(_imr, m) {
                std::to_string(k.update.removed_points.size()) + ")";
       });
 
-  py::class_<PyEngine>(m, "Engine")
+  py::class_<PyEngine>(m, "Engine",
+                       "The engine, fed keyframe by keyframe: Engine(weight_policy=None, "
+                       "weight_policy_params=None, **options), options as a job's \"engine\" "
+                       "section (imr options --only engine); ValueError names a bad one.")
       .def(py::init<const py::object&, const py::object&, const py::kwargs&>(),
            py::arg("weight_policy") = py::none(), py::arg("weight_policy_params") = py::none())
-      .def("add_keyframe", [](PyEngine& e, Keyframe& k) { e.AddKeyframe(k); }, py::arg("keyframe"))
+      .def("add_keyframe", [](PyEngine& e, Keyframe& k) { e.AddKeyframe(k); }, py::arg("keyframe"),
+           "one keyframe, as imr run applies it: a Keyframe from a reader, or camera (a Camera or "
+           "a list), new_ids (N,), new_positions (N, 3), new_cameras (None: the keyframe's camera; "
+           "ids per point), moved_ids, moved_positions, moved_cameras, removed_ids")
       .def("add_keyframe",
            [](PyEngine& e, const py::object& camera, const py::object& new_ids,
               const py::object& new_positions, const py::object& new_cameras,
@@ -477,10 +483,13 @@ PYBIND11_MODULE(_imr, m) {
            py::arg("new_positions") = py::none(), py::arg("new_cameras") = py::none(),
            py::arg("moved_ids") = py::none(), py::arg("moved_positions") = py::none(),
            py::arg("moved_cameras") = py::none(), py::arg("removed_ids") = py::none())
-      .def("mesh", &PyEngine::MeshNow, py::arg("point_ids") = false)
-      .def("stats", &PyEngine::Stats)
-      .def("options", &PyEngine::Options)
-      .def("write", &PyEngine::Write, py::arg("path"))
+      .def("mesh", &PyEngine::MeshNow, py::arg("point_ids") = false,
+           "(vertices float64 (V, 3), faces int32 (F, 3)[, point ids int64 (V,)]): the exported "
+           "surface now, the engine's buffers handed to numpy (no copy)")
+      .def("stats", &PyEngine::Stats, "the counters of report.json's \"engine\", with \"scale\"")
+      .def("options", &PyEngine::Options, "the engine options in use (after engine.scale)")
+      .def("write", &PyEngine::Write, py::arg("path"),
+           "writes the mesh as imr run does (org.imr.exporter.assimp): .ply, .obj, .gltf or .glb")
       .def_property_readonly("keyframes", &PyEngine::keyframes);
 
   py::class_<PyReader>(m, "Reader")

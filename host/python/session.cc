@@ -124,6 +124,13 @@ Session::Session(const std::string& engine_json, const std::string& policy,
   CheckEngineOptions(engine_json_, &base_options_);
   for (const auto& item : engine_json_.items()) explicit_keys_.insert(item.key());
   options_ = base_options_;
+  // The Steiner grid's size, as a job's validation checks it once the lengths are known: here
+  // when they are given or the scale is metric; else when the first keyframe decides (Add).
+  if ((engine_json_.value("scale", "") == "metric") ||
+      (engine_json_.contains("steiner_spacing") && engine_json_.contains("steiner_margin") &&
+       engine_json_.contains("max_ray_length")))
+    if (const std::string grid = base_options_.CheckSteinerGrid(); !grid.empty())
+      throw OptionError("engine: " + grid);
   sources_.push_back(std::make_shared<CallerSource>());
   export_context_.source = sources_.back().get();
   const json params = ParseObject(policy_params, "weight_policy_params");
@@ -148,7 +155,14 @@ Session::~Session() = default;
 
 void Session::Add(Keyframe k) {
   if (k.format.empty()) k.info = {keyframes_ + static_cast<int>(early_.size()), keyframes_ + static_cast<int>(early_.size())};
-  if (!scale_mode_) scale_mode_ = pipeline::ScaleModeOf(engine_json_, k.format);
+  if (!scale_mode_) {
+    scale_mode_ = pipeline::ScaleModeOf(engine_json_, k.format);
+    if (*scale_mode_ == pipeline::ScaleMode::kMetric)
+      if (const std::string grid = base_options_.CheckSteinerGrid(); !grid.empty()) {
+        scale_mode_.reset();
+        throw OptionError("engine: " + grid);
+      }
+  }
   if (k.source && std::find(sources_.begin(), sources_.end(), k.source) == sources_.end()) {
     sources_.push_back(k.source);
     export_context_.source = k.source.get();  // its points' colours, as a job's run gives them

@@ -61,6 +61,21 @@ def test_bad_options_raise_value_error_naming_option_and_bounds(options, words):
         assert w in str(e.value), (w, str(e.value))
 
 
+def test_a_grid_too_large_is_refused_as_imr_validate_refuses_it(tmp_path, run_imr):
+    with pytest.raises(ValueError) as e:
+        imr.Engine(scale="metric", steiner_spacing=0.01)
+    job = write_job(tmp_path / "job.json", {
+        "sequences": ["street"], "input": {"format": "synthetic"}, "engine": {"steiner_spacing": 0.01},
+        "pipeline": [{"kind": "exporter", "plugin": "org.imr.exporter.assimp"}],
+        "output": {"directory": str(tmp_path / "out")}})
+    r = run_imr("validate", job)
+    assert r.returncode != 0 and str(e.value) in r.stderr, (str(e.value), r.stderr)
+    # Metric by default for keyframes built by the caller: refused at the first one.
+    engine = imr.Engine(steiner_spacing=0.01)
+    with pytest.raises(ValueError, match="steiner_spacing"):
+        engine.add_keyframe(imr.Camera(0, center=(0, 0, 0)), new_ids=[1], new_positions=[[0, 0, 5]])
+
+
 def test_option_messages_are_imr_validates(tmp_path, run_imr):
     """The same words as `imr validate` prints for the job's engine section."""
     for options in ({"window": 0}, {"camera_path": 100001}, {"min_move_fraction": 2.0}):
