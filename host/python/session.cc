@@ -212,6 +212,7 @@ void Session::Start() {
 }
 
 void Session::Apply(Keyframe k) {
+  if (k.source) in_front_.Add(k.update, *k.source);
   canonical_.Apply(&k.update);
   const engine::Status st = engine_->ApplyUpdate(k.update);
   if (!st.ok())

@@ -8,6 +8,7 @@
 #include "host/engine/engine.h"
 #include "host/io/keyframe_source.h"
 #include "host/io/slam_json.h"
+#include "host/pipeline/in_front_check.h"
 #include "host/pipeline/mesh_export.h"
 #include "host/pipeline/scale.h"
 #include "host/plugin/policy_adapter.h"
@@ -94,6 +95,7 @@ class Session {
   plugin::PluginRegistry registry_;
   std::optional<plugin::PluginWeightPolicy> policy_;
   std::optional<engine::Engine> engine_;
+  pipeline::InFrontCheck in_front_;  // points behind their cameras fail as the run fails
   io::CanonicalOrder canonical_;
   pipeline::ExportContext export_context_;
   std::vector<std::shared_ptr<io::KeyframeSource>> sources_;  // for the exports

@@ -94,6 +94,32 @@ def test_the_example_writes_imr_meshs_bytes(tmp_path, run_imr):
     assert (tmp_path / "ex.ply").read_bytes() == (tmp_path / "cli.ply").read_bytes()
 
 
+def test_points_behind_their_cameras_fail_as_in_imr_run(tmp_path, run_imr):
+    """A stream whose cameras all look the wrong way (each rotation turned 180 degrees about
+    the camera's x axis): imr run fails the sequence, the module raises the same message."""
+    job = write_job(tmp_path / "export.json", synthetic_job(tmp_path / "export", frames=20))
+    r = run_imr("run", "-q", job, "--export-stream", tmp_path / "stream.json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    stream = json.load(open(tmp_path / "stream.json"))
+    flip = np.diag([1.0, -1.0, -1.0])
+    for view in stream["views"]:
+        view["extrinsic"]["rotation"] = (flip @ np.array(view["extrinsic"]["rotation"])).tolist()
+    (tmp_path / "mirrored.json").write_text(json.dumps(stream))
+    engine = imr.Engine()
+    with pytest.raises(imr.Error) as e:
+        for kf in imr.read_slam_json(tmp_path / "mirrored.json"):
+            engine.add_keyframe(kf)
+        engine.mesh()  # 4 keyframes: held for engine.scale auto until the mesh is asked for
+    assert "behind the camera" in str(e.value)
+    job = write_job(tmp_path / "job.json", {
+        "sequences": [str(tmp_path / "mirrored.json")], "input": {"format": "slam_json"},
+        "pipeline": [{"kind": "exporter", "plugin": "org.imr.exporter.assimp"}],
+        "output": {"directory": str(tmp_path / "out")}})
+    r = run_imr("run", job)
+    assert r.returncode != 0
+    assert str(e.value) in r.stdout, (str(e.value), r.stdout)
+
+
 def test_reader_errors_are_the_clis(tmp_path, run_imr):
     """A broken SLAM JSON file: the reader's message is the one imr run prints."""
     bad = tmp_path / "bad.json"
