@@ -48,6 +48,10 @@ NOT_OPTIONS = {
     "imr_point_estimate", "imr_track_view", "imr_refiner_update", "struct_size", "params_schema",
     "removed_count", "is_keyframe", "docs_test", "update_points_position", "delaunay_mesher", "model_analyzer",
     "automatic_reconstructor", "feature_extractor", "exhaustive_matcher",
+    # the Python module's functions, arguments and keys (docs/python.md)
+    "add_keyframe", "new_ids", "new_positions", "new_cameras", "moved_ids", "moved_positions",
+    "moved_cameras", "removed_ids", "point_ids", "weight_policy_params", "read_colmap",
+    "read_slam_json", "read_openmvg", "set_log_level", "keyframes_held",
 }
 
 # Flags of other programs the docs name alone.

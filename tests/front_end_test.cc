@@ -297,7 +297,7 @@ TEST_F(FrontEnd, ReportFollowsTheDocumentedSchema) {
     for (const char* k : {"id", "version", "kind", "abi", "file", "params"})
       EXPECT_TRUE(p.contains(k)) << k << " missing in " << p.dump();
   // Every engine counter and phase time the report has is documented (and so every counter the
-  // engine keeps, which StatsJson writes, is in both).
+  // engine keeps, which EngineStatsJson writes, is in both).
   const std::string doc = ReadText(fs::path(IMR_SOURCE_DIR) / "host/pipeline/REPORT.md");
   for (const auto& [key, value] : report["engine"].items())
     EXPECT_NE(doc.find("`" + key + "`"), std::string::npos) << "REPORT.md lacks engine." << key;

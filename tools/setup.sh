@@ -26,6 +26,9 @@ PACKAGES=(
   slurm-wlm munge
   # plots of reports (tools/plots/imr_plots.py) and the viewer page's browser test (headless)
   python3-matplotlib chromium
+  # the Python module (host/python: pybind11, built for Debian's python3) and its tests (numpy,
+  # pytest); python3-open3d (90 MB with its libraries) only shows its example's mesh: not here
+  pybind11-dev python3-dev python3-numpy python3-pytest
   # fuzz/* tests: clang with libFuzzer's and the sanitizers' runtimes, llvm-symbolizer for reports
   clang libclang-rt-14-dev llvm-14
 )

@@ -298,8 +298,17 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
 
 ValidatedJob LoadAndValidateJob(const fs::path& job_file, plugin::PluginRegistry* registry,
                                 const std::vector<std::string>& overrides) {
+  return ValidateParsedJob(io::ParseJobFile(job_file, overrides), registry);
+}
+
+ValidatedJob LoadAndValidateJobText(const std::string& text, const fs::path& job_file,
+                                    plugin::PluginRegistry* registry,
+                                    const std::vector<std::string>& overrides) {
+  return ValidateParsedJob(io::ParseJobText(text, job_file, overrides), registry);
+}
+
+ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry* registry) {
   ValidatedJob v;
-  io::JobParseResult parsed = io::ParseJobFile(job_file, overrides);
   v.job = std::move(parsed.job);
   v.problems = std::move(parsed.problems);
   if (v.job.input.format.empty() && v.job.sequences.empty() && !v.problems.empty() &&

@@ -40,5 +40,12 @@ nlohmann::json EvaluationSchema();
 ValidatedJob LoadAndValidateJob(const std::filesystem::path& job_file,
                                 plugin::PluginRegistry* registry,
                                 const std::vector<std::string>& overrides = {});
+// The same for a job given as text (the Python module's job dicts): `job_file` names it in
+// messages and anchors its relative paths; it need not exist.
+ValidatedJob LoadAndValidateJobText(const std::string& text, const std::filesystem::path& job_file,
+                                    plugin::PluginRegistry* registry,
+                                    const std::vector<std::string>& overrides = {});
+// What both do after parsing.
+ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry* registry);
 
 }  // namespace imr::pipeline

@@ -27,75 +27,6 @@ json LiveSamplesJson(const std::vector<engine::EngineStats::LiveSample>& samples
   return out;
 }
 
-json StatsJson(const engine::EngineStats& s) {
-  const auto& t = s.time;
-  // Every counter engine::EngineStats keeps (REPORT.md lists them).
-  return {{"seconds", {{"steiner", t.steiner}, {"shrink", t.shrink}, {"move", t.move},
-                       {"insert", t.insert}, {"cast", t.cast}, {"threaded", t.threaded},
-                       {"scan", t.scan}, {"grow", t.grow}, {"extract", t.extract},
-                       {"total", t.total}}},
-          {"keyframes", s.updates},
-          {"rays_cast", s.rays_cast},
-          {"rays_cast_backward", s.rays_cast_backward},
-          {"rays_skipped_too_long", s.rays_skipped_too_long},
-          {"rays_truncated_to_camera", s.rays_truncated_to_camera},
-          {"rays_truncated", s.rays_truncated},
-          {"rays_uncast_listed", s.rays_uncast_listed},
-          {"rays_rewalked", s.rays_rewalked},
-          {"rays_rewalked_exact", s.rays_rewalked_exact},
-          {"rays_walked_exact", s.rays_walked_exact},
-          {"cells_rewalked", s.cells_rewalked},
-          {"ray_mismatches", s.ray_mismatches},
-          {"cells_traversed", s.cells_traversed},
-          {"cells_weighted", s.cells_weighted},
-          {"points_inserted", s.points_inserted},
-          {"points_moved", s.points_moved},
-          {"moves_skipped", s.moves_skipped},
-          {"points_dropped", s.points_dropped},
-          {"points_duplicate", s.points_duplicate},
-          {"moves_duplicate", s.moves_duplicate},
-          {"moves_in_place", s.moves_in_place},
-          {"moves_planned_ahead", s.moves_planned_ahead},
-          {"moves_replanned", s.moves_replanned},
-          {"moves_below_min", s.moves_below_min},
-          {"points_reentered", s.points_reentered},
-          {"points_removed", s.points_removed},
-          {"observations_over_limit", s.observations_over_limit},
-          {"steiner_points", s.steiner_points},
-          {"steiner_dropped", s.steiner_dropped},
-          {"cells_grown", s.cells_grown},
-          {"cells_opened", s.cells_opened},
-          {"camera_regrowths", s.camera_regrowths},
-          {"camera_cells_regrown", s.camera_cells_regrown},
-          {"cells_shrunk", s.cells_shrunk},
-          {"policy_calls", s.policy_calls},
-          {"rays_scan_cells", s.rays_scan_cells},
-          {"vertices", s.vertices},
-          {"cells", s.cells},
-          {"cells_in_o", s.cells_in_o},
-          {"cameras_in_o",
-           {{"checked", s.cameras_checked},
-            {"inside", s.cameras_in_o},
-            {"share", s.cameras_checked > 0 ? static_cast<double>(s.cameras_in_o) / s.cameras_checked : 0.0}}},
-          {"forget",
-           {{"steps", s.forget_steps},
-            {"cells_finalized", s.cells_finalized},
-            {"cells_final", s.cells_final},
-            {"final_cells_replaced", s.final_cells_replaced},
-            {"rebuilds", s.rebuilds},
-            {"rebuilds_abandoned", s.rebuilds_abandoned},
-            {"vertices_forgotten", s.vertices_forgotten},
-            {"points_forgotten", s.points_forgotten},
-            {"point_records_freed", s.point_records_freed},
-            {"updates_of_forgotten_points", s.updates_of_forgotten_points},
-            {"changes_refused_final", s.changes_refused_final},
-            {"components_started", s.components_started},
-            {"parts", s.parts},
-            {"part_triangles", s.part_triangles},
-            {"seconds", t.forget},
-            {"rebuild_seconds", t.rebuild},
-            {"live", LiveSamplesJson(s.live_samples)}}}};
-}
 
 // What the sequence was made from, by content: SHA-256 of each file of the source (a file, or the
 // files directly in its folder: calibration, poses, times) and, for image sequences, one digest
@@ -207,6 +138,76 @@ std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mes
          " triangles touch no data point (Steiner grid only). Are the points' positions right?";
 }
 
+json EngineStatsJson(const engine::EngineStats& s) {
+  const auto& t = s.time;
+  // Every counter engine::EngineStats keeps (REPORT.md lists them).
+  return {{"seconds", {{"steiner", t.steiner}, {"shrink", t.shrink}, {"move", t.move},
+                       {"insert", t.insert}, {"cast", t.cast}, {"threaded", t.threaded},
+                       {"scan", t.scan}, {"grow", t.grow}, {"extract", t.extract},
+                       {"total", t.total}}},
+          {"keyframes", s.updates},
+          {"rays_cast", s.rays_cast},
+          {"rays_cast_backward", s.rays_cast_backward},
+          {"rays_skipped_too_long", s.rays_skipped_too_long},
+          {"rays_truncated_to_camera", s.rays_truncated_to_camera},
+          {"rays_truncated", s.rays_truncated},
+          {"rays_uncast_listed", s.rays_uncast_listed},
+          {"rays_rewalked", s.rays_rewalked},
+          {"rays_rewalked_exact", s.rays_rewalked_exact},
+          {"rays_walked_exact", s.rays_walked_exact},
+          {"cells_rewalked", s.cells_rewalked},
+          {"ray_mismatches", s.ray_mismatches},
+          {"cells_traversed", s.cells_traversed},
+          {"cells_weighted", s.cells_weighted},
+          {"points_inserted", s.points_inserted},
+          {"points_moved", s.points_moved},
+          {"moves_skipped", s.moves_skipped},
+          {"points_dropped", s.points_dropped},
+          {"points_duplicate", s.points_duplicate},
+          {"moves_duplicate", s.moves_duplicate},
+          {"moves_in_place", s.moves_in_place},
+          {"moves_planned_ahead", s.moves_planned_ahead},
+          {"moves_replanned", s.moves_replanned},
+          {"moves_below_min", s.moves_below_min},
+          {"points_reentered", s.points_reentered},
+          {"points_removed", s.points_removed},
+          {"observations_over_limit", s.observations_over_limit},
+          {"steiner_points", s.steiner_points},
+          {"steiner_dropped", s.steiner_dropped},
+          {"cells_grown", s.cells_grown},
+          {"cells_opened", s.cells_opened},
+          {"camera_regrowths", s.camera_regrowths},
+          {"camera_cells_regrown", s.camera_cells_regrown},
+          {"cells_shrunk", s.cells_shrunk},
+          {"policy_calls", s.policy_calls},
+          {"rays_scan_cells", s.rays_scan_cells},
+          {"vertices", s.vertices},
+          {"cells", s.cells},
+          {"cells_in_o", s.cells_in_o},
+          {"cameras_in_o",
+           {{"checked", s.cameras_checked},
+            {"inside", s.cameras_in_o},
+            {"share", s.cameras_checked > 0 ? static_cast<double>(s.cameras_in_o) / s.cameras_checked : 0.0}}},
+          {"forget",
+           {{"steps", s.forget_steps},
+            {"cells_finalized", s.cells_finalized},
+            {"cells_final", s.cells_final},
+            {"final_cells_replaced", s.final_cells_replaced},
+            {"rebuilds", s.rebuilds},
+            {"rebuilds_abandoned", s.rebuilds_abandoned},
+            {"vertices_forgotten", s.vertices_forgotten},
+            {"points_forgotten", s.points_forgotten},
+            {"point_records_freed", s.point_records_freed},
+            {"updates_of_forgotten_points", s.updates_of_forgotten_points},
+            {"changes_refused_final", s.changes_refused_final},
+            {"components_started", s.components_started},
+            {"parts", s.parts},
+            {"part_triangles", s.part_triangles},
+            {"seconds", t.forget},
+            {"rebuild_seconds", t.rebuild},
+            {"live", LiveSamplesJson(s.live_samples)}}}};
+}
+
 json BuildReport(const ReportInputs& in) {
   const engine::EngineStats& stats = *in.stats;
   json report;
@@ -222,7 +223,7 @@ json BuildReport(const ReportInputs& in) {
   report["engine_options"] = io::EngineOptionsToJson(in.engine_options);
   report["engine_scale"] = ScaleJson(in.scale_mode, in.scale, in.engine_options, in.explicit_keys);
   report["plugins"] = in.plugins;
-  report["engine"] = StatsJson(stats);
+  report["engine"] = EngineStatsJson(stats);
   report["engine"]["keyframe_seconds"] = stats.keyframe_seconds;
   // Time of the move phase per moved point. The paper's per-move overhead, (T_mov - T_nonmov) /
   // N_mov, needs a second run with frozen points: imr-bench paper measures it.

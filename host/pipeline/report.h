@@ -83,4 +83,7 @@ struct ReportInputs {
 
 nlohmann::json BuildReport(const ReportInputs& in);
 
+// The report's "engine" object: every counter of the engine's stats (REPORT.md lists them).
+nlohmann::json EngineStatsJson(const engine::EngineStats& stats);
+
 }  // namespace imr::pipeline

@@ -8,6 +8,7 @@
 #include "host/io/input_formats.h"
 #include "host/io/slam_json.h"
 #include "host/pipeline/front_end.h"
+#include "host/pipeline/in_front_check.h"
 #include "host/pipeline/keyframe_observers.h"
 #include "host/pipeline/mesh_export.h"
 #include "host/pipeline/prefetch.h"
@@ -86,8 +87,6 @@ class SequenceRun {
   void AddObservers();
   void ProcessKeyframes();
   bool NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info);
-  void CheckInFront(const engine::KeyframeUpdate& update);
-  std::string BehindMessage() const;
   void Finish();
   engine::Mesh CheckedMesh();
   void FinishStreamedSurface();
@@ -140,10 +139,8 @@ class SequenceRun {
   io::KeyframeSource& Input() { return prefetch_ ? *prefetch_ : *source_; }
   std::optional<WatchedPolicy> watched_policy_;
 
-  // New points seen from behind the cameras that see them (CheckInFront): a mirrored stream,
-  // or rotations the wrong way round, would mesh "ok" in the wrong place.
-  int64_t observations_checked_ = 0, observations_behind_ = 0;
-  std::string first_behind_;
+  // New points seen from behind the cameras that see them (in_front_check.h).
+  InFrontCheck in_front_;
 
   // The scene's scale (scale.h) and the engine.
   ScaleMode scale_mode_ = ScaleMode::kMetric;
@@ -434,7 +431,7 @@ void SequenceRun::ProcessKeyframes() {
   while (NextKeyframe(&update, &kf)) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
     if (scale_mode_ == ScaleMode::kMetric && !probe_.Enough()) probe_.Add(update);
-    CheckInFront(update);
+    in_front_.Add(update, *source_);
     canonical_.Apply(&update);
     watch_.SetPosition("keyframe " + std::to_string(kf.index) + ", frame " + std::to_string(kf.frame));
     const auto engine_start = std::chrono::steady_clock::now();
@@ -460,44 +457,6 @@ void SequenceRun::ProcessKeyframes() {
     if (refinement_) refinement_->OnKeyframe(*engine_, export_context_, watch_, keyframes_);
     for (const auto& observer : observers_) observer->OnKeyframe(event);
   }
-}
-
-// Counts the observations of new points that put the point behind its camera (depth <= 0 in
-// the camera's frame, for cameras whose rotation the source knows). Once 100 are counted, most
-// of them behind fails the sequence: the mesh would be made, and look fine, in the wrong place.
-void SequenceRun::CheckInFront(const engine::KeyframeUpdate& update) {
-  for (const engine::NewPoint& p : update.new_points)
-    for (uint64_t id : p.camera_ids) {
-      const io::CameraGeometry* g = source_->Camera(id);
-      if (g == nullptr) continue;
-      const io::Mat3& r = g->rotation;
-      const double depth = r[2][0] * (p.position[0] - g->center[0]) +
-                           r[2][1] * (p.position[1] - g->center[1]) +
-                           r[2][2] * (p.position[2] - g->center[2]);
-      ++observations_checked_;
-      if (depth > 0.0) continue;
-      if (++observations_behind_ == 1) {
-        char b[240];
-        std::snprintf(b, sizeof(b),
-                      "point %llu at (%g, %g, %g) is %g behind camera %llu at (%g, %g, %g)",
-                      static_cast<unsigned long long>(p.id), p.position[0], p.position[1],
-                      p.position[2], -depth, static_cast<unsigned long long>(id), g->center[0],
-                      g->center[1], g->center[2]);
-        first_behind_ = b;
-      }
-    }
-  if (observations_checked_ >= 100 && 2 * observations_behind_ > observations_checked_)
-    throw std::runtime_error(BehindMessage());
-}
-
-std::string SequenceRun::BehindMessage() const {
-  char share[32];
-  std::snprintf(share, sizeof(share), "%.1f %%", 100.0 * static_cast<double>(observations_behind_) /
-                                                    static_cast<double>(observations_checked_));
-  return std::to_string(observations_behind_) + " of " + std::to_string(observations_checked_) +
-         " observations of new points (" + share + ") put the point behind the camera that sees "
-         "it (first: " + first_behind_ + "): are the points mirrored, or the rotations camera -> "
-         "world where world -> camera is expected?";
 }
 
 // The keyframes read to decide the scale first, then the rest.
@@ -640,11 +599,11 @@ void SequenceRun::WarnAbout() {
     Warn(what + " sit at one spot " + spot + ": a share of the model collapsed (a failed merge "
          "in the SfM run, cameras with no baseline); they were left out");
   }
-  // A short sequence never reached the 100 observations of CheckInFront; a few behind is noise,
+  // A short sequence never reached the 100 observations of InFrontCheck; a few behind is noise,
   // more than 5 % is worth a word.
-  if (2 * observations_behind_ > observations_checked_ && observations_checked_ > 0)
-    throw std::runtime_error(BehindMessage());
-  if (20 * observations_behind_ > observations_checked_) Warn(BehindMessage());
+  if (2 * in_front_.behind() > in_front_.checked() && in_front_.checked() > 0)
+    throw std::runtime_error(in_front_.Message());
+  if (20 * in_front_.behind() > in_front_.checked()) Warn(in_front_.Message());
   // Rays longer than max_ray_length are not cast: most of them skipped usually means the
   // scene is not in metres (or is much larger or smaller than the defaults assume).
   const engine::EngineStats& stats = EngineStats();

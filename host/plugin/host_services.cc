@@ -64,6 +64,10 @@ void RequestCancel(int signal) {
 }
 bool CancelRequested() { return g_cancel.load(); }
 int CancelSignal() { return g_cancel_signal.load(); }
+void ClearCancel() {
+  g_cancel = false;
+  g_cancel_signal = 0;
+}
 
 LoadedInstance CreateInstance(const PluginInfo& info, const nlohmann::json& params) {
   return LoadedInstance{info.library,

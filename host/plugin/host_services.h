@@ -22,6 +22,9 @@ const imr_host_services* HostServices();
 void RequestCancel(int signal = 0);
 bool CancelRequested();
 int CancelSignal();
+// Clears a cancel request: for hosts that run many calls in one process (the Python module: a
+// Ctrl-C stops one call, the next one starts afresh). The CLI never clears it.
+void ClearCancel();
 
 // An instance of a loaded plugin that also keeps its library loaded.
 struct LoadedInstance {

@@ -27,8 +27,19 @@ PluginRegistry::~PluginRegistry() = default;
 PluginRegistry::PluginRegistry(PluginRegistry&&) noexcept = default;
 PluginRegistry& PluginRegistry::operator=(PluginRegistry&&) noexcept = default;
 
+namespace {
+fs::path& InstalledPluginDirectoryOverride() {
+  static fs::path directory;
+  return directory;
+}
+}  // namespace
+
+void PluginRegistry::SetInstalledPluginDirectory(const fs::path& directory) {
+  InstalledPluginDirectoryOverride() = directory;
+}
+
 fs::path PluginRegistry::InstalledPluginDirectory() {
-  std::error_code ec;
+  if (!InstalledPluginDirectoryOverride().empty()) return InstalledPluginDirectoryOverride();
   fs::path exe = boost::dll::program_location().native();
   return (exe.parent_path() / ".." / "lib" / "imr" / "plugins").lexically_normal();
 }

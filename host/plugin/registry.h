@@ -48,8 +48,12 @@ class PluginRegistry {
 
   // The default search path: IMR_PLUGIN_PATH entries, then the installed folder.
   static std::vector<std::filesystem::path> DefaultSearchPaths();
-  // The installed plugin folder next to the running executable.
+  // The installed plugin folder next to the running executable, or the one a host that is not
+  // the imr executable set (SetInstalledPluginDirectory).
   static std::filesystem::path InstalledPluginDirectory();
+  // For hosts whose executable is not imr's (the Python module, whose executable is python3):
+  // where their plugins are. Empty: next to the executable again.
+  static void SetInstalledPluginDirectory(const std::filesystem::path& directory);
 
   // Loads every plugin found in `paths`, in order. Entries that do not exist are refusals.
   void Scan(const std::vector<std::filesystem::path>& paths);
