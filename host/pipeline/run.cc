@@ -305,19 +305,9 @@ void SequenceRun::StartEngine() {
       early_.emplace_back(std::move(u), i);
     }
     scale_ = probe_.Estimate();
-    if (scale_.rays == 0) {
-      LogWarning("[" + JsonText(seq_.name) + "] engine.scale auto: no ray to measure in the first " +
-                 std::to_string(scale_.keyframes) + " keyframes; the metric defaults are kept");
-    } else {
-      engine_options_ = ScaledOptions(v_.engine_options, scale_, explicit_keys_);
-      std::string error = engine_options_.Check();
-      if (error.empty()) error = engine_options_.CheckSteinerGrid();
-      if (!error.empty())
-        throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale_.median_ray) +
-                                 ") gives unusable options: " + error +
-                                 "; set the engine's lengths in the job, or engine.scale \"metric\"");
-      LogInfo("[" + JsonText(seq_.name) + "] " + ScaleLogLine(scale_, engine_options_, explicit_keys_));
-    }
+    std::string line;
+    engine_options_ = AutoScaledOptions(v_.engine_options, scale_, explicit_keys_, &line);
+    (scale_.rays == 0 ? LogWarning : LogInfo)("[" + JsonText(seq_.name) + "] " + line);
   }
   if (options_.threads > 0) engine_options_.num_threads = options_.threads;  // --threads
   engine_.emplace(engine_options_, watched_policy_ ? &*watched_policy_ : nullptr);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <utility>
 
 namespace imr::pipeline {
@@ -163,6 +164,24 @@ engine::EngineOptions ScaledOptions(const engine::EngineOptions& base, const Sca
   engine::EngineOptions o = base;
   for (const auto& [name, field] : LengthFields())
     if (!explicit_keys.count(name)) o.*field = metric.*field * FactorOf(estimate, name);
+  return o;
+}
+
+engine::EngineOptions AutoScaledOptions(const engine::EngineOptions& base, const ScaleEstimate& estimate,
+                                        const std::set<std::string>& explicit_keys, std::string* line) {
+  if (estimate.rays == 0) {
+    *line = "engine.scale auto: no ray to measure in the first " + std::to_string(estimate.keyframes) +
+            " keyframes; the metric defaults are kept";
+    return base;
+  }
+  const engine::EngineOptions o = ScaledOptions(base, estimate, explicit_keys);
+  std::string error = o.Check();
+  if (error.empty()) error = o.CheckSteinerGrid();
+  if (!error.empty())
+    throw std::runtime_error("engine.scale auto (median ray " + std::to_string(estimate.median_ray) +
+                             ") gives unusable options: " + error +
+                             "; set the engine's lengths in the job, or engine.scale \"metric\"");
+  *line = ScaleLogLine(estimate, o, explicit_keys);
   return o;
 }
 

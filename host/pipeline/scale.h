@@ -110,6 +110,12 @@ class ScaleProbe {
 engine::EngineOptions ScaledOptions(const engine::EngineOptions& base, const ScaleEstimate& estimate,
                                     const std::set<std::string>& explicit_keys);
 
+// What engine.scale auto runs the engine with: ScaledOptions, checked (Check, CheckSteinerGrid:
+// std::runtime_error naming the median ray and what to set when unusable), or `base` when no ray
+// was measured. *line: the log's line (ScaleLogLine, or the warning that the defaults are kept).
+engine::EngineOptions AutoScaledOptions(const engine::EngineOptions& base, const ScaleEstimate& estimate,
+                                        const std::set<std::string>& explicit_keys, std::string* line);
+
 // For the report and the log: the mode, what it was decided from, and the values chosen.
 nlohmann::json ScaleJson(ScaleMode mode, const ScaleEstimate& estimate,
                          const engine::EngineOptions& chosen,

@@ -182,19 +182,9 @@ void Session::Start() {
   options_ = base_options_;
   if (scale_mode_ == pipeline::ScaleMode::kAuto) {
     scale_ = probe_.Estimate();
-    if (scale_.rays == 0) {
-      LogWarning("engine.scale auto: no ray to measure in the first " + std::to_string(scale_.keyframes) +
-                 " keyframes; the metric defaults are kept");
-    } else {
-      options_ = pipeline::ScaledOptions(base_options_, scale_, explicit_keys_);
-      std::string error = options_.Check();
-      if (error.empty()) error = options_.CheckSteinerGrid();
-      if (!error.empty())
-        throw std::runtime_error("engine.scale auto (median ray " + std::to_string(scale_.median_ray) +
-                                 ") gives unusable options: " + error +
-                                 "; set the engine's lengths in the job, or engine.scale \"metric\"");
-      LogInfo(pipeline::ScaleLogLine(scale_, options_, explicit_keys_));
-    }
+    std::string line;
+    options_ = pipeline::AutoScaledOptions(base_options_, scale_, explicit_keys_, &line);
+    (scale_.rays == 0 ? LogWarning : LogInfo)(line);
   }
   engine_.emplace(options_, policy_ ? &*policy_ : nullptr);
   if (!engine_->init_status().ok()) {
