@@ -5,9 +5,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
+#include "host/eval/mesh_io.h"
 #include "test_util.h"
 
 namespace imr::testing {
@@ -133,8 +135,8 @@ TEST_F(Refinement, WhatTheHostRefusesOfARefiner) {
   EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
 }
 
-// The job's checks: the schedule belongs to mesh_refiner stages, one stage at most, and not
-// (yet) with a surface written in parts.
+// The job's checks: the schedule belongs to mesh_refiner stages, one stage at most; a refiner's
+// subdivision fails a run that writes its surface in parts.
 TEST_F(Refinement, JobChecks) {
   json on_exporter = EngineJob({}, 0);
   on_exporter["pipeline"][2]["every_keyframes"] = 5;
@@ -156,11 +158,65 @@ TEST_F(Refinement, JobChecks) {
   EXPECT_EQ(r.status, 64) << r.err;
   EXPECT_NE(r.err.find("at most one mesh_refiner stage, found 2"), std::string::npos) << r.err;
 
-  json forget = EngineJob({}, 0);
-  forget["engine"] = {{"forget", true}};
-  r = Run(forget);
-  EXPECT_EQ(r.status, 64) << r.err;
-  EXPECT_NE(r.err.find("does not work with engine.forget yet"), std::string::npos) << r.err;
+  // A surface written in parts cannot take a subdivision (its faces are written already).
+  json subdivide = EngineJob({{"misbehave", "subdivide"}}, 0);
+  subdivide["engine"] = {{"forget", true}};
+  r = Run(subdivide);
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("which a run that writes it in parts (engine.forget, output.tiles) cannot take"),
+            std::string::npos) << r.err;
+}
+
+// Issue 34 item 3: a run that writes its surface in parts (engine.forget, output.tiles) refines
+// each part before it is written. The shift refiner lifts each vertex it refines by dz, once
+// (only_changed); a vertex written already is FIXED in later calls. The mesh written is the
+// unrefined run's, each vertex where it was or dz above, most above; its tiles merge into a
+// 2-manifold with the mesh's vertices (the same position for a vertex in every tile).
+TEST_F(Refinement, ARunThatWritesItsSurfaceInPartsWritesItRefined) {
+  const fs::path log = dir_ / "calls.jsonl";
+  json job = EngineJob({{"dz", 0.01}, {"only_changed", true}, {"log", log.string()}}, 4);
+  job["input"]["options"]["frames"] = 300;
+  job["engine"] = {{"forget", true}};
+  json plain = job;
+  plain["pipeline"].erase(1);
+  plain["output"]["directory"] = (dir_ / "plain/{sequence}").string();
+  CommandResult r = Run(plain, "plain.json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  job["output"]["tiles"] = true;
+  job["output"]["formats"] = {"ply", "glb"};
+  r = Run(job);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json report = ReadJson(Report());
+  EXPECT_GE(report["engine"]["forget"]["parts"].get<int>(), 3) << "nothing handed out on the way";
+  EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
+  const std::vector<json> calls = ReadLines(log);
+  ASSERT_GE(calls.size(), 3u);
+  int64_t fixed = 0;
+  for (const json& c : calls) fixed += c["fixed"].get<int64_t>();
+  EXPECT_GT(fixed, 0) << "no vertex written already was sent FIXED";
+  EXPECT_TRUE(calls.back()["final"].get<bool>());
+
+  const eval::TriangleMesh refined = eval::ReadMesh(dir_ / "runs/street/mesh.ply");
+  const eval::TriangleMesh unrefined = eval::ReadMesh(dir_ / "plain/street/mesh.ply");
+  ASSERT_EQ(refined.vertices.size(), unrefined.vertices.size());
+  EXPECT_EQ(refined.triangles, unrefined.triangles);
+  std::size_t raised = 0;
+  for (std::size_t i = 0; i < refined.vertices.size(); ++i) {
+    const auto& a = refined.vertices[i];
+    const auto& b = unrefined.vertices[i];
+    ASSERT_NEAR(a[0], b[0], 1e-4) << i;
+    ASSERT_NEAR(a[1], b[1], 1e-4) << i;
+    const double dz = a[2] - b[2];
+    ASSERT_TRUE(std::abs(dz) < 1e-4 || std::abs(dz - 0.01) < 1e-4) << "vertex " << i << " lifted by " << dz;
+    raised += dz > 0.005 ? 1 : 0;
+  }
+  EXPECT_GT(raised, refined.vertices.size() / 2);
+
+  r = RunShell(kImr + " tiles merge " + Quote((dir_ / "runs/street").string()) + " --out " +
+               Quote((dir_ / "merged.ply").string()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("a 2-manifold with boundary"), std::string::npos) << r.out;
+  EXPECT_EQ(eval::ReadMesh(dir_ / "merged.ply").vertices.size(), refined.vertices.size());
 }
 
 // The photometric refiner needs images: an engine-only input fails the sequence saying so.

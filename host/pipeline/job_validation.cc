@@ -273,12 +273,6 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
   if (count["mesh_refiner"] > 1)
     v->problems.push_back({"pipeline", "at most one mesh_refiner stage, found " +
                                            std::to_string(count["mesh_refiner"])});
-  // The surface a streamed run hands out in parts is not refined yet (issue 34: a tile refined
-  // before it is written, its seam fixed): say so rather than export it unrefined.
-  if (count["mesh_refiner"] > 0 && (v->engine_options.forget || !v->tiles.is_null()))
-    v->problems.push_back({"pipeline", std::string("a mesh_refiner stage does not work with ") +
-                                           (v->engine_options.forget ? "engine.forget" : "output.tiles") +
-                                           " yet: remove one of them"});
   // Tiles are GLB (3D Tiles 1.1 content), written through the first exporter that writes glb.
   if (!v->tiles.is_null() && count["exporter"] > 0 && !unknown_exporter &&
       std::find(exporter_formats.begin(), exporter_formats.end(), "glb") == exporter_formats.end())

@@ -355,6 +355,7 @@ void SequenceRun::StartStreamedSurface() {
     spool = spool_dir_->path();
   }
   streamed_.emplace(engine_options_, spool, tiles_ ? &*tiles_ : nullptr);
+  if (refinement_) streamed_->SetPartFilter([this](engine::SurfacePart* part) { refinement_->Freeze(part); });
 }
 
 // One tile through the job's glb exporter: with the keyframes that may see it (their images for
@@ -439,12 +440,13 @@ void SequenceRun::ProcessKeyframes() {
       throw std::runtime_error("keyframe " + std::to_string(kf.index) + ": weight policy " +
                                policy_->error());
     export_context_.Add(update, kf, front_end_);
+    event.keyframes = ++keyframes_;
+    // The refinement first: the parts handed out now carry its positions.
+    if (refinement_) refinement_->OnKeyframe(*engine_, export_context_, watch_, keyframes_);
     if (streamed_) {
       watch_.SetPosition("keyframe " + std::to_string(kf.index) + ": the final parts of the surface");
       streamed_->Take(*engine_);
     }
-    event.keyframes = ++keyframes_;
-    if (refinement_) refinement_->OnKeyframe(*engine_, export_context_, watch_, keyframes_);
     for (const auto& observer : observers_) observer->OnKeyframe(event);
   }
 }
@@ -465,11 +467,12 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 // truth, the job's "evaluation"), or forgetting is off (tiles only: the single mesh in canonical
 // order, today's bytes).
 void SequenceRun::Finish() {
+  if (streamed_ && refinement_) refinement_->FinishLive(*engine_, export_context_, watch_);
   if (streamed_)
     FinishStreamedSurface();
   else
     mesh_ = CheckedMesh();
-  if (refinement_) {  // the mesh written and measured is the refined one
+  if (refinement_ && !streamed_) {  // the mesh written and measured is the refined one
     refinement_->Finish(&*mesh_, export_context_, watch_);
     report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
   }

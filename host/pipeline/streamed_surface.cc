@@ -247,7 +247,10 @@ void StreamedSurface::Complete(SeamVertex& v) {
 
 void StreamedSurface::Take(engine::Engine& engine) {
   const auto start = std::chrono::steady_clock::now();
-  for (const engine::SurfacePart& part : engine.TakeFinalParts()) Feed(part);
+  for (engine::SurfacePart& part : engine.TakeFinalParts()) {
+    if (filter_) filter_(&part);
+    Feed(part);
+  }
   const double s = SecondsSince(start);
   stats_.seconds += s;
   stats_.max_update_seconds = std::max(stats_.max_update_seconds, s);
@@ -255,7 +258,9 @@ void StreamedSurface::Take(engine::Engine& engine) {
 
 void StreamedSurface::Finish(engine::Engine& engine) {
   const auto start = std::chrono::steady_clock::now();
-  Feed(engine.FinishSurface());
+  engine::SurfacePart last = engine.FinishSurface();
+  if (filter_) filter_(&last);
+  Feed(last);
   if (const std::string e = stream_.Finish(); !e.empty())
     throw std::runtime_error("the surface handed out in parts is not whole: " + e);
   if (tiles_ != nullptr) tiles_->Finish();

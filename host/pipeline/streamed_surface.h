@@ -46,6 +46,9 @@ class StreamedSurface {
   // (the caller removes it). `tiles` may be null (no tiles).
   StreamedSurface(const engine::EngineOptions& options, std::filesystem::path spool, TileWriter* tiles);
   ~StreamedSurface();
+  // What each part goes through before the stream (the mesh_refiner stage's refined positions:
+  // SurfaceRefinement::Freeze); none by default.
+  void SetPartFilter(std::function<void(engine::SurfacePart*)> filter) { filter_ = std::move(filter); }
   // After each ApplyUpdate: the parts that became final. Throws when a part does not fit.
   void Take(engine::Engine& engine);
   // After the last update: the rest of the surface, the open tiles and the final tileset.
@@ -103,6 +106,7 @@ class StreamedSurface {
   void Fail(const std::string& what);
 
   engine::SurfaceStream stream_;
+  std::function<void(engine::SurfacePart*)> filter_;
   std::filesystem::path spool_dir_;
   std::ofstream vertices_, faces_file_;
   int normals_fd_ = -1;  // written at each vertex's completion, at its index (pwrite)

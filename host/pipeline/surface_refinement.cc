@@ -68,6 +68,69 @@ void SurfaceRefinement::Finish(engine::Mesh* mesh, const ExportContext& context,
   Refine(mesh, context, watch, /*final_call=*/true);
 }
 
+void SurfaceRefinement::FinishLive(const engine::Engine& engine, const ExportContext& context,
+                                   StageWatch& watch) {
+  streamed_ = true;
+  const auto start = std::chrono::steady_clock::now();
+  engine::Mesh mesh = engine.ExtractMesh();
+  stats_.seconds += SecondsSince(start);
+  if (mesh.faces.empty()) return;
+  Refine(&mesh, context, watch, /*final_call=*/true);
+}
+
+void SurfaceRefinement::Freeze(engine::SurfacePart* part) {
+  streamed_ = true;
+  for (std::size_t i = 0; i < part->keys.size(); ++i) {
+    double* p = &part->vertices[3 * i];
+    auto w = written_.find(part->keys[i]);
+    if (w == written_.end()) {
+      Written entry{{p[0], p[1], p[2]}, part->point_ids[i], 0};
+      const Kept* k = nullptr;
+      if (entry.point_id >= 0) {
+        auto it = kept_.find(entry.point_id);
+        if (it != kept_.end()) k = &it->second;
+        written_point_[entry.point_id] = part->keys[i];
+      } else {
+        entry.steiner_hash = PositionHash(p);
+        auto it = kept_steiner_.find(entry.steiner_hash);
+        if (it != kept_steiner_.end()) k = &it->second;
+        written_steiner_[entry.steiner_hash] = part->keys[i];
+      }
+      if (k != nullptr && Same(k->engine, p)) entry.position = k->refined;
+      w = written_.emplace(part->keys[i], entry).first;
+    }
+    p[0] = w->second.position[0], p[1] = w->second.position[1], p[2] = w->second.position[2];
+  }
+  // No later part or mesh names a complete vertex: what was kept for it can go.
+  for (int64_t key : part->completed) {
+    auto w = written_.find(key);
+    if (w == written_.end()) continue;
+    if (w->second.point_id >= 0) {
+      written_point_.erase(w->second.point_id);
+      kept_.erase(w->second.point_id);
+    } else {
+      written_steiner_.erase(w->second.steiner_hash);
+      kept_steiner_.erase(w->second.steiner_hash);
+    }
+    written_.erase(w);
+  }
+}
+
+const std::array<double, 3>* SurfaceRefinement::Frozen(int64_t point_id, const double* p) const {
+  if (written_.empty()) return nullptr;
+  int64_t key = 0;
+  if (point_id >= 0) {
+    auto it = written_point_.find(point_id);
+    if (it == written_point_.end()) return nullptr;
+    key = it->second;
+  } else {
+    auto it = written_steiner_.find(PositionHash(p));
+    if (it == written_steiner_.end()) return nullptr;
+    key = it->second;
+  }
+  return &written_.at(key).position;
+}
+
 // One call: the kept positions put back where the engine has not moved a vertex since, the
 // plugin's answer checked and applied to `mesh` and remembered.
 void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context, StageWatch& watch,
@@ -80,6 +143,11 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
   int64_t kept = 0;
   for (std::size_t i = 0; i < n; ++i) {
     double* p = &mesh->vertices[3 * i];
+    if (const std::array<double, 3>* w = Frozen(mesh->point_ids[i], p)) {  // written already
+      p[0] = (*w)[0], p[1] = (*w)[1], p[2] = (*w)[2];
+      flags[i] = IMR_REFINE_VERTEX_FIXED;
+      continue;
+    }
     const Kept* k = nullptr;
     if (mesh->point_ids[i] >= 0) {
       auto it = kept_.find(mesh->point_ids[i]);
@@ -142,6 +210,16 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
     if (!std::isfinite(result.vertices[i]))
       throw std::runtime_error(where + ": refine returned a non-finite coordinate for vertex " +
                                std::to_string(i / 3));
+  for (std::size_t i = 0; i < n; ++i)
+    if ((flags[i] & IMR_REFINE_VERTEX_FIXED) != 0 &&
+        !Same({mesh->vertices[3 * i], mesh->vertices[3 * i + 1], mesh->vertices[3 * i + 2]},
+              &result.vertices[3 * i]))
+      throw std::runtime_error(where + ": refine moved vertex " + std::to_string(i) +
+                               ", which was flagged FIXED (written already)");
+  if (streamed_ && result.faces != nullptr)
+    throw std::runtime_error(where + ": refine subdivided the surface, which a run that writes it "
+                             "in parts (engine.forget, output.tiles) cannot take: turn the "
+                             "plugin's subdivision off");
   engine::Mesh refined;
   refined.vertices.assign(result.vertices, result.vertices + 3 * result.vertex_count);
   refined.point_ids = mesh->point_ids;
@@ -177,6 +255,7 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
     if (r[0] != mesh->vertices[3 * i] || r[1] != mesh->vertices[3 * i + 1] ||
         r[2] != mesh->vertices[3 * i + 2])
       ++stats_.vertices_moved;
+    if ((flags[i] & IMR_REFINE_VERTEX_FIXED) != 0) continue;  // its position is the written one
     const Kept k{{e[0], e[1], e[2]}, {r[0], r[1], r[2]}};
     if (mesh->point_ids[i] >= 0)
       kept_[mesh->point_ids[i]] = k;

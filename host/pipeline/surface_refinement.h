@@ -3,6 +3,12 @@
 // before the exports and the evaluation. The carving is not touched: the refined positions are
 // this stage's, kept between calls by vertex (its 3D point, or a Steiner point's position), and a
 // vertex the reconstruction has not moved since keeps the position the last call gave it.
+//
+// A streamed run (engine.forget, output.tiles) writes the surface in the parts the engine hands
+// out: each part's vertices take their refined positions before it goes to the tiles and the
+// spool (Freeze), and keep them: a vertex handed out is FIXED in later calls (its other faces come
+// later, at the position already written), and forgotten once complete. The last call refines
+// what the engine still holds, before its last part (FinishLive).
 #pragma once
 
 #include "host/engine/engine.h"
@@ -45,6 +51,13 @@ class SurfaceRefinement {
   // manifold with the same boundary loops when the plugin subdivided). Throws naming the stage.
   void Finish(engine::Mesh* mesh, const ExportContext& context, StageWatch& watch);
 
+  // --- A streamed run ---
+  // A part the engine hands out, before the surface stream: each vertex at its refined position
+  // (the one it was written with, when an earlier part named it), then complete ones forgotten.
+  void Freeze(engine::SurfacePart* part);
+  // The final call on what the engine still holds (before its last part goes through Freeze).
+  void FinishLive(const engine::Engine& engine, const ExportContext& context, StageWatch& watch);
+
   const SurfaceRefinementStats& stats() const { return stats_; }
 
  private:
@@ -53,6 +66,8 @@ class SurfaceRefinement {
     std::array<double, 3> refined;  // where the plugin put it
   };
   void Refine(engine::Mesh* mesh, const ExportContext& context, StageWatch& watch, bool final_call);
+  // The vertex handed out already (Freeze) that mesh vertex `point_id` at `p` is, or null.
+  const std::array<double, 3>* Frozen(int64_t point_id, const double* p) const;
 
   const io::StageSpec& stage_;
   plugin::LoadedInstance instance_;
@@ -61,6 +76,17 @@ class SurfaceRefinement {
   std::unordered_map<uint64_t, Kept> kept_steiner_;  // by their position's hash
   std::size_t keyframes_at_last_call_ = 0;
   SurfaceRefinementStats stats_;
+  // Streamed: the vertices handed out and not complete, by their key in the parts: where they
+  // were written, and how a mesh vertex finds them (its point id, or its engine position's hash).
+  struct Written {
+    std::array<double, 3> position;
+    int64_t point_id;
+    uint64_t steiner_hash;
+  };
+  std::unordered_map<int64_t, Written> written_;
+  std::unordered_map<int64_t, int64_t> written_point_;     // point id -> key
+  std::unordered_map<uint64_t, int64_t> written_steiner_;  // position hash -> key
+  bool streamed_ = false;
 };
 
 }  // namespace imr::pipeline
