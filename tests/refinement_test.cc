@@ -167,6 +167,36 @@ TEST_F(Refinement, JobChecks) {
             std::string::npos) << r.err;
 }
 
+// Snapshots show the surface as refined so far: the snapshot after a refine call has the call's
+// positions (the shift refiner lifts what it refines by dz, once); without the stage, the same
+// snapshot has the engine's.
+TEST_F(Refinement, SnapshotsAreRefinedToo) {
+  json job = EngineJob({{"dz", 0.01}, {"only_changed", true}}, 4);
+  job["output"]["snapshot_every"] = 4;
+  json plain = job;
+  plain["pipeline"].erase(1);
+  plain["output"]["directory"] = (dir_ / "plain/{sequence}").string();
+  CommandResult r = Run(plain, "plain.json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = Run(job);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json snaps = ReadJson(Report())["snapshots"];
+  ASSERT_GE(snaps.size(), 2u) << snaps.dump();
+  for (const json& s : snaps) {
+    const std::string file = s["stem"].get<std::string>() + ".ply";
+    const eval::TriangleMesh refined = eval::ReadMesh(dir_ / "runs/street" / file);
+    const eval::TriangleMesh unrefined = eval::ReadMesh(dir_ / "plain/street" / file);
+    ASSERT_EQ(refined.vertices.size(), unrefined.vertices.size()) << file;
+    std::size_t raised = 0;
+    for (std::size_t i = 0; i < refined.vertices.size(); ++i) {
+      const double dz = refined.vertices[i][2] - unrefined.vertices[i][2];
+      ASSERT_TRUE(std::abs(dz) < 1e-4 || std::abs(dz - 0.01) < 1e-4) << file << " vertex " << i << ": " << dz;
+      raised += dz > 0.005 ? 1 : 0;
+    }
+    EXPECT_GT(raised, refined.vertices.size() / 2) << file;
+  }
+}
+
 // Issue 34 item 3: a run that writes its surface in parts (engine.forget, output.tiles) refines
 // each part before it is written. The shift refiner lifts each vertex it refines by dz, once
 // (only_changed); a vertex written already is FIXED in later calls. The mesh written is the

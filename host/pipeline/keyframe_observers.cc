@@ -59,7 +59,8 @@ const fs::path& TraceWriter::Finish() {
 void Snapshots::OnKeyframe(KeyframeEvent& e) {
   if (every_ <= 0 || e.keyframes % every_ != 0) return;
   const auto start = std::chrono::steady_clock::now();
-  const engine::Mesh snap = engine_.ExtractMesh();
+  engine::Mesh snap = engine_.ExtractMesh();
+  if (target_.refined) target_.refined(&snap);
   if (!snap.faces.empty()) {
     char suffix[64];
     std::snprintf(suffix, sizeof(suffix), "_kf%06d", e.keyframes);

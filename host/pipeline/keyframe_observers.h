@@ -100,6 +100,8 @@ class Snapshots : public KeyframeObserver {
     StageWatch* watch;
     double stage_timeout;
     std::vector<std::filesystem::path>* written;  // each file committed is added here
+    // Puts a snapshot at the mesh_refiner stage's positions; empty: no such stage.
+    std::function<void(engine::Mesh*)> refined;
   };
   Snapshots(const engine::Engine& engine, int every, Target target)
       : engine_(engine), every_(every), target_(std::move(target)) {}

@@ -403,11 +403,13 @@ void SequenceRun::AddObservers() {
     observers_.push_back(std::move(o));
   }
   if (job_.output.snapshot_every > 0) {
+    std::function<void(engine::Mesh*)> refined;
+    if (refinement_) refined = [this](engine::Mesh* m) { refinement_->ApplyRefined(m); };
     auto o = std::make_unique<Snapshots>(
         *engine_, job_.output.snapshot_every,
         Snapshots::Target{&export_context_, &job_.output.formats, &exporters_,
                           result_->output_directory, job_.output.stem, &watch_,
-                          options_.stage_timeout, &result_->extra_files});
+                          options_.stage_timeout, &result_->extra_files, refined});
     snapshots_ = o.get();
     observers_.push_back(std::move(o));
   }

@@ -116,6 +116,28 @@ void SurfaceRefinement::Freeze(engine::SurfacePart* part) {
   }
 }
 
+uint8_t SurfaceRefinement::Place(int64_t point_id, double* p) const {
+  if (const std::array<double, 3>* w = Frozen(point_id, p)) {
+    p[0] = (*w)[0], p[1] = (*w)[1], p[2] = (*w)[2];
+    return IMR_REFINE_VERTEX_FIXED;
+  }
+  const Kept* k = nullptr;
+  if (point_id >= 0) {
+    auto it = kept_.find(point_id);
+    if (it != kept_.end()) k = &it->second;
+  } else {
+    auto it = kept_steiner_.find(PositionHash(p));
+    if (it != kept_steiner_.end()) k = &it->second;
+  }
+  if (k == nullptr || !Same(k->engine, p)) return IMR_REFINE_VERTEX_CHANGED;
+  p[0] = k->refined[0], p[1] = k->refined[1], p[2] = k->refined[2];
+  return 0;
+}
+
+void SurfaceRefinement::ApplyRefined(engine::Mesh* mesh) const {
+  for (std::size_t i = 0; i < mesh->point_ids.size(); ++i) Place(mesh->point_ids[i], &mesh->vertices[3 * i]);
+}
+
 const std::array<double, 3>* SurfaceRefinement::Frozen(int64_t point_id, const double* p) const {
   if (written_.empty()) return nullptr;
   int64_t key = 0;
@@ -142,27 +164,9 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
   std::vector<uint8_t> flags(n, 0);
   int64_t kept = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    double* p = &mesh->vertices[3 * i];
-    if (const std::array<double, 3>* w = Frozen(mesh->point_ids[i], p)) {  // written already
-      p[0] = (*w)[0], p[1] = (*w)[1], p[2] = (*w)[2];
-      flags[i] = IMR_REFINE_VERTEX_FIXED;
-      continue;
-    }
-    const Kept* k = nullptr;
-    if (mesh->point_ids[i] >= 0) {
-      auto it = kept_.find(mesh->point_ids[i]);
-      if (it != kept_.end()) k = &it->second;
-    } else {
-      auto it = kept_steiner_.find(PositionHash(p));
-      if (it != kept_steiner_.end()) k = &it->second;
-    }
-    if (k != nullptr && Same(k->engine, p)) {
-      p[0] = k->refined[0], p[1] = k->refined[1], p[2] = k->refined[2];
-      ++kept;
-    } else {
-      flags[i] = IMR_REFINE_VERTEX_CHANGED;
-      ++stats_.vertices_changed;
-    }
+    flags[i] = Place(mesh->point_ids[i], &mesh->vertices[3 * i]);
+    if (flags[i] == 0) ++kept;
+    if (flags[i] == IMR_REFINE_VERTEX_CHANGED) ++stats_.vertices_changed;
   }
   if (final_call) stats_.vertices_kept = kept;
 

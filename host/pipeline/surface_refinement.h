@@ -51,6 +51,9 @@ class SurfaceRefinement {
   // manifold with the same boundary loops when the plugin subdivided). Throws naming the stage.
   void Finish(engine::Mesh* mesh, const ExportContext& context, StageWatch& watch);
 
+  // A mesh of the engine (a snapshot) at the positions the calls so far gave its vertices.
+  void ApplyRefined(engine::Mesh* mesh) const;
+
   // --- A streamed run ---
   // A part the engine hands out, before the surface stream: each vertex at its refined position
   // (the one it was written with, when an earlier part named it), then complete ones forgotten.
@@ -66,6 +69,10 @@ class SurfaceRefinement {
     std::array<double, 3> refined;  // where the plugin put it
   };
   void Refine(engine::Mesh* mesh, const ExportContext& context, StageWatch& watch, bool final_call);
+  // Puts the mesh vertex `point_id` at `p` where this stage has it: FIXED (written already, at
+  // the position written), 0 (refined by an earlier call and not moved since, at its refined
+  // position) or CHANGED (left where the engine has it).
+  uint8_t Place(int64_t point_id, double* p) const;
   // The vertex handed out already (Freeze) that mesh vertex `point_id` at `p` is, or null.
   const std::array<double, 3>* Frozen(int64_t point_id, const double* p) const;
 
