@@ -15,6 +15,8 @@
 //            the exact scene (scene.ply, cropped to what the cameras saw), and the road alone.
 //   kitti    the KITTI raw sample (../shared/data) against its Velodyne scans (camera 2).
 //   stream   imr's own synthetic observation stream (the street), against its analytic scene.
+//   middlebury  the temple and dino rings (not by default): no ground truth, a look before and
+//            after the refinement (renders of frame 5 in --work).
 // Peers: the Piazza et al. 2018 mesher (tools/bench/peers/build_piazza.sh) on street directly
 // and on the others through the stream `imr run --export-stream` writes; COLMAP's
 // delaunay_mesher (tools/bench/peers/build_colmap.sh) on imr's final points
@@ -595,6 +597,71 @@ json Kitti(const QualityArgs& args, const fs::path& work) {
   return out;
 }
 
+// --- middlebury: the temple and dino rings, for a look (no ground truth) ------------------------
+// Each Middlebury ring through the image pipeline (the job `imr mesh --format middlebury` makes),
+// with and without org.imr.refine.photometric (every 4 of its 16 keyframes), and the same frame
+// rendered from both (the PNGs stay in --work): faces, roughness, manifold, the share of the
+// visible surface seen from behind, time.
+json Middlebury(const QualityArgs& args, const fs::path& work) {
+  json out = {{"input", "Middlebury rings"}, {"rings", json::array()}};
+  for (const std::string ring : {"templeSparseRing", "dinoSparseRing"}) {
+    const fs::path data = fs::path(args.shared) / "data/middlebury" / ring;
+    if (!fs::exists(data)) {
+      std::printf("\n### Middlebury %s: skipped, %s not found\n", ring.c_str(), data.c_str());
+      continue;
+    }
+    const fs::path dir = work / ring;
+    fs::create_directories(dir);
+    std::vector<Row> rows;
+    for (const bool refine : {false, true}) {
+      const std::string name = refine ? "refined" : "plain";
+      json pipeline = {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+                       {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}}};
+      if (refine)
+        pipeline.push_back({{"kind", "mesh_refiner"}, {"plugin", "org.imr.refine.photometric"},
+                            {"every_keyframes", 4}});
+      pipeline.push_back(Exporter());
+      const json job = {{"description", "imr-bench quality: Middlebury " + ring},
+                        {"sequences", {data.string()}},
+                        {"input", {{"format", "middlebury"}}},
+                        {"pipeline", pipeline},
+                        {"output", {{"directory", (dir / name).string()}, {"stem", "mesh"}, {"formats", {"ply"}}}}};
+      Row row;
+      row.mesher = refine ? "imr + org.imr.refine.photometric every 4 keyframes" : "imr (imr mesh's job)";
+      row.refined = refine;
+      if (RunImr(job, dir, name, "", &row)) row.ok = MeshStats(dir / name / "mesh.ply", &row);
+      const fs::path png = dir / (name + "_frame5.png");
+      if (row.ok &&
+          Sh(Quote((ExeDir() / "imr").string()) + " render " + Quote((dir / name / "mesh.ply").string()) +
+             " --sequence " + Quote(data.string()) + " --format middlebury --frame 5 --out " +
+             Quote(png.string()) + " >/dev/null 2>&1") == 0)
+        row.note = png.string();
+      rows.push_back(row);
+    }
+    std::printf("\n### Middlebury %s (16 images), no ground truth: a look\n\n", ring.c_str());
+    std::printf("| mesher | faces | roughness (deg) | manifold | seen from behind | s | frame 5 |\n"
+                "|---|---|---|---|---|---|---|\n");
+    json rj = json::array();
+    for (const Row& r : rows) {
+      if (!r.ok) {
+        std::printf("| %s | failed: %s |||||\n", r.mesher.c_str(), r.note.c_str());
+        continue;
+      }
+      char behind[32] = "-";
+      if (r.back_facing) std::snprintf(behind, sizeof(behind), "%.1f %%", 100.0 * *r.back_facing);
+      std::printf("| %s | %lld | %.1f | %s | %s | %.1f | %s |\n", r.mesher.c_str(),
+                  static_cast<long long>(r.stats.faces), r.roughness, ManifoldText(r.stats).c_str(),
+                  behind, r.seconds, r.note.c_str());
+      rj.push_back({{"mesher", r.mesher}, {"faces", r.stats.faces}, {"roughness", r.roughness},
+                    {"manifold", r.stats.manifold}, {"back_facing", r.back_facing.value_or(-1.0)},
+                    {"seconds", r.seconds}, {"render", r.note}});
+    }
+    out["rings"].push_back({{"ring", ring}, {"rows", rj}});
+  }
+  if (args.work.empty()) std::printf("(the renders go with the work folder: give --work to keep them)\n");
+  return out;
+}
+
 // --- stream: imr's own synthetic observation stream -----------------------------------------------
 json Stream(const QualityArgs& args, const fs::path& work) {
   json out = {{"input", "synthetic stream (street)"}, {"frames", args.stream_frames}};
@@ -686,7 +753,7 @@ int RunQualityBench(int argc, char** argv) {
       args.before_label = value();
     } else {
       std::fprintf(stderr,
-                   "usage: imr-bench quality [--inputs street,synth,kitti,stream] [--frames N]\n"
+                   "usage: imr-bench quality [--inputs street,synth,kitti,stream,middlebury] [--frames N]\n"
                    "       [--work DIR] [--shared DIR] [--piazza PATH] [--colmap PATH] "
                    "[--no-peers]\n"
                    "       [--before IMR --before-label LABEL]   an earlier build's imr, same "
@@ -710,6 +777,7 @@ int RunQualityBench(int argc, char** argv) {
     else if (in == "synth") r = Synth(args, work / "synth");
     else if (in == "kitti") r = Kitti(args, work / "kitti");
     else if (in == "stream") r = Stream(args, work / "stream");
+    else if (in == "middlebury") r = Middlebury(args, work / "middlebury");
     else {
       std::fprintf(stderr, "imr-bench quality: unknown input '%s'\n", in.c_str());
       return 2;
