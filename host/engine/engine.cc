@@ -1465,13 +1465,17 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   s.stats.cells = static_cast<int64_t>(s.dt.tds().number_of_cells());
   s.stats.cells_in_o = s.cells_in_o;
   // Where the new cameras are now: in O (free space), or inside matter. Not in the keyframe's time.
-  for (const Point& c : centres) {
-    ++s.stats.cameras_checked;
-    if (s.dt.dimension() < 3) continue;
-    // From the newest point's cell: the cameras are near what they just saw.
-    const Cell_handle cell =
-        s.dt.locate(c, s.WalkHint());
-    if (!s.dt.is_infinite(cell) && cell->info().in_o) ++s.stats.cameras_in_o;
+  // Before O exists there is nothing to be in or outside of: such cameras (the first keyframe's)
+  // are checked at the first update that has an O, the camera path having been opened for them.
+  s.unchecked_centres.insert(s.unchecked_centres.end(), centres.begin(), centres.end());
+  if (s.dt.dimension() == 3 && s.cells_in_o > 0) {
+    for (const Point& c : s.unchecked_centres) {
+      ++s.stats.cameras_checked;
+      // From the newest point's cell: the cameras are near what they just saw.
+      const Cell_handle cell = s.dt.locate(c, s.WalkHint());
+      if (!s.dt.is_infinite(cell) && cell->info().in_o) ++s.stats.cameras_in_o;
+    }
+    s.unchecked_centres.clear();
   }
   if (s.opt.check_invariants) {
     ManifoldCheckResult r = detail::InvariantChecker(s).Check();

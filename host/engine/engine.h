@@ -302,7 +302,8 @@ struct EngineStats {
   int64_t vertices = 0;               // Current finite vertices (points + Steiner).
   int64_t cells = 0;                  // Current finite cells.
   int64_t cells_in_o = 0;
-  // Each keyframe's new cameras, after the update: how many, and how many have their centre in a
+  // Each keyframe's new cameras, after the update (or, for a camera that came before O existed,
+  // after the first update that has an O): how many, and how many have their centre in a
   // cell of O (free space). A camera inside matter means the surface closes over the path the
   // cameras took (issue 34: the camera path should be free space).
   int64_t cameras_checked = 0;

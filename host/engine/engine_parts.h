@@ -227,6 +227,9 @@ struct EngineState {
   int64_t threshold = 0;          // T_w in weight units: a cell is free above it.
 
   std::vector<Point> cameras;
+  // Centres of keyframes that came before there was an O to be in (the triangulation not yet 3D,
+  // or no cell free yet): checked (stats cameras_in_o) at the first update where O exists.
+  std::vector<Point> unchecked_centres;
   std::vector<uint64_t> camera_ids;
   std::unordered_map<uint64_t, uint32_t> camera_index;
   std::vector<PointRecord> points;

@@ -227,6 +227,20 @@ TEST_P(SmallSceneTest, UnknownIdsAreRefused) {
   EXPECT_NE(s.message().find("new point 1 "), std::string::npos) << s.message();
 }
 
+// A keyframe that comes before there is an O has nothing to be inside of: its camera is checked
+// at the first update that has one (the camera path opened for it), not counted as in matter.
+TEST_P(SmallSceneTest, ACameraFromBeforeOExistedIsCheckedOnceItDoes) {
+  KeyframeUpdate first;
+  first.cameras = {{7, {0.2, -0.5, 1.5}}};
+  first.new_points = {{1000, {0.0, 10.0, 1.0}, {7}}};  // one point: no 3D triangulation yet
+  ASSERT_TRUE(engine_->ApplyUpdate(first).ok());
+  EXPECT_EQ(engine_->Stats().cameras_checked, 0);
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
+  ExpectManifold();
+  EXPECT_EQ(engine_->Stats().cameras_checked, 3);
+  EXPECT_EQ(engine_->Stats().cameras_in_o, 3);
+}
+
 TEST_P(SmallSceneTest, WallIsCarvedAndMovesKeepTheManifold) {
   ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
   ExpectManifold();

@@ -101,8 +101,8 @@ MeshDistance::~MeshDistance() = default;
 std::size_t MeshDistance::triangles() const { return impl_->triangles.size(); }
 std::size_t MeshDistance::degenerate() const { return impl_->degenerate; }
 
-std::vector<double> MeshDistance::Distances(const std::vector<Vec3>& points, int threads) const {
-  std::vector<double> out(points.size());
+template <class Out>
+void MeshDistance::Query(const std::vector<Vec3>& points, int threads, const Out& out) const {
   const Tree& tree = impl_->tree;
   // Queries in Morton order, each starting from the previous one's closest point: a near hint
   // shrinks the search at once and costs nothing (the tree's own hints need a kd-tree search).
@@ -114,8 +114,23 @@ std::vector<double> MeshDistance::Distances(const std::vector<Vec3>& points, int
       const uint32_t i = order[k];
       const Point q = ToPoint(points[i]);
       hint = k == begin ? tree.closest_point_and_primitive(q) : tree.closest_point_and_primitive(q, hint);
-      out[i] = std::sqrt(CGAL::squared_distance(q, hint.first));
+      out(i, q, hint.first);
     }
+  });
+}
+
+std::vector<double> MeshDistance::Distances(const std::vector<Vec3>& points, int threads) const {
+  std::vector<double> out(points.size());
+  Query(points, threads, [&out](uint32_t i, const Point& q, const Point& nearest) {
+    out[i] = std::sqrt(CGAL::squared_distance(q, nearest));
+  });
+  return out;
+}
+
+std::vector<Vec3> MeshDistance::ClosestPoints(const std::vector<Vec3>& points, int threads) const {
+  std::vector<Vec3> out(points.size());
+  Query(points, threads, [&out](uint32_t i, const Point&, const Point& nearest) {
+    out[i] = Vec3{nearest.x(), nearest.y(), nearest.z()};
   });
   return out;
 }

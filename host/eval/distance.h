@@ -29,7 +29,13 @@ class MeshDistance {
   // Unsigned distance from each point to the nearest triangle, on `threads` threads (<= 0: all).
   std::vector<double> Distances(const std::vector<Vec3>& points, int threads) const;
 
+  // The nearest point of the mesh to each point (exact), on `threads` threads.
+  std::vector<Vec3> ClosestPoints(const std::vector<Vec3>& points, int threads) const;
+
  private:
+  template <class Out>
+  void Query(const std::vector<Vec3>& points, int threads, const Out& out) const;
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

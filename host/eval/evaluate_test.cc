@@ -43,6 +43,18 @@ TEST(MeshDistanceTest, HandComputedDistances) {
   EXPECT_EQ(md.degenerate(), 0u);
 }
 
+TEST(MeshDistanceTest, ClosestPointsAreThePointsTheDistancesAreTo) {
+  const MeshDistance md(UnitTriangle());
+  const std::vector<Vec3> p = {{0.2, 0.2, 0.5}, {0.5, -0.3, 0.4}, {1.0, 1.0, 0.0}, {1.3, -0.4, 1.2}};
+  const std::vector<Vec3> want = {{0.2, 0.2, 0}, {0.5, 0, 0}, {0.5, 0.5, 0}, {1, 0, 0}};
+  for (int threads : {1, 3}) {
+    const std::vector<Vec3> q = md.ClosestPoints(p, threads);
+    ASSERT_EQ(q.size(), want.size());
+    for (std::size_t i = 0; i < q.size(); ++i)
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(q[i][k], want[i][k], 1e-12) << i << " " << k;
+  }
+}
+
 TEST(MeshDistanceTest, NearestOfSeveralTrianglesAndDegenerateLeftOut) {
   TriangleMesh m = UnitSquare();
   m.vertices.push_back({5, 5, 5});

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -46,6 +47,17 @@ Eigen::Vector3d Center(const imr_camera& c) {
 }
 
 bool HasIntrinsics(const imr_camera& c) { return c.K[0] > 0.0 && c.K[4] > 0.0 && c.width > 0 && c.height > 0; }
+
+// How deep camera c refines and compares: no deeper than max_depth (0: no such limit) and no
+// deeper than where an edge of `edge` spans min_edge_pixels pixels (0: no such limit). The
+// second holds in any unit and at any focal length: a street camera and a ring of close-up
+// views around an object both see their surface at a few tens of pixels per edge, while the
+// object's ring stands ~130 edges away and the street's useful depth is ~40.
+double DepthLimit(const imr_camera& c, double edge, double max_depth, double min_edge_pixels) {
+  double limit = max_depth > 0.0 ? max_depth * edge : std::numeric_limits<double>::infinity();
+  if (min_edge_pixels > 0.0) limit = std::min(limit, std::sqrt(c.K[0] * c.K[4]) * edge / min_edge_pixels);
+  return limit;
+}
 
 // Whether world point p is in front of camera c, at most max_depth deep, and inside its image.
 bool Sees(const imr_camera& c, const double* p, double max_depth) {
@@ -100,8 +112,10 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                        "description": "a vertex the images do not place, farther from its neighbours' plane than this many times their own spread about it, goes onto that plane (0: never)"},
     "max_move": {"type": "number", "default": 1.0, "minimum": 0.001, "maximum": 100,
                  "description": "how far a vertex may move in one call, in median edge lengths"},
-    "max_depth": {"type": "number", "default": 40, "minimum": 0.001, "maximum": 100000,
-                  "description": "a keyframe refines and compares what it sees up to this deep, in median edge lengths"},
+    "max_depth": {"type": "number", "default": 0, "minimum": 0, "maximum": 100000,
+                  "description": "a keyframe refines and compares what it sees up to this deep, in median edge lengths (0: no limit but min_edge_pixels)"},
+    "min_edge_pixels": {"type": "number", "default": 18, "minimum": 0, "maximum": 10000,
+                        "description": "a keyframe refines and compares what it sees with a median edge at least this many pixels long (depth at most focal x edge / this; 0: no limit)"},
     "threads": {"type": "integer", "default": 0, "minimum": 0, "maximum": 256,
                 "description": "threads for the per-vertex search (0: one per core)"},
     "missing_image": {"type": "string", "default": "fail", "enum": ["fail", "skip"],
@@ -127,6 +141,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     o_.flatten_spikes = p.Get<double>("flatten_spikes");
     max_move_ = p.Get<double>("max_move");
     max_depth_ = p.Get<double>("max_depth");
+    min_edge_pixels_ = p.Get<double>("min_edge_pixels");
     o_.threads = p.Get<int>("threads");
     if (o_.threads == 0) o_.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     skip_missing_ = p.Get<std::string>("missing_image") == "skip";
@@ -144,10 +159,12 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
           "export or a synthetic stream): refine a run from images, or remove the stage");
 
     // Which vertices: all at the end of a run refined only then; otherwise those the engine
-    // changed since the last call and those a recent keyframe sees within max_depth (kept
+    // changed since the last call and those a recent keyframe sees within its depth limit (kept
     // positions elsewhere).
     const double edge = MedianEdge(r.mesh);
-    const double max_depth = max_depth_ * edge;
+    std::vector<double> depth_limit(r.keyframes.size());
+    for (std::size_t k = 0; k < r.keyframes.size(); ++k)
+      depth_limit[k] = DepthLimit(r.keyframes[k], edge, max_depth_, min_edge_pixels_);
     std::vector<uint8_t> active(n, 0);
     const bool all = r.final_call && r.recent_keyframes_begin == 0;
     std::size_t active_count = 0;
@@ -155,13 +172,13 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
       if (r.Fixed(v)) continue;
       bool a = all || r.Changed(v);
       for (std::size_t k = r.recent_keyframes_begin; !a && k < r.keyframes.size(); ++k)
-        a = HasIntrinsics(r.keyframes[k]) && Sees(r.keyframes[k], &r.mesh.vertices[3 * v], max_depth);
+        a = HasIntrinsics(r.keyframes[k]) && Sees(r.keyframes[k], &r.mesh.vertices[3 * v], depth_limit[k]);
       active[v] = a ? 1 : 0;
       active_count += a ? 1 : 0;
     }
     if (active_count == 0) return;
 
-    // The keyframes that see an active vertex within max_depth, their images in gray; the
+    // The keyframes that see an active vertex within their depth limit, their images in gray; the
     // region of the work: the active vertices and those keyframes' centres.
     std::vector<View> views;
     Eigen::AlignedBox3d region;
@@ -172,7 +189,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
       if (!HasIntrinsics(c)) continue;
       bool useful = false;
       for (std::size_t v = 0; v < n && !useful; v += 1)
-        useful = active[v] && Sees(c, &r.mesh.vertices[3 * v], max_depth);
+        useful = active[v] && Sees(c, &r.mesh.vertices[3 * v], depth_limit[k]);
       if (!useful) continue;
       host_.CheckCancelled();
       View view;
@@ -295,7 +312,8 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
   double search_range_ = 0.6;  // in median edge lengths
   double max_move_ = 1.0;      // in median edge lengths
   double subdivide_ = 0.0;     // in median edge lengths; 0: no subdivision
-  double max_depth_ = 40.0;    // in median edge lengths
+  double max_depth_ = 0.0;         // in median edge lengths; 0: no limit
+  double min_edge_pixels_ = 18.0;  // pixels a median edge spans at the deepest; 0: no limit
   bool skip_missing_ = false;
 };
 

@@ -1,6 +1,7 @@
 // org.imr.refine.photometric through its shared object, as the host drives it: a keyframe image
 // the host cannot give fails the call naming it, or is left out with a warning (missing_image
-// "skip"); the answer keeps the request's vertices; an input without images is refused.
+// "skip"); the answer keeps the request's vertices; an input without images is refused; how deep a
+// keyframe refines follows the pixels an edge spans there, not the edges between.
 #include "plugins/testing/plugin_fixture.h"
 
 #include <gtest/gtest.h>
@@ -17,6 +18,7 @@ namespace {
 // that does not decode does.
 struct FakeHost {
   uint64_t broken = UINT64_MAX;
+  int images_read = 0;
   std::vector<std::string> warnings;
   std::vector<uint8_t> pixels;
   imr_host_services services{};
@@ -35,6 +37,7 @@ struct FakeHost {
     services.is_cancelled = [](void*) -> int32_t { return 0; };
     services.keyframe_image = [](void* self, uint64_t index, imr_image_view* out, imr_error* e) -> imr_status {
       FakeHost* h = static_cast<FakeHost*>(self);
+      ++h->images_read;
       if (index == h->broken) {
         std::snprintf(e->message, sizeof(e->message), "/data/seq/image_2/%06llu.png: cannot decode",
                       static_cast<unsigned long long>(index * 5));
@@ -47,13 +50,14 @@ struct FakeHost {
   }
 };
 
-imr_camera Camera(double x) {  // looking down +z from (x, 0, -5)
+// Looking down +z from (x, 0, -distance); at the defaults the 1 m square spans 20 pixels.
+imr_camera Camera(double x, double distance = 5, double focal = 100) {
   imr_camera c{};
-  const double K[9] = {50, 0, 31.5, 0, 50, 23.5, 0, 0, 1};
+  const double K[9] = {focal, 0, 31.5, 0, focal, 23.5, 0, 0, 1};
   const double R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
   std::memcpy(c.K, K, sizeof(K));
   std::memcpy(c.R, R, sizeof(R));
-  c.t[0] = -x, c.t[1] = 0, c.t[2] = 5;
+  c.t[0] = -x, c.t[1] = 0, c.t[2] = distance;
   c.width = 64, c.height = 48;
   return c;
 }
@@ -64,14 +68,16 @@ class PhotometricPlugin : public PluginFixture {
 
   // One refine call on a 1 m square facing the cameras; the status and the message.
   imr_status Refine(const std::string& params, FakeHost* host, bool images, std::string* message,
-                    uint64_t* vertex_count = nullptr) {
+                    uint64_t* vertex_count = nullptr, double distance = 5, double focal = 100) {
     imr::sdk::Instance inst(d_, params, &host->services);
     const double v[12] = {-0.5, -0.5, 0, 0.5, -0.5, 0, 0.5, 0.5, 0, -0.5, 0.5, 0};
     const uint32_t f[6] = {0, 2, 1, 0, 3, 2};  // normals toward -z, the cameras
     const int64_t ids[4] = {1, 2, 3, 4};
     const uint8_t flags[4] = {IMR_REFINE_VERTEX_CHANGED, IMR_REFINE_VERTEX_CHANGED,
                               IMR_REFINE_VERTEX_CHANGED, IMR_REFINE_VERTEX_CHANGED};
-    const imr_camera cams[3] = {Camera(-0.5), Camera(0.0), Camera(0.5)};
+    const double spread = 10 * distance / focal;  // 10 pixels apart in the image
+    const imr_camera cams[3] = {Camera(-spread, distance, focal), Camera(0.0, distance, focal),
+                                Camera(spread, distance, focal)};
     imr_mesh_view mesh{};
     mesh.struct_size = sizeof(mesh);
     mesh.vertices = v, mesh.vertex_count = 4, mesh.faces = f, mesh.face_count = 2, mesh.point_ids = ids;
@@ -118,6 +124,29 @@ TEST_F(PhotometricPlugin, OrLeavesItOutWithAWarning) {
   ASSERT_EQ(host.warnings.size(), 1u);
   EXPECT_NE(host.warnings[0].find("keyframe 1 left out"), std::string::npos) << host.warnings[0];
   EXPECT_NE(host.warnings[0].find("000005.png"), std::string::npos) << host.warnings[0];
+}
+
+// A ring of close-up views around an object stands ~100 edges from it, a street camera refines
+// ~40 edges deep: both see their surface at some tens of pixels per edge (min_edge_pixels 18).
+TEST_F(PhotometricPlugin, HowDeepAKeyframeRefinesFollowsThePixelsAnEdgeSpans) {
+  std::string message;
+  FakeHost near;  // 5 m (5 edges), 20 pixels per edge
+  ASSERT_EQ(Refine("{}", &near, true, &message), IMR_OK) << message;
+  EXPECT_EQ(near.images_read, 3);
+  FakeHost telephoto;  // 100 m (100 edges), 30 pixels per edge
+  ASSERT_EQ(Refine("{}", &telephoto, true, &message, nullptr, 100, 3000), IMR_OK) << message;
+  EXPECT_EQ(telephoto.images_read, 3);
+  FakeHost coarse;  // 100 m, 3 pixels per edge: too coarse to compare
+  ASSERT_EQ(Refine("{}", &coarse, true, &message, nullptr, 100, 300), IMR_OK) << message;
+  EXPECT_EQ(coarse.images_read, 0);
+  FakeHost limited;  // max_depth, in edges, still applies when a job sets it
+  ASSERT_EQ(Refine(R"({"max_depth": 40})", &limited, true, &message, nullptr, 100, 3000), IMR_OK)
+      << message;
+  EXPECT_EQ(limited.images_read, 0);
+  FakeHost unlimited;
+  ASSERT_EQ(Refine(R"({"min_edge_pixels": 0})", &unlimited, true, &message, nullptr, 100, 300), IMR_OK)
+      << message;
+  EXPECT_EQ(unlimited.images_read, 3);
 }
 
 TEST_F(PhotometricPlugin, AnInputWithoutImagesIsRefused) {

@@ -38,11 +38,14 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "host/eval/distance.h"
 #include "host/eval/evaluate.h"
 #include "host/eval/mesh_io.h"
 #include "host/eval/mesh_stats.h"
@@ -329,8 +332,12 @@ void Print(const std::string& title, const std::vector<Row>& rows,
       list.push_back(j);
       continue;
     }
-    std::printf("| %s | %.1f | %.0f | %.3f | %.3f | %.3f | %.3f | %.3f / %.3f | %.3f | %s | %.1f |",
-                r.mesher.c_str(), r.seconds, r.rss_mb, r.c2, r.p2, F(r.c2, r.p2), F(r.c5, r.p5),
+    // A row computed here rather than run (the vertex-move limits) has no time of its own.
+    const bool ran = r.seconds > 0.0 || r.rss_mb > 0.0;
+    char wall[32] = "", rss[32] = "";
+    if (ran) std::snprintf(wall, sizeof(wall), "%.1f", r.seconds), std::snprintf(rss, sizeof(rss), "%.0f", r.rss_mb);
+    std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.3f | %.3f / %.3f | %.3f | %s | %.1f |",
+                r.mesher.c_str(), wall, rss, r.c2, r.p2, F(r.c2, r.p2), F(r.c5, r.p5),
                 r.t2m_mean, r.t2m_median, r.m2t_mean, ManifoldText(r.stats).c_str(), r.roughness);
     if (r.road) std::printf(" %.3f |", *r.road);
     std::printf("\n");
@@ -520,6 +527,57 @@ std::vector<Row> RunImageJob(const QualityArgs& args, const json& job, const std
   return rows;
 }
 
+// What a refinement that only moves vertices can reach on a mesh: each vertex put on its nearest
+// point of the true surface (`truth_mesh`), as is and after one midpoint subdivision (each
+// triangle split in four, so that a long triangle can bend once). The carving's choice of
+// triangles bounds every refinement by these rows (issue 34's targets against them).
+void VertexMoveLimits(const fs::path& unrefined, const fs::path& truth_mesh, const fs::path& work,
+                      const std::function<void(const fs::path&, Row*)>& evaluate,
+                      std::vector<Row>* rows) {
+  for (const int subdivisions : {0, 1}) {
+    Row row;
+    row.mesher = subdivisions == 0
+                     ? "limit of vertex moves: the unrefined mesh's vertices on the true surface"
+                     : "limit of vertex moves after one midpoint subdivision (4x the triangles)";
+    try {
+      eval::TriangleMesh mesh = eval::ReadMesh(unrefined);
+      for (int s = 0; s < subdivisions; ++s) {
+        std::unordered_map<uint64_t, uint32_t> middle;
+        auto mid = [&](uint32_t a, uint32_t b) {
+          const uint64_t key = a < b ? (uint64_t{a} << 32 | b) : (uint64_t{b} << 32 | a);
+          auto [it, added] = middle.emplace(key, static_cast<uint32_t>(mesh.vertices.size()));
+          if (added) mesh.vertices.push_back(Scale(Add(mesh.vertices[a], mesh.vertices[b]), 0.5));
+          return it->second;
+        };
+        std::vector<std::array<uint32_t, 3>> split;
+        split.reserve(4 * mesh.triangles.size());
+        for (const auto& t : mesh.triangles) {
+          const uint32_t ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+          split.push_back({t[0], ab, ca});
+          split.push_back({ab, t[1], bc});
+          split.push_back({ca, bc, t[2]});
+          split.push_back({ab, bc, ca});
+        }
+        mesh.triangles.swap(split);
+      }
+      const eval::MeshDistance truth(eval::ReadMesh(truth_mesh));
+      mesh.vertices = truth.ClosestPoints(mesh.vertices, 0);
+      const fs::path out = work / ("vertex-move-limit-" + std::to_string(subdivisions) + ".off");
+      std::ofstream f(out);
+      f.precision(17);
+      f << "OFF\n" << mesh.vertices.size() << " " << mesh.triangles.size() << " 0\n";
+      for (const Vec3& v : mesh.vertices) f << v[0] << " " << v[1] << " " << v[2] << "\n";
+      for (const auto& t : mesh.triangles) f << "3 " << t[0] << " " << t[1] << " " << t[2] << "\n";
+      f.close();
+      if (!f) throw std::runtime_error("cannot write " + out.string());
+      evaluate(out, &row);
+    } catch (const std::exception& e) {
+      row.note = e.what();
+    }
+    rows->push_back(row);
+  }
+}
+
 // --- synth: imr-synth's street, the default image job --------------------------------------------
 json Synth(const QualityArgs& args, const fs::path& work) {
   json out = {{"input", "imr-synth street"}, {"frames", args.synth_frames}};
@@ -540,8 +598,10 @@ json Synth(const QualityArgs& args, const fs::path& work) {
   auto evaluate = [&](const fs::path& mesh, Row* row) {
     Evaluate(mesh, truth, truth, row);
   };
-  const std::vector<Row> rows =
+  std::vector<Row> rows =
       RunImageJob(args, job, "default.json", {{"max_distance", 30.0}}, work, evaluate);
+  VertexMoveLimits(work / (rows[0].refined ? "other" : "imr") / "mesh.ply", truth.truth, work,
+                   evaluate, &rows);
   const Row& r = rows[0];
   const Row& refined = rows[0].refined ? rows[0] : rows[1];
   const Row& plain = rows[0].refined ? rows[1] : rows[0];
