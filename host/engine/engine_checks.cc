@@ -400,6 +400,21 @@ void EngineInternals::OverwriteCollectedWeight(Engine& e, size_t index, double w
   Engine::Impl& m = *e.impl_;
   H(m.s).probe_cells.at(index)->info().weight = m.s.ToUnits(weight);
 }
+int64_t EngineInternals::UnlistOneCell(Engine& e) {
+  detail::EngineState& s = e.impl_->s;
+  for (uint32_t pt = 0; pt < s.points.size(); ++pt)
+    for (uint32_t k = 0; k < s.points[pt].ray_state.size(); ++k) {
+      if (!s.points[pt].Listed(k)) continue;
+      Cell_handle first;
+      s.ForEachListed(pt, k, [&](Cell_handle c) {
+        if (first == Cell_handle() && !c->info().final) first = c;
+      });
+      if (first == Cell_handle()) continue;
+      s.Unlist(pt, k, first);
+      return static_cast<int64_t>(s.points[pt].id);
+    }
+  return -1;
+}
 int64_t EngineInternals::Grow(Engine& e) {
   Engine::Impl& m = *e.impl_;
   const int64_t before = m.s.stats.cells_grown;

@@ -102,6 +102,10 @@ class EngineInternals {
   static bool ForceNonManifoldToggle(Engine& e);
   // Sets a collected cell's weight without the engine's bookkeeping.
   static void OverwriteCollectedWeight(Engine& e, size_t index, double weight);
+  // kExact: takes one cell out of a listed ray's list while the cell still holds the ray (what a
+  // cell change that forgot Unlist would leave). Returns the point's id, or -1 when no ray is
+  // listed.
+  static int64_t UnlistOneCell(Engine& e);
 };
 
 }  // namespace imr::engine::internal

@@ -473,6 +473,22 @@ TEST_P(SmallSceneTest, BrokenInvariantsAreNamedByVertexAndCell) {
   }
 }
 
+// Exact mode keeps, per ray of the last cast batch, the cells that hold it (so that un-casting
+// needs no walk): a list that lost a cell still holding the ray is named by its point.
+TEST_P(SmallSceneTest, ARayListThatLostACellIsNamedByItsPoint) {
+  if (GetParam() != "exact") GTEST_SKIP() << "ray lists are kept in exact mode only";
+  ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
+  ExpectManifold();
+  const int64_t point = internal::EngineInternals::UnlistOneCell(*engine_);
+  ASSERT_GE(point, 1);
+  const ManifoldCheckResult r = engine_->CheckInvariants();
+  ASSERT_FALSE(r.ok);
+  EXPECT_NE(r.message.find("the ray of point " + std::to_string(point) + " from camera "),
+            std::string::npos)
+      << r.message;
+  EXPECT_NE(r.message.find("cells hold it"), std::string::npos) << r.message;
+}
+
 TEST_P(SmallSceneTest, ANonManifoldBoundaryIsNamedByItsVertex) {
   ASSERT_TRUE(engine_->ApplyUpdate(Wall(1, 10.0, 9)).ok());
   ExpectManifold();
