@@ -11,13 +11,14 @@
 #
 # Steps: install the Build-Depends from Debian (Boost iostreams/program_options/serialization/
 # system, Eigen 3.4, OpenCV, CGAL, libpng/jpeg/tiff, zlib), configure with CUDA, OpenGL (the
-# viewer), Python, BreakPad, Ceres and the tests off, build the two executables only. About 15
+# viewer), Python, BreakPad, Ceres and the tests off, build the two executables only. About 8
 # minutes on 2 cores (JOBS=N: parallel jobs, default nproc). Prints the bin folder last; re-running
-# reuses the build. Needs root (apt) and the machine's configured Debian mirror.
+# reuses the build (remove CACHE_DIR/openmvs-build to rebuild from other checkouts). Needs root
+# (apt) and the machine's configured Debian mirror.
 set -euo pipefail
 
 if [[ $# -lt 2 ]]; then
-  sed -n '2,16p' "$0" >&2
+  sed -n '2,17p' "$0" >&2
   exit 2
 fi
 src="$(cd "$1" && pwd)"
@@ -28,8 +29,7 @@ jobs="${JOBS:-$(nproc)}"
   { echo "build_openmvs.sh: $src is not an OpenMVS checkout" >&2; exit 2; }
 [[ -f "$vcg/vcg/complex/complex.h" ]] ||
   { echo "build_openmvs.sh: $vcg is not a vcglib checkout (no vcg/complex/complex.h)" >&2; exit 2; }
-mkdir -p "$cache"
-cache="$(cd "$cache" && pwd)"
+cache="$(realpath -m "$cache")"
 repo="$(git -C "$(dirname "$0")" rev-parse --show-toplevel 2>/dev/null || echo /nonexistent)"
 case "$cache/" in
   "$repo"/*)
@@ -37,6 +37,7 @@ case "$cache/" in
     exit 2
     ;;
 esac
+mkdir -p "$cache"
 
 build="$cache/openmvs-build"
 bin="$build/bin"
@@ -57,9 +58,11 @@ for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
 done
 if [[ ${#missing[@]} -gt 0 ]]; then
-  "${sudo_cmd[@]}" apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends \
-    "${missing[@]}"
+  echo "build_openmvs.sh: installing ${missing[*]} (log: $cache/openmvs-apt.log)" >&2
+  { "${sudo_cmd[@]}" apt-get update -qq &&
+    DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq \
+      --no-install-recommends "${missing[@]}"; } >"$cache/openmvs-apt.log" 2>&1 ||
+    { tail -n 20 "$cache/openmvs-apt.log" >&2; exit 1; }
 fi
 
 # 2. Configure: the two tools, nothing optional.
