@@ -55,7 +55,9 @@ NOT_OPTIONS = {
 }
 
 # Flags of other programs the docs name alone.
-FOREIGN_FLAGS = {"--dependency", "--param"}  # sbatch's, GCC's
+FOREIGN_FLAGS = {"--dependency", "--param",  # sbatch's, GCC's
+                 "--resolution-level", "--min-resolution", "--decimate",  # OpenMVS RefineMesh's
+                 "--regularity-weight"}
 
 SNAKE = re.compile(r"^[a-z][a-z0-9]*(?:_[a-z0-9]+)+$")
 FLAG_TOKEN = re.compile(r"^-{1,2}[A-Za-z][A-Za-z0-9-]*$")

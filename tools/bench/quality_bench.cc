@@ -20,7 +20,10 @@
 // Peers: the Piazza et al. 2018 mesher (tools/bench/peers/build_piazza.sh) on street directly
 // and on the others through the stream `imr run --export-stream` writes; COLMAP's
 // delaunay_mesher (tools/bench/peers/build_colmap.sh) on imr's final points
-// (`--export-colmap`). Benchmark only, never in CI. Prints Markdown tables with the targets, then
+// (`--export-colmap`). With --openmvs BIN_DIR (tools/bench/peers/build_openmvs.sh), OpenMVS's
+// RefineMesh on synth and kitti: the unrefined run's mesh and its images (the run's COLMAP
+// export, through InterfaceCOLMAP), refined by OpenMVS and scored by the same code as imr's own
+// refinement. Benchmark only, never in CI. Prints Markdown tables with the targets, then
 // one JSON object as the last line.
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -53,6 +56,7 @@
 #include "tools/bench/common/bench_util.h"
 #include "tools/bench/common/subprocess.h"
 #include "tools/bench/peers/colmap.h"
+#include "tools/bench/peers/openmvs.h"
 #include "tools/bench/peers/piazza.h"
 
 namespace imr::bench {
@@ -71,6 +75,9 @@ struct QualityArgs {
   bool peers = true;
   std::string before;          // an earlier build's imr (e.g. f69611d's): run on the same input
   std::string before_label = "f69611d";
+  std::string openmvs;                    // OpenMVS's bin folder (InterfaceCOLMAP, RefineMesh)
+  std::vector<std::string> openmvs_args;  // more RefineMesh arguments (--openmvs-args)
+  bool openmvs_all_images = false;        // every frame's image, not only the keyframes'
 };
 
 // One mesher's result on one input.
@@ -464,11 +471,73 @@ json Street(const QualityArgs& args, const fs::path& work) {
   return out;
 }
 
+// OpenMVS's RefineMesh (issue 34) on the mesh of imr's unrefined run (`unrefined`, its mesh
+// `mesh`) and the keyframes' images of its COLMAP export (`model`, every frame's; the job's
+// keyframe_every picks the keyframes, as imr's refinement sees them; each image looked up in
+// `image_dirs`): InterfaceCOLMAP, then RefineMesh with its defaults and --openmvs-args, scored by
+// `evaluate`.
+// Its wall time is the unrefined run's plus OpenMVS's, as imr's refined row includes its run.
+// Without --openmvs, or without the binaries, no row: one line says why.
+void RunOpenMvsRow(const QualityArgs& args, const json& job, const fs::path& work,
+                   const Row& unrefined, const fs::path& mesh, const fs::path& model,
+                   const std::vector<fs::path>& image_dirs,
+                   const std::function<void(const fs::path&, Row*)>& evaluate,
+                   std::vector<Row>* rows) {
+  if (args.openmvs.empty()) {
+    std::printf("OpenMVS RefineMesh: no row (give --openmvs BIN_DIR, from "
+                "tools/bench/peers/build_openmvs.sh)\n");
+    return;
+  }
+  const fs::path bin(args.openmvs);
+  if (!fs::exists(bin / "InterfaceCOLMAP") || !fs::exists(bin / "RefineMesh")) {
+    std::printf("OpenMVS RefineMesh: no row (no InterfaceCOLMAP and RefineMesh in %s)\n",
+                bin.c_str());
+    return;
+  }
+  Row row;
+  row.mesher = "OpenMVS RefineMesh (on imr's unrefined mesh)";
+  row.refined = true;
+  const fs::path dir = work / "openmvs";
+  fs::create_directories(dir);
+  if (!unrefined.ok || !fs::exists(mesh)) {
+    row.note = "no unrefined mesh to refine";
+  } else if (const std::string e = PrepareOpenMvsColmap(
+                 model, image_dirs, dir,
+                 args.openmvs_all_images
+                     ? 1
+                     : job["input"].value("options", json::object()).value("keyframe_every", 5));
+             !e.empty()) {
+    row.note = "preparing the COLMAP model: " + e;
+  } else {
+    try {
+      WriteOpenMvsPly(mesh, dir / "before.ply");
+      const OpenMvsResult r = RunOpenMvs(bin, dir, dir / "before.ply", args.openmvs_args);
+      row.seconds = unrefined.seconds + r.interface_seconds + r.refine_seconds;
+      row.rss_mb = std::max(unrefined.rss_mb, r.peak_rss_mb);
+      if (!r.ok) {
+        row.note = r.error;
+      } else {
+        evaluate(r.mesh, &row);
+        char note[512];
+        std::snprintf(note, sizeof(note),
+                      "imr's unrefined run %.1f s + InterfaceCOLMAP %.1f s + RefineMesh %.1f s "
+                      "(peak %.0f MB)",
+                      unrefined.seconds, r.interface_seconds, r.refine_seconds, r.peak_rss_mb);
+        row.note = std::string(note) + "; " + r.refine_command;
+      }
+    } catch (const std::exception& error) {
+      row.note = error.what();
+    }
+  }
+  rows->push_back(row);
+}
+
 // An image job of configs/ (`config`) through imr, writing the stream and the final points for
 // the peers; the same through the --before build with the settings f69611d's configs had (weights
 // mode, 5 m grid, any_steiner; `before_refiner` the refiner's params then); then the peers.
 std::vector<Row> RunImageJob(const QualityArgs& args, const json& job, const std::string& config,
                              const json& before_refiner, const fs::path& work,
+                             const std::vector<fs::path>& image_dirs,
                              const std::function<void(const fs::path&, Row*)>& evaluate) {
   std::vector<Row> rows;
   Row imr;
@@ -499,7 +568,12 @@ std::vector<Row> RunImageJob(const QualityArgs& args, const json& job, const std
   }
   other_job["pipeline"] = pipeline;
   other_job["output"]["directory"] = (work / "other").string();
-  if (RunImr(other_job, work, "other", "", &other)) evaluate(work / "other/mesh.ply", &other);
+  // OpenMVS refines the unrefined run's mesh with that run's cameras and points.
+  const fs::path other_colmap = work / "other-colmap";
+  const std::string other_args = has_refiner && !args.openmvs.empty()
+                                     ? "--export-colmap " + Quote(other_colmap.string())
+                                     : "";
+  if (RunImr(other_job, work, "other", other_args, &other)) evaluate(work / "other/mesh.ply", &other);
   rows.push_back(other);
   // The refinement's time per call, per tenth of the calls: bounded when it stays flat.
   const fs::path report = has_refiner ? work / "imr/report.json" : work / "other/report.json";
@@ -524,6 +598,12 @@ std::vector<Row> RunImageJob(const QualityArgs& args, const json& job, const std
             work, "before", "configs/" + config + " then", evaluate, &rows);
   RunPeers(args, work, work / "stream.json", work / "colmap-model",
            "imr's exported stream (--export-stream)", evaluate, &rows);
+  if (has_refiner)
+    RunOpenMvsRow(args, job, work, rows[1], work / "other/mesh.ply", other_colmap, image_dirs,
+                  evaluate, &rows);
+  else
+    RunOpenMvsRow(args, job, work, rows[0], work / "imr/mesh.ply", work / "colmap-model",
+                  image_dirs, evaluate, &rows);
   return rows;
 }
 
@@ -599,7 +679,8 @@ json Synth(const QualityArgs& args, const fs::path& work) {
     Evaluate(mesh, truth, truth, row);
   };
   std::vector<Row> rows =
-      RunImageJob(args, job, "default.json", {{"max_distance", 30.0}}, work, evaluate);
+      RunImageJob(args, job, "default.json", {{"max_distance", 30.0}}, work, {seq / "image_2"},
+                  evaluate);
   VertexMoveLimits(work / (rows[0].refined ? "other" : "imr") / "mesh.ply", truth.truth, work,
                    evaluate, &rows);
   const Row& r = rows[0];
@@ -639,7 +720,8 @@ json Kitti(const QualityArgs& args, const fs::path& work) {
   truth.sequence_options.camera = 2;
   auto evaluate = [&](const fs::path& mesh, Row* row) { Evaluate(mesh, truth, truth, row); };
   const std::vector<Row> rows =
-      RunImageJob(args, job, "kitti-raw-sample.json", json::object(), work, evaluate);
+      RunImageJob(args, job, "kitti-raw-sample.json", json::object(), work,
+                  {drive / "image_02/data", drive / "image_02"}, evaluate);
   // The target: truth -> mesh mean at most half of what imr gave before (the --before row).
   std::vector<Target> targets;
   if (rows.size() > 2 && rows[2].ok && !args.before.empty())
@@ -811,13 +893,23 @@ int RunQualityBench(int argc, char** argv) {
       args.before = value();
     } else if (k == "--before-label") {
       args.before_label = value();
+    } else if (k == "--openmvs") {
+      args.openmvs = value();
+    } else if (k == "--openmvs-all-images") {
+      args.openmvs_all_images = true;
+    } else if (k == "--openmvs-args") {
+      std::stringstream ss(value());
+      for (std::string s; ss >> s;) args.openmvs_args.push_back(s);
     } else {
       std::fprintf(stderr,
                    "usage: imr-bench quality [--inputs street,synth,kitti,stream,middlebury] [--frames N]\n"
                    "       [--work DIR] [--shared DIR] [--piazza PATH] [--colmap PATH] "
                    "[--no-peers]\n"
                    "       [--before IMR --before-label LABEL]   an earlier build's imr, same "
-                   "input\n");
+                   "input\n"
+                   "       [--openmvs BIN_DIR [--openmvs-args 'ARGS'] [--openmvs-all-images]]\n"
+                   "           OpenMVS RefineMesh on the unrefined mesh and the keyframes' images "
+                   "(synth, kitti)\n");
       return 2;
     }
   }
