@@ -32,6 +32,8 @@ import tempfile
 # outputs, fields of input formats, names in code. A name here is not checked; an option renamed
 # in the code stays unknown (it is not in this list), so the page that names it fails.
 NOT_OPTIONS = {
+    # PLY face properties (docs/interop.md: what OpenMVS reads)
+    "vertex_index", "vertex_indices",
     # the SDK's structs and fields (docs/plugins.md, docs/tiles.md), glTF extras
     "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "imr_upright",
     "imr_mesh_stream", "export_mesh_stream", "recent_keyframes_begin", "keyframe_images",
