@@ -4,46 +4,16 @@
 #include <cstdint>
 #include <fstream>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 #include <system_error>
 
 #include "host/eval/mesh_io.h"
+#include "host/io/colmap_model.h"
 #include "tools/bench/common/subprocess.h"
 
 namespace imr::bench {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-// The lines of a COLMAP text file that are not comments (an empty line is kept: in images.txt it
-// is an image without 2D points).
-bool DataLines(const fs::path& file, std::vector<std::string>* lines) {
-  std::ifstream in(file);
-  if (!in) return false;
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (!line.empty() && line[0] == '#') continue;
-    lines->push_back(line);
-  }
-  return true;
-}
-
-std::vector<std::string> Words(const std::string& line) {
-  std::istringstream in(line);
-  std::vector<std::string> w;
-  for (std::string s; in >> s;) w.push_back(s);
-  return w;
-}
-
-std::string Join(const std::vector<std::string>& w) {
-  std::string s;
-  for (const std::string& x : w) s += (s.empty() ? "" : " ") + x;
-  return s;
-}
-
-}  // namespace
 
 std::string PrepareOpenMvsColmap(const fs::path& model, const std::vector<fs::path>& image_dirs,
                                  const fs::path& out, int keyframe_every) {
@@ -53,75 +23,57 @@ std::string PrepareOpenMvsColmap(const fs::path& model, const std::vector<fs::pa
   fs::create_directories(out / "sparse", ec);
   fs::create_directories(out / "images", ec);
   if (ec) return "cannot create " + (out / "images").string() + ": " + ec.message();
-
-  // Cameras: PINHOLE fx fy cx cy.
-  std::vector<std::string> lines;
-  if (!DataLines(model / "cameras.txt", &lines)) return "cannot read " + (model / "cameras.txt").string();
-  std::ofstream cameras(out / "sparse/cameras.txt");
-  for (const std::string& line : lines) {
-    std::vector<std::string> w = Words(line);
-    if (w.empty()) continue;
-    if (w.size() == 7 && w[1] == "SIMPLE_PINHOLE") w = {w[0], "PINHOLE", w[2], w[3], w[4], w[4], w[5], w[6]};
-    else if (w.size() != 8 || w[1] != "PINHOLE")
-      return "camera " + w[0] + " is " + (w.size() > 1 ? w[1] : "?") +
-             ": OpenMVS's InterfaceCOLMAP takes undistorted PINHOLE cameras only";
-    cameras << Join(w) << "\n";
+  try {
+    io::ColmapModel m = io::ReadColmapText(model);
+    // Cameras: PINHOLE fx fy cx cy.
+    for (io::ColmapModel::Camera& c : m.cameras) {
+      if (c.model == "SIMPLE_PINHOLE" && c.params.size() == 3)
+        c.model = "PINHOLE", c.params = {c.params[0], c.params[0], c.params[1], c.params[2]};
+      else if (c.model != "PINHOLE")
+        return "camera " + std::to_string(c.id) + " is " + c.model +
+               ": OpenMVS's InterfaceCOLMAP takes undistorted PINHOLE cameras only";
+    }
+    // Images: by id, the kept ones' id + 1, each linked from the first folder that has it.
+    std::sort(m.images.begin(), m.images.end(),
+              [](const auto& a, const auto& b) { return a.id < b.id; });
+    std::set<uint32_t> kept;
+    std::vector<io::ColmapModel::Image> images;
+    for (std::size_t k = 0; k < m.images.size(); ++k) {
+      if (keyframe_every > 1 && k % static_cast<std::size_t>(keyframe_every) != 0 &&
+          k + 1 != m.images.size())
+        continue;
+      io::ColmapModel::Image& im = m.images[k];
+      kept.insert(im.id);
+      fs::path found;
+      for (const fs::path& d : image_dirs)
+        if (fs::is_regular_file(d / im.name, ec)) {
+          found = fs::absolute(d / im.name, ec);
+          break;
+        }
+      if (found.empty()) return "image " + im.name + " is in none of the image folders";
+      fs::create_directories((out / "images" / im.name).parent_path(), ec);
+      fs::create_symlink(found, out / "images" / im.name, ec);
+      if (ec) return "cannot link " + (out / "images" / im.name).string() + ": " + ec.message();
+      ++im.id;
+      images.push_back(std::move(im));
+    }
+    m.images = std::move(images);
+    // Points: the kept images' track entries, their ids + 1; a point with none goes
+    // (InterfaceCOLMAP stops reading at a point without views).
+    std::vector<io::ColmapModel::Point3D> points;
+    for (io::ColmapModel::Point3D& p : m.points) {
+      std::vector<io::ColmapModel::TrackElement> track;
+      for (io::ColmapModel::TrackElement e : p.track)
+        if (kept.count(e.image_id)) ++e.image_id, track.push_back(e);
+      if (track.empty()) continue;
+      p.track = std::move(track);
+      points.push_back(std::move(p));
+    }
+    m.points = std::move(points);
+    io::WriteColmapText(m, out / "sparse");
+  } catch (const std::exception& e) {
+    return e.what();
   }
-
-  // Images: two lines each, by id; the kept ones' id + 1; each image linked from the first
-  // folder that has it.
-  lines.clear();
-  if (!DataLines(model / "images.txt", &lines)) return "cannot read " + (model / "images.txt").string();
-  std::vector<std::pair<unsigned long long, std::size_t>> by_id;  // id, line
-  for (std::size_t i = 0; i < lines.size(); i += 2) {
-    const std::vector<std::string> w = Words(lines[i]);
-    if (w.empty() && i + 1 >= lines.size()) break;  // a trailing empty line
-    if (w.size() < 10) return "images.txt: a line of " + std::to_string(w.size()) + " fields: " + lines[i];
-    by_id.emplace_back(std::stoull(w[0]), i);
-  }
-  std::sort(by_id.begin(), by_id.end());
-  std::set<unsigned long long> kept;
-  std::ofstream images(out / "sparse/images.txt");
-  for (std::size_t k = 0; k < by_id.size(); ++k) {
-    if (keyframe_every > 1 && k % static_cast<std::size_t>(keyframe_every) != 0 && k + 1 != by_id.size())
-      continue;
-    const std::size_t i = by_id[k].second;
-    kept.insert(by_id[k].first);
-    std::vector<std::string> w = Words(lines[i]);
-    w[0] = std::to_string(by_id[k].first + 1);
-    const std::string name = w[9];
-    fs::path found;
-    for (const fs::path& d : image_dirs)
-      if (fs::is_regular_file(d / name, ec)) {
-        found = fs::absolute(d / name, ec);
-        break;
-      }
-    if (found.empty()) return "image " + name + " is in none of the image folders";
-    fs::create_directories((out / "images" / name).parent_path(), ec);
-    fs::create_symlink(found, out / "images" / name, ec);
-    if (ec) return "cannot link " + (out / "images" / name).string() + ": " + ec.message();
-    images << Join(w) << "\n" << (i + 1 < lines.size() ? lines[i + 1] : "") << "\n";
-  }
-
-  // Points: the track's image ids + 1.
-  lines.clear();
-  if (!DataLines(model / "points3D.txt", &lines)) return "cannot read " + (model / "points3D.txt").string();
-  std::ofstream points(out / "sparse/points3D.txt");
-  for (const std::string& line : lines) {
-    std::vector<std::string> w = Words(line);
-    if (w.empty()) continue;
-    if (w.size() < 8 || (w.size() - 8) % 2 != 0) return "points3D.txt: a malformed line: " + line;
-    std::vector<std::string> track;
-    for (std::size_t k = 8; k < w.size(); k += 2)
-      if (const unsigned long long id = std::stoull(w[k]); kept.count(id))
-        track.insert(track.end(), {std::to_string(id + 1), w[k + 1]});
-    if (track.empty()) continue;  // InterfaceCOLMAP stops reading at a point without views
-    w.resize(8);
-    w.insert(w.end(), track.begin(), track.end());
-    points << Join(w) << "\n";
-  }
-  cameras.close(), images.close(), points.close();
-  if (!cameras || !images || !points) return "cannot write " + (out / "sparse").string();
   return "";
 }
 
