@@ -30,6 +30,7 @@
 
 #include "host/io/image_io.h"
 #include "host/util/exit_status.h"
+#include "host/util/write_rule.h"
 #include "test_util.h"
 
 namespace imr::testing {
@@ -1356,26 +1357,27 @@ TEST_F(BadSfm, AllPointsAtOnePosition) {
   std::cout << "[ message  ] " << r.err.substr(r.err.find("warning: [bad.json]"), 300) << "\n";
 }
 
-TEST_F(BadSfm, OutputFolderIsTheInputFolder) {
-  // Output folder = input folder, which holds another tool's manifest.json: refused, the file
-  // kept (it used to be overwritten silently). The same for a report.json imr did not write.
-  const fs::path bad = CopyModel(Case() / "seqs/bad");
+TEST_F(BadSfm, OutputFolderHoldsAnotherToolsFiles) {
+  // The output folder holds another tool's manifest.json: refused, the file kept (it used to be
+  // overwritten silently). The same for a report.json imr did not write. (An output folder that
+  // is the input folder is refused whatever it holds: the write rule, WriteRuleCli.)
+  const fs::path bad = Case() / "out/bad";
+  CopyModel(Case() / "seqs/bad");
   CopyModel(Case() / "seqs/good");
+  fs::create_directories(bad);
   const std::string foreign = "{\"made_by\": \"another tool\"}\n";
   WriteText(bad / "manifest.json", foreign);
-  // Named one by one: a glob "seqs/*/" would match the batch folder's own imr-batch/ on the
-  // second run (the batch folder is seqs/ itself), which imr refuses.
   json job = EngineJob("colmap", {"seqs/bad", "seqs/good"});
-  job["output"]["directory"] = "seqs/{sequence}";
+  job["output"]["directory"] = "out/{sequence}";
   WriteText(Case() / "job.json", job.dump(2));
-  CheckOnlyTheBadSequenceFailed(InCase("run --jobs 2 job.json"), Case() / "seqs", job, "bad", "good",
+  CheckOnlyTheBadSequenceFailed(InCase("run --jobs 2 job.json"), Case() / "out", job, "bad", "good",
                                 {(bad / "manifest.json").string(), "not a manifest of imr",
                                  "imr would overwrite it"},
                                 /*bad_folder_empty=*/false);
   EXPECT_EQ(ReadText(bad / "manifest.json"), foreign);
   fs::remove(bad / "manifest.json");
   WriteText(bad / "report.json", foreign);
-  CheckOnlyTheBadSequenceFailed(InCase("run --jobs 2 job.json"), Case() / "seqs", job, "bad", "good",
+  CheckOnlyTheBadSequenceFailed(InCase("run --jobs 2 job.json"), Case() / "out", job, "bad", "good",
                                 {(bad / "report.json").string(), "not a report of this job's sequence",
                                  "imr would overwrite it"},
                                 /*bad_folder_empty=*/false);
@@ -1427,7 +1429,8 @@ TEST_F(BadSfm, SequenceNameOf250Characters) {
   EXPECT_EQ(r.err.find("cannot record"), std::string::npos) << r.err;
   int records = 0;
   for (const auto& e : fs::directory_iterator(Case() / "runs/imr-batch/status"))
-    records += ReadJson(e.path()).value("sequence", "") == name ? 1 : 0;
+    if (e.path().filename() != kWriteLedgerName)
+      records += ReadJson(e.path()).value("sequence", "") == name ? 1 : 0;
   EXPECT_EQ(records, 1);
 }
 
@@ -1785,27 +1788,30 @@ TEST_F(BadJob, EngineUpdateThatRunsLong) {
 }
 
 TEST_F(BadSfm, BatchFolderHoldsTheUsersFiles) {
-  // output.directory "{sequence}" makes the job's own folder the batch folder: the user's
+  // output.directory "{sequence}_mesh" makes the job's own folder the batch folder: the user's
   // index.html and summary.md beside the input used to be replaced. Refused (73), untouched.
+  // (Output into the input's own folder, "{sequence}", is refused by the write rule itself:
+  // WriteRuleCli.)
   CopyModel(Case() / "A");
   json job = EngineJob("colmap", {"A"});
-  job["output"]["directory"] = "{sequence}";
+  job["output"]["directory"] = "{sequence}_mesh";
   WriteText(Case() / "index.html", "<p>my page</p>\n");
   WriteText(Case() / "summary.md", "# my notes\n");
   WriteText(Case() / "job.json", job.dump(2));
   CommandResult r = InCase("run job.json");
   EXPECT_EQ(r.status, kExitCantCreate) << r.out << r.err;
   EXPECT_NE(r.err.find("imr run: " + (Case() / "summary.md").string() +
-                       ": not a batch summary of imr (it does not start with \"# imr batch "
-                       "summary\"): imr would overwrite it with the batch summary"),
+                       ": a file imr did not write (no record of it in imr's ledger " +
+                       (Case() / ".imr-written").string() +
+                       "); imr never writes over a file it did not write: imr would overwrite it "
+                       "with the batch summary"),
             std::string::npos) << r.err;
-  EXPECT_FALSE(fs::exists(Case() / "A/report.json")) << "it ran";
+  EXPECT_FALSE(fs::exists(Case() / "A_mesh/report.json")) << "it ran";
   std::cout << "[ message  ] " << r.err.substr(r.err.find("imr run: ")) << "\n";
   fs::remove(Case() / "summary.md");
   r = InCase("run job.json");
   EXPECT_EQ(r.status, kExitCantCreate) << r.out << r.err;
-  EXPECT_NE(r.err.find((Case() / "index.html").string() + ": not a viewer page of imr: imr would "
-                       "overwrite it with the viewer page"),
+  EXPECT_NE(r.err.find((Case() / "index.html").string() + ": a file imr did not write"),
             std::string::npos) << r.err;
   EXPECT_NE(r.err.find("or give imr run --no-viewer"), std::string::npos) << r.err;
   // Without the page it runs; the user's page stays, and imr's own files are rewritten freely.

@@ -15,6 +15,7 @@
 
 #include "host/batch/manifest.h"
 #include "host/util/sha256.h"
+#include "host/util/write_rule.h"
 #include "test_util.h"
 
 namespace imr::testing {
@@ -76,7 +77,8 @@ class Batch : public ::testing::Test {
     for (const auto& e : fs::recursive_directory_iterator(out)) {
       if (!e.is_regular_file()) continue;
       const std::string rel = fs::relative(e.path(), out).string();
-      if (rel == batch::kManifestFile) continue;
+      // The manifest itself, and imr's ledger of what it wrote (host/util/write_rule.h).
+      if (rel == batch::kManifestFile || e.path().filename() == kWriteLedgerName) continue;
       EXPECT_TRUE(listed.count(rel)) << seq << "/" << rel << " is not in the manifest";
     }
   }

@@ -8,6 +8,7 @@
 #include "host/plugin/host_services.h"
 #include "host/util/clock.h"
 #include "host/util/atomic_file.h"
+#include "host/util/write_rule.h"
 #include "host/util/file_lock.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
@@ -769,12 +770,27 @@ int RunOneChild(const ChildArguments& args, MessageChannel& channel,
   const json identity = JobIdentity(v, registry, args.run_options, *seq);
   // Redoing: the old manifest goes first (its files are being replaced), with what a killed run
   // left behind. Its file list is kept to remove files this run no longer writes, if this job
-  // wrote it (an older imr's manifest names no job: its files are left alone).
+  // wrote it (an older imr's manifest names no job: its files are left alone). What it names
+  // this run may replace, whatever their bytes now are (a damaged output is redone).
   std::string error;
   const std::optional<Manifest> old = ReadManifest(output, &error);
   const std::string this_job = ManifestJob(v.job.file, output);
+  InputScope claims;
+  if (old && old->job == this_job)
+    for (const auto& e : old->files) claims.Claim(EntryPath(e, output));
+  // Nothing is removed for a run that may not write its outputs (the write rule: an input of the
+  // run, a user's file where a mesh would go).
+  {
+    InputScope inputs;
+    pipeline::NoteJobInputs(v, *seq, &inputs);
+    if (const std::string why = pipeline::WhyNotWritableOutputs(v, args.run_options, *seq);
+        !why.empty())
+      return fail(why + "; nothing ran");
+  }
   std::error_code ec;
-  fs::remove(output / kManifestFile, ec);
+  claims.Claim(output / kManifestFile);
+  if (std::string why; !RemoveWrittenFile(output / kManifestFile, &why))
+    return fail(why + "; nothing ran");
   if (const int n = RemoveLeftovers(output); n > 0)
     LogInfo("[" + seq->name + "] removed " + std::to_string(n) + " leftover(s) of an interrupted run");
 
@@ -796,6 +812,11 @@ int RunOneChild(const ChildArguments& args, MessageChannel& channel,
   };
   const pipeline::SequenceResult r = pipeline::RunOneSequence(v, registry, run_options, *seq);
   if (!r.ok) {
+    // The outputs of this job's earlier run were being replaced: without a manifest they would
+    // look whole, so they go too (only the files imr wrote, RemoveWrittenFile).
+    if (old && old->job == this_job)
+      for (const auto& e : old->files)
+        if (!fs::path(e.path).is_absolute()) RemoveWrittenFile(output / e.path);
     channel.Send({{"result",
                    {{"ok", false},
                     {"error", r.error},
@@ -813,7 +834,7 @@ int RunOneChild(const ChildArguments& args, MessageChannel& channel,
       std::set<std::string> kept;
       for (const auto& e : m.files) kept.insert(e.path);
       for (const auto& e : old->files)
-        if (!kept.count(e.path) && !fs::path(e.path).is_absolute()) fs::remove(output / e.path, ec);
+        if (!kept.count(e.path) && !fs::path(e.path).is_absolute()) RemoveWrittenFile(output / e.path);
     }
   } catch (const std::exception& e) {
     return fail(std::string("cannot write the manifest: ") + e.what());

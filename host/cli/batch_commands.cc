@@ -12,6 +12,7 @@
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
 #include "host/util/exit_status.h"
+#include "host/util/write_rule.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 #include "host/util/strict_number.h"
@@ -113,6 +114,7 @@ int CmdRun(const std::vector<std::string>& args) {
   const fs::path job = vm["job"].as<std::string>();
   imr::pipeline::RunOptions run_options;
   if (!ReadRunOptions(vm, "run", &run_options)) return kExitUsage;
+  NoteInput(job, "the job file");
 
   imr::batch::BatchOptions batch;
   batch.jobs = vm["jobs"].as<int>();
@@ -121,7 +123,10 @@ int CmdRun(const std::vector<std::string>& args) {
   batch.executable = SelfPath();
   batch.viewer_page = vm.count("no-viewer") == 0;
   if (!ParseSize(vm, "run", &batch.max_rss)) return kExitUsage;
-  if (vm.count("sequences-from")) batch.sequences_from = vm["sequences-from"].as<std::string>();
+  if (vm.count("sequences-from")) {
+    batch.sequences_from = vm["sequences-from"].as<std::string>();
+    NoteInput(batch.sequences_from, "the list of sequences (--sequences-from)");
+  }
   std::string error;
   if (vm.count("shard")) {
     auto shard = imr::batch::ParseShard(vm["shard"].as<std::string>(), &error);
@@ -311,6 +316,12 @@ int CmdMesh(const std::vector<std::string>& args) {
     }
   }
 
+  if (f->sequences_are_paths) NoteInput(fs::absolute(input), "the input (--input)");
+  // --out before the run: a file imr may not write costs no run.
+  if (const std::string why = WhyNotWritable(out); !why.empty()) {
+    std::cerr << "imr mesh: --out " << out.string() << ": " << why << "; nothing ran\n";
+    return kExitCantCreate;
+  }
   // The job imr run would be given. Paths are absolute: the job file lives in WORK.
   nlohmann::json job = {
       {"description", "built by imr mesh: " + input + " (" + format + ") -> " + out.string()},
@@ -453,6 +464,7 @@ int CmdSubmit(const std::vector<std::string>& args) {
   imr::pipeline::RunOptions run_options;
   if (!ReadRunOptions(vm, "submit", &run_options)) return kExitUsage;
   const fs::path job = vm["job"].as<std::string>();
+  NoteInput(job, "the job file");
   imr::plugin::PluginRegistry registry;
   imr::pipeline::ValidatedJob v;
   imr::batch::BatchOptions batch_check;

@@ -3,6 +3,7 @@
 #include "host/eval/evaluate.h"
 #include "host/util/atomic_file.h"
 #include "host/util/exit_status.h"
+#include "host/util/write_rule.h"
 
 #include <charconv>
 #include <iostream>
@@ -115,8 +116,14 @@ int CmdEvaluate(const std::vector<std::string>& args) {
 
   // Output folders first: a missing one should not cost a whole evaluation.
   const std::string out = vm.count("out") ? vm["out"].as<std::string>() : "";
+  imr::NoteInput(in.mesh, "the mesh to evaluate");
+  imr::NoteInput(in.truth, "the ground truth (--truth)");
+  imr::NoteInput(in.sequence, "the KITTI sequence (--velodyne-seq)");
   for (const std::string& f : {out, in.per_point})
-    if (!f.empty()) imr::EnsureWritableDirectory(fs::absolute(f).parent_path());
+    if (!f.empty()) {
+      imr::EnsureWritableDirectory(fs::absolute(f).parent_path());
+      imr::CheckWriteTarget(f);
+    }
 
   const nlohmann::json report = imr::eval::EvaluateFiles(in, o, &imr::eval::ReadKittiSequence);
   std::cout << imr::eval::FormatReport(report);

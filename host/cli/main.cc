@@ -7,6 +7,7 @@
 #include "host/cli/command.h"
 #include "host/pipeline/run.h"
 #include "host/util/exit_status.h"
+#include "host/util/write_rule.h"
 
 #include <imr/sdk/plugin.h>
 
@@ -84,8 +85,13 @@ int main(int argc, char** argv) {
   }
   for (const Command& c : Commands()) {
     if (c.name != cmd) continue;
+    // What the command reads; every write asks the rule (host/util/write_rule.h).
+    imr::InputScope inputs;
     try {
       return c.run(args);
+    } catch (const imr::WriteRefused& e) {
+      std::cerr << "imr " << cmd << ": " << e.what() << "\n";
+      return imr::kExitCantCreate;
     } catch (const std::exception& e) {
       std::cerr << "imr " << cmd << ": " << e.what() << "\n";
       return imr::kExitFailed;

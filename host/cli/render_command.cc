@@ -2,6 +2,7 @@
 #include "host/cli/command.h"
 #include "host/render/render_files.h"
 #include "host/util/exit_status.h"
+#include "host/util/write_rule.h"
 
 #include <charconv>
 #include <cstdio>
@@ -160,9 +161,15 @@ int CmdRender(const std::vector<std::string>& args) {
   q.no_image = vm.count("no-image") > 0;
   q.render = ro;
   q.top_down_options = td;
+  NoteInput(q.mesh, "the mesh to draw");
+  if (has_sequence) NoteInput(q.sequence, "the sequence (--sequence)");
   try {
+    CheckWriteTarget(q.out);  // before the work: the rule refuses an input frame, a user's file
     std::cout << render::RenderFiles(q) << "\n";
     return kExitOk;
+  } catch (const WriteRefused& e) {
+    std::cerr << "imr render: " << e.what() << "\n";
+    return kExitCantCreate;
   } catch (const render::FrameOutOfRange& e) {
     std::cerr << "imr render: " << e.what() << "\n";
     return kExitUsage;

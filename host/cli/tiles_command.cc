@@ -7,6 +7,7 @@
 #include "host/plugin/host_services.h"
 #include "host/util/atomic_file.h"
 #include "host/util/exit_status.h"
+#include "host/util/write_rule.h"
 
 #include <cstdio>
 #include <iostream>
@@ -25,7 +26,8 @@ const char* kMergeNotes =
     "--exporter ID) as `imr run` writes meshes, atomically. Positions are the tiles' (float32\n"
     "relative to each tile's origin: sub-millimetre).\n"
     "Exit status: 0 written; 1 the tiles cannot be read or merged, or the mesh written (the\n"
-    "message names the file); 64 bad usage.\n";
+    "message names the file); 64 bad usage; 73 --out is a file imr may not write (inside the run\n"
+    "folder, or a file imr did not write).\n";
 
 int CmdTilesMerge(const std::vector<std::string>& args) {
   po::options_description opts("imr tiles merge options");
@@ -55,7 +57,9 @@ int CmdTilesMerge(const std::vector<std::string>& args) {
   }
   format = format.substr(1);
   const bool quiet = vm.count("quiet") > 0;
+  NoteInput(run, "the run folder being merged");  // nothing is written into what is read
   try {
+    CheckWriteTarget(out);
     const pipeline::MergedTiles merged = pipeline::MergeTiles(run);
     const engine::ManifoldCheckResult check = engine::CheckMesh(merged.mesh, /*closed=*/false);
     if (!quiet) {
@@ -99,6 +103,9 @@ int CmdTilesMerge(const std::vector<std::string>& args) {
     if (!quiet)
       std::printf("a 2-manifold with boundary%s; written: %s\n",
                   merged.complete ? "" : " (of a run that did not finish)", out.string().c_str());
+  } catch (const WriteRefused& e) {
+    std::cerr << "imr tiles merge: " << e.what() << "\n";
+    return kExitCantCreate;
   } catch (const std::exception& e) {
     std::cerr << "imr tiles merge: " << e.what() << "\n";
     return kExitFailed;

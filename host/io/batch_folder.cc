@@ -1,20 +1,12 @@
 #include "host/io/batch_folder.h"
 
-#include <fstream>
+#include "host/util/write_rule.h"
+
 
 namespace imr::io {
 namespace fs = std::filesystem;
 
 namespace {
-
-// The first `limit` bytes of a file ("" when unreadable).
-std::string Head(const fs::path& p, std::size_t limit) {
-  std::ifstream in(p, std::ios::binary);
-  std::string s(limit, '\0');
-  in.read(s.data(), static_cast<std::streamsize>(limit));
-  s.resize(static_cast<std::size_t>(in.gcount()));
-  return s;
-}
 
 bool HoldsAny(const fs::path& dir, std::initializer_list<const char*> names) {
   std::error_code ec;
@@ -32,34 +24,30 @@ std::string ForeignBatchEntry(const fs::path& batch_dir, const std::string& entr
   const fs::file_status st = fs::symlink_status(p, ec);
   if (ec || !fs::exists(st)) return {};
   const bool folder = entry == kBatchSubdir || entry == "assets";
-  const bool is_dir = fs::is_directory(p, ec);
+  const bool is_dir = fs::is_directory(st);
   if (folder != is_dir)
-    return p.string() + ": a " + (is_dir ? "folder" : "file") + ", not what imr writes there (its " +
-           (folder ? "folder" : "file") + " " + entry + ")";
-  bool ours = false;
-  std::string what;
-  if (entry == "summary.json") {
-    ours = Head(p, 64 << 10).find("\"imr_summary\"") != std::string::npos;
-    what = "not a batch summary of imr (no \"imr_summary\" key)";
-  } else if (entry == "summary.md") {
-    ours = Head(p, 64).rfind("# imr batch summary", 0) == 0;
-    what = "not a batch summary of imr (it does not start with \"# imr batch summary\")";
-  } else if (entry == "index.html") {
-    // imr's pages name their generator in the head; older ones hold its mesh table.
-    const std::string page = Head(p, 32 << 20);
-    ours = page.find("<meta name=\"generator\" content=\"imr") != std::string::npos ||
-           page.find("<script type=\"application/json\" id=\"imr-meshes\">") != std::string::npos;
-    what = "not a viewer page of imr";
-  } else if (entry == "assets") {
-    ours = HoldsAny(p, {kViewerScriptName, "meshes"});
-    what = std::string("a folder without imr's ") + kViewerScriptName + " or meshes/";
-  } else if (entry == kBatchSubdir) {
-    ours = HoldsAny(p, {"batch.json", "lock", "status", "slurm", "sequences.txt"});
-    what = "a folder without imr's batch.json, lock or status records";
-  } else {
+    return p.string() + ": a " + (is_dir ? "folder" : fs::is_regular_file(st) ? "file" : "special file") +
+           ", not what imr writes there (its " + (folder ? "folder" : "file") + " " + entry + ")";
+  if (entry == kBatchSubdir) {
+    // Its records are imr's by name (locks, status records, Slurm's task logs are not written
+    // through the rule); a folder without any of them is someone else's.
+    const bool ours = HoldsAny(p, {"batch.json", "lock", "status", "slurm", "sequences.txt"});
+    return ours ? std::string()
+                : p.string() + ": a folder without imr's batch.json, lock or status records";
+  }
+  if (entry == "assets") {
+    // Every file in it is one the page replaces: each must be one imr wrote (the write rule).
+    for (auto it = fs::recursive_directory_iterator(p, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      if (it->path().filename() == kWriteLedgerName) continue;
+      if (it->is_directory(ec)) continue;
+      if (const std::string why = WhyNotWritable(it->path()); !why.empty())
+        return it->path().string() + ": " + why;
+    }
     return {};
   }
-  return ours ? std::string() : p.string() + ": " + what;
+  if (const std::string why = WhyNotWritable(p); !why.empty()) return p.string() + ": " + why;
+  return {};
 }
 
 std::string ForeignBatchFiles(const fs::path& batch_dir, bool viewer) {

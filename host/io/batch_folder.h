@@ -25,11 +25,10 @@ inline bool IsBatchFolderEntry(const std::string& name) {
   return false;
 }
 
-// Empty when batch_dir / entry (one of kBatchFolderEntries) is absent or imr wrote it; else why
-// imr will not write it, naming the path. imr's own: summary.json with "imr_summary" (or the
-// keys every summary has), summary.md starting "# imr batch summary", index.html with imr's
-// generator tag (or its mesh table, in pages of older versions), assets/ empty or holding the
-// viewer's script or meshes/, imr-batch/ empty or holding batch.json, a lock or status records.
+// Empty when batch_dir / entry (one of kBatchFolderEntries) is absent or imr may replace it;
+// else why not, naming the path. Files (summary.json, summary.md, index.html) and every file
+// under assets/ follow the write rule (host/util/write_rule.h: imr's ledger records their
+// bytes); imr-batch/ is imr's when empty or holding batch.json, a lock or status records.
 std::string ForeignBatchEntry(const std::filesystem::path& batch_dir, const std::string& entry);
 
 // The first foreign entry of the batch folder (index.html and assets/ only when `viewer`), as

@@ -4,6 +4,9 @@
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 #include "host/util/process_memory.h"
+#include "host/util/write_rule.h"
+
+#include <unistd.h>
 
 #include <cstdio>
 #include <stdexcept>
@@ -26,9 +29,13 @@ void InvariantCheck::OnKeyframe(KeyframeEvent& e) {
 }
 
 TraceWriter::TraceWriter(fs::path path, const engine::Engine& engine)
-    : path_(std::move(path)), partial_(path_), engine_(engine) {
-  partial_ += ".partial";
-  if (path_.has_parent_path()) fs::create_directories(path_.parent_path());
+    : path_(std::move(path)), engine_(engine) {
+  // Written under a temporary of imr's own (a leftover of a kill is removed as the atomic
+  // writes' are) and renamed into place at the end, under the write rule.
+  partial_ = path_.parent_path() /
+             ("." + path_.filename().string() + ".tmp-" + std::to_string(::getpid()));
+  if (path_.has_parent_path()) EnsureWritableDirectory(path_.parent_path());
+  CheckWriteTarget(path_);
   out_.open(partial_, std::ios::trunc);
   if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");
 }
@@ -50,6 +57,14 @@ const fs::path& TraceWriter::Finish() {
   if (out_.is_open()) {
     out_.close();
     std::error_code ec;
+    try {
+      CheckWriteTarget(path_);
+      RecordWrittenFile(partial_, path_);
+    } catch (const std::exception& e) {
+      LogWarning(std::string("cannot finish the trace: ") + e.what());
+      fs::remove(partial_, ec);
+      return path_;
+    }
     fs::rename(partial_, path_, ec);
     if (ec) LogWarning(path_.string() + ": cannot finish the trace: " + ec.message());
   }

@@ -24,6 +24,7 @@
 #include "host/util/log.h"
 #include "host/util/process_memory.h"
 #include "host/util/thread_pool.h"
+#include "host/util/write_rule.h"
 
 #include <chrono>
 #include <cstdio>
@@ -182,12 +183,45 @@ class SequenceRun {
 
 }  // namespace
 
+void NoteJobInputs(const ValidatedJob& v, const SequenceRef& seq, InputScope* inputs) {
+  inputs->Add(v.job.file, "the job file");
+  const io::InputFormat* format = io::FindInputFormat(v.job.input.format);
+  if (format != nullptr && format->sequences_are_paths)
+    inputs->Add(seq.source, "the input of sequence '" + seq.name + "'");
+  if (v.evaluation.is_object())
+    if (const std::string truth = v.evaluation.value("truth", ""); !truth.empty())
+      inputs->Add(truth, "the evaluation's ground truth");
+}
+
+std::string WhyNotWritableOutputs(const ValidatedJob& v, const RunOptions& options,
+                                  const SequenceRef& seq) {
+  const fs::path out = v.job.OutputDirectory(seq.name);
+  std::vector<fs::path> targets = {out / "report.json", out / "manifest.json"};
+  for (const std::string& f : v.job.output.formats) targets.push_back(out / (v.job.output.stem + "." + f));
+  if (!options.export_stream.empty())
+    targets.push_back(ExpandExportPath(options.export_stream, v, seq.name));
+  if (!options.trace.empty()) targets.push_back(ExpandExportPath(options.trace, v, seq.name));
+  if (!options.export_colmap.empty()) {
+    const fs::path colmap = ExpandExportPath(options.export_colmap, v, seq.name);
+    for (const char* f : {"cameras.txt", "images.txt", "points3D.txt"}) targets.push_back(colmap / f);
+  }
+  for (const fs::path& t : targets)
+    if (std::string why = WhyNotWritable(t); !why.empty()) return t.string() + ": " + why;
+  return {};
+}
+
 SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
                               const RunOptions& options, const SequenceRef& seq) {
   SequenceResult r;
   r.name = seq.name;
   const auto start = std::chrono::steady_clock::now();
   try {
+    // What this sequence reads is never what it writes (host/util/write_rule.h); the readers add
+    // every file they open.
+    InputScope inputs;
+    NoteJobInputs(v, seq, &inputs);
+    if (const std::string why = WhyNotWritableOutputs(v, options, seq); !why.empty())
+      throw WriteRefused(why + "; nothing ran");
     SequenceRun(v, registry, options, seq, &r).Run();
   } catch (const std::exception& e) {
     r.ok = false;
@@ -649,7 +683,7 @@ void SequenceRun::WarnAbout() {
 void SequenceRun::WriteStreamExports() {
   if (!options_.export_stream.empty()) {
     const fs::path p = ExpandExportPath(options_.export_stream, v_, seq_.name);
-    if (p.has_parent_path()) fs::create_directories(p.parent_path());
+    if (p.has_parent_path()) EnsureWritableDirectory(p.parent_path());
     WriteFileAtomically(p, recording_->recorder().SlamJson());
     report_.exports["stream"] = fs::absolute(p).string();
     result_->extra_files.push_back(p);

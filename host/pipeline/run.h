@@ -14,6 +14,10 @@
 #include <string>
 #include <vector>
 
+namespace imr {
+class InputScope;
+}
+
 namespace imr::pipeline {
 
 struct SequenceResult {
@@ -80,6 +84,17 @@ std::vector<std::string> CheckRunOptions(const RunOptions& options, const Valida
 // An export path template expanded for one sequence.
 std::filesystem::path ExpandExportPath(const std::string& tmpl, const ValidatedJob& job,
                                        const std::string& sequence);
+
+// Names what one sequence of the job reads (the job file, the sequence's file or folder, the
+// evaluation's ground truth) in `inputs`, so that nothing the run writes can be one of them.
+void NoteJobInputs(const ValidatedJob& job, const SequenceRef& seq, InputScope* inputs);
+
+// Why the sequence's run may not write one of the files it will write (its mesh, report.json,
+// manifest.json, --export-stream / --export-colmap / --trace targets; the tile writer checks its
+// tileset.json itself, for the job and sequence too), as the write
+// rule says it with the inputs of the live InputScopes, naming the file; "" when it may.
+std::string WhyNotWritableOutputs(const ValidatedJob& job, const RunOptions& options,
+                                  const SequenceRef& seq);
 
 // Runs one sequence in this process (`imr run` gives each its own child process: host/batch);
 // never throws for a failing sequence (ok false, error set). The steps are in run.cc.

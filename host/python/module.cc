@@ -7,6 +7,7 @@
 #include "host/plugin/host_services.h"
 #include "host/pipeline/run.h"
 #include "host/util/log.h"
+#include "host/util/write_rule.h"
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -380,6 +381,8 @@ PYBIND11_MODULE(_imr, m) {
 
   static py::exception<std::runtime_error> error(m, "Error", PyExc_RuntimeError);
   static py::exception<SequenceError> sequence_error(m, "SequenceError", error.ptr());
+  // A write the write rule refused (host/util/write_rule.h): a PermissionError, as the OS's own.
+  static py::exception<imr::WriteRefused> write_refused(m, "WriteRefused", PyExc_PermissionError);
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
@@ -393,6 +396,8 @@ PYBIND11_MODULE(_imr, m) {
       PyErr_SetObject(sequence_error.ptr(), ex.ptr());
     } catch (const std::invalid_argument& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const imr::WriteRefused& e) {
+      write_refused(e.what());
     } catch (const std::runtime_error& e) {
       error(e.what());
     }

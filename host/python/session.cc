@@ -10,6 +10,7 @@
 #include "host/pipeline/stage_watch.h"
 #include "host/plugin/host_services.h"
 #include "host/util/atomic_file.h"
+#include "host/util/write_rule.h"
 #include "host/util/log.h"
 
 #include <algorithm>
@@ -237,6 +238,7 @@ void Session::Write(const fs::path& file) {
     throw OptionError("write: expected a file ending in .ply, .obj, .gltf or .glb, got '" +
                       file.filename().string() + "'");
   format = format.substr(1);
+  CheckWriteTarget(fs::absolute(file));  // the write rule of every command (write_rule.h)
   const engine::Mesh mesh = Mesh();
   plugin::PluginRegistry& registry = ScannedRegistry(&registry_);
   const plugin::PluginInfo& info = FindPlugin(registry, "org.imr.exporter.assimp", "exporter", "exporter");

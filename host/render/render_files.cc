@@ -7,6 +7,7 @@
 #include "host/io/openmvg_reader.h"
 #include "host/io/slam_json.h"
 #include "host/render/rasterizer.h"
+#include "host/util/write_rule.h"
 
 #include <unistd.h>
 
@@ -40,8 +41,10 @@ void WritePngAtomically(const fs::path& path, const io::Image& image) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   const fs::path tmp = dir / ("." + path.stem().string() + ".partial-" + std::to_string(::getpid()) +
                               path.extension().string());
+  CheckWriteTarget(path);
   try {
     io::WriteImage(tmp.string(), image);
+    RecordWrittenFile(tmp, path);
     fs::rename(tmp, path);
   } catch (...) {
     std::error_code ec;

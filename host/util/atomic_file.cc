@@ -1,5 +1,8 @@
 #include "host/util/atomic_file.h"
 
+#include "host/util/sha256.h"
+#include "host/util/write_rule.h"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -57,12 +60,20 @@ void WriteAll(int fd, const char* p, std::size_t size, const fs::path& tmp, cons
   }
 }
 
-// Flushes and closes fd and renames `tmp` to `path`; on failure removes `tmp` and throws.
-void Finish(int fd, const fs::path& tmp, const fs::path& path) {
+// Flushes and closes fd, records the bytes in imr's ledger (host/util/write_rule.h) and renames
+// `tmp` to `path`; on failure removes `tmp` and throws.
+void Finish(int fd, const fs::path& tmp, const fs::path& path, const std::string& sha256,
+            uint64_t bytes) {
   if (::fsync(fd) != 0 || ::close(fd) != 0) {
     const int err = errno;
     ::unlink(tmp.c_str());
     Fail(path, std::string("write failed: ") + std::strerror(err));
+  }
+  try {
+    RecordWritten(path, sha256, bytes);
+  } catch (...) {
+    ::unlink(tmp.c_str());
+    throw;
   }
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
     const int err = errno;
@@ -74,14 +85,16 @@ void Finish(int fd, const fs::path& tmp, const fs::path& path) {
 }  // namespace
 
 void WriteFileAtomically(const fs::path& path, std::string_view contents) {
+  CheckWriteTarget(path);
   const fs::path tmp = TemporaryFor(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) Fail(path, std::string("cannot write: ") + std::strerror(errno));
   WriteAll(fd, contents.data(), contents.size(), tmp, path);
-  Finish(fd, tmp, path);
+  Finish(fd, tmp, path, Sha256Hex(contents), contents.size());
 }
 
 void CopyFileAtomically(const fs::path& from, const fs::path& to) {
+  CheckWriteTarget(to);
   const int in = ::open(from.c_str(), O_RDONLY | O_CLOEXEC);
   if (in < 0) Fail(from, std::string("cannot read: ") + std::strerror(errno));
   const fs::path tmp = TemporaryFor(to);
@@ -92,6 +105,8 @@ void CopyFileAtomically(const fs::path& from, const fs::path& to) {
     Fail(to, std::string("cannot write: ") + std::strerror(err));
   }
   std::vector<char> buffer(1 << 20);
+  Sha256 hash;
+  uint64_t bytes = 0;
   for (;;) {
     const ssize_t n = ::read(in, buffer.data(), buffer.size());
     if (n == 0) break;
@@ -103,6 +118,8 @@ void CopyFileAtomically(const fs::path& from, const fs::path& to) {
       ::unlink(tmp.c_str());
       Fail(from, std::string("read failed: ") + std::strerror(err));
     }
+    hash.Update(buffer.data(), static_cast<std::size_t>(n));
+    bytes += static_cast<uint64_t>(n);
     try {
       WriteAll(fd, buffer.data(), static_cast<std::size_t>(n), tmp, to);
     } catch (...) {
@@ -111,10 +128,11 @@ void CopyFileAtomically(const fs::path& from, const fs::path& to) {
     }
   }
   ::close(in);
-  Finish(fd, tmp, to);
+  Finish(fd, tmp, to, hash.HexDigest(), bytes);
 }
 
 void EnsureWritableDirectory(const fs::path& dir) {
+  CheckWriteFolder(dir);
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) Fail(dir, "cannot create folder: " + ec.message());
@@ -153,9 +171,12 @@ std::vector<fs::path> StagingDirectory::Staged(const std::vector<std::string>& l
 
 std::vector<fs::path> StagingDirectory::Commit(const std::vector<std::string>& last) {
   const std::vector<fs::path> files = Staged(last);
+  // Every target first: a refusal leaves all of them as they were.
+  for (const auto& f : files) CheckWriteTarget(destination_ / f.filename());
   std::vector<fs::path> out;
   for (const auto& f : files) {
     const fs::path target = destination_ / f.filename();
+    RecordWrittenFile(f, target);
     std::error_code ec;
     fs::rename(f, target, ec);
     if (ec) Fail(target, "cannot move into place: " + ec.message());

@@ -8,7 +8,8 @@
 // target
 //   1. is an input of the same run, or lies inside a folder the run reads from;
 //   2. exists and imr did not write it: no line of imr's ledger in its folder (".imr-written")
-//      records its size and SHA-256, so it is a user's file, or one a user changed since;
+//      records its size and SHA-256, so it is a user's file, or one a user changed since (unless
+//      a live scope claims it: the manifest of the same job and sequence names it);
 //   3. exists and is not a regular file (a folder, a symlink, a FIFO, a device, a socket).
 // What imr writes is recorded in its folder's ledger before it is renamed into place, so a
 // re-run (and `--force`) may replace exactly what imr wrote, and nothing else. Removals go
@@ -46,6 +47,9 @@ class InputScope {
   // "sequence 'seq' (its input folder)"). A path that does not exist is still remembered (a
   // file the run creates later is no input). Empty paths are ignored.
   void Add(const std::filesystem::path& path, std::string_view what);
+  // A file a record of imr names as this run's own output (the manifest of the same job and
+  // sequence): replaceable whatever its bytes now are (a damaged output is redone).
+  void Claim(const std::filesystem::path& path);
 
  private:
   uint64_t id_;
@@ -60,6 +64,10 @@ void NoteInput(const std::filesystem::path& path, std::string_view what);
 std::string WhyNotWritable(const std::filesystem::path& target);
 // Throws WriteRefused("<target>: <reason>; nothing was written") when WhyNotWritable says why.
 void CheckWriteTarget(const std::filesystem::path& target);
+
+// Throws WriteRefused when imr may not create or write into the folder `dir`: it is an input
+// file, or a folder the run reads from or lies inside one, or something other than a folder.
+void CheckWriteFolder(const std::filesystem::path& dir);
 
 // Records in `target`'s folder's ledger that imr writes `bytes` bytes with SHA-256 `sha256_hex`
 // under that name. Called before the rename that puts the file in place (a run killed between

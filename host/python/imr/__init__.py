@@ -16,12 +16,12 @@ import json as _json
 import os as _os
 import tempfile as _tempfile
 
-from ._imr import (Camera, Engine, Error, Keyframe, SequenceError, __version__,  # noqa: F401
-                   set_log_level)
+from ._imr import (Camera, Engine, Error, Keyframe, SequenceError, WriteRefused,  # noqa: F401
+                   __version__, set_log_level)
 from . import _imr
 
-__all__ = ["Camera", "Engine", "Error", "Keyframe", "SequenceError", "evaluate", "read",
-           "read_colmap", "read_openmvg", "read_slam_json", "run", "set_log_level"]
+__all__ = ["Camera", "Engine", "Error", "Keyframe", "SequenceError", "WriteRefused", "evaluate",
+           "read", "read_colmap", "read_openmvg", "read_slam_json", "run", "set_log_level"]
 
 
 def _plugin_directory():
