@@ -240,9 +240,10 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
   if (in.scan_step < 1) throw std::invalid_argument("scan step must be at least 1");
   const auto start = std::chrono::steady_clock::now();
 
-  const TriangleMesh mesh = ReadMesh(in.mesh);
+  const TriangleMesh mesh = in.mesh_data != nullptr ? *in.mesh_data : ReadMesh(in.mesh);
   json report;
-  report["mesh"] = {{"path", in.mesh}, {"format", GeometryFormat(in.mesh)}};
+  report["mesh"] = {{"path", in.mesh},
+                    {"format", in.mesh_data != nullptr ? std::string("arrays") : GeometryFormat(in.mesh)}};
 
   io::ImageSequence seq;
   std::vector<io::CameraGeometry> cameras;
@@ -252,7 +253,15 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
     cameras = Cameras(seq);
   }
 
-  Truth truth = LoadTruth(in.truth, in.sequence.empty() ? nullptr : &seq, in.scan_step, options);
+  Truth truth;
+  if (in.truth_points != nullptr) {
+    if (in.truth_points->empty()) throw std::runtime_error(in.truth + ": no ground-truth point");
+    truth.points = *in.truth_points;
+    truth.description = {{"path", in.truth}, {"format", "array"}, {"source", "point_cloud"},
+                         {"points", truth.points.size()}};
+  } else {
+    truth = LoadTruth(in.truth, in.sequence.empty() ? nullptr : &seq, in.scan_step, options);
+  }
   report["truth"] = std::move(truth.description);
   const double seconds_read = SecondsSince(start);
 

@@ -116,6 +116,10 @@ struct EvaluationInputs {
   io::ImageSequenceOptions sequence_options;  // frame selection, camera
   int scan_step = 1;                          // Velodyne ground truth: every n-th frame's scan
   std::string per_point;                      // "" or a file: one distance per truth point
+  // In memory rather than read from files (the Python module's arrays: no temporary copy of the
+  // caller's data on disk). When set, `mesh` / `truth` only name them in messages and the report.
+  const TriangleMesh* mesh_data = nullptr;
+  const std::vector<Vec3>* truth_points = nullptr;
 };
 
 // Reads the inputs, evaluates, writes the per-point file (atomically) when asked, and returns the

@@ -103,6 +103,19 @@ std::string CoordinateProblem(double x) {
   return m.str();
 }
 
+std::string IntrinsicsProblem(double fx, double fy, double cx, double cy) {
+  std::ostringstream m;
+  if (!(std::isfinite(fx) && fx > 0.0 && std::isfinite(fy) && fy > 0.0)) {
+    m << "expected focal lengths fx, fy finite and > 0 (pixels), got fx " << fx << ", fy " << fy;
+    return m.str();
+  }
+  if (!(std::isfinite(cx) && std::isfinite(cy))) {
+    m << "expected a finite principal point cx, cy (pixels), got cx " << cx << ", cy " << cy;
+    return m.str();
+  }
+  return {};
+}
+
 Mat3 QuaternionToRotation(const std::array<double, 4>& q0) {
   const double n = std::sqrt(q0[0] * q0[0] + q0[1] * q0[1] + q0[2] * q0[2] + q0[3] * q0[3]);
   const double w = q0[0] / n, x = q0[1] / n, y = q0[2] / n, z = q0[3] / n;
@@ -260,6 +273,10 @@ bool IntrinsicsFromColmap(const std::string& model, const std::vector<double>& p
   out->fy = one_focal ? out->fx : p[i++];
   out->cx = p[i++];
   out->cy = p[i++];
+  if (std::string e = IntrinsicsProblem(out->fx, out->fy, out->cx, out->cy); !e.empty()) {
+    *error = std::move(e);
+    return false;
+  }
   const double* d = p.data() + i;  // the distortion parameters
   if (model == "SIMPLE_RADIAL") {
     out->k1 = d[0];

@@ -60,6 +60,11 @@ std::string CheckRotation(Mat3* r);
 // got <x>".
 std::string CoordinateProblem(double x);
 
+// Empty when (fx, fy, cx, cy) are intrinsics: focal lengths finite and > 0, a finite principal
+// point (pixels); else what is wrong ("expected focal lengths fx, fy finite and > 0 (pixels),
+// got fx 0, fy 0"). The readers of OpenMVG, SLAM JSON and COLMAP check theirs with it.
+std::string IntrinsicsProblem(double fx, double fy, double cx, double cy);
+
 // Unit quaternion (w, x, y, z; scalar first, as COLMAP) <-> rotation matrix.
 Mat3 QuaternionToRotation(const std::array<double, 4>& q);
 std::array<double, 4> RotationToQuaternion(const Mat3& r);

@@ -214,6 +214,8 @@ Intrinsics OpenMvgIntrinsicFromData(const JsonFields& f, const std::string& name
   const std::vector<double> pp = f.Numbers(f.Member(d, "principal_point", dp), dp + ".principal_point");
   if (pp.size() != 2) f.Fail(dp + ".principal_point", "expected 2 numbers");
   k.cx = pp[0], k.cy = pp[1];
+  if (const std::string p = IntrinsicsProblem(k.fx, k.fy, k.cx, k.cy); !p.empty())
+    f.Fail(dp + ".focal_length", p);
   k.source_params = {k.fx, k.cx, k.cy};
   auto disto = [&](const char* field, std::size_t n) {
     const std::vector<double> p = f.Numbers(f.Member(d, field, dp), dp + "." + field);

@@ -480,6 +480,31 @@ TEST(BadFiles, OpenMvg) {
   EXPECT_ERROR(ErrorOf("openmvg", p), "top level is not a JSON object");
 }
 
+// Issue 44: a focal length of 0 or negative is no camera (the Python
+// module's cameras are checked with the same io::IntrinsicsProblem).
+TEST(BadFiles, IntrinsicsNotPositiveOrNotFinite) {
+  TempDir dir;
+  const fs::path p = dir / "sfm_data.json";
+  for (const double f : {0.0, -800.0}) {
+    json j = OpenMvgScene();
+    j["intrinsics"][0]["value"]["ptr_wrapper"]["data"]["focal_length"] = f;
+    Write(p, j.dump());
+    EXPECT_ERROR(ErrorOf("openmvg", p), "intrinsics[0].value.ptr_wrapper.data.focal_length",
+                 "expected focal lengths fx, fy finite and > 0 (pixels), got fx " + std::string(f == 0 ? "0" : "-800"));
+  }
+  const fs::path s = dir / "slam.json";
+  json j = SlamScene();
+  j["intrinsics"][0]["value"]["ptr_wrapper"]["data"]["focal_length"] = 0;
+  Write(s, j.dump());
+  EXPECT_ERROR(ErrorOf("slam_json", s), "focal_length", "expected focal lengths fx, fy finite and > 0");
+  WriteColmapTextScene(dir / "m");
+  Write(dir / "m" / "cameras.txt", "1 PINHOLE 640 480 800 0 320 240\n");
+  EXPECT_ERROR(ErrorOf("colmap", dir / "m"), "camera 1", "got fx 800, fy 0");
+  WriteColmapTextScene(dir / "m");
+  Write(dir / "m" / "cameras.txt", "1 SIMPLE_RADIAL 640 480 -800 320 240 0.01\n");
+  EXPECT_ERROR(ErrorOf("colmap", dir / "m"), "camera 1", "got fx -800, fy -800");
+}
+
 TEST(BadFiles, Colmap) {
   TempDir dir;
   WriteColmapTextScene(dir / "m");

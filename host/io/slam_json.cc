@@ -3,6 +3,7 @@
 #include "host/io/json_fields.h"
 #include "host/io/json_stream.h"
 #include "host/io/openmvg_reader.h"
+#include "host/io/update_check.h"
 #include "host/io/schema.h"
 #include "host/util/json_text.h"
 
@@ -270,7 +271,7 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
         auto it = points.find(id);
         if (it == points.end() || !it->second.entered || it->second.removed)
           f_.Fail("imr_stream.keyframes[" + std::to_string(k) + "].removed_points",
-                  "point " + std::to_string(id) + " is not in the stream at keyframe " + std::to_string(numbers[k]));
+                  PointNotInStream(id, numbers[k]));
         it->second.removed = true;
       }
       u.removed_points = removed[k];
@@ -285,7 +286,7 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
         ++observations;
         State& s = points[o.point];
         if (s.removed)
-          f_.Fail(ObsPath(o), "point " + std::to_string(o.point) + " is observed after it was removed");
+          f_.Fail(ObsPath(o), ObservedAfterRemoval(o.point));
         const uint64_t cam = views_[o.view].geometry.id;
         const bool new_cam = std::find(s.cameras.begin(), s.cameras.end(), cam) == s.cameras.end();
         if (new_cam) s.cameras.push_back(cam);

@@ -787,6 +787,11 @@ std::vector<std::string> CheckRunOptions(const RunOptions& o, const ValidatedJob
   if (o.check_invariants_every < 0)
     problems.push_back("--check-invariants-every " + std::to_string(o.check_invariants_every) +
                        ": expected a number of keyframes >= 1");
+  // The range of imr run's --threads (batch/run_flags.cc); 0 leaves it to the job. Checked here
+  // too for the callers that set it without the flag (the Python module's imr.run(threads=)).
+  if (o.threads < 0 || o.threads > 1024)
+    problems.push_back("threads " + std::to_string(o.threads) +
+                       ": expected a number of threads in 1..1024 (0: the job's engine.threads)");
   const std::pair<const char*, const std::string*> flags[] = {
       {"--export-stream", &o.export_stream}, {"--export-colmap", &o.export_colmap},
       {"--trace", &o.trace}};

@@ -13,6 +13,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
 #include <condition_variable>
 #include <csignal>
 #include <functional>
@@ -236,6 +237,46 @@ std::array<double, 9> Rotation(const py::handle& o) {
   return r;
 }
 
+// An (N, 3) array of finite points of `what` ("truth"), for imr.evaluate.
+std::vector<imr::Vec3> PointsFromArray(const py::handle& o, const std::string& what) {
+  auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(o);
+  if (!a || a.ndim() != 2 || a.shape(1) != 3) {
+    std::string shape;
+    if (a)
+      for (py::ssize_t i = 0; i < a.ndim(); ++i) shape += (i ? ", " : "") + std::to_string(a.shape(i));
+    throw OptionError(what + ": expected an (N, 3) array of numbers" + (a ? ", got shape (" + shape + ")" : ""));
+  }
+  std::vector<imr::Vec3> out(static_cast<std::size_t>(a.shape(0)));
+  for (std::size_t i = 0; i < out.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      out[i][k] = a.data()[3 * i + k];
+      if (!std::isfinite(out[i][k]))
+        throw OptionError(what + "[" + std::to_string(i) + "]: expected finite numbers, got " +
+                          std::to_string(out[i][k]));
+    }
+  return out;
+}
+
+// (vertices (V, 3), faces (F, 3) integer indices below V) as a mesh, for imr.evaluate.
+imr::eval::TriangleMesh MeshFromArrays(const py::handle& vertices, const py::handle& faces) {
+  imr::eval::TriangleMesh m;
+  m.vertices = PointsFromArray(vertices, "mesh: vertices");
+  py::array f = py::array::ensure(faces);
+  if (!f || f.ndim() != 2 || f.shape(1) != 3 || (f.size() > 0 && f.dtype().kind() != 'i' && f.dtype().kind() != 'u'))
+    throw OptionError("mesh: faces: expected integers of shape (F, 3)");
+  auto fi = f.cast<py::array_t<int64_t, py::array::c_style | py::array::forcecast>>();
+  m.triangles.resize(static_cast<std::size_t>(fi.shape(0)));
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const int64_t i = fi.data()[3 * t + k];
+      if (i < 0 || static_cast<uint64_t>(i) >= m.vertices.size())
+        throw OptionError("mesh: faces[" + std::to_string(t) + "]: vertex index " + std::to_string(i) +
+                          " is out of range (" + std::to_string(m.vertices.size()) + " vertices)");
+      m.triangles[t][k] = static_cast<uint32_t>(i);
+    }
+  return m;
+}
+
 // A mesh's arrays without a copy: the mesh moves into a capsule that both arrays keep alive.
 py::tuple MeshArrays(engine::Mesh mesh, bool point_ids) {
   const auto nv = static_cast<py::ssize_t>(mesh.vertices.size() / 3);
@@ -419,6 +460,9 @@ PYBIND11_MODULE(_imr, m) {
                if (!i || i.size() != 4) throw OptionError("intrinsics: expected (fx, fy, cx, cy)");
                std::copy(i.data(), i.data() + 4, c.intrinsics.begin());
              }
+             // The readers' checks (a rotation, intrinsics unknown or positive, a centre in
+             // bounds), here so that the line that made the camera is the one that fails.
+             if (const std::string p = imr::io::CameraProblem(&c); !p.empty()) throw OptionError(p);
              return c;
            }),
            py::arg("id"), py::arg("center"), py::arg("rotation") = py::none(),
@@ -508,17 +552,38 @@ PYBIND11_MODULE(_imr, m) {
       });
 
   m.def("_run", [](const std::string& job_file, const py::object& job_text,
-                   const std::vector<std::string>& overrides, int threads) {
+                   const std::vector<std::string>& overrides, int threads, const std::string& job_name) {
     json reports;
     const std::optional<std::string> text =
         job_text.is_none() ? std::nullopt : std::optional<std::string>(job_text.cast<std::string>());
-    Interruptible([&] { reports = RunJob(job_file, text ? &*text : nullptr, overrides, threads); });
+    Interruptible([&] { reports = RunJob(job_file, text ? &*text : nullptr, overrides, threads, job_name); });
     return ToPython(reports);
   });
-  m.def("_evaluate", [](const std::string& mesh, const std::string& truth, const py::dict& options) {
+  // mesh: a path, or (vertices, faces) arrays; truth: a path, "" (velodyne_seq) or an (N, 3)
+  // array. Arrays are evaluated in memory: no copy of the caller's data is written anywhere.
+  m.def("_evaluate", [](const py::object& mesh, const py::object& truth, const py::dict& options) {
     const std::string o = ToJson(options, "options").dump();
+    std::optional<imr::eval::TriangleMesh> mesh_data;
+    std::optional<std::vector<imr::Vec3>> truth_points;
+    std::string mesh_name, truth_name;
+    if (py::isinstance<py::str>(mesh)) {
+      mesh_name = mesh.cast<std::string>();
+    } else {
+      mesh_name = "<arrays>";
+      const py::sequence vf = mesh.cast<py::sequence>();
+      mesh_data = MeshFromArrays(vf[0], vf[1]);
+    }
+    if (py::isinstance<py::str>(truth)) {
+      truth_name = truth.cast<std::string>();
+    } else {
+      truth_name = "<array>";
+      truth_points = PointsFromArray(truth, "truth");
+    }
     json report;
-    Interruptible([&] { report = Evaluate(mesh, truth, o); });
+    Interruptible([&] {
+      report = Evaluate(mesh_name, truth_name, o, mesh_data ? &*mesh_data : nullptr,
+                        truth_points ? &*truth_points : nullptr);
+    });
     return ToPython(report);
   });
   m.def("_set_plugin_directory", [](const std::string& d) { SetPluginDirectory(d); });

@@ -1,5 +1,6 @@
 #include "host/python/session.h"
 
+#include "host/batch/manifest.h"
 #include "host/eval/evaluate.h"
 #include "host/io/engine_options.h"
 #include "host/io/input_formats.h"
@@ -126,8 +127,9 @@ Session::Session(const std::string& engine_json, const std::string& policy,
   for (const auto& item : engine_json_.items()) explicit_keys_.insert(item.key());
   options_ = base_options_;
   // The Steiner grid's size, as a job's validation checks it once the lengths are known: here
-  // when they are given or the scale is metric; else when the first keyframe decides (Add).
-  if ((engine_json_.value("scale", "") == "metric") ||
+  // with the lengths as given (metric scale, the default for keyframes built by the caller) unless
+  // engine.scale is "auto" and a length is left to it; then when the first keyframes set them.
+  if (engine_json_.value("scale", "") != "auto" ||
       (engine_json_.contains("steiner_spacing") && engine_json_.contains("steiner_margin") &&
        engine_json_.contains("max_ray_length")))
     if (const std::string grid = base_options_.CheckSteinerGrid(); !grid.empty())
@@ -156,6 +158,11 @@ Session::~Session() = default;
 
 void Session::Add(Keyframe k) {
   if (k.format.empty()) k.info = {keyframes_ + static_cast<int>(early_.size()), keyframes_ + static_cast<int>(early_.size())};
+  // What the readers check of their cameras, positions and ids, before the keyframe is held or
+  // applied: a bad one is refused here, whatever engine.scale holds back.
+  if (const std::string p = check_.Check(&k.update, k.info.index); !p.empty())
+    throw OptionError("keyframe " + std::to_string(k.info.index) + " (frame " + std::to_string(k.info.frame) +
+                      "): " + p);
   if (!scale_mode_) {
     scale_mode_ = pipeline::ScaleModeOf(engine_json_, k.format);
     if (*scale_mode_ == pipeline::ScaleMode::kMetric)
@@ -260,35 +267,52 @@ void Session::Write(const fs::path& file) {
 // --- imr run, imr evaluate ---
 
 json RunJob(const std::string& job_file, const std::string* job_text,
-            const std::vector<std::string>& overrides, int threads) {
+            const std::vector<std::string>& overrides, int threads, const std::string& job_name) {
+  // A dict's job has no file: its messages name what the caller gave, not the anchor path.
+  const std::string name = job_name.empty() ? job_file : job_name;
+  const auto named = [&](std::string s) {
+    if (job_name.empty()) return s;
+    for (std::size_t at = s.find(job_file); at != std::string::npos; at = s.find(job_file, at + name.size()))
+      s.replace(at, job_file.size(), name);
+    return s;
+  };
   plugin::PluginRegistry registry;
   const pipeline::ValidatedJob v =
       job_text != nullptr ? pipeline::LoadAndValidateJobText(*job_text, job_file, &registry, overrides)
                           : pipeline::LoadAndValidateJob(job_file, &registry, overrides);
   if (!v.ok()) {  // as imr run prints them (cli/command.cc PrintProblems)
-    std::string s = job_file + ": " + std::to_string(v.problems.size()) + " problem" +
+    std::string s = name + ": " + std::to_string(v.problems.size()) + " problem" +
                     (v.problems.size() == 1 ? "" : "s") + ":";
-    for (const auto& p : v.problems) s += "\n  " + p.ToString();
+    for (const auto& p : v.problems) s += "\n  " + named(p.ToString());
     throw OptionError(s);
   }
   pipeline::RunOptions run_options;
   run_options.threads = threads;
-  for (const std::string& p : pipeline::CheckRunOptions(run_options, v)) throw OptionError(p);
+  for (const std::string& p : pipeline::CheckRunOptions(run_options, v)) throw OptionError(named(p));
+  // Before anything runs, as imr run's children check each output folder: a report.json or
+  // manifest.json that this job's sequence did not write is never replaced.
+  for (const pipeline::SequenceRef& seq : v.sequences)
+    if (const std::string foreign = batch::ForeignOutputs(v.job.OutputDirectory(seq.name), v.job.file, seq.name);
+        !foreign.empty())
+      throw SequenceError(seq.name, named(foreign));
   json reports = json::object();
   for (const pipeline::SequenceRef& seq : v.sequences) {
     if (plugin::CancelRequested()) throw std::runtime_error("cancelled (signal)");
     const pipeline::SequenceResult r = pipeline::RunOneSequence(v, registry, run_options, seq);
-    if (!r.ok) throw SequenceError(seq.name, r.error);
+    if (!r.ok) throw SequenceError(seq.name, named(r.error));
     reports[seq.name] = r.report;
   }
   return reports;
 }
 
-json Evaluate(const std::string& mesh, const std::string& truth, const std::string& options_json) {
+json Evaluate(const std::string& mesh, const std::string& truth, const std::string& options_json,
+              const eval::TriangleMesh* mesh_data, const std::vector<Vec3>* truth_points) {
   const json o = ParseObject(options_json, "evaluate");
   eval::EvaluationInputs in;
   in.mesh = mesh;
   in.truth = truth;
+  in.mesh_data = mesh_data;
+  in.truth_points = truth_points;
   eval::EvaluationOptions options;
   for (const auto& [key, value] : o.items()) {
     try {

@@ -6,8 +6,10 @@
 #pragma once
 
 #include "host/engine/engine.h"
+#include "host/eval/mesh_io.h"
 #include "host/io/keyframe_source.h"
 #include "host/io/slam_json.h"
+#include "host/io/update_check.h"
 #include "host/pipeline/in_front_check.h"
 #include "host/pipeline/mesh_export.h"
 #include "host/pipeline/scale.h"
@@ -67,8 +69,9 @@ class Session {
   Session(const std::string& engine_json, const std::string& policy, const std::string& policy_params);
   ~Session();
 
-  // One keyframe, as the job's run applies it; throws std::runtime_error ("keyframe 3 (frame 3):
-  // ...") when the engine refuses it.
+  // One keyframe, as the job's run applies it. Throws OptionError ("keyframe 3 (frame 3): camera 0:
+  // the rotation is not a rotation: ...") for what a reader would refuse (io::UpdateCheck: cameras,
+  // coordinates, ids), std::runtime_error when the engine refuses it.
   void Add(Keyframe keyframe);
   // The exported mesh now (ExtractMesh). Keyframes held back to decide the scale (engine.scale
   // auto) are applied first, with the scale they give.
@@ -97,6 +100,7 @@ class Session {
   std::optional<engine::Engine> engine_;
   pipeline::InFrontCheck in_front_;  // points behind their cameras fail as the run fails
   io::CanonicalOrder canonical_;
+  io::UpdateCheck check_;  // cameras, positions and ids as the readers check theirs
   pipeline::ExportContext export_context_;
   std::vector<std::shared_ptr<io::KeyframeSource>> sources_;  // for the exports
   int keyframes_ = 0;
@@ -116,13 +120,22 @@ class SequenceError : public std::runtime_error {
  private:
   std::string sequence_;
 };
+// Before running, each sequence's output folder is checked as imr run checks it
+// (batch::ForeignOutputs): a report.json or manifest.json this job's sequence did not write throws
+// SequenceError, and nothing is written. `job_name` (e.g. "the job (a dict)") replaces job_file in
+// the messages when the job has no file of its own.
 nlohmann::json RunJob(const std::string& job_file, const std::string* job_text,
-                      const std::vector<std::string>& overrides, int threads);
+                      const std::vector<std::string>& overrides, int threads,
+                      const std::string& job_name = "");
 
 // `imr evaluate MESH --truth TRUTH` (or --velodyne-seq) with the options as JSON ("tau",
 // "max_ray_length", "crop", "truth_density", "precision_samples", "seed", "threads",
 // "velodyne_seq"): its JSON report.
-nlohmann::json Evaluate(const std::string& mesh, const std::string& truth, const std::string& options_json);
+// `mesh_data` / `truth_points`, when given, are evaluated in memory (nothing written to disk);
+// `mesh` / `truth` then name them ("<arrays>") in messages and the report.
+nlohmann::json Evaluate(const std::string& mesh, const std::string& truth, const std::string& options_json,
+                        const eval::TriangleMesh* mesh_data = nullptr,
+                        const std::vector<Vec3>* truth_points = nullptr);
 
 // Where the module's plugins are (the installed plugin folder of a host that is not imr).
 void SetPluginDirectory(const std::filesystem::path& directory);

@@ -14,7 +14,6 @@ The guide, with every argument: docs/python.md.
 
 import json as _json
 import os as _os
-import tempfile as _tempfile
 
 from ._imr import (Camera, Engine, Error, Keyframe, SequenceError, WriteRefused,  # noqa: F401
                    __version__, set_log_level)
@@ -75,57 +74,36 @@ def run(job, overrides=None, threads=0):
     """Runs a job (a job file, or a dict as a job file holds) as `imr run JOB --set KEY=VALUE...`
     would, each sequence in this process: its outputs and report.json are written as imr run
     writes them. Returns {sequence: report dict}. A failing sequence raises SequenceError with the
-    message imr run prints for it; an invalid job ValueError with the problems imr validate lists.
-    A dict's relative paths are relative to the current folder; its {job} is "job". Ctrl-C stops
-    the run (KeyboardInterrupt) and leaves no half-written output."""
+    message imr run prints for it, and so does an output folder holding a report.json or
+    manifest.json that this job's sequence did not write (checked for every sequence before
+    anything runs: nothing is replaced); an invalid job, or threads outside 0..1024, ValueError
+    with the problems imr validate lists. A dict's relative paths are relative to the current
+    folder; its {job} is "job", its messages call it "the job (a dict)". Ctrl-C stops the run
+    (KeyboardInterrupt) and leaves no half-written output."""
     sets = [_override(k, v) for k, v in (overrides or {}).items()]
     if isinstance(job, dict):
-        return _imr._run(_os.path.join(_os.getcwd(), "job.json"), _json.dumps(job), sets, threads)
-    return _imr._run(_os.fspath(job), None, sets, threads)
-
-
-def _write_mesh(vertices, faces, path):
-    import numpy as np
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise ValueError("mesh: vertices: expected shape (V, 3), got %s" % (v.shape,))
-    if f.ndim != 2 or f.shape[1] != 3 or f.dtype.kind not in "iu":
-        raise ValueError("mesh: faces: expected integers of shape (F, 3), got %s %s" % (f.dtype, f.shape))
-    with open(path, "w") as out:  # ASCII OFF at full precision: the same doubles back
-        out.write("OFF\n%d %d 0\n" % (len(v), len(f)))
-        for x in v:
-            out.write("%r %r %r\n" % (float(x[0]), float(x[1]), float(x[2])))
-        for t in f:
-            out.write("3 %d %d %d\n" % (t[0], t[1], t[2]))
-
-
-def _write_points(points, path):
-    import numpy as np
-    p = np.asarray(points, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise ValueError("truth: expected points of shape (N, 3), got %s" % (p.shape,))
-    np.savetxt(path, p, fmt="%.17g")
+        # The anchor of its relative paths and {job}; no file of that name is read or written.
+        return _imr._run(_os.path.join(_os.getcwd(), "job.json"), _json.dumps(job), sets, threads,
+                         "the job (a dict)")
+    return _imr._run(_os.fspath(job), None, sets, threads, "")
 
 
 def evaluate(mesh, truth=None, tau=(0.05, 0.1, 0.2, 0.5), **options):
     """`imr evaluate MESH --truth TRUTH --tau ...`: the same figures, as the dict its --out writes.
     mesh: a mesh file, or (vertices, faces) arrays; truth: a point cloud or reference mesh file,
-    or an (N, 3) array of points. Options: max_ray_length, crop, truth_density,
-    precision_samples, seed, threads, velodyne_seq, scan_step (as imr evaluate's flags)."""
-    with _tempfile.TemporaryDirectory(prefix="imr-evaluate-") as tmp:
-        mesh_path = mesh
-        if isinstance(mesh, (tuple, list)) and len(mesh) >= 2 and not isinstance(mesh[0], str):
-            mesh_path = _os.path.join(tmp, "mesh.off")
-            _write_mesh(mesh[0], mesh[1], mesh_path)
-        truth_path = "" if truth is None else truth
-        if truth is not None and not isinstance(truth, (str, bytes, _os.PathLike)):
-            truth_path = _os.path.join(tmp, "truth.xyz")
-            _write_points(truth, truth_path)
-        options["tau"] = [tau] if isinstance(tau, (int, float)) else list(tau)
-        report = _imr._evaluate(_os.fspath(mesh_path), _os.fspath(truth_path), options)
-        if mesh_path is not mesh:
-            report["mesh"]["path"] = "<arrays>"
-        if truth_path is not truth and truth is not None and isinstance(report.get("truth"), dict):
-            report["truth"]["path"] = "<array>"
-        return report
+    or an (N, 3) array of points. Arrays are evaluated in memory (no file is written; the report
+    and the messages call them "<arrays>" and "<array>"). Options: max_ray_length, crop,
+    truth_density, precision_samples, seed, threads, velodyne_seq, scan_step (as imr evaluate's
+    flags)."""
+    if isinstance(mesh, (tuple, list)) and len(mesh) >= 2 and not isinstance(mesh[0], (str, bytes)):
+        mesh_arg = (mesh[0], mesh[1])
+    else:
+        mesh_arg = _os.fsdecode(mesh)
+    if truth is None:
+        truth_arg = ""
+    elif isinstance(truth, (str, bytes, _os.PathLike)):
+        truth_arg = _os.fsdecode(truth)
+    else:
+        truth_arg = truth
+    options["tau"] = [tau] if isinstance(tau, (int, float)) else list(tau)
+    return _imr._evaluate(mesh_arg, truth_arg, options)

@@ -70,10 +70,10 @@ def test_a_grid_too_large_is_refused_as_imr_validate_refuses_it(tmp_path, run_im
         "output": {"directory": str(tmp_path / "out")}})
     r = run_imr("validate", job)
     assert r.returncode != 0 and str(e.value) in r.stderr, (str(e.value), r.stderr)
-    # Metric by default for keyframes built by the caller: refused at the first one.
-    engine = imr.Engine(steiner_spacing=0.01)
+    # Metric by default for keyframes built by the caller: refused at construction (issue 44),
+    # not at the first keyframe.
     with pytest.raises(ValueError, match="steiner_spacing"):
-        engine.add_keyframe(imr.Camera(0, center=(0, 0, 0)), new_ids=[1], new_positions=[[0, 0, 5]])
+        imr.Engine(steiner_spacing=0.01)
 
 
 def test_option_messages_are_imr_validates(tmp_path, run_imr):
