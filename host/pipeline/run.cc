@@ -624,6 +624,7 @@ void SequenceRun::WarnAbout() {
       Warn(scale_hint);
     }
   }
+  if (const std::string w = ForgettingWarning(stats, engine_options_); !w.empty()) Warn(w);
   if (MostPointsRefused(stats))
     if (const std::string w = RefusedPointsWarning(stats, mesh_ ? *mesh_ : WholeMesh()); !w.empty())
       Warn(w);
