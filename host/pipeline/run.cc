@@ -26,6 +26,7 @@
 #include "host/util/thread_pool.h"
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <deque>
 #include <functional>
@@ -180,6 +181,16 @@ class SequenceRun {
   ReportInputs report_;
 };
 
+// The signal that asked to stop, as a user reads it.
+std::string SignalWord(int signal) {
+  switch (signal) {
+    case SIGINT: return "SIGINT (Ctrl-C)";
+    case SIGTERM: return "SIGTERM";
+    case SIGHUP: return "SIGHUP";
+    default: return signal != 0 ? "signal " + std::to_string(signal) : "a stop request";
+  }
+}
+
 }  // namespace
 
 SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistry& registry,
@@ -193,7 +204,14 @@ SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistr
     r.ok = false;
     r.error = e.what();
     r.seconds = SecondsSince(start);
-    LogError("sequence " + seq.name + " failed: " + r.error);
+    // Stopped by Ctrl-C, SIGTERM or SIGHUP, in whichever stage: interrupted, as the batch
+    // counts it, not an error of the sequence.
+    r.interrupted = plugin::CancelRequested();
+    if (r.interrupted)
+      LogInfo("sequence " + seq.name + " interrupted by " + SignalWord(plugin::CancelSignal()) +
+              ": " + r.error);
+    else
+      LogError("sequence " + seq.name + " failed: " + r.error);
   }
   return r;
 }
