@@ -290,7 +290,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     ++run_.compared_calls;
     run_.active += stats.vertices_active;
     run_.seen += stats.vertices_seen;
-    run_.moved += stats.vertices_moved;
+    run_.matched += stats.vertices_matched;
     // Back to the request's numbering; added vertices after the request's.
     const std::size_t added = vertices.size() - global.size();
     out->vertices.resize(3 * (n + added));
@@ -336,7 +336,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     return seeing >= 2;
   }
 
-  // A run whose calls compared no patch, or moved nothing, because of the settings would leave
+  // A run whose calls compared no patch, or matched nothing, because of the settings would leave
   // the surface as the engine made it without a word: said at the final call, naming the
   // settings. Over the whole run, not per call: a call during the run often has little new to
   // compare.
@@ -355,22 +355,24 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                     "%s: compared no patch: none of the %lld vertices to refine was seen by two "
                     "keyframes with its whole patch inside both images (patch_size %d x patch_pixels "
                     "%g = %g pixels a side) and within max_view_angle_deg %g of its normal; the "
-                    "surface is as the engine made it (smaller patches)",
+                    "images placed no vertex (only flatten_spikes and smoothness moved any; smaller "
+                    "patches)",
                     kId, static_cast<long long>(run_.active), o_.patch_size, o_.patch_pixels,
                     o_.patch_size * o_.patch_pixels, o_.max_view_angle_deg);
       host_.Warning(line);
-    } else if (run_.seen >= kFewSeen && run_.moved == 0) {
+    } else if (run_.seen >= kFewSeen && run_.matched == 0) {
       std::snprintf(line, sizeof line,
-                    "%s: moved no vertex: of %lld vertices compared in two keyframes, none found a "
-                    "match reaching min_zncc %g that beat its own position by min_gain %g (patches "
-                    "of patch_size %d x patch_pixels %g); the surface is as the engine made it",
+                    "%s: no vertex found a match: of %lld vertices compared in two keyframes, none "
+                    "reached min_zncc %g and beat its own position by min_gain %g (patches of "
+                    "patch_size %d x patch_pixels %g); the images placed no vertex (only "
+                    "flatten_spikes and smoothness moved any)",
                     kId, static_cast<long long>(run_.seen), o_.min_zncc, o_.min_gain, o_.patch_size,
                     o_.patch_pixels);
       host_.Warning(line);
     }
   }
-  // A handful of vertices compared may all be where the images put them already; more than this
-  // and none moved is the settings.
+  // A handful of vertices compared may all lack texture; more than this and none matched is the
+  // settings.
   static constexpr int64_t kFewSeen = 20;
 
   imr::sdk::Host host_;
@@ -382,9 +384,9 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
   double min_edge_pixels_ = 18.0;  // pixels a median edge spans at the deepest; 0: no limit
   bool skip_missing_ = false;
   // Over the run's calls (WarnIfNothingRefined): calls that compared (two keyframes or more),
-  // and their vertices to refine, seen by two keyframes, moved.
+  // and their vertices to refine, seen by two keyframes, placed by a match.
   struct RunTotals {
-    int64_t compared_calls = 0, active = 0, seen = 0, moved = 0;
+    int64_t compared_calls = 0, active = 0, seen = 0, matched = 0;
   } run_;
   bool depth_excluded_ = false;  // a call had nothing to compare because of the depth limit
 };

@@ -204,7 +204,7 @@ TEST_F(PhotometricPlugin, SettingsThatExcludeEveryVertexAreSaid) {
   imr_refine_result out{};
   ASSERT_NO_THROW(inst.Refine(&r, &out));
   ASSERT_EQ(strict.warnings.size(), 1u);
-  EXPECT_NE(strict.warnings[0].find("moved no vertex"), std::string::npos) << strict.warnings[0];
+  EXPECT_NE(strict.warnings[0].find("no vertex found a match"), std::string::npos) << strict.warnings[0];
   EXPECT_NE(strict.warnings[0].find("min_zncc 1"), std::string::npos) << strict.warnings[0];
 }
 
