@@ -1927,6 +1927,106 @@ TEST_F(BadSfm, HugeSparseFileNamedLikeAMesh) {
   }
 }
 
+// Forgetting (engine.forget) that leaves input out says so (issue 44, finding 11). A street
+// stream exported by imr (200 frames), then two ways to reach what was forgotten: the car drives
+// back over its path (the same points seen again, re-estimated 0.3 m higher), and the cameras
+// and every position from keyframe 20 on jump 1 km aside (a SLAM system's relocalisation: the
+// points still tracked move with them). With forget_distance 5 the mesh then differs from the
+// run without forgetting; report.json's warnings and stderr say why, with the counts.
+TEST_F(BadSfm, ForgettingThatLeavesInputOutSaysSo) {
+  json job = SyntheticJob();
+  job["sequences"] = {"street"};
+  job["input"]["options"]["frames"] = 200;
+  job["output"]["directory"] = "export-run";
+  WriteText(Case() / "export.json", job.dump(2));
+  const CommandResult exported = InCase("run -q export.json --export-stream street.json");
+  ASSERT_EQ(exported.status, 0) << exported.err;
+  const json stream = ReadJson(Case() / "street.json");
+  const json& keyframes = stream["imr_stream"]["keyframes"];
+  ASSERT_GT(keyframes.size(), 30u);
+  const int64_t last = keyframes.back()["keyframe"], last_frame = keyframes.back()["frame"];
+
+  // Back over the path: each keyframe's views again in reverse order, new view ids, the points
+  // each view saw first (its own keyframe's estimates), 0.3 m higher.
+  json back = stream;
+  uint64_t max_view = 0;
+  for (const json& v : stream["views"]) max_view = std::max<uint64_t>(max_view, v["viewId"]);
+  for (int64_t k = last; k >= 0; --k) {
+    const int64_t again = last + 1 + (last - k);
+    back["imr_stream"]["keyframes"].push_back(
+        {{"keyframe", again}, {"frame", last_frame + 1 + (last - k)}, {"removed_points", json::array()}});
+    for (const json& v : stream["views"]) {
+      if (v["keyframe"] != k) continue;
+      json w = v;
+      w["viewId"] = max_view + 1 + w["viewId"].get<uint64_t>();
+      w["keyframe"] = again;
+      w["observations"] = json::array();
+      for (const json& o : v["observations"]) {
+        if (o.contains("keyframe")) continue;
+        json x = o;
+        x["X"][2] = x["X"][2].get<double>() + 0.3;
+        w["observations"].push_back(x);
+      }
+      back["views"].push_back(w);
+    }
+  }
+  WriteText(Case() / "back.json", back.dump());
+  // The jump: centres and positions (observations at keyframe 20 and later) 1 km along x.
+  json jump = stream;
+  for (json& v : jump["views"]) {
+    if (v["keyframe"].get<int64_t>() >= 20)
+      v["extrinsic"]["center"][0] = v["extrinsic"]["center"][0].get<double>() + 1000.0;
+    for (json& o : v["observations"])
+      if (o.value("keyframe", v["keyframe"].get<int64_t>()) >= 20)
+        o["X"][0] = o["X"][0].get<double>() + 1000.0;
+  }
+  WriteText(Case() / "jump.json", jump.dump());
+
+  json j = EngineJob("slam_json", {"back.json", "jump.json"});
+  j["engine"] = {{"forget", true}, {"forget_distance", 5}};
+  const CommandResult r = Run(j);
+  CheckEverySequenceOk(r, Case() / "runs", j, {"back.json", "jump.json"});
+  for (const char* name : {"back.json", "jump.json"}) {
+    SCOPED_TRACE(name);
+    const json report = ReadJson(Case() / "runs" / name / "report.json");
+    const json& forget = report["engine"]["forget"];
+    const int64_t refused = forget["changes_refused_final"], blocked = forget["shrinks_blocked_final"],
+                  ignored = forget["updates_of_forgotten_points"];
+    EXPECT_GT(refused + blocked + ignored, 0) << forget.dump(2);
+    EXPECT_GE(refused, forget["points_refused_final"].get<int64_t>());
+    ASSERT_TRUE(report["warnings"].is_array()) << report.dump(2).substr(0, 2000);
+    std::string warning;
+    for (const json& w : report["warnings"])
+      if (w.get<std::string>().find("forgetting (engine.forget) left input out of the mesh") == 0)
+        warning = w;
+    EXPECT_NE(warning, "") << report["warnings"].dump(2);
+    if (ignored > 0) {
+      EXPECT_NE(warning.find(std::to_string(ignored) + " updates (moves, removals) of points already "
+                                                       "forgotten were ignored"),
+                std::string::npos) << warning;
+    }
+    if (refused > 0) {
+      EXPECT_NE(warning.find(std::to_string(refused) + " changes were refused"), std::string::npos)
+          << warning;
+    }
+    if (blocked > 0) {
+      EXPECT_NE(warning.find(std::to_string(blocked) + " moves and insertions next to it failed"),
+                std::string::npos) << warning;
+    }
+    EXPECT_NE(warning.find("engine.forget_distance (5)"), std::string::npos) << warning;
+    EXPECT_NE(r.err.find("warning: [" + std::string(name) + "] forgetting (engine.forget) left input out"),
+              std::string::npos) << r.err;
+  }
+  // The drive back: the same points seen again after they were forgotten.
+  EXPECT_GT(ReadJson(Case() / "runs/back.json/report.json")["engine"]["forget"]["updates_of_forgotten_points"]
+                .get<int64_t>(), 0);
+  // Without forgetting nothing is left out: no such warning.
+  j["engine"] = json::object();
+  const CommandResult off = Run(j);
+  CheckEverySequenceOk(off, Case() / "runs", j, {"back.json", "jump.json"});
+  EXPECT_EQ(off.err.find("forgetting (engine.forget)"), std::string::npos) << off.err;
+}
+
 TEST_F(BadSfm, ImpossibleOrStaleInput) {
   // (a) Every point behind the cameras that see it (a stream re-imported with its points
   // mirrored through the cameras) meshed "ok" in the wrong place.

@@ -285,6 +285,45 @@ TEST_F(Batch, AKilledBatchResumesWithoutPartialFiles) {
   EXPECT_EQ(summary["counts"]["reused"], 1);
 }
 
+// `imr report` while an `imr run` holds the batch folder (issue 44, finding 12): its sequence is
+// running, not killed; the report exits 75 (EX_TEMPFAIL, as `imr run` does) naming the holder's
+// pid and writes nothing. Once the run has ended, it reports.
+TEST_F(Batch, ReportWhileARunHoldsTheFolderWritesNothing) {
+  json j = Job(3000, {"street"});
+  j["output"]["formats"] = {"ply"};
+  const fs::path job = WriteJob(j);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::freopen("/dev/null", "w", stdout);
+    ::freopen("/dev/null", "w", stderr);
+    ::execl(kImr.c_str(), kImr.c_str(), "run", job.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Running: its sequence's output folder made (the lock is taken before).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  std::error_code ec;
+  while (std::chrono::steady_clock::now() < deadline && !fs::is_directory(Out("street"), ec))
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(fs::is_directory(Out("street"))) << "the run did not start";
+  const CommandResult rep = Imr("report " + Quote((dir_ / "runs").string()));
+  const bool still_running = ::waitpid(pid, nullptr, WNOHANG) == 0;
+  ::kill(pid, SIGKILL);
+  ::waitpid(pid, nullptr, 0);
+  ASSERT_TRUE(still_running) << "the run ended before the report: make it longer";
+  EXPECT_EQ(rep.status, 75) << rep.out << rep.err;
+  EXPECT_NE(rep.err.find("pid " + std::to_string(pid)), std::string::npos) << rep.err;
+  EXPECT_NE(rep.err.find("is using this batch folder"), std::string::npos) << rep.err;
+  EXPECT_EQ(rep.err.find("never ended"), std::string::npos) << rep.err;
+  for (const char* f : {"summary.json", "summary.md", "index.html", "assets"})
+    EXPECT_FALSE(fs::exists(dir_ / "runs" / f)) << f;
+
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // its child follows it
+  const CommandResult after = Imr("report " + Quote((dir_ / "runs").string()));
+  EXPECT_EQ(after.status, 1) << after.out << after.err;  // the killed sequence: interrupted
+  EXPECT_EQ(ReadJson(dir_ / "runs" / "summary.json")["sequences"][0]["status"], "interrupted");
+}
+
 TEST_F(Batch, ProgressBarOnATerminal) {
   if (RunShell("command -v script").status != 0) GTEST_SKIP() << "no `script` to make a terminal";
   const fs::path job = WriteJob(Job(20, {"street"}));

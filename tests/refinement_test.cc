@@ -5,9 +5,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "host/eval/mesh_io.h"
 #include "test_util.h"
@@ -105,6 +111,47 @@ TEST_F(Refinement, UnchangedVerticesAreNotSentAsChanged) {
   const json report = ReadJson(Report());
   EXPECT_NEAR(report["refinement"]["max_move"].get<double>(), 0.01, 1e-9);
   EXPECT_NEAR(report["refinement"]["mean_move"].get<double>(), 0.01, 1e-9);
+}
+
+// Ctrl-C while the surface is refined (issue 44): the refiner stops as asked, and the sequence is
+// interrupted by SIGINT as at a keyframe, not "failed ... cancelled"; nothing is written.
+TEST_F(Refinement, CtrlCWhileRefiningIsAnInterruption) {
+  const fs::path log = dir_ / "calls.jsonl";
+  json job = EngineJob({{"misbehave", "wait_for_cancel"}, {"log", log.string()}}, 0);
+  const fs::path job_file = dir_ / "job.json";
+  WriteText(job_file, job.dump(2));
+  const fs::path err = dir_ / "stderr.txt";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::setpgid(0, 0);  // its own group, as a shell's foreground job: Ctrl-C reaches all of it
+    ::freopen("/dev/null", "w", stdout);
+    ::freopen(err.c_str(), "w", stderr);
+    ::execl(kImr.c_str(), kImr.c_str(), "run", "-v", job_file.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  ::setpgid(pid, pid);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline && !fs::exists(log))
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const bool refining = fs::exists(log);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  ::kill(-pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(refining) << ReadText(err);
+  const std::string e = ReadText(err);
+  ASSERT_TRUE(WIFEXITED(status)) << e;
+  EXPECT_EQ(WEXITSTATUS(status), 1) << e;  // one sequence interrupted
+  EXPECT_NE(e.find("sequence street interrupted by SIGINT (Ctrl-C): cancelled (signal) while "
+                   "refining the surface after the last keyframe (pipeline[1] (mesh_refiner "
+                   "org.imr.test.refine.shift))"),
+            std::string::npos) << e;
+  EXPECT_EQ(e.find("error:"), std::string::npos) << e;
+  EXPECT_EQ(e.find("failed: "), std::string::npos) << e;
+  const json summary = ReadJson(dir_ / "runs/summary.json");
+  EXPECT_EQ(summary["sequences"][0]["status"], "interrupted") << summary.dump(2);
+  EXPECT_FALSE(fs::exists(dir_ / "runs/street/mesh.ply"));
 }
 
 // A refiner's answer the host must not use fails the sequence, naming the stage and what broke;

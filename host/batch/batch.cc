@@ -111,11 +111,16 @@ std::string InputChanged(const fs::path& output, const std::string& source) {
 
 std::string HolderOf(const fs::path& lock_file) {
   std::string who;
-  for (pid_t pid : LockHolders(lock_file)) who += (who.empty() ? "pid " : ", pid ") + std::to_string(pid);
+  const std::vector<pid_t> holders = LockHolders(lock_file);
+  for (pid_t pid : holders) who += (who.empty() ? "pid " : ", pid ") + std::to_string(pid);
   std::ifstream in(lock_file);
   std::string described;
   std::getline(in, described);
-  if (!described.empty()) return described;  // "pid 4242 on host h, imr run since ..."
+  // "pid 4242 on host h, imr run since ...": the holder's own words, unless the holders seen
+  // here are others (shards hold the lock shared and leave an earlier run's words in place).
+  bool current = holders.empty();
+  for (pid_t pid : holders) current = current || described.rfind("pid " + std::to_string(pid) + " ", 0) == 0;
+  if (!described.empty() && current) return described;
   return who.empty() ? std::string("a process on another machine, or one that just ended")
                      : who + " on " + Hostname();
 }
@@ -275,6 +280,24 @@ std::shared_ptr<BatchLock> LockBatchFolder(const fs::path& batch_dir, const Shar
                  UtcNow() + "\n");
     lock->locks.push_back(std::move(l));
   }
+  return lock;
+}
+
+std::shared_ptr<BatchLock> HoldBatchFolderForReport(const fs::path& batch_dir) {
+  const fs::path file = batch_dir / kBatchSubdir / "lock";
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) return nullptr;  // never run (or not a batch folder)
+  FileLock l = FileLock::TryLock(file, /*exclusive=*/true);
+  if (l.busy())
+    throw BatchFolderBusy(file.string() + ": an imr run (" + HolderOf(file) +
+                          ") is using this batch folder " + batch_dir.string() +
+                          "; nothing was written: run imr report when it has ended");
+  if (!l.held()) {
+    LogDebug(l.error() + " (reporting without the lock)");
+    return nullptr;
+  }
+  auto lock = std::make_shared<BatchLock>();
+  lock->locks.push_back(std::move(l));
   return lock;
 }
 

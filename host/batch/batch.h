@@ -94,6 +94,11 @@ struct BatchFolderBusy : std::runtime_error {
 // naming the holder (pid, host, since when) when another run has it. Released on destruction.
 class BatchLock;
 std::shared_ptr<BatchLock> LockBatchFolder(const std::filesystem::path& batch_dir, const Shard& shard);
+// `imr report`'s hold on a batch folder while it writes the summary: the batch lock, exclusive
+// (no run starts meanwhile). Null when no run ever locked the folder (no imr-batch/lock: nothing
+// is created) or the file system cannot lock; throws BatchFolderBusy naming the holder when a
+// run (or a shard of one) holds it: the summary would call its running sequences killed.
+std::shared_ptr<BatchLock> HoldBatchFolderForReport(const std::filesystem::path& batch_dir);
 
 // Problems with the options for this job (an unknown name in sequences_from, a sequence whose
 // output folder is the batch folder's own imr-batch/); empty when usable.

@@ -533,7 +533,8 @@ int CmdReport(const std::vector<std::string>& args) {
       "Exit status: 0 every sequence ok; else the number that failed, were interrupted or did not\n"
       "run (1..63; 63 means 63 or more); 64 not a batch folder or bad usage; 73 RUN_DIR holds a\n"
       "summary.json or summary.md that imr did not write (it is left alone; so is a foreign\n"
-      "index.html or assets/: the page is then not written).";
+      "index.html or assets/: the page is then not written); 75 an imr run (or a shard of one)\n"
+      "is using the batch folder: nothing is written, run it again when that run has ended.";
   if (!ParseCommand("report", synopsis, opts, pos, args, &vm, &status)) return status;
   fs::path dir = vm["dir"].as<std::string>();
   std::error_code ec;
@@ -544,6 +545,15 @@ int CmdReport(const std::vector<std::string>& args) {
       return kExitUsage;
     }
     dir = imr::batch::BatchDirectory(parsed.job);
+  }
+  // A running `imr run` (or shard) holds the folder: its sequences are not ended, and the
+  // summary would call them killed.
+  std::shared_ptr<imr::batch::BatchLock> lock;
+  try {
+    lock = imr::batch::HoldBatchFolderForReport(dir);
+  } catch (const imr::batch::BatchFolderBusy& e) {
+    std::cerr << "imr report: " << e.what() << "\n";
+    return imr::kExitTempFail;
   }
   if (const std::string foreign = io::ForeignBatchFiles(dir, false); !foreign.empty()) {
     std::cerr << "imr report: " << foreign << "\n";

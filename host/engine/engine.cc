@@ -195,6 +195,14 @@ bool Carving::Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>
   const bool ok = PeelFromO(
       *planned_e, [&](Cell_handle n) { return n->info().region == in_e; },
       [&] { return !meets_o(); }, sorted) || !meets_o();
+  // forget: a final cell of O next to the change stays (PeelFromO leaves it): when the change
+  // fails, that is what forgetting cost it (a point moved far or the cameras jumped), counted.
+  if (!ok && s_.opt.forget)
+    for (Cell_handle c : *planned_e)
+      if (c->info().in_o && c->info().final) {
+        ++s_.stats.shrinks_blocked_final;
+        break;
+      }
   s_.stats.time.shrink += SecondsSince(t0);
   return ok;
 }
@@ -1274,11 +1282,14 @@ bool Engine::Impl::Enter(uint32_t pt, bool again) {
   if (s.opt.transfer_camera_side) {
     transfer.SetCameraSide(&p, &s.points[pt].cameras);
   }
+  const int64_t refused_before = s.stats.changes_refused_final;
   Vertex_handle v = InsertPoint(p, pt, s.opt.transfer_on_insert, &dup, rays_mode ? &u : nullptr);
   transfer.SetCameraSide(nullptr, nullptr);
   PointRecord& rec = s.points[pt];
   if (v == Vertex_handle()) {
     if (!again) ++(dup ? s.stats.points_duplicate : s.stats.points_dropped);
+    // A new point in space already handed out (forget): dropped for that, said apart.
+    if (!again && s.stats.changes_refused_final > refused_before) ++s.stats.points_refused_final;
     return false;
   }
   rec.vertex = v;

@@ -322,6 +322,12 @@ struct EngineStats {
   int64_t changes_refused_final = 0;  // Insertions, moves and removals refused: they would
                                       // have destroyed or reshaped a final cell in O or next
                                       // to O.
+  int64_t points_refused_final = 0;   // Of those, new points: points in space already handed
+                                      // out (the cameras came back to it); not inserted.
+  int64_t shrinks_blocked_final = 0;  // Moves and insertions whose cells could not leave O
+                                      // with a final cell of O next to them (it stays: the
+                                      // surface handed out); skipped or dropped (counted in
+                                      // moves_skipped, points_dropped too).
   int64_t components_started = 0;     // Components of O grown from a camera's cell that
                                       // touched no O (the cameras came back where O was
                                       // forgotten).

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace imr::pipeline {
 namespace fs = std::filesystem;
@@ -138,6 +139,33 @@ std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mes
          " triangles touch no data point (Steiner grid only). Are the points' positions right?";
 }
 
+std::string ForgettingWarning(const engine::EngineStats& s, const engine::EngineOptions& o) {
+  if (!o.forget) return {};
+  std::vector<std::string> what;
+  if (s.changes_refused_final > 0)
+    what.push_back(std::to_string(s.changes_refused_final) +
+                   " changes were refused where the surface was already handed out (" +
+                   std::to_string(s.points_refused_final) + " new points, " +
+                   std::to_string(s.changes_refused_final - s.points_refused_final) +
+                   " moves and removals)");
+  if (s.shrinks_blocked_final > 0)
+    what.push_back(std::to_string(s.shrinks_blocked_final) +
+                   " moves and insertions next to it failed (a final cell of the volume there could "
+                   "not leave it)");
+  if (s.updates_of_forgotten_points > 0)
+    what.push_back(std::to_string(s.updates_of_forgotten_points) +
+                   " updates (moves, removals) of points already forgotten were ignored");
+  if (what.empty()) return {};
+  std::string text = "forgetting (engine.forget) left input out of the mesh: ";
+  for (std::size_t i = 0; i < what.size(); ++i) text += (i > 0 ? "; " : "") + what[i];
+  char distance[64];
+  std::snprintf(distance, sizeof distance, "%.6g", o.ForgetDistance());
+  return text + ". The cameras came back to (or jumped), or points were refined or moved in, a "
+         "place left more than engine.forget_distance (" + distance + ") behind: there the mesh "
+         "differs from a run without forgetting; a larger forget_distance keeps places live "
+         "longer, and engine.forget false keeps every place (memory grows with the drive)";
+}
+
 json EngineStatsJson(const engine::EngineStats& s) {
   const auto& t = s.time;
   // Every counter engine::EngineStats keeps (REPORT.md lists them).
@@ -200,6 +228,8 @@ json EngineStatsJson(const engine::EngineStats& s) {
             {"point_records_freed", s.point_records_freed},
             {"updates_of_forgotten_points", s.updates_of_forgotten_points},
             {"changes_refused_final", s.changes_refused_final},
+            {"points_refused_final", s.points_refused_final},
+            {"shrinks_blocked_final", s.shrinks_blocked_final},
             {"components_started", s.components_started},
             {"parts", s.parts},
             {"part_triangles", s.part_triangles},

@@ -43,6 +43,12 @@ std::string RefusedPointsWarning(const engine::EngineStats& stats, const engine:
 // Whether RefusedPointsWarning has something to say (it needs the mesh whole; this does not).
 bool MostPointsRefused(const engine::EngineStats& stats);
 
+// Forgetting (engine.forget) keeps what it handed out as it was: a change that would reshape it
+// is refused, an update of a point it forgot is ignored. Either makes a mesh other than the run
+// without forgetting would: said with the counts and what would keep more. Empty when nothing
+// was refused or ignored (or forgetting is off).
+std::string ForgettingWarning(const engine::EngineStats& stats, const engine::EngineOptions& options);
+
 // What the report is made of, gathered by the run (host/pipeline/run.cc) as it goes.
 struct ReportInputs {
   const ValidatedJob* job = nullptr;

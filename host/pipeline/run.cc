@@ -27,6 +27,7 @@
 #include "host/util/write_rule.h"
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <deque>
 #include <functional>
@@ -181,6 +182,16 @@ class SequenceRun {
   ReportInputs report_;
 };
 
+// The signal that asked to stop, as a user reads it.
+std::string SignalWord(int signal) {
+  switch (signal) {
+    case SIGINT: return "SIGINT (Ctrl-C)";
+    case SIGTERM: return "SIGTERM";
+    case SIGHUP: return "SIGHUP";
+    default: return signal != 0 ? "signal " + std::to_string(signal) : "a stop request";
+  }
+}
+
 }  // namespace
 
 void NoteJobInputs(const ValidatedJob& v, const SequenceRef& seq, InputScope* inputs) {
@@ -227,7 +238,14 @@ SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistr
     r.ok = false;
     r.error = e.what();
     r.seconds = SecondsSince(start);
-    LogError("sequence " + seq.name + " failed: " + r.error);
+    // Stopped by Ctrl-C, SIGTERM or SIGHUP, in whichever stage: interrupted, as the batch
+    // counts it, not an error of the sequence.
+    r.interrupted = plugin::CancelRequested();
+    if (r.interrupted)
+      LogInfo("sequence " + seq.name + " interrupted by " + SignalWord(plugin::CancelSignal()) +
+              ": " + r.error);
+    else
+      LogError("sequence " + seq.name + " failed: " + r.error);
   }
   return r;
 }
@@ -658,6 +676,7 @@ void SequenceRun::WarnAbout() {
       Warn(scale_hint);
     }
   }
+  if (const std::string w = ForgettingWarning(stats, engine_options_); !w.empty()) Warn(w);
   if (MostPointsRefused(stats))
     if (const std::string w = RefusedPointsWarning(stats, mesh_ ? *mesh_ : WholeMesh()); !w.empty())
       Warn(w);

@@ -24,6 +24,7 @@ struct SequenceResult {
   std::string name;
   bool ok = false;
   std::string error;                        // why it failed (names the file or field)
+  bool interrupted = false;                 // it stopped for Ctrl-C, SIGTERM or SIGHUP
   std::filesystem::path output_directory;
   std::vector<std::filesystem::path> files;  // written outputs, report last
   // Also written, before the mesh: snapshots and exports (for the sequence's manifest).

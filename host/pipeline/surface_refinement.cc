@@ -1,6 +1,7 @@
 #include "host/pipeline/surface_refinement.h"
 
 #include "host/eval/mesh_stats.h"
+#include "host/plugin/host_services.h"
 #include "host/plugin/keyframe_images.h"
 
 #include <chrono>
@@ -199,6 +200,13 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
     try {
       instance_.instance.Refine(&request, &result);
     } catch (const std::exception& e) {
+      // Ctrl-C, SIGTERM or SIGHUP: the refiner stopped as asked (IMR_CANCELLED); the run was
+      // interrupted there, said as at a keyframe, not a failure of the plugin.
+      if (plugin::CancelRequested())
+        throw std::runtime_error(std::string("cancelled (signal) while ") +
+                                 (final_call ? "refining the surface after the last keyframe"
+                                             : "refining the surface") +
+                                 " (" + where + ")");
       throw std::runtime_error(where + ": " + e.what());
     }
   }

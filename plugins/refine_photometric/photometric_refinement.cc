@@ -1008,6 +1008,7 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
   std::vector<double> offsets(static_cast<std::size_t>(2 * S + 1));
   std::vector<double> match(n, 0.0);  // accepted offset along the normal
   std::vector<uint8_t> matched(n, 0);
+  std::vector<uint8_t> ever_matched(n, 0);  // stats.vertices_matched
   std::vector<Vec3> target(n);
   std::vector<double> planned(n, 0.0);
   std::vector<uint32_t> search;
@@ -1076,6 +1077,7 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
               matched[v] = 1;
             }
           });
+      for (std::size_t v = 0; v < n; ++v) ever_matched[v] |= matched[v];
       // Targets (Jacobi: all from the positions at the start of the pass).
       for (std::size_t v = 0; v < n; ++v) {
         target[v] = p[v];
@@ -1146,6 +1148,7 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
       moved += (p[v] - input[v]).norm();
     }
   stats.mean_move = stats.vertices_moved > 0 ? moved / stats.vertices_moved : 0.0;
+  for (uint8_t m : ever_matched) stats.vertices_matched += m;
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return completed;
 }

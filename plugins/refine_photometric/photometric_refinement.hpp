@@ -59,6 +59,7 @@ struct RefineStats {
   int64_t vertices_active = 0;      // vertices the call was asked to refine
   int64_t vertices_seen = 0;        // active vertices at least two views see
   int64_t vertices_moved = 0;       // vertices whose final position differs from the input
+  int64_t vertices_matched = 0;     // vertices a match placed in some pass (min_zncc, min_gain)
   int64_t moves_undone = 0;         // steps undone (fold-over or self-intersection)
   double mean_zncc_before = 0.0;    // mean best score at the input positions (seen vertices)
   double mean_zncc_after = 0.0;     // the same at the output positions

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -150,6 +151,12 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
   }
 
   void Refine(const imr::sdk::RefineRequest& r, imr::sdk::RefineResult* out) override {
+    RefineCall(r, out);
+    if (r.final_call) WarnIfNothingRefined();
+  }
+
+ private:
+  void RefineCall(const imr::sdk::RefineRequest& r, imr::sdk::RefineResult* out) {
     const std::size_t n = r.mesh.vertex_count();
     out->vertices.assign(r.mesh.vertices.begin(), r.mesh.vertices.end());
     if (n == 0 || r.keyframes.empty()) return;
@@ -223,7 +230,10 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
       views.push_back(std::move(view));
       region.extend(Center(c));
     }
-    if (views.size() < 2) return;  // nothing to compare
+    if (views.size() < 2) {  // nothing to compare
+      if (!depth_excluded_) depth_excluded_ = DepthExcludesAll(r, active);
+      return;
+    }
 
     // The part of the surface in that region (every face with a corner in it): the active
     // vertices, and around them the rest as fixed context (occluders, neighbours). The work of a
@@ -277,6 +287,10 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
       throw imr::sdk::InvalidArgument(e.what());
     }
     host_.CheckCancelled();
+    ++run_.compared_calls;
+    run_.active += stats.vertices_active;
+    run_.seen += stats.vertices_seen;
+    run_.matched += stats.vertices_matched;
     // Back to the request's numbering; added vertices after the request's.
     const std::size_t added = vertices.size() - global.size();
     out->vertices.resize(3 * (n + added));
@@ -306,7 +320,61 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     host_.Info(line);
   }
 
- private:
+  // Whether, without the depth limit (max_depth, min_edge_pixels), two keyframes would see an
+  // active vertex: the limit, not the view, left the call nothing to compare.
+  bool DepthExcludesAll(const imr::sdk::RefineRequest& r, const std::vector<uint8_t>& active) const {
+    if (max_depth_ <= 0.0 && min_edge_pixels_ <= 0.0) return false;
+    const double unlimited = std::numeric_limits<double>::infinity();
+    int seeing = 0;
+    for (std::size_t k = 0; k < r.keyframes.size() && seeing < 2; ++k) {
+      if (!HasIntrinsics(r.keyframes[k])) continue;
+      bool sees = false;
+      for (std::size_t v = 0; v < active.size() && !sees; ++v)
+        sees = active[v] && Sees(r.keyframes[k], &r.mesh.vertices[3 * v], unlimited);
+      seeing += sees ? 1 : 0;
+    }
+    return seeing >= 2;
+  }
+
+  // A run whose calls compared no patch, or matched nothing, because of the settings would leave
+  // the surface as the engine made it without a word: said at the final call, naming the
+  // settings. Over the whole run, not per call: a call during the run often has little new to
+  // compare.
+  void WarnIfNothingRefined() {
+    char line[520];
+    if (run_.seen == 0 && run_.compared_calls == 0 && depth_excluded_) {
+      std::snprintf(line, sizeof line,
+                    "%s: compared no patch: no two keyframes saw a vertex to refine within their depth "
+                    "limit (max_depth %g median edges, min_edge_pixels %g pixels per median edge), "
+                    "though without that limit they would; the surface is as the engine made it "
+                    "(lower min_edge_pixels or raise max_depth)",
+                    kId, max_depth_, min_edge_pixels_);
+      host_.Warning(line);
+    } else if (run_.seen == 0 && run_.active > 0) {
+      std::snprintf(line, sizeof line,
+                    "%s: compared no patch: none of the %lld vertices to refine was seen by two "
+                    "keyframes with its whole patch inside both images (patch_size %d x patch_pixels "
+                    "%g = %g pixels a side) and within max_view_angle_deg %g of its normal; the "
+                    "images placed no vertex (only flatten_spikes and smoothness moved any; smaller "
+                    "patches)",
+                    kId, static_cast<long long>(run_.active), o_.patch_size, o_.patch_pixels,
+                    o_.patch_size * o_.patch_pixels, o_.max_view_angle_deg);
+      host_.Warning(line);
+    } else if (run_.seen >= kFewSeen && run_.matched == 0) {
+      std::snprintf(line, sizeof line,
+                    "%s: no vertex found a match: of %lld vertices compared in two keyframes, none "
+                    "reached min_zncc %g and beat its own position by min_gain %g (patches of "
+                    "patch_size %d x patch_pixels %g); the images placed no vertex (only "
+                    "flatten_spikes and smoothness moved any)",
+                    kId, static_cast<long long>(run_.seen), o_.min_zncc, o_.min_gain, o_.patch_size,
+                    o_.patch_pixels);
+      host_.Warning(line);
+    }
+  }
+  // A handful of vertices compared may all lack texture; more than this and none matched is the
+  // settings.
+  static constexpr int64_t kFewSeen = 20;
+
   imr::sdk::Host host_;
   imr::photometric::RefineOptions o_;
   double search_range_ = 0.6;  // in median edge lengths
@@ -315,6 +383,12 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
   double max_depth_ = 0.0;         // in median edge lengths; 0: no limit
   double min_edge_pixels_ = 18.0;  // pixels a median edge spans at the deepest; 0: no limit
   bool skip_missing_ = false;
+  // Over the run's calls (WarnIfNothingRefined): calls that compared (two keyframes or more),
+  // and their vertices to refine, seen by two keyframes, placed by a match.
+  struct RunTotals {
+    int64_t compared_calls = 0, active = 0, seen = 0, matched = 0;
+  } run_;
+  bool depth_excluded_ = false;  // a call had nothing to compare because of the depth limit
 };
 
 }  // namespace

@@ -119,7 +119,10 @@ TEST_F(PhotometricPlugin, OrLeavesItOutWithAWarning) {
   host.broken = 1;
   std::string message;
   uint64_t vertices = 0;
-  EXPECT_EQ(Refine(R"({"missing_image": "skip"})", &host, true, &message, &vertices), IMR_OK) << message;
+  // Patches that fit the 64 x 48 images: the keyframe left out is the only thing to say.
+  EXPECT_EQ(Refine(R"({"missing_image": "skip", "patch_size": 3, "patch_pixels": 1})", &host, true,
+                   &message, &vertices),
+            IMR_OK) << message;
   EXPECT_EQ(vertices, 4u);
   ASSERT_EQ(host.warnings.size(), 1u);
   EXPECT_NE(host.warnings[0].find("keyframe 1 left out"), std::string::npos) << host.warnings[0];
@@ -147,6 +150,62 @@ TEST_F(PhotometricPlugin, HowDeepAKeyframeRefinesFollowsThePixelsAnEdgeSpans) {
   ASSERT_EQ(Refine(R"({"min_edge_pixels": 0})", &unlimited, true, &message, nullptr, 100, 300), IMR_OK)
       << message;
   EXPECT_EQ(unlimited.images_read, 3);
+}
+
+// Settings that leave nothing to compare, or nothing to move, are said at the final call, naming
+// them (issue 44): the call used to answer with the surface unchanged, without a word.
+TEST_F(PhotometricPlugin, SettingsThatExcludeEveryVertexAreSaid) {
+  std::string message;
+  FakeHost fits;  // 3-pixel patches on the 20-pixel square: compared, nothing to say
+  ASSERT_EQ(Refine(R"({"patch_size": 3, "patch_pixels": 1})", &fits, true, &message), IMR_OK) << message;
+  EXPECT_TRUE(fits.warnings.empty()) << fits.warnings[0];
+  // Patches of 31 samples 20 pixels apart: 620 pixels, wider than the 64 x 48 images.
+  FakeHost wide;
+  ASSERT_EQ(Refine(R"({"patch_size": 31, "patch_pixels": 20})", &wide, true, &message), IMR_OK) << message;
+  ASSERT_EQ(wide.warnings.size(), 1u);
+  EXPECT_NE(wide.warnings[0].find("compared no patch"), std::string::npos) << wide.warnings[0];
+  EXPECT_NE(wide.warnings[0].find("patch_size 31 x patch_pixels 20 = 620 pixels"), std::string::npos)
+      << wide.warnings[0];
+  // 100 m away at a focal of 300: 3 pixels per edge, under min_edge_pixels 18.
+  FakeHost coarse;
+  ASSERT_EQ(Refine("{}", &coarse, true, &message, nullptr, 100, 300), IMR_OK) << message;
+  ASSERT_EQ(coarse.warnings.size(), 1u);
+  EXPECT_NE(coarse.warnings[0].find("within their depth limit (max_depth 0 median edges, "
+                                    "min_edge_pixels 18 pixels per median edge)"),
+            std::string::npos) << coarse.warnings[0];
+  // A grid of 36 vertices (4 pixels per edge) compared, no match can reach min_zncc 1.
+  FakeHost strict;
+  imr::sdk::Instance inst(
+      d_, R"({"min_zncc": 1, "min_gain": 0, "patch_size": 3, "patch_pixels": 1, "min_edge_pixels": 0})",
+      &strict.services);
+  std::vector<double> v;
+  std::vector<uint32_t> f;
+  std::vector<int64_t> ids;
+  constexpr int kSide = 6;
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x) {
+      v.insert(v.end(), {-0.5 + x / (kSide - 1.0), -0.5 + y / (kSide - 1.0), 0.0});
+      ids.push_back(static_cast<int64_t>(ids.size()) + 1);
+    }
+  for (uint32_t y = 0; y + 1 < kSide; ++y)
+    for (uint32_t x = 0; x + 1 < kSide; ++x) {
+      const uint32_t a = y * kSide + x, b = a + 1, c = a + kSide, d = c + 1;
+      f.insert(f.end(), {a, d, b, a, c, d});  // normals toward -z, the cameras
+    }
+  const std::vector<uint8_t> flags(ids.size(), IMR_REFINE_VERTEX_CHANGED);
+  const imr_camera cams[3] = {Camera(-0.5), Camera(0.0), Camera(0.5)};
+  imr_mesh_view mesh{};
+  mesh.struct_size = sizeof(mesh);
+  mesh.vertices = v.data(), mesh.vertex_count = ids.size(), mesh.faces = f.data();
+  mesh.face_count = f.size() / 3, mesh.point_ids = ids.data();
+  imr_refine_request r{};
+  r.mesh = &mesh, r.vertex_flags = flags.data(), r.keyframes = cams, r.keyframe_count = 3;
+  r.keyframe_images = 1, r.final_call = 1;
+  imr_refine_result out{};
+  ASSERT_NO_THROW(inst.Refine(&r, &out));
+  ASSERT_EQ(strict.warnings.size(), 1u);
+  EXPECT_NE(strict.warnings[0].find("no vertex found a match"), std::string::npos) << strict.warnings[0];
+  EXPECT_NE(strict.warnings[0].find("min_zncc 1"), std::string::npos) << strict.warnings[0];
 }
 
 TEST_F(PhotometricPlugin, AnInputWithoutImagesIsRefused) {

@@ -1,14 +1,16 @@
 // A mesh refiner (SDK 1.4) for the host's side of the contract: it shifts the vertices it is
 // asked to refine by a fixed vector, or answers what the host must refuse (a non-finite position,
-// a subdivision that is no manifold, fewer vertices), or subdivides properly (each face split at
+// a subdivision that is no manifold, fewer vertices), waits for a cancel request, or subdivides properly (each face split at
 // its centroid: a manifold with the same boundary). Every call is appended as one JSON line to
 // `log` (flag counts, keyframes, recent begin, final), so a test can check what the host sent.
 #include <imr/sdk/plugin.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <limits>
 #include <string>
+#include <thread>
 
 namespace {
 
@@ -20,11 +22,12 @@ class TestMeshRefiner : public imr::sdk::MeshRefiner {
   static constexpr const char* kParamsSchema = R"({
     "dz": {"type": "number", "default": 0.01, "description": "shift along z of each refined vertex"},
     "only_changed": {"type": "boolean", "default": true, "description": "shift only vertices flagged changed"},
-    "misbehave": {"type": "string", "default": "", "enum": ["", "nan", "few", "bad_faces", "subdivide", "throw"]},
+    "misbehave": {"type": "string", "default": "", "enum": ["", "nan", "few", "bad_faces", "subdivide", "throw", "wait_for_cancel"]},
     "log": {"type": "string", "default": "", "description": "append one JSON line per call here"}
   })";
-  TestMeshRefiner(const imr::sdk::Params& p, const imr::sdk::Host&)
-      : dz_(p.Get<double>("dz")),
+  TestMeshRefiner(const imr::sdk::Params& p, const imr::sdk::Host& host)
+      : host_(host),
+        dz_(p.Get<double>("dz")),
         only_changed_(p.Get<bool>("only_changed")),
         misbehave_(p.Get<std::string>("misbehave")),
         log_(p.Get<std::string>("log")) {}
@@ -56,6 +59,12 @@ class TestMeshRefiner : public imr::sdk::MeshRefiner {
           << ", \"final\": " << (r.final_call ? "true" : "false") << "}\n";
     }
     if (misbehave_ == "throw") throw std::runtime_error("test refiner: failed on purpose");
+    // A long refinement that stops when the host asks (Ctrl-C): at most 60 s.
+    if (misbehave_ == "wait_for_cancel") {
+      for (int i = 0; i < 6000 && !host_.IsCancelled(); ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      host_.CheckCancelled();
+    }
     out->vertices.assign(r.mesh.vertices.begin(), r.mesh.vertices.end());
     for (std::size_t v = 0; v < n; ++v)
       if (!r.Fixed(v) && (!only_changed_ || r.Changed(v))) out->vertices[3 * v + 2] += dz_;
@@ -78,6 +87,7 @@ class TestMeshRefiner : public imr::sdk::MeshRefiner {
   }
 
  private:
+  imr::sdk::Host host_;
   double dz_;
   bool only_changed_;
   std::string misbehave_;
