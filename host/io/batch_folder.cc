@@ -1,5 +1,7 @@
 #include "host/io/batch_folder.h"
 
+#include "host/util/input_file.h"
+
 #include <fstream>
 
 namespace imr::io {
@@ -8,12 +10,14 @@ namespace fs = std::filesystem;
 namespace {
 
 // The first `limit` bytes of a file ("" when unreadable).
+// Through the open rule (host/util/input_file.h): a FIFO in imr's place is unreadable, so
+// foreign, and never waited on.
 std::string Head(const fs::path& p, std::size_t limit) {
-  std::ifstream in(p, std::ios::binary);
-  std::string s(limit, '\0');
-  in.read(s.data(), static_cast<std::streamsize>(limit));
-  s.resize(static_cast<std::size_t>(in.gcount()));
-  return s;
+  try {
+    return InputFile::Open(p, "a file imr wrote", InputRole::kOwnOutput).ReadUpTo(limit);
+  } catch (const std::runtime_error&) {
+    return {};
+  }
 }
 
 bool HoldsAny(const fs::path& dir, std::initializer_list<const char*> names) {

@@ -144,6 +144,18 @@ std::string InputFile::ReadAll(uint64_t max_bytes) {
   return text;
 }
 
+std::string InputFile::ReadUpTo(std::size_t n) {
+  std::string bytes(n, '\0');
+  std::size_t got = 0;
+  while (got < n) {
+    const std::size_t r = Read(bytes.data() + got, n - got);
+    if (r == 0) break;
+    got += r;
+  }
+  bytes.resize(got);
+  return bytes;
+}
+
 int64_t InputFile::Seek(int64_t offset, int whence) {
   return static_cast<int64_t>(::lseek(fd_, static_cast<off_t>(offset), whence));
 }

@@ -23,9 +23,10 @@
 
 namespace imr {
 
-// Whether the file is an input of the run (the write rule protects it: host/util/write_rule.h)
-// or a file imr wrote and reads back to decide what to write (a report, a manifest, a tileset a
-// re-run replaces), which the rule must not protect from imr itself.
+// Whether the file is an input of the run, which the write rule then protects
+// (host/util/write_rule.h), or one the rule must not protect from imr itself: a file imr wrote
+// and reads back to decide what to write (a report, a manifest, a tileset a re-run replaces), or
+// a file only hashed (its reader notes it when it reads it).
 enum class InputRole { kInput, kOwnOutput };
 
 // What a reader reads at most when it names no bound: no input imr reads whole is near this.
@@ -60,6 +61,9 @@ class InputFile {
   // The rest of the file, at most `max_bytes`; throws "<path>: more than <max_bytes> bytes,
   // expected <what>" beyond (a file that grows while read is cut there too).
   std::string ReadAll(uint64_t max_bytes = kDefaultMaxInputBytes);
+  // At most `n` bytes from the current position: fewer only at the end of the file (a head to
+  // sniff, or a bound plus one byte to tell a file beyond it).
+  std::string ReadUpTo(std::size_t n);
   // Moves the position (lseek's whence); returns the new one, or -1.
   int64_t Seek(int64_t offset, int whence);
 
