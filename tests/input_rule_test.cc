@@ -208,6 +208,14 @@ TEST_F(InputRule, EveryReaderRefusesAFifoAtOnceNamingIt) {
          return std::pair{job_with(w, job) + " --sequences-from " + Quote((w / "list.txt").string()),
                           FifoWords(w / "list.txt")};
        }},
+      {"validate: the job's evaluation.truth",
+       [&](const fs::path& w) {
+         MakeFifo(w / "truth.ply");
+         json job = EngineJob("slam_json", (Root() / "slam.json").string());
+         job["evaluation"] = {{"truth", (w / "truth.ply").string()}};
+         WriteText(w / "job.json", job.dump(2));
+         return std::pair{std::string("validate job.json"), FifoWords(w / "truth.ply")};
+       }},
       {"mesh: a SLAM JSON input",
        [&](const fs::path& w) {
          MakeFifo(w / "stream.json");
