@@ -124,8 +124,8 @@ bool JpegSize(std::istream& in, const std::string& path, ImageSize* size) {
   }
 }
 
-// Why the PNG in `bytes` would fail inside libpng, or "": every chunk whole, its CRC right, up to
-// IEND. libpng reports a truncated or corrupted file on stderr itself ("libpng error: Read
+// Why the PNG in `bytes` would fail inside libpng, or "": every chunk whole, a critical chunk's
+// CRC right, up to IEND. libpng reports a truncated or corrupted file on stderr itself ("libpng error: Read
 // Error") before OpenCV returns an empty image, so what it would find is found here first and
 // said once, naming the file. Bytes that are no PNG give "".
 std::string PngProblem(const std::string& bytes) {
@@ -154,7 +154,10 @@ std::string PngProblem(const std::string& bytes) {
     uint32_t crc = 0xffffffffu;
     for (std::size_t i = at + 4; i < at + 8 + length; ++i)
       crc = kCrcTable[(crc ^ p[i]) & 0xffu] ^ (crc >> 8);
-    if ((crc ^ 0xffffffffu) != BigEndian32(p + at + 8 + length))
+    // libpng fails on a critical chunk's (upper-case first letter) bad CRC, and skips an
+    // ancillary one with a warning: the same here.
+    const bool critical = (p[at + 4] & 0x20) == 0;
+    if (critical && (crc ^ 0xffffffffu) != BigEndian32(p + at + 8 + length))
       return "the " + type + " chunk at byte " + std::to_string(at) + " fails its CRC (corrupted)";
     at += 12 + length;
     if (type == "IEND") return {};

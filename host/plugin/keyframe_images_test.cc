@@ -8,6 +8,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -113,6 +115,23 @@ TEST_F(KeyframeImages, AFifoOrATruncatedPngIsRefusedNamingIt) {
   EXPECT_EQ(printed, "");  // nothing from libpng itself
   EXPECT_NE(error.find("keyframe image 4: cannot decode " + cut.string()), std::string::npos) << error;
   EXPECT_NE(error.find("(truncated)"), std::string::npos) << error;
+  // A byte of the pixel data flipped: IDAT's CRC says so, before libpng would.
+  const fs::path flipped = dir_ / "flipped.png";
+  std::string bytes;
+  {
+    std::ifstream in(paths_[1], std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const std::size_t idat = bytes.find("IDAT");
+  ASSERT_NE(idat, std::string::npos);
+  bytes[idat + 6] = static_cast<char>(bytes[idat + 6] ^ 0x55);
+  std::ofstream(flipped, std::ios::binary) << bytes;
+  KeyframeImageStore one({flipped.string()});
+  ::testing::internal::CaptureStderr();
+  EXPECT_EQ(one.Acquire(0, &v, &error), IMR_ERROR);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_NE(error.find("chunk at byte " + std::to_string(idat - 4) + " fails its CRC (corrupted)"),
+            std::string::npos) << error;
 }
 
 // Through the services table as a plugin sees it (the SDK's Host wrapper).
