@@ -10,6 +10,7 @@
 #include "host/util/atomic_file.h"
 #include "host/util/write_rule.h"
 #include "host/util/file_lock.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 #include "host/util/sha256.h"
@@ -88,7 +89,7 @@ bool Unquote(const std::string& line, std::string* name) {
 std::string InputChanged(const fs::path& output, const std::string& source) {
   json files;
   try {
-    std::ifstream in(output / "report.json", std::ios::binary);
+    InputStream in(output / "report.json", "the report of the last run", InputRole::kOwnOutput);
     const json report = json::parse(in);
     files = report.at("input").at("checksums").at("files");
   } catch (const std::exception&) {
@@ -113,9 +114,13 @@ std::string HolderOf(const fs::path& lock_file) {
   std::string who;
   const std::vector<pid_t> holders = LockHolders(lock_file);
   for (pid_t pid : holders) who += (who.empty() ? "pid " : ", pid ") + std::to_string(pid);
-  std::ifstream in(lock_file);
   std::string described;
-  std::getline(in, described);
+  try {
+    InputStream in(lock_file, "the batch's lock file", InputRole::kOwnOutput);
+    std::getline(in, described);
+  } catch (const std::runtime_error&) {
+    // Unreadable (gone, or not a file): the holders' ids say it.
+  }
   // "pid 4242 on host h, imr run since ...": the holder's own words, unless the holders seen
   // here are others (shards hold the lock shared and leave an earlier run's words in place).
   bool current = holders.empty();
@@ -206,15 +211,10 @@ std::string SequenceListLine(const std::string& name) {
 }
 
 std::vector<std::string> ReadSequenceList(const fs::path& file) {
-  std::error_code ec;
-  if (fs::is_directory(file, ec))
-    throw std::runtime_error(file.string() + ": is a folder, not a list");
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error(file.string() + ": cannot read");
-  // Read at most one byte past the bound: /dev/zero or a 2 GB file is not a list of names.
-  std::string text(kMaxSequenceListBytes + 1, '\0');
-  in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  text.resize(static_cast<std::size_t>(in.gcount()));
+  // The open rule: a FIFO or a device is refused by name; at most one byte past the bound is
+  // read (a 2 GB file is not a list of names).
+  std::string text = InputFile::Open(file, "a list of sequence names, one a line")
+                         .ReadUpTo(kMaxSequenceListBytes + 1);
   if (text.size() > kMaxSequenceListBytes)
     throw std::runtime_error(file.string() + ": more than " +
                              std::to_string(kMaxSequenceListBytes >> 20) +

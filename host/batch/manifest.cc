@@ -3,6 +3,7 @@
 #include "host/util/sha256.h"
 #include "host/io/engine_options.h"
 #include "host/util/atomic_file.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
 
 #include <fstream>
@@ -68,10 +69,9 @@ bool Inside(const fs::path& path, const fs::path& dir) {
 }
 
 json ReadJsonFile(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return json::parse(ss.str());
+  // The open rule: a FIFO or a device in imr's place is refused by name, never waited on.
+  return json::parse(ReadInputFile(p, "a manifest imr wrote", kDefaultMaxInputBytes,
+                                   InputRole::kOwnOutput));
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include "host/batch/manifest.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 #include "host/util/sha256.h"
@@ -22,12 +23,11 @@ using nlohmann::json;
 namespace {
 
 json ReadJson(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in) throw std::runtime_error(p.string() + ": cannot read");
-  std::stringstream ss;
-  ss << in.rdbuf();
+  // The open rule: a FIFO or a device in imr's place is refused by name, never waited on.
+  const std::string text = ReadInputFile(p, "a JSON file imr wrote", kDefaultMaxInputBytes,
+                                         InputRole::kOwnOutput);
   try {
-    return json::parse(ss.str());
+    return json::parse(text);
   } catch (const json::exception& e) {
     throw std::runtime_error(p.string() + ": malformed JSON: " + e.what());
   }

@@ -11,6 +11,7 @@
 #include "host/io/input_formats.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
+#include "host/util/input_file.h"
 #include "host/util/exit_status.h"
 #include "host/util/write_rule.h"
 #include "host/util/json_text.h"
@@ -357,7 +358,7 @@ int CmdMesh(const std::vector<std::string>& args) {
   const std::string mesh_name = out.stem().string() + ext;
   std::vector<std::string> files;
   try {
-    std::ifstream in(folder / "report.json", std::ios::binary);
+    InputStream in(folder / "report.json", "the report of imr mesh's run", InputRole::kOwnOutput);
     const nlohmann::json report = nlohmann::json::parse(in);
     for (const auto& name : report.at("files")) files.push_back(name.get<std::string>());
   } catch (const std::exception& e) {

@@ -1,5 +1,7 @@
 #include "host/eval/ground_truth.h"
 
+#include "host/util/input_file.h"
+
 #include "host/eval/parallel.h"
 
 #include <algorithm>
@@ -67,9 +69,8 @@ std::vector<Vec3> SampleSurface(const TriangleMesh& mesh, std::size_t count, uin
 }
 
 std::vector<Vec3> ReadVelodyneScan(const fs::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error(path.string() + ": " + (fs::exists(path) ? "cannot be opened" : "no such file"));
-  std::vector<char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string bytes =
+      ReadInputFile(path, "a Velodyne scan (float32 x, y, z, reflectance)");  // the open rule
   if (bytes.size() % 16 != 0)
     throw std::runtime_error(path.string() + ": " + std::to_string(bytes.size()) +
                              " bytes, not a multiple of 16 (float32 x, y, z, reflectance)");

@@ -1,5 +1,6 @@
 #include "host/eval/mesh_io.h"
 
+#include "host/util/input_file.h"
 #include "host/util/text_codec.h"
 
 #include <nlohmann/json.hpp>
@@ -22,22 +23,19 @@ namespace imr::eval {
 namespace {
 
 namespace fs = std::filesystem;
+
+// What a mesh reader expects, in the open rule's refusals.
+constexpr std::string_view kMeshWhat = "a mesh or point file (.ply, .obj, .off, .gltf, .glb, .xyz)";
 using nlohmann::json;
 
 [[noreturn]] void Fail(const fs::path& path, const std::string& what) {
   throw std::runtime_error(path.string() + ": " + what);
 }
 
-std::string ReadBytes(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) Fail(path, "no such file");
-  if (fs::is_directory(path, ec)) Fail(path, "is a folder, not a file");
-  std::ifstream f(path, std::ios::binary);
-  if (!f) Fail(path, std::string("cannot be opened (") + std::strerror(errno) + ")");
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  if (f.bad()) Fail(path, "read error");
-  return std::move(ss).str();
+// Through the open rule (host/util/input_file.h): a FIFO or a device named as a mesh is refused
+// by name rather than waited on.
+std::string ReadBytes(const fs::path& path, std::string_view what = kMeshWhat) {
+  return ReadInputFile(path, what);
 }
 
 std::string Lower(std::string s) {
@@ -616,7 +614,7 @@ class GltfReader {
         } else {
           const fs::path file = path_.parent_path() / PercentDecode(uri);
           try {
-            data = ReadBytes(file);
+            data = ReadBytes(file, "a glTF buffer");
           } catch (const std::exception& e) {
             Fail(path_, name + " (\"" + uri + "\"): " + e.what());
           }
@@ -900,14 +898,7 @@ namespace {
 // The first bytes of a file say what it is: checked before the whole file is read (a 2 GB file
 // of zeros named .ply used to be read whole, 12 s, before "not a PLY file").
 void CheckHead(const fs::path& path, const std::string& format) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) Fail(path, "no such file");
-  if (fs::is_directory(path, ec)) Fail(path, "is a folder, not a file");
-  std::ifstream f(path, std::ios::binary);
-  if (!f) Fail(path, std::string("cannot be opened (") + std::strerror(errno) + ")");
-  std::string head(4096, '\0');
-  f.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(f.gcount()));
+  const std::string head = InputFile::Open(path, kMeshWhat).ReadUpTo(4096);
   if (format == "ply") {
     if (head.rfind("ply\n", 0) != 0 && head.rfind("ply\r\n", 0) != 0)
       Fail(path, "not a PLY file (no 'ply' first line)");

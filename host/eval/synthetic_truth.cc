@@ -1,5 +1,7 @@
 #include "host/eval/synthetic_truth.h"
 
+#include "host/util/input_file.h"
+
 #include "host/eval/distance.h"
 #include "host/eval/parallel.h"
 #include "host/synthetic/evaluation.h"
@@ -26,8 +28,7 @@ io::Vec3 SyntheticTruth::ToWorld(const io::Vec3& s) const {
 }
 
 SyntheticTruth ReadSyntheticTruth(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open the synthetic scene description");
+  InputStream in(path, "the synthetic scene description (JSON)");  // the open rule
   json j;
   try {
     in >> j;

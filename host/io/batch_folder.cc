@@ -2,7 +2,6 @@
 
 #include "host/util/write_rule.h"
 
-
 namespace imr::io {
 namespace fs = std::filesystem;
 

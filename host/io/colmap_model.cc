@@ -2,6 +2,7 @@
 
 #include "host/io/image_sequence.h"
 #include "host/util/atomic_file.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
 
 #include <algorithm>
@@ -44,9 +45,8 @@ constexpr const char* kTranslationNames[3] = {"TX", "TY", "TZ"};
 constexpr const char* kCoordinateNames[3] = {"X", "Y", "Z"};
 
 struct TextFile {
-  explicit TextFile(const fs::path& p) : path(p), in(p) {
-    if (!in) Fail(p.string(), "cannot open for reading");
-  }
+  // The open rule (host/util/input_file.h): a FIFO or a device is refused by name.
+  explicit TextFile(const fs::path& p) : path(p), in(p, "a COLMAP text model file") {}
   // Next line; false at the end. `skip_blank`: comments and blank lines are skipped.
   bool Next(bool skip_blank, std::string* line) {
     while (std::getline(in, *line)) {
@@ -83,7 +83,7 @@ struct TextFile {
   }
 
   fs::path path;
-  std::ifstream in;
+  InputStream in;
   int number = 0;
 };
 
@@ -163,9 +163,7 @@ void ReadPointsText(const fs::path& p, ColmapModel* m) {
 // Binary (little-endian, as COLMAP writes it on every platform it supports)
 
 struct BinaryFile {
-  explicit BinaryFile(const fs::path& p) : path(p), in(p, std::ios::binary) {
-    if (!in) Fail(p.string(), "cannot open for reading");
-  }
+  explicit BinaryFile(const fs::path& p) : path(p), in(p, "a COLMAP binary model file") {}
   template <typename T>
   T Read(const std::string& what) {
     unsigned char b[sizeof(T)];
@@ -199,7 +197,7 @@ struct BinaryFile {
   // A count that must fit in what is left of the file (each item at least `min_bytes`).
   uint64_t Count(const std::string& what, uint64_t min_bytes) {
     const uint64_t n = Read<uint64_t>(what);
-    if (size == 0) size = fs::file_size(path);
+    if (size == 0) size = in.file().size();
     if (min_bytes > 0 && n > (size - offset) / min_bytes)
       Fail(Where(), what + " says " + std::to_string(n) + ", more than the rest of the file holds "
                     "(truncated or not a COLMAP binary file)");
@@ -207,7 +205,7 @@ struct BinaryFile {
   }
   std::string Where() const { return path.string() + " byte " + std::to_string(offset); }
   fs::path path;
-  std::ifstream in;
+  InputStream in;
   uint64_t offset = 0;
   uint64_t size = 0;
 };

@@ -19,10 +19,14 @@ namespace {
                            (detail.empty() ? "" : ": " + detail));
 }
 
-void Decode(const std::string& path, const ImageLimits& limits, Image* out) {
+void Decode(const std::string& path, const std::string& bytes, const ImageLimits& limits,
+            Image* out) {
+  if (bytes.empty()) FailDecode(path, "the file is empty");
   cv::Mat m;
   try {
-    m = cv::imread(path, cv::IMREAD_UNCHANGED);
+    const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1,
+                          const_cast<char*>(bytes.data()));
+    m = cv::imdecode(encoded, cv::IMREAD_UNCHANGED);
   } catch (const cv::Exception& e) {
     FailDecode(path, e.what());
   }
@@ -90,8 +94,8 @@ std::string Guarded(F&& f) {
 
 const ImageCodecs kCodecs = {
     ImageCodecs::kVersion,
-    [](const std::string& path, const ImageLimits& limits, Image* out) {
-      return Guarded([&] { Decode(path, limits, out); });
+    [](const std::string& path, const std::string& bytes, const ImageLimits& limits, Image* out) {
+      return Guarded([&] { Decode(path, bytes, limits, out); });
     },
     [](const std::string& path, const Image& image) { return Guarded([&] { Encode(path, image); }); },
 };

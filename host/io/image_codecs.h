@@ -9,10 +9,13 @@
 namespace imr::io {
 
 struct ImageCodecs {
-  static constexpr int kVersion = 1;  // the module's and the host's must be equal
+  static constexpr int kVersion = 2;  // the module's and the host's must be equal
   int version = kVersion;
-  // ReadImage's decoding after the header checks: "" when `out` is filled, else the message.
-  std::string (*decode)(const std::string& path, const ImageLimits& limits, Image* out);
+  // ReadImage's decoding after the header checks, of the file's bytes (read by the host through
+  // the open rule, host/util/input_file.h: OpenCV's imread would wait on a FIFO); `path` names
+  // the file in messages. "" when `out` is filled, else the message.
+  std::string (*decode)(const std::string& path, const std::string& bytes,
+                        const ImageLimits& limits, Image* out);
   // WriteImage's encoding after the argument checks: "" or the message.
   std::string (*encode)(const std::string& path, const Image& image);
 };

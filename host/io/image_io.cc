@@ -3,6 +3,7 @@
 #include "host/io/image_io.h"
 
 #include "host/io/image_codecs.h"
+#include "host/util/input_file.h"
 
 #include <boost/dll/runtime_symbol_info.hpp>
 #include <boost/dll/shared_library.hpp>
@@ -19,12 +20,10 @@ namespace imr::io {
 namespace {
 namespace fs = std::filesystem;
 
-void CheckIsFile(const std::string& path) {
-  std::error_code ec;
-  const fs::file_status s = fs::status(path, ec);
-  if (!fs::exists(s)) throw std::runtime_error(path + ": no such file");
-  if (fs::is_directory(s)) throw std::runtime_error(path + ": is a folder, not an image file");
-}
+// What the open rule names in its refusals (host/util/input_file.h).
+constexpr std::string_view kImageWhat = "an image file (PNG, JPEG)";
+// The most bytes an image file may hold: far beyond any image within kDecoderMaxPixels.
+constexpr uint64_t kMaxImageFileBytes = (uint64_t{1} << 31) - 1;  // cv::Mat sizes are int
 
 // The codec module (image_codecs.cc), loaded once, on first use: beside the plugins' folder,
 // <prefix>/lib/imr, in the build tree and after install alike (bin/ and tests/ are both one level
@@ -125,27 +124,69 @@ bool JpegSize(std::istream& in, const std::string& path, ImageSize* size) {
   }
 }
 
+// Why the PNG in `bytes` would fail inside libpng, or "": every chunk whole, a critical chunk's
+// CRC right, up to IEND. libpng reports a truncated or corrupted file on stderr itself ("libpng error: Read
+// Error") before OpenCV returns an empty image, so what it would find is found here first and
+// said once, naming the file. Bytes that are no PNG give "".
+std::string PngProblem(const std::string& bytes) {
+  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (bytes.size() < 8 || std::memcmp(bytes.data(), kSignature, 8) != 0) return {};
+  static const std::array<uint32_t, 256> kCrcTable = [] {
+    std::array<uint32_t, 256> t{};
+    for (uint32_t n = 0; n < 256; ++n) {
+      uint32_t c = n;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xedb88320u ^ (c >> 1) : c >> 1;
+      t[n] = c;
+    }
+    return t;
+  }();
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  std::size_t at = 8;
+  for (;;) {
+    if (bytes.size() - at < 12)
+      return "the file ends at byte " + std::to_string(bytes.size()) + " before the PNG's IEND "
+             "chunk (truncated)";
+    const uint32_t length = BigEndian32(p + at);
+    const std::string type(bytes.data() + at + 4, 4);
+    if (length > 0x7fffffffu || bytes.size() - at - 12 < length)
+      return "the file ends at byte " + std::to_string(bytes.size()) + " inside its " + type +
+             " chunk (truncated)";
+    uint32_t crc = 0xffffffffu;
+    for (std::size_t i = at + 4; i < at + 8 + length; ++i)
+      crc = kCrcTable[(crc ^ p[i]) & 0xffu] ^ (crc >> 8);
+    // libpng fails on a critical chunk's (upper-case first letter) bad CRC, and skips an
+    // ancillary one with a warning: the same here.
+    const bool critical = (p[at + 4] & 0x20) == 0;
+    if (critical && (crc ^ 0xffffffffu) != BigEndian32(p + at + 8 + length))
+      return "the " + type + " chunk at byte " + std::to_string(at) + " fails its CRC (corrupted)";
+    at += 12 + length;
+    if (type == "IEND") return {};
+  }
+}
+
 // The header's size, for PNG and JPEG; false for other formats.
+// Opened by the open rule: a FIFO, a device or a folder named as an image is refused by name.
 bool HeaderSize(const std::string& path, ImageSize* size) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot open for reading");
+  InputStream in(path, kImageWhat);
   return PngSize(in, path, size) || JpegSize(in, path, size);
 }
 
 }  // namespace
 
 Image ReadImage(const std::string& path, const ImageLimits& limits) {
-  CheckIsFile(path);
-  // From the header first: nothing is decoded that would be refused.
+  // From the header first: nothing is decoded (or read whole) that would be refused.
   if (ImageSize declared; HeaderSize(path, &declared)) CheckImageSize(path, declared, limits);
+  // The bytes through the open rule, decoded from memory: OpenCV's imread opens the name itself
+  // (a FIFO swapped in after the check above would block it).
+  const std::string bytes = ReadInputFile(path, kImageWhat, kMaxImageFileBytes);
+  if (const std::string problem = PngProblem(bytes); !problem.empty()) FailDecode(path, problem);
   Image image;
-  if (const std::string e = Codecs().decode(path, limits, &image); !e.empty())
+  if (const std::string e = Codecs().decode(path, bytes, limits, &image); !e.empty())
     throw std::runtime_error(e);
   return image;
 }
 
 ImageSize ReadImageSize(const std::string& path, const ImageLimits& limits) {
-  CheckIsFile(path);
   ImageSize size;
   if (HeaderSize(path, &size)) {
     CheckImageSize(path, size, limits);

@@ -2,11 +2,12 @@
 // readers are in kitti_reader.cc and middlebury_reader.cc.
 #include "host/io/image_sequence.h"
 
+#include "host/util/input_file.h"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 #include <stdexcept>
 
@@ -112,15 +113,7 @@ ImageSequenceOptions ImageSequenceOptionsFromJson(const json& o) {
 }
 
 std::string FileProblem(const std::string& path, const std::string& expected) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::file_status s = fs::status(path, ec);
-  if (fs::is_regular_file(s)) return {};
-  if (fs::is_directory(s)) return "is a folder, expected " + expected;
-  if (fs::exists(s)) return "is not a regular file (a device, pipe or socket), expected " + expected;
-  if (fs::is_symlink(fs::symlink_status(path, ec)))
-    return "is a symbolic link to nothing" + (ec ? std::string() : " (" + fs::read_symlink(path, ec).string() + ")");
-  return "no such file";
+  return InputFileProblem(path, expected);  // the open rule's words (host/util/input_file.h)
 }
 
 void SkipByteOrderMark(std::string* first_line) {
@@ -128,11 +121,7 @@ void SkipByteOrderMark(std::string* first_line) {
 }
 
 std::vector<std::string> ReadTextLines(const std::string& path, const std::string& what) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    throw std::runtime_error(path + ": no such file (" + what + ")");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot open for reading (" + what + ")");
+  InputStream in(path, what);  // regular files only: a FIFO or a device is refused by name
   std::vector<std::string> lines;
   std::string line;
   while (std::getline(in, line)) {

@@ -9,11 +9,15 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <numbers>
 
 namespace imr::io {
@@ -543,6 +547,40 @@ TEST(KittiRaw, PosesFileTimestampsAndVelodyne) {
   Write(d.drive / "poses_cam2_other.txt", TwoPoses());
   ExpectError([&] { ReadKittiRaw(d.drive.string(), {}); },
               {"several poses files", "poses_cam0_gt.txt", "poses_cam2_other.txt", "option poses"});
+}
+
+// The open rule (issue 44): each file of a KITTI raw drive that is a FIFO is refused at once,
+// naming it (an optional one, timestamps or a poses file, is not taken for absent).
+TEST(KittiRaw, AFifoWhereAFileGoesIsRefusedAtOnceNamingIt) {
+  const auto fifo_refused = [](const RawDrive& d, const fs::path& fifo) {
+    fs::remove(fifo);
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << fifo;
+    auto done = std::async(std::launch::async, [&] {
+      try {
+        ReadKittiRaw(d.drive.string(), {});
+      } catch (const std::runtime_error& e) {
+        return std::string(e.what());
+      }
+      return std::string("(no error)");
+    });
+    if (done.wait_for(std::chrono::seconds(5)) != std::future_status::ready) {
+      ADD_FAILURE() << fifo << ": the reader still waits on the FIFO after 5 s";
+      std::_Exit(1);  // the blocked thread cannot be joined
+    }
+    const std::string m = done.get();
+    EXPECT_NE(m.find(fifo.string() + ": is not a regular file (a FIFO)"), std::string::npos) << m;
+  };
+  for (const char* which : {"calib", "oxts", "timestamps", "poses"}) {
+    SCOPED_TRACE(which);
+    TempDir dir;
+    const RawDrive d = MakeRawDrive(dir, 3, {2});
+    WriteOxts(d);
+    const std::string w = which;
+    if (w == "calib") fifo_refused(d, d.date / "calib_cam_to_cam.txt");
+    if (w == "oxts") fifo_refused(d, d.drive / "oxts" / "data" / "0000000001.txt");
+    if (w == "timestamps") fifo_refused(d, d.drive / "image_02" / "timestamps.txt");
+    if (w == "poses") fifo_refused(d, d.drive / "poses.txt");
+  }
 }
 
 TEST(KittiRaw, RefusesBadInputNamingFileLineAndWhat) {

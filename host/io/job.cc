@@ -1,5 +1,7 @@
 #include "host/io/job.h"
 
+#include "host/util/input_file.h"
+
 #include "host/io/json_stream.h"
 
 #include <cctype>
@@ -535,40 +537,23 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file,
 }
 
 JobParseResult ParseJobFile(const fs::path& file, const std::vector<std::string>& overrides) {
-  std::error_code ec;
-  if (!fs::exists(file, ec)) {
+  const auto problem = [&](const std::string& message) {
     JobParseResult r;
     r.job.file = file;
-    r.problems.push_back({"", file.string() + ": no such file"});
+    r.problems.push_back({"", message});
     return r;
-  }
-  if (fs::is_directory(file, ec)) {
-    JobParseResult r;
-    r.job.file = file;
-    r.problems.push_back({"", file.string() + ": is a folder, expected a JSON job file"});
-    return r;
-  }
-  // At most kMaxJobFileBytes + 1 bytes: a device or a huge file is not read without bound.
-  std::ifstream in(file, std::ios::binary);
+  };
+  // The open rule (host/util/input_file.h): a FIFO or a device named as the job is refused by
+  // name, and at most kMaxJobFileBytes are read.
   std::string text;
-  char chunk[1 << 16];
-  while (in && text.size() <= kMaxJobFileBytes) {
-    in.read(chunk, sizeof(chunk));
-    text.append(chunk, static_cast<std::size_t>(in.gcount()));
-  }
-  if (in.bad() || (!in && !in.eof())) {
-    JobParseResult r;
-    r.job.file = file;
-    r.problems.push_back({"", file.string() + ": cannot read"});
-    return r;
-  }
-  if (text.size() > kMaxJobFileBytes) {
-    JobParseResult r;
-    r.job.file = file;
-    r.problems.push_back({"", file.string() + ": more than " +
-                                  std::to_string(kMaxJobFileBytes >> 20) +
-                                  " MiB: not a job file (a job file is a few kB of JSON)"});
-    return r;
+  try {
+    InputFile in = InputFile::Open(file, "a JSON job file");
+    if (in.size() > kMaxJobFileBytes)
+      return problem(file.string() + ": more than " + std::to_string(kMaxJobFileBytes >> 20) +
+                     " MiB: not a job file (a job file is a few kB of JSON)");
+    text = in.ReadAll(kMaxJobFileBytes);
+  } catch (const std::runtime_error& e) {
+    return problem(e.what());
   }
   return ParseJobText(text, file, overrides);
 }

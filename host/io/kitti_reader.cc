@@ -66,10 +66,18 @@ std::string Numbered(int index, int digits, const std::string& extension) {
   return buf + extension;
 }
 
+// Whether anything is at `p`: an optional file that is there but no regular file (a FIFO, a
+// folder) is read and refused by name by the open rule, not taken for absent.
+bool Present(const fs::path& p) {
+  std::error_code ec;
+  return fs::exists(fs::symlink_status(p, ec));
+}
+
 int CountFiles(const fs::path& dir, const std::string& extension) {
   int n = 0;
   for (const auto& e : fs::directory_iterator(dir))
-    if (e.is_regular_file() && e.path().extension() == extension) ++n;
+    // A FIFO or a device named like an image is counted: the open rule names it when it is read.
+    if (!e.is_directory() && e.path().extension() == extension) ++n;
   return n;
 }
 
@@ -390,7 +398,7 @@ void AddLidar(const fs::path& dir, int digits, const std::vector<int>& selected,
   for (const int src : selected) {
     const fs::path p = dir / Numbered(src, digits, ".bin");
     std::error_code ec;
-    const bool exists = fs::is_regular_file(p, ec);
+    const bool exists = Present(p);
     seq->lidar.scan_paths.push_back(exists ? p.string() : "");
     found += exists;
   }
@@ -487,10 +495,10 @@ ImageSequence ReadKittiOdometry(const std::string& root_arg, const ImageSequence
     const fs::path beside = root / "poses.txt";
     const fs::path devkit = Normalized(root).parent_path().parent_path() / "poses" /
                             (Normalized(root).filename().string() + ".txt");
-    if (fs::is_regular_file(beside, ec)) {
+    if (Present(beside)) {
       pc.path = beside.string();
       pc.chosen_by = "poses.txt in the sequence folder";
-    } else if (fs::is_regular_file(devkit, ec)) {
+    } else if (Present(devkit)) {
       pc.path = devkit.string();
       pc.chosen_by = "the devkit layout (dataset/poses/<sequence>.txt)";
     } else {
@@ -540,7 +548,7 @@ ImageSequence ReadKittiOdometry(const std::string& root_arg, const ImageSequence
   // A sequence rendered by imr-synth says what scene it shows (exact ground truth). Its world is
   // the frame of poses.txt (camera 0), so it applies only when the poses are the generator's own.
   const fs::path scene = root / "ground_truth" / "scene.json";
-  if (fs::is_regular_file(scene, ec) && o.poses.empty() && pc.camera == 0) {
+  if (Present(scene) && o.poses.empty() && pc.camera == 0) {
     seq.synthetic_scene = scene.string();
     s["ground_truth"] = scene.string();
   }
@@ -589,7 +597,7 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
     std::vector<fs::path> found;
     for (const auto& e : fs::directory_iterator(root)) {
       const std::string name = e.path().filename().string();
-      if (e.is_regular_file() && name.rfind("poses", 0) == 0 && e.path().extension() == ".txt")
+      if (!e.is_directory() && name.rfind("poses", 0) == 0 && e.path().extension() == ".txt")
         found.push_back(e.path());
     }
     std::sort(found.begin(), found.end());
@@ -670,10 +678,10 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
   std::vector<double> times;
   const fs::path dates = root / ("image_" + k) / "timestamps.txt";
   const fs::path seconds = root / "times.txt";
-  if (fs::is_regular_file(dates, ec)) {
+  if (Present(dates)) {
     times = ReadDateTimestamps(dates.string(), source.count, source.image_dir.string());
     s["times"] = dates.string() + " (seconds since the first)";
-  } else if (fs::is_regular_file(seconds, ec)) {
+  } else if (Present(seconds)) {
     times = ReadTimesFile(seconds.string(), source.count, source.image_dir.string());
     s["times"] = seconds.string();
   } else {

@@ -19,13 +19,15 @@ using nlohmann::json;
 // The one *_par.txt in a folder, or the file itself.
 fs::path FindParFile(const fs::path& path) {
   std::error_code ec;
-  if (fs::is_regular_file(path, ec)) return path;
-  if (!fs::is_directory(path, ec))
-    Fail(path.string() + ": no such file or folder (a Middlebury *_par.txt or its folder)");
+  if (!fs::is_directory(path, ec)) {
+    if (!fs::exists(fs::symlink_status(path, ec)))
+      Fail(path.string() + ": no such file or folder (a Middlebury *_par.txt or its folder)");
+    return path;  // a file: read by the open rule, which refuses a FIFO or a device by name
+  }
   std::vector<fs::path> found;
   for (const auto& e : fs::directory_iterator(path)) {
     const std::string name = e.path().filename().string();
-    if (e.is_regular_file() && name.size() > 8 && name.ends_with("_par.txt"))
+    if (!e.is_directory() && name.size() > 8 && name.ends_with("_par.txt"))
       found.push_back(e.path());
   }
   std::sort(found.begin(), found.end());

@@ -3,6 +3,7 @@
 #include "host/io/json_fields.h"
 #include "host/io/json_stream.h"
 #include "host/io/schema.h"
+#include "host/util/input_file.h"
 
 #include <algorithm>
 #include <cctype>
@@ -285,10 +286,10 @@ namespace {
 // OpenMVG's binary sfm_data (a cereal portable binary archive; what openMVG_main_SfM writes as
 // sfm_data.bin): refused before parsing, with the command that converts it.
 void RefuseBinary(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  char head[64];
-  in.read(head, sizeof(head));
-  const std::size_t n = static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0));
+  // The open rule: a FIFO or a device named as the model is refused by name, not read.
+  const std::string bytes = InputFile::Open(file, "an OpenMVG sfm_data JSON file").ReadUpTo(64);
+  const char* head = bytes.data();
+  const std::size_t n = bytes.size();
   std::size_t i = 0;
   while (i < n && std::isspace(static_cast<unsigned char>(head[i]))) ++i;
   const bool has_nul = std::memchr(head, '\0', n) != nullptr;

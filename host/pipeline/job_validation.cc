@@ -5,6 +5,7 @@
 #include "host/io/input_formats.h"
 #include "host/pipeline/scale.h"
 #include "host/pipeline/tiles.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 
@@ -377,9 +378,11 @@ ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry
                                                 "(point cloud .ply/.xyz or reference mesh)"});
     else if (truth != "velodyne") {
       const fs::path p = v.job.Resolve(truth);
-      std::error_code ec;
-      if (!fs::is_regular_file(p, ec))
-        v.problems.push_back({"evaluation.truth", "no such file: " + p.string()});
+      // The open rule's words: a FIFO or a folder is named as what it is, not as missing.
+      if (const std::string why = InputFileProblem(p, "a ground-truth file (point cloud .ply/.xyz or "
+                                                      "reference mesh)");
+          !why.empty())
+        v.problems.push_back({"evaluation.truth", p.string() + ": " + why});
       v.evaluation["truth"] = p.string();
     }
   }

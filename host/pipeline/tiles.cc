@@ -1,5 +1,7 @@
 #include "host/pipeline/tiles.h"
 
+#include "host/util/input_file.h"
+
 #include "host/eval/mesh_io.h"
 #include "host/pipeline/run.h"
 #include "host/util/atomic_file.h"
@@ -38,9 +40,9 @@ std::string TileStem(int index) {
 }
 
 // The JSON chunk of a GLB file (its binary chunk is not read).
-json GlbJson(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path.string() + ": cannot read");
+json GlbJson(const fs::path& path, InputRole role = InputRole::kInput) {
+  // The open rule: a folder, a FIFO or a device named like a tile is refused by name.
+  InputStream in(path, "a GLB tile", role);
   char header[20];
   if (!in.read(header, 20)) throw std::runtime_error(path.string() + ": not a GLB file (too short)");
   uint32_t magic, version, length, chunk_length, chunk_type;
@@ -137,7 +139,7 @@ std::string ForeignTiles(const fs::path& output_dir, const std::string& job, con
   if (has_tileset) {
     json j;
     try {
-      std::ifstream in(tileset, std::ios::binary);
+      InputStream in(tileset, "a tileset.json of imr", InputRole::kOwnOutput);
       j = json::parse(in);
     } catch (const std::exception&) {
     }
@@ -255,7 +257,7 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
   write_(tile, staging.path(), stem);
   const fs::path staged = staging.path() / (stem + ".glb");
   if (!fs::exists(staged)) throw std::runtime_error(staged.string() + ": the exporter wrote no GLB");
-  if (!EveryPrimitiveHas(GlbJson(staged), "_VERTEX_KEY"))
+  if (!EveryPrimitiveHas(GlbJson(staged, InputRole::kOwnOutput), "_VERTEX_KEY"))
     throw std::runtime_error(staged.string() + ": the exporter wrote the tile without `_VERTEX_KEY`: "
                              "tiles need an exporter that writes vertex keys (SDK 1.2; "
                              "org.imr.exporter.assimp 1.2 does), or they cannot be merged");
@@ -378,13 +380,19 @@ std::vector<std::string> TileContentUris(const json& tile) {
 MergedTiles MergeTiles(const fs::path& run) {
   const fs::path tileset_path = run / "tileset.json";
   std::error_code ec;
-  if (!fs::is_directory(run, ec)) throw std::runtime_error(run.string() + ": no such folder");
-  if (!fs::exists(tileset_path, ec))
+  if (!fs::is_directory(run, ec)) {
+    if (fs::exists(run, ec))
+      throw std::runtime_error(run.string() + ": is a file, not a run folder (name the output "
+                               "folder of a run with tiles, the one holding tileset.json)");
+    throw std::runtime_error(run.string() + ": no such folder");
+  }
+  if (!fs::exists(fs::symlink_status(tileset_path, ec)))
     throw std::runtime_error(tileset_path.string() + ": no such file: not the output folder of a "
                              "run with tiles (a job with output.tiles writes one)");
+  // The open rule: a FIFO or a device (a link to /dev/zero) is refused by name, not parsed.
+  InputStream in(tileset_path, "the tileset.json of a run with tiles");
   json tileset;
   try {
-    std::ifstream in(tileset_path, std::ios::binary);
     tileset = json::parse(in);
   } catch (const std::exception& e) {
     throw std::runtime_error(tileset_path.string() + ": not JSON: " + e.what());

@@ -1,10 +1,13 @@
 #include "host/plugin/elf_check.h"
 
+#include "host/util/input_file.h"
+
 #include <elf.h>
 
 #include <cstring>
 #include <algorithm>
 #include <fstream>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -44,7 +47,7 @@ std::string MachineName(int machine) {
 }
 
 // Reads `size` bytes at `offset`; false when the file is shorter.
-bool ReadAt(std::ifstream& in, uint64_t offset, void* out, std::size_t size) {
+bool ReadAt(std::istream& in, uint64_t offset, void* out, std::size_t size) {
   in.clear();
   in.seekg(static_cast<std::streamoff>(offset));
   in.read(static_cast<char*>(out), static_cast<std::streamsize>(size));
@@ -61,11 +64,16 @@ ElfCheck CheckElfFile(const fs::path& file, const std::string& entry_symbol) {
     r.problem = "cannot read: " + ec.message();
     return r;
   }
-  std::ifstream in(file, std::ios::binary);
-  if (!in) {
-    r.problem = "cannot read: cannot open";
+  // The open rule (host/util/input_file.h): a FIFO or a device is refused by name.
+  std::optional<InputStream> opened;
+  try {
+    opened.emplace(file, "a plugin (an ELF shared library)");
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what(), prefix = file.string() + ": ";
+    r.problem = what.rfind(prefix, 0) == 0 ? what.substr(prefix.size()) : what;
     return r;
   }
+  InputStream& in = *opened;
   unsigned char ident[EI_NIDENT] = {};
   if (!ReadAt(in, 0, ident, sizeof(ident)) || std::memcmp(ident, ELFMAG, SELFMAG) != 0) {
     r.problem = "not an ELF shared library (a linker script, or another kind of file)";

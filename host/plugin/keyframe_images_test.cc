@@ -6,7 +6,11 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace imr::plugin {
@@ -84,6 +88,50 @@ TEST_F(KeyframeImages, OutOfRangeAndUndecodableAreClearErrors) {
   EXPECT_EQ(store.Acquire(3, &v, &error), IMR_ERROR);
   EXPECT_NE(error.find("keyframe image 3: "), std::string::npos) << error;
   EXPECT_NE(error.find("missing.png"), std::string::npos) << error;
+}
+
+// The open rule (issue 44): a keyframe image that is a FIFO, or a PNG cut short, fails at once
+// naming the file, not waiting on the FIFO or letting libpng print its own "Read Error".
+TEST_F(KeyframeImages, AFifoOrATruncatedPngIsRefusedNamingIt) {
+  std::vector<std::string> paths = paths_;
+  const fs::path fifo = dir_ / "fifo.png";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  paths.push_back(fifo.string());
+  const fs::path cut = dir_ / "cut.png";
+  fs::copy_file(paths_[1], cut);
+  fs::resize_file(cut, fs::file_size(cut) - 20);  // inside IDAT or IEND
+  paths.push_back(cut.string());
+  KeyframeImageStore store(paths);
+  std::string error;
+  imr_image_view v{};
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(store.Acquire(3, &v, &error), IMR_ERROR);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_EQ(error, "keyframe image 3: " + fifo.string() +
+                       ": is not a regular file (a FIFO), expected an image file (PNG, JPEG)");
+  ::testing::internal::CaptureStderr();
+  EXPECT_EQ(store.Acquire(4, &v, &error), IMR_ERROR);
+  const std::string printed = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(printed, "");  // nothing from libpng itself
+  EXPECT_NE(error.find("keyframe image 4: cannot decode " + cut.string()), std::string::npos) << error;
+  EXPECT_NE(error.find("(truncated)"), std::string::npos) << error;
+  // A byte of the pixel data flipped: IDAT's CRC says so, before libpng would.
+  const fs::path flipped = dir_ / "flipped.png";
+  std::string bytes;
+  {
+    std::ifstream in(paths_[1], std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const std::size_t idat = bytes.find("IDAT");
+  ASSERT_NE(idat, std::string::npos);
+  bytes[idat + 6] = static_cast<char>(bytes[idat + 6] ^ 0x55);
+  std::ofstream(flipped, std::ios::binary) << bytes;
+  KeyframeImageStore one({flipped.string()});
+  ::testing::internal::CaptureStderr();
+  EXPECT_EQ(one.Acquire(0, &v, &error), IMR_ERROR);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_NE(error.find("chunk at byte " + std::to_string(idat - 4) + " fails its CRC (corrupted)"),
+            std::string::npos) << error;
 }
 
 // Through the services table as a plugin sees it (the SDK's Host wrapper).

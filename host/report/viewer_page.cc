@@ -1,6 +1,7 @@
 #include "host/report/viewer_page.h"
 
 #include "host/util/atomic_file.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
 #include "host/util/text_codec.h"
 
@@ -35,12 +36,10 @@ using nlohmann::json;
 constexpr const char* kModelViewerName = "model-viewer-umd.min.js";
 constexpr const char* kTilesViewerName = "imr-tiles-viewer.js";
 
+// Through the open rule (host/util/input_file.h): a FIFO or a device where a run's file was is
+// refused by name, never waited on. What a page shows is imr's own output, not an input.
 std::string ReadBytes(const fs::path& path, const std::string& what) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path.string() + ": cannot read (" + what + ")");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  return ReadInputFile(path, what, kDefaultMaxInputBytes, InputRole::kOwnOutput);
 }
 
 std::string Lower(std::string s) {

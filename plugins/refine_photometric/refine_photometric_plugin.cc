@@ -217,8 +217,10 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
       } catch (const imr::sdk::InvalidArgument&) {
         throw;
       } catch (const std::exception& e) {
-        if (!skip_missing_) throw std::runtime_error(std::string("keyframe image: ") + e.what());
-        host_.Warning(std::string(kId) + ": keyframe " + std::to_string(k) + " left out: " + e.what());
+        // The host's message names the keyframe and its file ("keyframe image 2: <path>: ..."):
+        // passed on as it is, not prefixed again.
+        if (!skip_missing_) throw std::runtime_error(e.what());
+        host_.Warning(std::string(kId) + ": " + e.what() + "; that keyframe is left out");
         continue;
       }
       for (int i = 0; i < 3; ++i)

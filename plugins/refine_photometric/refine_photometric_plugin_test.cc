@@ -39,8 +39,10 @@ struct FakeHost {
       FakeHost* h = static_cast<FakeHost*>(self);
       ++h->images_read;
       if (index == h->broken) {
-        std::snprintf(e->message, sizeof(e->message), "/data/seq/image_2/%06llu.png: cannot decode",
-                      static_cast<unsigned long long>(index * 5));
+        // The host's words (host/plugin/keyframe_images.cc): the keyframe, its file, why.
+        std::snprintf(e->message, sizeof(e->message),
+                      "keyframe image %llu: /data/seq/image_2/%06llu.png: cannot decode",
+                      static_cast<unsigned long long>(index), static_cast<unsigned long long>(index * 5));
         return IMR_ERROR;
       }
       *out = imr_image_view{sizeof(imr_image_view), 64, 48, 1, 64, h->pixels.data()};
@@ -111,7 +113,10 @@ TEST_F(PhotometricPlugin, AnUnreadableImageFailsTheCallNamingIt) {
   host.broken = 1;
   std::string message;
   EXPECT_EQ(Refine("{}", &host, true, &message), IMR_ERROR);
-  EXPECT_NE(message.find("/data/seq/image_2/000005.png: cannot decode"), std::string::npos) << message;
+  EXPECT_NE(message.find("keyframe image 1: /data/seq/image_2/000005.png: cannot decode"),
+            std::string::npos) << message;
+  // Said once: the stage does not prefix the host's message again (issue 44).
+  EXPECT_EQ(message.find("keyframe image"), message.rfind("keyframe image")) << message;
 }
 
 TEST_F(PhotometricPlugin, OrLeavesItOutWithAWarning) {
@@ -125,8 +130,10 @@ TEST_F(PhotometricPlugin, OrLeavesItOutWithAWarning) {
             IMR_OK) << message;
   EXPECT_EQ(vertices, 4u);
   ASSERT_EQ(host.warnings.size(), 1u);
-  EXPECT_NE(host.warnings[0].find("keyframe 1 left out"), std::string::npos) << host.warnings[0];
-  EXPECT_NE(host.warnings[0].find("000005.png"), std::string::npos) << host.warnings[0];
+  const std::string& w = host.warnings[0];
+  EXPECT_NE(w.find("keyframe image 1: /data/seq/image_2/000005.png: cannot decode; that keyframe "
+                   "is left out"), std::string::npos) << w;
+  EXPECT_EQ(w.find("keyframe image"), w.rfind("keyframe image")) << w;
 }
 
 // A ring of close-up views around an object stands ~100 edges from it, a street camera refines
