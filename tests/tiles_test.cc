@@ -582,6 +582,15 @@ TEST(Tiles, OptionsThatMakeTilesOfATriangleAreRefused) {
     EXPECT_EQ(v.status, 64) << tiles.dump();
     EXPECT_NE((v.out + v.err).find(message), std::string::npos) << v.out << v.err;
   }
+  // With the scale found per sequence the run checks the cells against the spacing it uses.
+  json scaled = Job({"street"}, {"ply"}, {{"size", 0.001}});
+  scaled["engine"] = {{"scale", "auto"}};
+  const auto auto_run = RunJob(dir.path(), "scaled", scaled);
+  EXPECT_EQ(auto_run.status, 1);
+  EXPECT_NE(auto_run.err.find("street failed: output.tiles.size: expected 0 (10 x engine.steiner_spacing) or a "
+                              "length >= engine.steiner_spacing as used ("),
+            std::string::npos) << auto_run.err;
+  EXPECT_FALSE(fs::exists(dir / "runs" / "street" / "tileset.json"));
   // The least size and max_triangles allowed run.
   const auto run = RunJob(dir.path(), "least", Job({"street"}, json::array(), {{"size", 5}, {"max_triangles", 100}}));
   EXPECT_EQ(run.status, 0) << run.err;

@@ -388,13 +388,15 @@ ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry
   const json& tiles = v.job.output.tiles;
   if (tiles.is_object() || tiles == json(true)) {
     const json given = tiles.is_object() ? tiles : json::object();
-    const std::size_t before = v.problems.size();
     io::ValidateAgainstSchema(TilesSchema(), given, "output.tiles", &v.problems);
     v.tiles = io::WithDefaults(TilesSchema(), given);
     // The cells against the Steiner spacing, when the job fixes it (else the run checks).
-    if (spacing_known && v.problems.size() == before)
-      if (const std::string e = TilesOptionsFromJson(v.tiles).CheckSize(v.engine_options.steiner_spacing); !e.empty())
+    TilesOptions o;
+    if (spacing_known && v.tiles["size"].is_number() && v.tiles["size"].get<double>() > 0.0) {
+      o.size = v.tiles["size"].get<double>();
+      if (const std::string e = o.CheckSize(v.engine_options.steiner_spacing); !e.empty())
         v.problems.push_back({"output.tiles.size", e});
+    }
   }
   ValidateStages(format, *registry, &v);
   return v;

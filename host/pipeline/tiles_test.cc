@@ -264,6 +264,35 @@ TEST(TileWriterTest, AReRunRemovesOnlyTheEarlierRunsTiles) {
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "glTF tile_555555.glb");
 }
 
+// Issue 44, finding 14: a file of a tile's name that no tileset of the run counts (kept by the
+// constructor) is never written over: the tile that would replace it fails, naming it.
+TEST(TileWriterTest, ATileIsNeverWrittenOverAFileItDidNotWrite) {
+  io::testing::TempDir dir("imr-tiles-in-the-way");
+  fs::create_directories(dir / "tiles");
+  std::ofstream(dir / "tileset.json") << R"({"asset": {"extras": {"imr": {"job": "/j.json",
+      "sequence": "street", "tiles": 1}}}, "root": {"content": {"uri": "tiles/tile_000001.glb"}}})";
+  std::ofstream(dir / "tiles" / "tile_000001.glb") << "the earlier run's";
+  std::ofstream(dir / "tiles" / "tile_000003.glb") << "mine";  // not numbered on from tile 1
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 1.0;
+  o.idle_parts = 1;
+  TileWriter w(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+               [](const TileMesh&, const fs::path& staging, const std::string& stem) {
+                 WriteStandInGlb(staging / (stem + ".glb"));
+               });
+  EXPECT_FALSE(fs::exists(dir / "tiles" / "tile_000001.glb"));
+  try {
+    for (int i = 0; i < 4; ++i) w.Add(OneTriangle(i));  // tiles 1, 2, then 3
+    ADD_FAILURE() << "tile 3 was written over the user's file";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("tile_000003.glb: a file that no tileset of this run names"),
+              std::string::npos) << e.what();
+  }
+  std::ifstream in(dir / "tiles" / "tile_000003.glb");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "mine");
+}
+
 // Issue 44, finding 13 and the minor `"root": null`: the tree is read with bounds and checked.
 TEST(TileWriterTest, ContentUrisOfATreeThatIsNotOneAreRefused) {
   auto error = [](const json& root) {
