@@ -219,7 +219,14 @@ TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json id
   std::vector<fs::path> old;
   std::error_code ec;
   if (fs::exists(tileset_path(), ec)) {
-    const RunTiles earlier = ListRunTiles(output_dir_, ReadTilesetFile(tileset_path()));
+    RunTiles earlier;
+    try {
+      earlier = ListRunTiles(output_dir_, ReadTilesetFile(tileset_path()));
+    } catch (const std::runtime_error& e) {  // ReadTilesetFile's messages name the file already
+      const std::string what = e.what();
+      throw std::runtime_error(what.rfind(tileset_path().string(), 0) == 0 ? what
+                                                                           : tileset_path().string() + ": " + what);
+    }
     for (const auto* list : {&earlier.named, &earlier.after})
       for (const std::string& uri : *list)
         if (fs::exists(fs::symlink_status(output_dir_ / uri, ec))) old.push_back(output_dir_ / uri);
