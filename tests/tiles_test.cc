@@ -25,6 +25,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -494,8 +495,8 @@ TEST(Tiles, ThirtyKillsOfAForgettingRunAllMerge) {
   std::printf("kill moments: seed %u (IMR_KILL_SEED=%u repeats them)\n", seed, seed);
   std::mt19937 rng(seed);
   auto run_args = [&](const fs::path& out) {
-    return std::vector<std::string>{"run", "-q", "--threads", "1", "--set", "output.directory=" + out.string(),
-                                    (dir / "job.json").string()};
+    return std::vector<std::string>{"run", "-q", "--no-viewer", "--threads", "1", "--set",
+                                    "output.directory=" + out.string(), (dir / "job.json").string()};
   };
   // One whole run: when its first tile appears and when its tileset is complete (the window
   // the kills fall in).
@@ -523,42 +524,66 @@ TEST(Tiles, ThirtyKillsOfAForgettingRunAllMerge) {
   if (complete < first_tile) complete = Since(t0);
   std::printf("whole run: first tile at %.2f s, tileset complete at %.2f s\n", first_tile, complete);
   std::uniform_real_distribution<double> after_first(0.0, complete - first_tile);
+  // Two runs at a time (the machine's two cores), each killed its own delay after its first
+  // tile (a run killed before it has one merges nothing: there is nothing to merge).
+  struct Kill {
+    int k = 0;
+    fs::path out;
+    double delay = 0.0;
+    pid_t pid = 0;
+    int status = 0;
+    bool ended = false, signalled = false;
+    std::optional<std::chrono::steady_clock::time_point> tile;
+  };
   int killed = 0, unfinished = 0;
-  for (int k = 0; k < 30; ++k) {
-    const fs::path out = dir / ("k" + std::to_string(k));
-    const double delay = after_first(rng);
-    const auto start = std::chrono::steady_clock::now();
-    const pid_t pid = StartRun(run_args(out));
-    ASSERT_GT(pid, 0);
-    // From its first tile on (a run killed before it merges nothing: there is nothing to merge).
-    bool ended = false;
-    while (!ended && !fs::exists(out / "tiles" / "tile_000001.glb")) {
-      ended = ::waitpid(pid, &status, WNOHANG) == pid;
+  for (int k0 = 0; k0 < 30; k0 += 2) {
+    std::vector<Kill> runs;
+    for (int k = k0; k < std::min(k0 + 2, 30); ++k) {
+      Kill r;
+      r.k = k;
+      r.out = dir / ("k" + std::to_string(k));
+      r.delay = after_first(rng);
+      r.pid = StartRun(run_args(r.out));
+      ASSERT_GT(r.pid, 0);
+      runs.push_back(std::move(r));
+    }
+    for (bool waiting = true; waiting;) {
+      waiting = false;
+      for (Kill& r : runs) {
+        if (r.ended) continue;
+        if (::waitpid(r.pid, &r.status, WNOHANG) == r.pid) {
+          r.ended = true;
+          continue;
+        }
+        std::error_code ec;
+        if (!r.tile && fs::exists(r.out / "tiles" / "tile_000001.glb", ec)) r.tile = std::chrono::steady_clock::now();
+        if (r.tile && Since(*r.tile) >= r.delay) {
+          ::kill(-r.pid, SIGKILL);
+          ::waitpid(r.pid, &r.status, 0);
+          r.ended = true;
+          r.signalled = WIFSIGNALED(r.status);
+          killed += r.signalled;
+          continue;
+        }
+        waiting = true;
+      }
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
-    const auto tile = std::chrono::steady_clock::now();
-    while (!ended && Since(tile) < delay) {
-      ended = ::waitpid(pid, &status, WNOHANG) == pid;
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    for (const Kill& r : runs) {
+      SCOPED_TRACE("kill " + std::to_string(r.k) + ", " + std::to_string(r.delay) + " s after its first tile (seed " +
+                   std::to_string(seed) + ")");
+      const fs::path merged = dir / ("merged" + std::to_string(r.k) + ".ply");
+      const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(r.out.string()) + " --out " +
+                                  Quote(merged.string()));
+      ASSERT_EQ(merge.status, 0) << merge.out << merge.err;
+      EXPECT_NE(merge.out.find("a 2-manifold with boundary"), std::string::npos) << merge.out;
+      // Killed before its last tile (not while it wrote its report after them): said so.
+      if (!json::parse(ReadText(r.out / "tileset.json"))["asset"]["extras"]["imr"]["complete"].get<bool>()) {
+        ++unfinished;
+        EXPECT_NE(merge.err.find("the run did not finish"), std::string::npos) << merge.err;
+      }
+      EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(eval::ReadMesh(merged)), false).ok);
     }
-    if (!ended) {
-      ::kill(-pid, SIGKILL);
-      ::waitpid(pid, &status, 0);
-      killed += WIFSIGNALED(status);
-    }
-    SCOPED_TRACE("kill " + std::to_string(k) + " at " + std::to_string(Since(start)) + " s (seed " +
-                 std::to_string(seed) + ")");
-    const fs::path merged = dir / ("merged" + std::to_string(k) + ".ply");
-    const auto merge = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(out.string()) + " --out " +
-                                Quote(merged.string()));
-    ASSERT_EQ(merge.status, 0) << merge.out << merge.err;
-    EXPECT_NE(merge.out.find("a 2-manifold with boundary"), std::string::npos) << merge.out;
-    // Killed before its last tile (not while it wrote its report after them): said so.
-    if (!json::parse(ReadText(out / "tileset.json"))["asset"]["extras"]["imr"]["complete"].get<bool>()) {
-      ++unfinished;
-      EXPECT_NE(merge.err.find("the run did not finish"), std::string::npos) << merge.err;
-    }
-    EXPECT_TRUE(engine::CheckMesh(AsEngineMesh(eval::ReadMesh(merged)), false).ok);
   }
   std::printf("%d of 30 runs killed, %d of them before their last tile\n", killed, unfinished);
   EXPECT_GE(unfinished, 10);
