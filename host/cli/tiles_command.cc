@@ -24,7 +24,9 @@ const char* kMergeNotes =
     "one, so the union is one surface, checked to be a 2-manifold with boundary. The format is\n"
     "the extension of --out (.ply, .obj, .gltf, .glb), written by org.imr.exporter.assimp (or\n"
     "--exporter ID) as `imr run` writes meshes, atomically. Positions are the tiles' (float32\n"
-    "relative to each tile's origin: sub-millimetre).\n"
+    "relative to each tile's origin: sub-millimetre). Of a run that did not finish (stopped or\n"
+    "failed, as tileset.json says) the tiles written are merged, and said so; a vertex where they\n"
+    "touch at a point only (the surface between them never written) is kept apart, one per fan.\n"
     "Exit status: 0 written; 1 the tiles cannot be read or merged, or the mesh written (the\n"
     "message names the file); 64 bad usage; 73 --out is a file imr may not write (inside the run\n"
     "folder, or a file imr did not write).\n";
@@ -58,6 +60,14 @@ int CmdTilesMerge(const std::vector<std::string>& args) {
   format = format.substr(1);
   const bool quiet = vm.count("quiet") > 0;
   NoteInput(run, "the run folder being merged");  // nothing is written into what is read
+  // The mesh goes into a folder the user has: none is created for it.
+  std::error_code ec;
+  if (!fs::is_directory(out.parent_path(), ec)) {
+    std::cerr << "imr tiles merge: --out: " << out.parent_path().string()
+              << (fs::exists(out.parent_path(), ec) ? ": not a folder" : ": no such folder")
+              << " (imr tiles merge writes into an existing folder)\n";
+    return kExitFailed;
+  }
   try {
     CheckWriteTarget(out);
     const pipeline::MergedTiles merged = pipeline::MergeTiles(run);

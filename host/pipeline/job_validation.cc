@@ -352,10 +352,12 @@ ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry
                           "{job} would be '" + v.job.Name() + "' (the job file " +
                               v.job.file.filename().string() + "): not a folder name; rename the "
                               "job file"});
+  bool spacing_known = false;  // the Steiner spacing the run will use (not scaled per sequence)
   if (io::EngineOptionsFromJson(v.job.engine, &v.engine_options, &v.problems)) {
     // The Steiner grid's size, once its lengths are known: in metric mode, or when the job gives
     // all three; auto scaling sets the others per sequence, and the run checks them then.
     bool known = ScaleModeOf(v.job.engine, v.job.input.format) == ScaleMode::kMetric;
+    spacing_known = known || (v.job.engine.is_object() && v.job.engine.contains("steiner_spacing"));
     if (!known && v.job.engine.is_object())
       known = v.job.engine.contains("steiner_spacing") && v.job.engine.contains("steiner_margin") &&
               v.job.engine.contains("max_ray_length");
@@ -391,6 +393,13 @@ ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry
     const json given = tiles.is_object() ? tiles : json::object();
     io::ValidateAgainstSchema(TilesSchema(), given, "output.tiles", &v.problems);
     v.tiles = io::WithDefaults(TilesSchema(), given);
+    // The cells against the Steiner spacing, when the job fixes it (else the run checks).
+    TilesOptions o;
+    if (spacing_known && v.tiles["size"].is_number() && v.tiles["size"].get<double>() > 0.0) {
+      o.size = v.tiles["size"].get<double>();
+      if (const std::string e = o.CheckSize(v.engine_options.steiner_spacing); !e.empty())
+        v.problems.push_back({"output.tiles.size", e});
+    }
   }
   ValidateStages(format, *registry, &v);
   return v;

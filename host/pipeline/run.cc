@@ -71,13 +71,19 @@ class SequenceRun {
 
   // Throws, naming the keyframe, file or stage, when the sequence fails.
   void Run() {
-    InstantiateStages();
-    OpenSource();
-    StartEngine();
-    StartStreamedSurface();
-    AddObservers();
-    ProcessKeyframes();
-    Finish();
+    try {
+      InstantiateStages();
+      OpenSource();
+      StartEngine();
+      StartStreamedSurface();
+      AddObservers();
+      ProcessKeyframes();
+      Finish();
+    } catch (const std::exception& e) {
+      // The tiles written stay (each whole); their tileset says the sequence failed.
+      if (tiles_) tiles_->MarkFailed(e.what());
+      throw;
+    }
   }
 
  private:
@@ -382,6 +388,9 @@ void SequenceRun::StartStreamedSurface() {
     if (const std::string foreign = ForeignTiles(out, job, seq_.name); !foreign.empty())
       throw std::runtime_error("tiles: " + foreign);
     TilesOptions o = tiles;
+    // The Steiner spacing as used is known now (auto scaling); the validation checked a fixed one.
+    if (const std::string e = o.CheckSize(engine_options_.steiner_spacing); !e.empty())
+      throw std::runtime_error("output.tiles.size: " + e);
     if (o.size == 0.0) o.size = 10.0 * engine_options_.steiner_spacing;
     auto frame = [this] {
       std::vector<std::array<double, 9>> rotations;

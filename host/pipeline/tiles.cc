@@ -1,8 +1,10 @@
 #include "host/pipeline/tiles.h"
 
 #include "host/util/input_file.h"
+#include "host/engine/mesh_topology.h"
 
 #include "host/eval/mesh_io.h"
+#include "host/io/schema.h"
 #include "host/pipeline/run.h"
 #include "host/util/atomic_file.h"
 #include "host/util/clock.h"
@@ -27,6 +29,17 @@ using nlohmann::json;
 namespace {
 
 constexpr int kChildrenPerNode = 8;  // the tileset's fan-out above the tiles
+constexpr int kMaxTreeDepth = 64;     // imr's trees are log8(tiles) + 2 deep
+constexpr double kTilesetSeconds = 5.0;  // tileset.json at least this often while tiles come
+
+// "tiles/tile_000012.glb" -> 12; 0 when `uri` is not a tile name of imr.
+int TileIndex(const std::string& uri) {
+  if (uri.rfind("tiles/", 0) != 0 || uri.size() != 21) return 0;
+  const std::string name = uri.substr(6);
+  static const std::regex kTile("tile_[0-9]{6}\\.glb");
+  if (!std::regex_match(name, kTile)) return 0;
+  return std::stoi(name.substr(5, 6));
+}
 
 bool IsTileName(const std::string& name) {
   static const std::regex kTile("tile_[0-9]{6}\\.glb");
@@ -37,6 +50,15 @@ std::string TileStem(int index) {
   char stem[32];
   std::snprintf(stem, sizeof(stem), "tile_%06d", index);
   return stem;
+}
+
+std::string TileUri(int index) { return "tiles/" + TileStem(index) + ".glb"; }
+
+// A number as a person writes it (1e-09, 0.5, 250), for messages.
+std::string Number(double x) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", x);
+  return text;
 }
 
 // The JSON chunk of a GLB file (its binary chunk is not read).
@@ -99,19 +121,30 @@ json BoxJson(const std::array<double, 6>& b) {
 
 std::string TilesOptions::Check() const {
   if (!std::isfinite(size) || size < 0.0) return "size: expected a length >= 0 (0: 10 x steiner_spacing)";
-  if (max_triangles < 1) return "max_triangles: expected >= 1";
+  if (max_triangles < kMinTileTriangles)
+    return "max_triangles: expected >= " + std::to_string(kMinTileTriangles) + ", got " +
+           std::to_string(max_triangles);
   if (idle_parts < 1) return "idle_parts: expected >= 1";
   return "";
+}
+
+std::string TilesOptions::CheckSize(double steiner_spacing) const {
+  if (size == 0.0 || !(steiner_spacing > 0.0) || size >= steiner_spacing) return "";
+  return "expected 0 (10 x engine.steiner_spacing) or a length >= engine.steiner_spacing as "
+         "used (" + Number(steiner_spacing) + "), got " + Number(size) + ": a smaller cell cuts the "
+         "surface into tiles of a triangle or two, each a file";
 }
 
 const json& TilesSchema() {
   static const json schema = {
       {"size", {{"type", "number"}, {"default", 0.0}, {"minimum", 0.0},
                 {"description", "side of the grid cells tiles are cut from (the sequence's units, "
-                                "metres); 0: 10 x the engine's steiner_spacing as used (50 m)"}}},
-      {"max_triangles", {{"type", "integer"}, {"default", 200000}, {"minimum", 1},
+                                "metres); 0: 10 x the engine's steiner_spacing as used (50 m); "
+                                "else at least steiner_spacing"}}},
+      {"max_triangles", {{"type", "integer"}, {"default", 200000}, {"minimum", kMinTileTriangles},
                          {"description", "a cell's tile is written once it holds this many triangles "
-                                         "(the cell then starts another)"}}},
+                                         "(the cell then starts another; at least 100: a tile is a "
+                                         "file and a viewer's request)"}}},
       {"idle_parts", {{"type", "integer"}, {"default", 2}, {"minimum", 1},
                       {"description", "a tile is written once this many parts of the surface in a "
                                       "row (the engine hands one out as the cameras move on) added "
@@ -139,8 +172,7 @@ std::string ForeignTiles(const fs::path& output_dir, const std::string& job, con
   if (has_tileset) {
     json j;
     try {
-      InputStream in(tileset, "a tileset.json of imr", InputRole::kOwnOutput);
-      j = json::parse(in);
+      j = ReadTilesetFile(tileset, InputRole::kOwnOutput);
     } catch (const std::exception&) {
     }
     const json* imr = nullptr;
@@ -175,19 +207,34 @@ TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json id
   if (const std::string e = options_.Check(); !e.empty()) throw std::invalid_argument("output.tiles." + e);
   if (!(options_.size > 0.0)) throw std::invalid_argument("output.tiles.size: 0 must be resolved first");
   EnsureWritableDirectory(tiles_dir_);
-  // An earlier run's tiles (this job's: ForeignTiles) and what a killed run left staged.
+  // An earlier run's tiles (this job's: ForeignTiles): those its tileset names and those it wrote
+  // after its last version, as `imr tiles merge` takes them; other files of tile names are not
+  // imr's and stay. What a killed run left staged goes too.
   std::vector<fs::path> old;
+  std::error_code ec;
+  if (fs::exists(tileset_path(), ec)) {
+    RunTiles earlier;
+    try {
+      earlier = ListRunTiles(output_dir_, ReadTilesetFile(tileset_path(), InputRole::kOwnOutput));
+    } catch (const std::runtime_error& e) {  // ReadTilesetFile's messages name the file already
+      const std::string what = e.what();
+      throw std::runtime_error(what.rfind(tileset_path().string(), 0) == 0 ? what
+                                                                           : tileset_path().string() + ": " + what);
+    }
+    for (const auto* list : {&earlier.named, &earlier.after})
+      for (const std::string& uri : *list)
+        if (fs::exists(fs::symlink_status(output_dir_ / uri, ec))) old.push_back(output_dir_ / uri);
+  }
   for (const auto& e : fs::directory_iterator(tiles_dir_)) {
     const std::string name = e.path().filename().string();
-    if (IsTileName(name) || name.rfind(".imr-staging-", 0) == 0) old.push_back(e.path());
+    if (name.rfind(".imr-staging-", 0) == 0) old.push_back(e.path());
   }
   for (const fs::path& p : old) {
-    std::error_code ec;
     fs::remove_all(p, ec);
     if (ec) throw std::runtime_error(p.string() + ": cannot remove an earlier run's tile: " + ec.message());
   }
   root_transform_ = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-  WriteTileset(false);
+  WriteTileset("running");
 }
 
 void TileWriter::Add(const engine::SurfacePart& part) {
@@ -232,14 +279,24 @@ void TileWriter::Finish() {
   for (auto& [cell, tile] : open_) Write(cell, tile);
   open_.clear();
   const auto start = std::chrono::steady_clock::now();
-  WriteTileset(true);
+  WriteTileset("complete");
   stats_.seconds += SecondsSince(start);
+}
+
+void TileWriter::MarkFailed(const std::string& error) noexcept {
+  try {
+    WriteTileset("failed", error);
+  } catch (...) {  // the last tileset.json stays ("running": not complete either)
+  }
 }
 
 void TileWriter::Write(const Cell& cell, OpenTile& t) {
   const auto start = std::chrono::steady_clock::now();
   if (!have_root_transform_ && root_transform_fn_) root_transform_ = root_transform_fn_();
   have_root_transform_ = true;
+  if (static_cast<int64_t>(written_.size()) >= kMaxTiles)
+    throw std::runtime_error("output.tiles: more than " + std::to_string(kMaxTiles) + " tiles, more "
+                             "than imr tiles merge reads: choose a larger size or max_triangles");
   TileMesh tile;
   tile.index = static_cast<int>(written_.size()) + 1;
   tile.origin = {(static_cast<double>(std::get<0>(cell)) + 0.5) * options_.size,
@@ -261,18 +318,28 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
     throw std::runtime_error(staged.string() + ": the exporter wrote the tile without `_VERTEX_KEY`: "
                              "tiles need an exporter that writes vertex keys (SDK 1.2; "
                              "org.imr.exporter.assimp 1.2 does), or they cannot be merged");
-  staging.Commit();
   const fs::path final_path = tiles_dir_ / (stem + ".glb");
+  // The earlier run's tiles are gone (the constructor): a file here is not imr's.
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(final_path, ec)))
+    throw std::runtime_error(final_path.string() + ": a file that no tileset of this run names is "
+                             "where imr writes tile " + std::to_string(tile.index) + ": imr would "
+                             "overwrite it; move it away");
+  staging.Commit();
   stats_.bytes += static_cast<int64_t>(fs::file_size(final_path));
   ++stats_.tiles;
   stats_.triangles += static_cast<int64_t>(tile.mesh.faces.size() / 3);
   stats_.vertices += static_cast<int64_t>(tile.keys.size());
   written_.push_back({"tiles/" + stem + ".glb", tile.box, static_cast<int64_t>(tile.mesh.faces.size() / 3)});
-  WriteTileset(false);
+  // Rewritten when the tiles since its last version are a quarter of those it names (or time
+  // has passed): O(1) bytes per tile in all, where every tile would make it O(tiles^2).
+  const std::size_t since = written_.size() - tileset_names_;
+  if (since >= std::max<std::size_t>(1, tileset_names_ / 4) || SecondsSince(tileset_time_) >= kTilesetSeconds)
+    WriteTileset("running");
   stats_.seconds += SecondsSince(start);
 }
 
-void TileWriter::WriteTileset(bool complete) {
+void TileWriter::WriteTileset(const std::string& state, const std::string& error) {
   struct Node {
     json j;
     std::array<double, 6> box;
@@ -307,7 +374,9 @@ void TileWriter::WriteTileset(bool complete) {
                {"children", json::array()}};
   for (Node& n : level) root["children"].push_back(std::move(n.j));
   json imr = identity_;
-  imr["complete"] = complete;
+  imr["complete"] = state == "complete";
+  imr["state"] = state;
+  if (!error.empty()) imr["error"] = JsonText(error);
   imr["tiles"] = written_.size();
   int64_t triangles = 0;
   for (const Written& w : written_) triangles += w.triangles;
@@ -316,7 +385,12 @@ void TileWriter::WriteTileset(bool complete) {
       {"asset", {{"version", "1.1"}, {"generator", std::string("imr ") + Version()}, {"extras", {{"imr", imr}}}}},
       {"geometricError", Diagonal(box)},
       {"root", root}};
-  WriteFileAtomically(tileset_path(), DumpJson(tileset, 1) + "\n");
+  const std::string text = DumpJson(tileset, 1) + "\n";
+  WriteFileAtomically(tileset_path(), text);
+  ++stats_.tileset_writes;
+  stats_.tileset_bytes += static_cast<int64_t>(text.size());
+  tileset_names_ = written_.size();
+  tileset_time_ = std::chrono::steady_clock::now();
 }
 
 std::vector<fs::path> TileWriter::files() const {
@@ -364,13 +438,90 @@ std::array<double, 9> TileGltfRotation() { return {1, 0, 0, 0, 0, 1, 0, -1, 0}; 
 
 std::vector<std::string> TileContentUris(const json& tile) {
   std::vector<std::string> out;
-  std::vector<const json*> todo = {&tile};
+  struct Todo {
+    const json* tile;
+    int depth;
+    std::string where;
+  };
+  std::vector<Todo> todo = {{&tile, 0, "root"}};
+  int64_t tiles = 0;
   while (!todo.empty()) {
-    const json* t = todo.back();
+    const Todo t = std::move(todo.back());
     todo.pop_back();
-    if (t->contains("content")) out.push_back(t->at("content").at("uri").get<std::string>());
-    if (t->contains("children"))
-      for (auto it = t->at("children").rbegin(); it != t->at("children").rend(); ++it) todo.push_back(&*it);
+    if (!t.tile->is_object())
+      throw std::runtime_error(t.where + ": expected a tile (an object), got " + io::Describe(*t.tile));
+    if (t.depth > kMaxTreeDepth)
+      throw std::runtime_error(t.where + ": the tree is more than " + std::to_string(kMaxTreeDepth) +
+                               " levels deep (imr's are a few)");
+    if (++tiles > 2 * kMaxTiles)
+      throw std::runtime_error("more than " + std::to_string(2 * kMaxTiles) + " tiles in the tree (a "
+                               "run of imr writes at most " + std::to_string(kMaxTiles) + ")");
+    if (const auto c = t.tile->find("content"); c != t.tile->end()) {
+      if (!c->is_object() || !c->contains("uri") || !(*c)["uri"].is_string())
+        throw std::runtime_error(t.where + ".content: expected {\"uri\": \"...\"}, got " + io::Describe(*c));
+      out.push_back((*c)["uri"].get<std::string>());
+      if (static_cast<int64_t>(out.size()) > kMaxTiles)
+        throw std::runtime_error("more than " + std::to_string(kMaxTiles) + " tiles (a run of imr "
+                                 "writes at most that many)");
+    }
+    if (const auto c = t.tile->find("children"); c != t.tile->end()) {
+      if (!c->is_array())
+        throw std::runtime_error(t.where + ".children: expected an array, got " + io::Describe(*c));
+      for (std::size_t k = c->size(); k-- > 0;)
+        todo.push_back({&(*c)[k], t.depth + 1, t.where + ".children[" + std::to_string(k) + "]"});
+    }
+  }
+  return out;
+}
+
+json ReadTilesetFile(const fs::path& path, InputRole role) {
+  std::error_code ec;
+  if (fs::status(path, ec).type() == fs::file_type::not_found)
+    throw std::runtime_error(path.string() + ": no such file: not the output folder of a run with "
+                             "tiles (a job with output.tiles writes one)");
+  // The open rule: a FIFO, a device (a link to /dev/zero) or a folder is refused by name.
+  InputFile file = InputFile::Open(path, "a tileset.json of imr", role);
+  if (file.size() > kMaxTilesetBytes)
+    throw std::runtime_error(path.string() + ": " + std::to_string(file.size()) + " bytes, more than the " +
+                             std::to_string(kMaxTilesetBytes >> 20) + " MiB a tileset of imr may have "
+                             "(at most " + std::to_string(kMaxTiles) + " tiles)");
+  // At most kMaxTilesetBytes + 1 bytes, whatever the size said (a file growing meanwhile).
+  const std::string text = file.ReadUpTo(kMaxTilesetBytes + 1);
+  if (text.size() > kMaxTilesetBytes)
+    throw std::runtime_error(path.string() + ": more than the " + std::to_string(kMaxTilesetBytes >> 20) +
+                             " MiB a tileset of imr may have");
+  try {
+    return json::parse(text);
+  } catch (const json::exception& e) {
+    throw std::runtime_error(path.string() + ": not JSON: " + e.what());
+  }
+}
+
+RunTiles ListRunTiles(const fs::path& run, const json& tileset) {
+  RunTiles out;
+  if (tileset.is_object() && tileset.contains("root")) out.named = TileContentUris(tileset["root"]);
+  std::set<int> named;
+  int highest = 0;
+  for (const std::string& uri : out.named) {
+    named.insert(TileIndex(uri));
+    highest = std::max(highest, TileIndex(uri));
+  }
+  std::set<int> on_disk;
+  std::error_code ec;
+  if (fs::is_directory(run / "tiles", ec))
+    for (const auto& e : fs::directory_iterator(run / "tiles", ec))
+      if (const int i = TileIndex("tiles/" + e.path().filename().string()); i > 0 && !named.count(i))
+        on_disk.insert(i);
+  // The writer numbers tiles 1, 2, ... and names them in order: what follows the highest it
+  // names without a gap was written after it.
+  int next = highest + 1;
+  for (int i : on_disk) {
+    if (i == next) {
+      out.after.push_back(TileUri(i));
+      ++next;
+    } else {
+      out.other.push_back(TileUri(i));
+    }
   }
   return out;
 }
@@ -380,53 +531,73 @@ std::vector<std::string> TileContentUris(const json& tile) {
 MergedTiles MergeTiles(const fs::path& run) {
   const fs::path tileset_path = run / "tileset.json";
   std::error_code ec;
-  if (!fs::is_directory(run, ec)) {
-    if (fs::exists(run, ec))
-      throw std::runtime_error(run.string() + ": is a file, not a run folder (name the output "
-                               "folder of a run with tiles, the one holding tileset.json)");
-    throw std::runtime_error(run.string() + ": no such folder");
-  }
-  if (!fs::exists(fs::symlink_status(tileset_path, ec)))
-    throw std::runtime_error(tileset_path.string() + ": no such file: not the output folder of a "
-                             "run with tiles (a job with output.tiles writes one)");
-  // The open rule: a FIFO or a device (a link to /dev/zero) is refused by name, not parsed.
-  InputStream in(tileset_path, "the tileset.json of a run with tiles");
-  json tileset;
-  try {
-    tileset = json::parse(in);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(tileset_path.string() + ": not JSON: " + e.what());
-  }
+  if (!fs::exists(run, ec)) throw std::runtime_error(run.string() + ": no such folder");
+  if (!fs::is_directory(run, ec))
+    throw std::runtime_error(run.string() + ": not a folder (imr tiles merge takes a run's output "
+                             "folder, the one holding tileset.json)");
+  const json tileset = ReadTilesetFile(tileset_path);
   MergedTiles out;
-  std::vector<std::string> uris;
+  RunTiles tiles;
+  int64_t count = 0;
+  std::string error;
   try {
-    out.complete = tileset.at("asset").at("extras").at("imr").value("complete", false);
-    uris = TileContentUris(tileset.at("root"));
-  } catch (const json::exception& e) {
+    const json& imr = tileset.at("asset").at("extras").at("imr");
+    if (!imr.is_object()) throw std::runtime_error("asset.extras.imr: expected an object");
+    out.complete = imr.value("complete", false);
+    out.state = imr.value("state", out.complete ? "complete" : "running");
+    error = imr.value("error", "");
+    if (!tileset.at("root").is_object())
+      throw std::runtime_error("root: expected a tile (an object), got " + io::Describe(tileset["root"]));
+    tiles = ListRunTiles(run, tileset);
+    count = imr.value("tiles", static_cast<int64_t>(tiles.named.size()));
+  } catch (const std::exception& e) {
     throw std::runtime_error(tileset_path.string() + ": not a tileset of imr (" + e.what() + ")");
   }
-  std::set<std::string> listed;
-  for (const std::string& uri : uris) {
+  std::set<int> listed;
+  for (const std::string& uri : tiles.named) {
     // The tileset names files: only imr's own tile names, inside the run's tiles/ folder.
-    if (uri.rfind("tiles/", 0) != 0 || !IsTileName(uri.substr(6)))
+    if (TileIndex(uri) == 0)
       throw std::runtime_error(tileset_path.string() + ": content uri '" + JsonText(uri) +
                                "' is not a tile of imr (tiles/tile_NNNNNN.glb)");
-    if (!listed.insert(uri).second)
+    if (!listed.insert(TileIndex(uri)).second)
       throw std::runtime_error(tileset_path.string() + ": tile " + uri + " is listed twice");
   }
-  // A killed run may have written tiles after its last tileset.json.
-  std::vector<std::string> extra;
-  if (fs::is_directory(run / "tiles", ec))
-    for (const auto& e : fs::directory_iterator(run / "tiles", ec)) {
-      const std::string name = e.path().filename().string();
-      if (IsTileName(name) && !listed.count("tiles/" + name)) extra.push_back("tiles/" + name);
-    }
-  std::sort(extra.begin(), extra.end());
-  if (!extra.empty())
-    out.notes.push_back(std::to_string(extra.size()) + " tile(s) not in tileset.json (written after "
-                        "its last version: the run was stopped), merged too");
-  uris.insert(uris.end(), extra.begin(), extra.end());
-  if (!out.complete)
+  // imr names tiles 1 .. `tiles` (asset.extras.imr): one not named is missing from the tileset.
+  for (int64_t i = 1; i <= std::min<int64_t>(count, kMaxTiles); ++i)
+    if (!listed.count(static_cast<int>(i)))
+      throw std::runtime_error(tileset_path.string() + ": does not name " + TileUri(static_cast<int>(i)) +
+                               ", tile " + std::to_string(i) + " of the " + std::to_string(count) +
+                               " it counts: a tile is missing from it (changed after the run?)");
+  if (static_cast<int64_t>(listed.size()) != count)
+    throw std::runtime_error(tileset_path.string() + ": names " + std::to_string(listed.size()) +
+                             " tiles, but counts " + std::to_string(count) + " (asset.extras.imr.tiles)");
+  for (const std::string& uri : tiles.named)
+    if (!fs::exists(fs::symlink_status(run / uri, ec)))
+      throw std::runtime_error((run / uri).string() + ": no such file: a tile tileset.json names is "
+                               "missing");
+  std::vector<std::string> uris = tiles.named;
+  // A stopped or failed run may have written tiles after its last tileset.json; a finished one
+  // names all of its own.
+  std::vector<std::string> left_out = tiles.other;
+  if (out.complete) {
+    left_out.insert(left_out.end(), tiles.after.begin(), tiles.after.end());
+  } else if (!tiles.after.empty()) {
+    out.notes.push_back(std::to_string(tiles.after.size()) + " tile(s) written after the last " +
+                        "tileset.json (" + tiles.after.front() +
+                        (tiles.after.size() > 1 ? " to " + tiles.after.back() : std::string()) +
+                        "), merged too");
+    uris.insert(uris.end(), tiles.after.begin(), tiles.after.end());
+  }
+  std::sort(left_out.begin(), left_out.end());
+  if (!left_out.empty())
+    out.notes.push_back(std::to_string(left_out.size()) + " file(s) of tile names in tiles/ that " +
+                        "this run's tileset does not count (" + left_out.front() +
+                        (left_out.size() > 1 ? ", ..." : "") + "): not its tiles, left out");
+  if (out.state == "failed")
+    out.notes.push_back("the run failed" + (error.empty() ? std::string() : " (" + error + ")") +
+                        ": the tileset is not complete (the surface it had not handed out is "
+                        "missing)");
+  else if (!out.complete)
     out.notes.push_back("the tileset is not complete: the run did not finish (the surface it had "
                         "not handed out yet is missing)");
   if (uris.empty()) throw std::runtime_error(tileset_path.string() + ": lists no tile");
@@ -468,6 +639,17 @@ MergedTiles MergeTiles(const fs::path& run) {
     ++out.tiles;
   }
   engine::CanonicalizeMesh(&m);
+  if (!out.complete) {
+    // A vertex whose fans the surface not yet written would have joined: one copy per fan.
+    const std::size_t before = m.point_ids.size();
+    engine::SplitPinchedVertices(&m);
+    out.vertices_kept_apart = static_cast<int64_t>(m.point_ids.size() - before);
+    if (out.vertices_kept_apart > 0)
+      out.notes.push_back(std::to_string(out.vertices_kept_apart) + " vertex cop" +
+                          (out.vertices_kept_apart == 1 ? "y" : "ies") + " made where the tiles "
+                          "written touch at a point only (the surface between them was not written): "
+                          "each fan its own vertex");
+  }
   return out;
 }
 

@@ -3,7 +3,11 @@
 // grid over the sequence's frame; a tile is written when it is full, when the surface has moved
 // on from it, or at the end, each as GLB through the job's exporter (the callback) into
 // <output>/tiles/ (staged, then renamed: a killed run keeps every finished tile and never a half
-// one under a final name), and <output>/tileset.json is rewritten (atomically) after each tile.
+// one under a final name), and <output>/tileset.json is rewritten (atomically) as tiles are
+// written: after each of the first few, then whenever the tiles written since its last version
+// are a quarter of those it names (or 5 s have passed), so the rewrites cost O(1) per tile however
+// many tiles a run writes; tiles written after the last version follow its numbers, and
+// MergeTiles takes them.
 //
 // Frames. Tile content is glTF, y-up; 3D Tiles is z-up and turns a glTF's +Y into +Z when it
 // loads it. A tile's GLB holds its vertices relative to the tile's origin (a grid cell's centre,
@@ -16,11 +20,14 @@
 // their seam vertices and merge without duplicates (MergeTiles).
 #pragma once
 
+#include "host/util/input_file.h"
+
 #include "host/engine/engine.h"
 
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -41,7 +48,17 @@ struct TilesOptions {
                                // to it (the surface has moved on)
   // Empty when usable, else which key and why.
   std::string Check() const;
+  // `size` against the Steiner spacing the run uses (a cell smaller than the surface's coarsest
+  // triangles makes tiles of a triangle or two, each a file): "" or why (the key is `size`).
+  std::string CheckSize(double steiner_spacing) const;
 };
+// A tile is a request of a 3D Tiles viewer and a file: fewer triangles cost more in requests and
+// files than they hold.
+inline constexpr int64_t kMinTileTriangles = 100;
+// What a run may write and `imr tiles merge` reads: at most this many tiles (about 40 MiB of
+// tileset.json) and a tileset.json of at most this many bytes.
+inline constexpr int64_t kMaxTiles = 100000;
+inline constexpr std::uintmax_t kMaxTilesetBytes = 64u << 20;
 TilesOptions TilesOptionsFromJson(const nlohmann::json& tiles);  // after validation
 // The JSON schema of "output.tiles" (for validation and `imr options`).
 const nlohmann::json& TilesSchema();
@@ -66,6 +83,8 @@ struct TilesStats {
   int64_t bytes = 0;         // of the tiles' GLB files
   int64_t open_tiles_peak = 0;
   double seconds = 0.0;      // writing tiles and the tileset (exporter included)
+  int64_t tileset_writes = 0;  // tileset.json versions written
+  int64_t tileset_bytes = 0;   // summed over them
 };
 
 // <output>/tileset.json and <output>/tiles/ are imr's (a tileset written for this sequence of
@@ -86,6 +105,10 @@ class TileWriter {
   void Add(const engine::SurfacePart& released);
   // Writes every open tile and the final tileset.json (asset.extras.imr.complete: true).
   void Finish();
+  // The sequence failed (`error`, after the tiles or during them): tileset.json names every tile
+  // written and says so (state "failed", complete false, the error). Best effort: when even that
+  // cannot be written (a full disk), the last tileset stays, which says "running". Never throws.
+  void MarkFailed(const std::string& error) noexcept;
 
   const TilesStats& stats() const { return stats_; }
   // Written so far: the tiles, then tileset.json.
@@ -106,7 +129,8 @@ class TileWriter {
     int64_t triangles = 0;
   };
   void Write(const Cell& cell, OpenTile& tile);
-  void WriteTileset(bool complete);
+  // state: "running", "complete" or "failed" (with error).
+  void WriteTileset(const std::string& state, const std::string& error = "");
 
   TilesOptions options_;
   std::filesystem::path output_dir_, tiles_dir_;
@@ -118,11 +142,30 @@ class TileWriter {
   std::map<Cell, OpenTile> open_;
   std::vector<Written> written_;
   int64_t parts_ = 0;
+  std::size_t tileset_names_ = 0;                        // tiles the last tileset.json names
+  std::chrono::steady_clock::time_point tileset_time_;   // when it was written
   TilesStats stats_;
 };
 
-// The content uris of a tileset's tile and its descendants, in tree order (depth first).
+// The content uris of a tileset's tile and its descendants, in tree order (depth first). Throws
+// std::runtime_error saying where the tree is not one of tiles (a tile not an object, children
+// not an array, a content without a string uri), is deeper than 64 or has more than kMaxTiles.
 std::vector<std::string> TileContentUris(const nlohmann::json& tile);
+
+// A tileset.json read with bounds: a regular file of at most kMaxTilesetBytes, JSON. Throws
+// std::runtime_error naming the file and what it is instead.
+nlohmann::json ReadTilesetFile(const std::filesystem::path& path,
+                               InputRole role = InputRole::kInput);
+
+// The tiles of a run as its tileset.json (`tileset`, read) says: those it names, then those a
+// killed or failed run wrote after its last version (tile files numbered on from the highest it
+// names, without a gap), and tile files in tiles/ that are neither (left alone: not the run's).
+struct RunTiles {
+  std::vector<std::string> named;  // "tiles/tile_NNNNNN.glb", in tree order
+  std::vector<std::string> after;  // written after the last tileset.json, in order
+  std::vector<std::string> other;  // tile names that are not the run's
+};
+RunTiles ListRunTiles(const std::filesystem::path& run_folder, const nlohmann::json& tileset);
 
 // The local frame (TileWriter's root transform) from keyframe camera rotations (world -> camera,
 // row-major): the cameras' mean up (-y axis) becomes +Z, their mean viewing direction +Y;
@@ -136,11 +179,18 @@ std::array<double, 9> TileGltfRotation();
 // last tileset.json, vertices merged by key (positions from the first tile naming a key), in
 // canonical order. Throws std::runtime_error naming the folder or file that cannot be read or
 // does not fit (no tileset, a tile without `_VERTEX_KEY`).
+// A run that did not finish leaves a part of the surface unwritten; where the tiles written so far
+// touch only at a vertex (its fans split between written tiles and the surface never written),
+// that vertex is kept apart, one copy per fan, so that what was written merges into a 2-manifold
+// with boundary (a finished tileset is merged as it is: such a vertex is a defect there).
 struct MergedTiles {
   engine::Mesh mesh;
   int tiles = 0;
   int64_t seam_vertices = 0;   // vertices named by more than one tile (merged)
+  int64_t vertices_kept_apart = 0;  // copies made for the fans of a vertex the unwritten
+                                    // surface would have joined (a run that did not finish)
   bool complete = false;       // the run finished its tileset (else it was killed or failed)
+  std::string state;           // "complete", "running" (killed while running) or "failed"
   std::vector<std::string> notes;
 };
 MergedTiles MergeTiles(const std::filesystem::path& run_folder);

@@ -14,6 +14,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <set>
 
 namespace imr::pipeline {
@@ -174,6 +175,144 @@ TEST(TileWriterTest, ForeignTilesAreNamed) {
   } catch (const std::exception& e) {
     EXPECT_NE(std::string(e.what()).find("tile_000001.glb"), std::string::npos) << e.what();
   }
+}
+
+// One triangle in cell (i, 0, 0) of 1 m cells: a part per tile with idle_parts 1.
+engine::SurfacePart OneTriangle(int i) {
+  engine::SurfacePart p;
+  const double x = i + 0.25;
+  p.vertices = {x, 0.25, 0.25, x + 0.5, 0.25, 0.25, x, 0.75, 0.25};
+  p.keys = {3 * i, 3 * i + 1, 3 * i + 2};
+  p.point_ids = {-1, -1, -1};
+  p.faces = {0, 1, 2};
+  return p;
+}
+
+// Issue 44, finding 10: tileset.json was rewritten (and synced) after every tile, O(tiles^2)
+// bytes. It is rewritten as the tiles it names grow by a quarter: a few dozen versions for 1,000
+// tiles, and in all a few times the last one's bytes; what a stop leaves follows its numbers.
+TEST(TileWriterTest, TheTilesetsRewriteCostIsBoundedPerTile) {
+  io::testing::TempDir dir("imr-tiles-rewrite");
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 1.0;
+  o.idle_parts = 1;
+  int exported = 0;
+  TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+                    [&](const TileMesh&, const fs::path& staging, const std::string& stem) {
+                      WriteStandInGlb(staging / (stem + ".glb"));
+                      ++exported;
+                    });
+  constexpr int kTiles = 1000;
+  for (int i = 0; i < kTiles; ++i) writer.Add(OneTriangle(i));
+  ASSERT_EQ(exported, kTiles - 1);  // the last one is still open
+  // As a stop now would leave it: the tileset names a prefix, the rest follow its numbers.
+  const json stopped = json::parse(std::ifstream(dir / "tileset.json"));
+  EXPECT_EQ(stopped["asset"]["extras"]["imr"]["state"], "running");
+  const RunTiles run = ListRunTiles(dir.path(), stopped);
+  EXPECT_GE(run.named.size(), static_cast<std::size_t>(kTiles * 3 / 4));
+  EXPECT_EQ(run.named.size() + run.after.size(), static_cast<std::size_t>(kTiles - 1));
+  EXPECT_TRUE(run.other.empty());
+  writer.Finish();
+  const std::uintmax_t last = fs::file_size(dir / "tileset.json");
+  EXPECT_EQ(writer.stats().tiles, kTiles);
+  EXPECT_LE(writer.stats().tileset_writes, 40) << "every tile rewrote it";
+  EXPECT_LE(writer.stats().tileset_bytes, static_cast<int64_t>(8 * last));
+  EXPECT_EQ(TileContentUris(json::parse(std::ifstream(dir / "tileset.json"))["root"]).size(),
+            static_cast<std::size_t>(kTiles));
+}
+
+// Issue 44, finding 10: options that make a tile of a triangle are refused, in the validation's
+// words.
+TEST(TileWriterTest, OptionsThatMakeTilesOfATriangleAreRefused) {
+  TilesOptions o;
+  o.enabled = true;
+  EXPECT_EQ(o.Check(), "");
+  o.max_triangles = 1;
+  EXPECT_EQ(o.Check(), "max_triangles: expected >= 100, got 1");
+  o.max_triangles = 100;
+  EXPECT_EQ(o.Check(), "");
+  EXPECT_EQ(o.CheckSize(5.0), "");  // 0: 10 x steiner_spacing
+  o.size = 1e-9;
+  EXPECT_EQ(o.CheckSize(5.0), "expected 0 (10 x engine.steiner_spacing) or a length >= "
+                              "engine.steiner_spacing as used (5), got 1e-09: a smaller cell cuts the "
+                              "surface into tiles of a triangle or two, each a file");
+  o.size = 5.0;
+  EXPECT_EQ(o.CheckSize(5.0), "");
+}
+
+// Issue 44, finding 14: a re-run removes the tiles the earlier tileset named and those its run
+// wrote after it (numbered on), not a file of a tile's name that neither is.
+TEST(TileWriterTest, AReRunRemovesOnlyTheEarlierRunsTiles) {
+  io::testing::TempDir dir("imr-tiles-rerun");
+  fs::create_directories(dir / "tiles");
+  std::ofstream(dir / "tileset.json") << R"({"asset": {"extras": {"imr": {"job": "/j.json",
+      "sequence": "street", "tiles": 2}}}, "root": {"children": [
+      {"content": {"uri": "tiles/tile_000001.glb"}}, {"content": {"uri": "tiles/tile_000002.glb"}}]}})";
+  for (const char* name : {"tile_000001.glb", "tile_000002.glb", "tile_000003.glb", "tile_555555.glb"})
+    std::ofstream(dir / "tiles" / name) << "glTF " << name;
+  ASSERT_EQ(ForeignTiles(dir.path(), "/j.json", "street"), "");
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 10;
+  TileWriter w(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+               [](const TileMesh&, const fs::path&, const std::string&) {});
+  for (const char* name : {"tile_000001.glb", "tile_000002.glb", "tile_000003.glb"})
+    EXPECT_FALSE(fs::exists(dir / "tiles" / name)) << name;
+  ASSERT_TRUE(fs::exists(dir / "tiles" / "tile_555555.glb"));
+  std::ifstream in(dir / "tiles" / "tile_555555.glb");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "glTF tile_555555.glb");
+}
+
+// Issue 44, finding 14: a file of a tile's name that no tileset of the run counts (kept by the
+// constructor) is never written over: the tile that would replace it fails, naming it.
+TEST(TileWriterTest, ATileIsNeverWrittenOverAFileItDidNotWrite) {
+  io::testing::TempDir dir("imr-tiles-in-the-way");
+  fs::create_directories(dir / "tiles");
+  std::ofstream(dir / "tileset.json") << R"({"asset": {"extras": {"imr": {"job": "/j.json",
+      "sequence": "street", "tiles": 1}}}, "root": {"content": {"uri": "tiles/tile_000001.glb"}}})";
+  std::ofstream(dir / "tiles" / "tile_000001.glb") << "the earlier run's";
+  std::ofstream(dir / "tiles" / "tile_000003.glb") << "mine";  // not numbered on from tile 1
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 1.0;
+  o.idle_parts = 1;
+  TileWriter w(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+               [](const TileMesh&, const fs::path& staging, const std::string& stem) {
+                 WriteStandInGlb(staging / (stem + ".glb"));
+               });
+  EXPECT_FALSE(fs::exists(dir / "tiles" / "tile_000001.glb"));
+  try {
+    for (int i = 0; i < 4; ++i) w.Add(OneTriangle(i));  // tiles 1, 2, then 3
+    ADD_FAILURE() << "tile 3 was written over the user's file";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("tile_000003.glb: a file that no tileset of this run names"),
+              std::string::npos) << e.what();
+  }
+  std::ifstream in(dir / "tiles" / "tile_000003.glb");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "mine");
+}
+
+// Issue 44, finding 13 and the minor `"root": null`: the tree is read with bounds and checked.
+TEST(TileWriterTest, ContentUrisOfATreeThatIsNotOneAreRefused) {
+  auto error = [](const json& root) {
+    try {
+      TileContentUris(root);
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(error(nullptr), "root: expected a tile (an object), got null");
+  EXPECT_EQ(error(json{{"children", 3}}), "root.children: expected an array, got 3");
+  EXPECT_EQ(error(json{{"children", {{{"content", "x"}}}}}),
+            "root.children[0].content: expected {\"uri\": \"...\"}, got \"x\"");
+  json deep = json::object();
+  for (int i = 0; i < 70; ++i) deep = json{{"children", {deep}}};
+  EXPECT_NE(error(deep).find("more than 64 levels deep"), std::string::npos) << error(deep);
+  json wide = {{"children", json::array()}};
+  for (int64_t i = 0; i <= kMaxTiles; ++i) wide["children"].push_back({{"content", {{"uri", "tiles/tile_000001.glb"}}}});
+  EXPECT_EQ(error(wide), "more than 100000 tiles (a run of imr writes at most that many)");
 }
 
 }  // namespace

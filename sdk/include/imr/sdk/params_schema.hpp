@@ -150,7 +150,15 @@ inline std::vector<ParamProblem> ValidateParams(const nlohmann::json& schema,
                              std::trunc(x) == x && std::abs(x) > INT32_MAX;
       const std::string hint =
           too_large ? " (a 32-bit integer, at most " + std::to_string(INT32_MAX) + ")" : "";
-      problems.push_back({name, "expected " + ExpectedValue(spec) + hint + got});
+      // A whole number written with a point or an exponent (1e9) is shown as an integer, not as
+      // the float it was read as (1000000000.0).
+      const bool whole = type == "integer" && v.is_number_float() && std::isfinite(x) &&
+                         std::trunc(x) == x && std::abs(x) < 1e15;
+      const std::string shown =
+          whole ? ", got " + std::to_string(static_cast<long long>(x)) +
+                      " written as a decimal number (an integer has no point or exponent)"
+                : got;
+      problems.push_back({name, "expected " + ExpectedValue(spec) + hint + shown});
       continue;
     }
     // Hosts and plugins read integers as int: a larger value would wrap silently.
