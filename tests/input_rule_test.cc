@@ -107,7 +107,8 @@ class InputRule : public ::testing::Test {
   }
   static fs::path FirstTile(const fs::path& run) {
     std::vector<fs::path> tiles;
-    for (const auto& e : fs::directory_iterator(run / "tiles")) tiles.push_back(e.path());
+    for (const auto& e : fs::directory_iterator(run / "tiles"))
+      if (e.path().filename().string().rfind("tile_", 0) == 0) tiles.push_back(e.path());
     std::sort(tiles.begin(), tiles.end());
     return tiles.empty() ? fs::path() : tiles.front();
   }

@@ -1,14 +1,14 @@
 #include "host/pipeline/tiles.h"
 
-#include "host/util/input_file.h"
 #include "host/engine/mesh_topology.h"
-
 #include "host/eval/mesh_io.h"
 #include "host/io/schema.h"
 #include "host/pipeline/run.h"
 #include "host/util/atomic_file.h"
 #include "host/util/clock.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
+#include "host/util/write_rule.h"
 
 #include <algorithm>
 #include <chrono>
@@ -230,8 +230,12 @@ TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json id
     if (name.rfind(".imr-staging-", 0) == 0) old.push_back(e.path());
   }
   for (const fs::path& p : old) {
-    fs::remove_all(p, ec);
-    if (ec) throw std::runtime_error(p.string() + ": cannot remove an earlier run's tile: " + ec.message());
+    if (p.filename().string().rfind(".imr-staging-", 0) == 0) {
+      fs::remove_all(p, ec);
+      if (ec) throw std::runtime_error(p.string() + ": cannot remove an earlier run's tile: " + ec.message());
+    } else if (std::string why; !RemoveWrittenFile(p, &why)) {  // the write rule's removal
+      throw WriteRefused(why + " (an earlier run's tile: imr removes only tiles it wrote)");
+    }
   }
   root_transform_ = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   WriteTileset("running");
@@ -480,7 +484,9 @@ json ReadTilesetFile(const fs::path& path, InputRole role) {
     throw std::runtime_error(path.string() + ": no such file: not the output folder of a run with "
                              "tiles (a job with output.tiles writes one)");
   // The open rule: a FIFO, a device (a link to /dev/zero) or a folder is refused by name.
-  InputFile file = InputFile::Open(path, "a tileset.json of imr", role);
+  InputFile file = InputFile::Open(
+      path, role == InputRole::kInput ? "the tileset.json of a run with tiles" : "a tileset.json of imr",
+      role);
   if (file.size() > kMaxTilesetBytes)
     throw std::runtime_error(path.string() + ": " + std::to_string(file.size()) + " bytes, more than the " +
                              std::to_string(kMaxTilesetBytes >> 20) + " MiB a tileset of imr may have "
@@ -533,8 +539,11 @@ MergedTiles MergeTiles(const fs::path& run) {
   std::error_code ec;
   if (!fs::exists(run, ec)) throw std::runtime_error(run.string() + ": no such folder");
   if (!fs::is_directory(run, ec))
-    throw std::runtime_error(run.string() + ": not a folder (imr tiles merge takes a run's output "
-                             "folder, the one holding tileset.json)");
+    throw std::runtime_error(run.string() +
+                             (fs::is_regular_file(run, ec) ? ": is a file, not a run folder"
+                                                           : ": is not a folder, not a run folder") +
+                             " (name the output folder of a run with tiles, the one holding "
+                             "tileset.json)");
   const json tileset = ReadTilesetFile(tileset_path);
   MergedTiles out;
   RunTiles tiles;

@@ -9,6 +9,7 @@
 #include "host/engine/testing/run_stream.h"
 #include "host/engine/testing/slice_parts.h"
 #include "host/io/testing/temp_dir.h"
+#include "host/util/atomic_file.h"
 
 #include <gtest/gtest.h>
 
@@ -141,10 +142,10 @@ TEST(TileWriterTest, ForeignTilesAreNamed) {
   io::testing::TempDir dir("imr-tiles-foreign");
   EXPECT_EQ(ForeignTiles(dir.path(), "/j.json", "street"), "");
   fs::create_directories(dir / "tiles");
-  std::ofstream(dir / "tiles" / "tile_000001.glb") << "x";
+  WriteFileAtomically(dir / "tiles" / "tile_000001.glb", "x");  // imr's (its ledger says so)
   EXPECT_NE(ForeignTiles(dir.path(), "/j.json", "street").find("tile_000001.glb: a tile with no tileset.json of imr"),
             std::string::npos);
-  std::ofstream(dir / "tileset.json") << R"({"asset": {"extras": {"imr": {"job": "/j.json", "sequence": "street"}}}})";
+  WriteFileAtomically(dir / "tileset.json", R"({"asset": {"extras": {"imr": {"job": "/j.json", "sequence": "street"}}}})");
   EXPECT_EQ(ForeignTiles(dir.path(), "/j.json", "street"), "");
   EXPECT_NE(ForeignTiles(dir.path(), "/other.json", "street").find("not a tileset imr wrote"), std::string::npos);
   EXPECT_NE(ForeignTiles(dir.path(), "/j.json", "room").find("not a tileset imr wrote"), std::string::npos);
@@ -246,11 +247,13 @@ TEST(TileWriterTest, OptionsThatMakeTilesOfATriangleAreRefused) {
 TEST(TileWriterTest, AReRunRemovesOnlyTheEarlierRunsTiles) {
   io::testing::TempDir dir("imr-tiles-rerun");
   fs::create_directories(dir / "tiles");
-  std::ofstream(dir / "tileset.json") << R"({"asset": {"extras": {"imr": {"job": "/j.json",
+  WriteFileAtomically(dir / "tileset.json", R"({"asset": {"extras": {"imr": {"job": "/j.json",
       "sequence": "street", "tiles": 2}}}, "root": {"children": [
-      {"content": {"uri": "tiles/tile_000001.glb"}}, {"content": {"uri": "tiles/tile_000002.glb"}}]}})";
-  for (const char* name : {"tile_000001.glb", "tile_000002.glb", "tile_000003.glb", "tile_555555.glb"})
-    std::ofstream(dir / "tiles" / name) << "glTF " << name;
+      {"content": {"uri": "tiles/tile_000001.glb"}}, {"content": {"uri": "tiles/tile_000002.glb"}}]}})");
+  // The earlier run's tiles are imr's (written through the write rule); tile_555555 is a user's.
+  for (const char* name : {"tile_000001.glb", "tile_000002.glb", "tile_000003.glb"})
+    WriteFileAtomically(dir / "tiles" / name, std::string("glTF ") + name);
+  std::ofstream(dir / "tiles" / "tile_555555.glb") << "glTF tile_555555.glb";
   ASSERT_EQ(ForeignTiles(dir.path(), "/j.json", "street"), "");
   TilesOptions o;
   o.enabled = true;
@@ -269,9 +272,9 @@ TEST(TileWriterTest, AReRunRemovesOnlyTheEarlierRunsTiles) {
 TEST(TileWriterTest, ATileIsNeverWrittenOverAFileItDidNotWrite) {
   io::testing::TempDir dir("imr-tiles-in-the-way");
   fs::create_directories(dir / "tiles");
-  std::ofstream(dir / "tileset.json") << R"({"asset": {"extras": {"imr": {"job": "/j.json",
-      "sequence": "street", "tiles": 1}}}, "root": {"content": {"uri": "tiles/tile_000001.glb"}}})";
-  std::ofstream(dir / "tiles" / "tile_000001.glb") << "the earlier run's";
+  WriteFileAtomically(dir / "tileset.json", R"({"asset": {"extras": {"imr": {"job": "/j.json",
+      "sequence": "street", "tiles": 1}}}, "root": {"content": {"uri": "tiles/tile_000001.glb"}}})");
+  WriteFileAtomically(dir / "tiles" / "tile_000001.glb", "the earlier run's");
   std::ofstream(dir / "tiles" / "tile_000003.glb") << "mine";  // not numbered on from tile 1
   TilesOptions o;
   o.enabled = true;

@@ -1,5 +1,7 @@
 #include "host/util/input_file.h"
 
+#include "host/util/write_rule.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -86,10 +88,8 @@ InputFile InputFile::Open(const fs::path& path, std::string_view what, InputRole
   // A regular file: reads end by themselves, so they may block again as usual.
   if (const int flags = ::fcntl(fd, F_GETFL); flags >= 0) ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
 
-  if (role == InputRole::kInput) {
-    // The write rule learns of every input here: imr::NoteInput(path, what)
-    // (host/util/write_rule.h) is called at this point once write_rule.cc lands.
-  }
+  // The write rule learns of every input here: what a run read is never what it writes.
+  if (role == InputRole::kInput) NoteInput(path, what);
   return InputFile(fd, path, std::string(what), static_cast<uint64_t>(st.st_size));
 }
 

@@ -72,11 +72,22 @@ bool Within(const fs::path& inner, const fs::path& outer) {
   return true;
 }
 
-// A folder of imr's own staging (StagingDirectory): everything in it is imr's.
+// Private folders of live scopes (InputScope::Private), resolved.
+std::vector<std::pair<uint64_t, fs::path>>& PrivateFolders() {
+  static std::vector<std::pair<uint64_t, fs::path>> folders;
+  return folders;
+}
+
+// A folder of imr's own staging (StagingDirectory) or a private one: everything in it is imr's.
 bool InStaging(const fs::path& target) {
   const fs::path parent = target.parent_path();
   for (const auto& part : parent)
     if (part.string().rfind(".imr-staging-", 0) == 0) return true;
+  std::lock_guard<std::mutex> lock(InputsMutex());
+  if (PrivateFolders().empty()) return false;
+  const fs::path resolved = Resolved(parent);
+  for (const auto& f : PrivateFolders())
+    if (Within(resolved, f.second)) return true;
   return false;
 }
 
@@ -318,6 +329,10 @@ InputScope::~InputScope() {
   inputs.erase(std::remove_if(inputs.begin(), inputs.end(),
                               [&](const Input& in) { return in.scope == id_; }),
                inputs.end());
+  auto& folders = PrivateFolders();
+  folders.erase(std::remove_if(folders.begin(), folders.end(),
+                               [&](const auto& f) { return f.first == id_; }),
+                folders.end());
   auto& claims = Claims();
   claims.erase(std::remove_if(claims.begin(), claims.end(),
                               [&](const auto& c) { return c.first == id_; }),
@@ -351,6 +366,13 @@ void AddInputTo(uint64_t scope, const fs::path& path, std::string_view what) {
 }  // namespace
 
 void InputScope::Add(const fs::path& path, std::string_view what) { AddInputTo(id_, path, what); }
+
+void InputScope::Private(const fs::path& folder) {
+  if (folder.empty()) return;
+  const fs::path resolved = Resolved(folder);
+  std::lock_guard<std::mutex> lock(InputsMutex());
+  PrivateFolders().emplace_back(id_, resolved);
+}
 
 void InputScope::Claim(const fs::path& path) {
   if (path.empty()) return;

@@ -50,6 +50,9 @@ class InputScope {
   // A file a record of imr names as this run's own output (the manifest of the same job and
   // sequence): replaceable whatever its bytes now are (a damaged output is redone).
   void Claim(const std::filesystem::path& path);
+  // A folder the command builds privately and puts in place whole by one rename (imr-synth's
+  // DIR.partial-<pid>), as a staging folder: what is written inside needs no check or record.
+  void Private(const std::filesystem::path& folder);
 
  private:
   uint64_t id_;

@@ -19,6 +19,7 @@
 #include "host/synthetic/stream.h"
 #include "host/synthetic/texture.h"
 #include "host/util/atomic_file.h"
+#include "host/util/write_rule.h"
 #include "tools/synth/raycaster.h"
 #include "tools/synth/renderer.h"
 
@@ -161,6 +162,10 @@ SynthResult GenerateSequence(const SynthOptions& o, std::ostream& log,
       if (armed) fs::remove_all(dir, e);
     }
   } guard{partial};
+  // imr's own folder until the rename puts it in place whole: no ledger of what is written in it
+  // (host/util/write_rule.h), so the sequence holds exactly its files.
+  InputScope private_folder;
+  private_folder.Private(partial);
   fs::remove_all(partial, ec);  // A leftover of an earlier process with our pid.
   const char* image_dir = o.color ? "image_2" : "image_0";
   std::vector<fs::path> dirs = {partial / image_dir, partial / "ground_truth"};
