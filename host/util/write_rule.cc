@@ -358,8 +358,12 @@ void AddInputTo(uint64_t scope, const fs::path& path, std::string_view what) {
     in.ino = st.st_ino;
   }
   std::lock_guard<std::mutex> lock(InputsMutex());
-  for (const Input& e : Inputs())
+  for (const Input& e : Inputs()) {
     if (e.scope == scope && e.resolved == in.resolved) return;
+    // A file inside a folder input is covered by it: a sequence's images are not kept one by
+    // one (a drive reads tens of thousands, and every write is checked against the list).
+    if (e.folder && !in.folder && Within(in.resolved, e.resolved)) return;
+  }
   Inputs().push_back(std::move(in));
 }
 

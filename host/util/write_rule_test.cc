@@ -202,5 +202,16 @@ TEST_F(WriteRule, ConcurrentWritersInOneFolderLoseNoClaim) {
       EXPECT_TRUE(WrittenByImr(dir_ / ("f" + std::to_string(t) + "_" + std::to_string(i))));
 }
 
+TEST_F(WriteRule, FilesReadInsideAnInputFolderAreCoveredByIt) {
+  fs::create_directories(dir_ / "seq" / "image_0");
+  InputScope inputs;
+  inputs.Add(dir_ / "seq", "the sequence");
+  for (int i = 0; i < 1000; ++i) NoteInput(dir_ / "seq" / "image_0" / (std::to_string(i) + ".png"), "an image");
+  EXPECT_NE(WhyNotWritable(dir_ / "seq" / "image_0" / "7.png").find("the sequence"), std::string::npos);
+  Write(dir_ / "other.png", "x");
+  NoteInput(dir_ / "other.png", "an image elsewhere");
+  EXPECT_NE(WhyNotWritable(dir_ / "other.png").find("an image elsewhere"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace imr
