@@ -132,6 +132,21 @@ fs::path LedgerOf(const fs::path& file) {
   return dir / kWriteLedgerName;
 }
 
+// Reads `size` bytes from the start of `fd` (pread: the position of an O_APPEND descriptor
+// does not matter); fewer when the file is shorter.
+std::string ReadFrom(int fd, std::size_t size) {
+  std::string text(size, '\0');
+  std::size_t got = 0;
+  while (got < text.size()) {
+    const ssize_t n = ::pread(fd, text.data() + got, text.size() - got, static_cast<off_t>(got));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  text.resize(got);
+  return text;
+}
+
 // The ledger's text, "" when there is none (or it is not a regular file, or absurdly large).
 std::string LedgerText(const fs::path& ledger) {
   std::string text;
@@ -143,15 +158,7 @@ std::string LedgerText(const fs::path& ledger) {
     while (::flock(fd, LOCK_SH) != 0 && errno == EINTR) {
     }
     ::fstat(fd, &st);
-    text.resize(static_cast<std::size_t>(st.st_size));
-    std::size_t got = 0;
-    while (got < text.size()) {
-      const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) break;
-      got += static_cast<std::size_t>(n);
-    }
-    text.resize(got);
+    text = ReadFrom(fd, static_cast<std::size_t>(st.st_size));
   }
   ::close(fd);
   return text;
@@ -252,14 +259,8 @@ void Compact(int fd, const fs::path& ledger) {
   // Read through the locked descriptor: another open of the file would wait for our own lock.
   struct stat st {};
   if (::fstat(fd, &st) != 0) return;
-  std::string text(static_cast<std::size_t>(st.st_size), '\0');
-  std::size_t got = 0;
-  while (got < text.size()) {
-    const ssize_t n = ::pread(fd, text.data() + got, text.size() - got, static_cast<off_t>(got));
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return;
-    got += static_cast<std::size_t>(n);
-  }
+  const std::string text = ReadFrom(fd, static_cast<std::size_t>(st.st_size));
+  if (text.size() != static_cast<std::size_t>(st.st_size)) return;  // not read whole: left as is
   const auto claims = ParseLedger(text);
   std::map<std::string, std::vector<Claim>> last;
   for (const auto& [name, c] : claims) {
