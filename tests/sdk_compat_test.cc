@@ -161,3 +161,41 @@ TEST_F(SdkCompat, ImageOutOfRangeIsAClearError) {
 
 }  // namespace
 }  // namespace imr::testing
+
+namespace imr::testing {
+namespace {
+
+// ABI 1.5 added a kind (dense) in the descriptor's reserved tail: a mesh refiner built against the
+// frozen 1.4 header (tests/sdk_1_4) still loads, listed with its ABI, and runs in the same job as
+// the 1.5 dense stage, whose points reach the engine beside the refiner's.
+TEST_F(SdkCompat, PluginBuiltAgainstAbi14RunsBesideTheDenseStage) {
+  const CommandResult plugins = RunShell(Quote(IMR_EXE) + " plugins -p " + Quote(IMR_SDK_TEST_PLUGIN_DIR));
+  ASSERT_EQ(plugins.status, 0) << plugins.err;
+  std::istringstream lines(plugins.out);
+  std::string line, listed, dense;
+  while (std::getline(lines, line)) {
+    if (line.find("org.imr.test.mesh_refiner.identity_sdk_1_4") != std::string::npos) listed = line;
+    if (line.find("org.imr.dense.patchmatch") != std::string::npos) dense = line;
+  }
+  EXPECT_NE(listed.find(" 1.4 "), std::string::npos) << "listed with ABI 1.4: " << plugins.out;
+  EXPECT_NE(dense.find("dense"), std::string::npos) << "the dense plugin, kind dense: " << plugins.out;
+
+  const CommandResult r = Run("abi14", {{{"kind", "dense"}, {"plugin", "org.imr.dense.patchmatch"}},
+                                        {{"kind", "mesh_refiner"}, {"plugin", "org.imr.test.mesh_refiner.identity_sdk_1_4"},
+                                         {"every_keyframes", 2}},
+                                        {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}},
+                              {"ply"});
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const json report = json::parse(ReadText(*dir_ / "abi14" / "report.json"));
+  const json& input = report["input"]["summary"];
+  ASSERT_TRUE(input.contains("dense_points")) << input.dump();
+  EXPECT_GT(input["dense_points"]["new"].get<int>(), 100) << "dense points reached the engine";
+  EXPECT_GT(input["seconds"]["dense"].get<double>(), 0.0);
+  // The dense points are in the mesh's vertices (their ids above 2^30, the refiner's below).
+  const int64_t inserted = report["engine"]["points_inserted"].get<int64_t>();
+  EXPECT_GT(inserted, input["dense_points"]["new"].get<int64_t>());
+  EXPECT_GT(report["mesh"]["faces"].get<int>(), 100);
+}
+
+}  // namespace
+}  // namespace imr::testing

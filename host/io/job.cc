@@ -273,7 +273,7 @@ void ParseStage(const json& v, std::size_t index, JobSpec* job, std::vector<Prob
 }  // namespace
 
 const std::vector<std::string>& StageKinds() {
-  static const std::vector<std::string> kinds = {"features", "refiner", "weight_policy",
+  static const std::vector<std::string> kinds = {"features", "refiner", "dense", "weight_policy",
                                                  "mesh_refiner", "exporter"};
   return kinds;
 }

@@ -24,7 +24,8 @@ inline constexpr double kMaxStageTimeoutSeconds = 365.0 * 24 * 3600;
 
 // One stage of the pipeline: a plugin of a given kind with its params.
 struct StageSpec {
-  std::string kind;       // "features", "refiner", "weight_policy", "mesh_refiner" or "exporter"
+  std::string kind;       // "features", "refiner", "dense", "weight_policy", "mesh_refiner"
+                           // or "exporter"
   std::string plugin;     // plugin id, e.g. "org.imr.policy.nearest"
   nlohmann::json params = nlohmann::json::object();  // as written in the job
   std::string json_path;  // "pipeline[2]", for messages

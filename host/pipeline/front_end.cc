@@ -193,6 +193,7 @@ bool ImageFrontEndSource::TrackFrame(TrackedFrame* out) {
                              " observations but no array");
   // The view is the plugin's until its next call, which may come before the refiner's.
   out->tracks.assign(tracks.observations, tracks.observations + tracks.count);
+  if (dense_ != nullptr) out->image = std::move(image);
   return true;
 }
 
@@ -241,7 +242,10 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     ++stats_.frames;
 
     update->cameras.push_back(ToEngineCamera(frame.camera));
-    if (!keyframe) continue;
+    if (!keyframe) {
+      if (dense_ != nullptr) AddDensePoints(tracked, update);
+      continue;
+    }
 
     for (uint64_t i = 0; i < out.new_count; ++i) {
       const imr_point_estimate& p = out.new_points[i];
@@ -263,6 +267,14 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     }
     update->removed_points.assign(out.removed_ids, out.removed_ids + out.removed_count);
     for (uint64_t id : update->removed_points) point_errors_.erase(id);
+    if (dense_ != nullptr) {
+      for (const engine::NewPoint& n : update->new_points)
+        if (n.id >= kDenseIdBase)
+          throw std::runtime_error("frame " + std::to_string(index) + ": refiner point id " +
+                                   std::to_string(n.id) + " is 2^23 or more: with a dense stage "
+                                   "the refiner's ids stay below 2^23 (the dense points' are above)");
+      AddDensePoints(tracked, update);
+    }
     stats_.new_points += static_cast<int64_t>(out.new_count);
     stats_.moved_points += static_cast<int64_t>(out.moved_count);
     stats_.removed_points += static_cast<int64_t>(out.removed_count);
@@ -271,6 +283,66 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     return true;
   }
   return false;
+}
+
+void ImageFrontEndSource::AddDensePoints(const TrackedFrame& tracked,
+                                         engine::KeyframeUpdate* update) {
+  const int index = static_cast<int>(tracked.index);
+  imr_image_view view{};
+  view.struct_size = sizeof(view);
+  view.width = tracked.image.width;
+  view.height = tracked.image.height;
+  view.channels = tracked.image.channels;
+  view.stride_bytes = tracked.image.stride_bytes;
+  view.pixels = tracked.image.pixels.data();
+  imr_dense_request request{};
+  request.camera = &tracked.camera;
+  request.image = &view;
+  request.is_keyframe = tracked.keyframe ? 1 : 0;
+  request.final_call = tracked.index + 1 == sequence_.frames.size() ? 1 : 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  imr_refiner_update out{};
+  try {
+    const auto call = Watched(watch_dense_);
+    out = dense_->AddDenseFrame(&request);
+  } catch (const std::exception& e) {
+    throw std::runtime_error("frame " + std::to_string(index) + " (" +
+                             sequence_.frames[tracked.index].image_path + "): " + e.what());
+  }
+  stats_.dense_seconds += SecondsSince(t0);
+  auto id_of = [&](uint64_t id) {
+    if (id >= kDenseIdBase)
+      throw std::runtime_error("frame " + std::to_string(index) + ": dense point id " +
+                               std::to_string(id) + " is 2^23 or more (plugin.h: a dense "
+                               "plugin's ids stay below 2^23)");
+    return id + kDenseIdBase;
+  };
+  if (!tracked.keyframe && (out.new_count > 0 || out.removed_count > 0))
+    throw std::runtime_error("frame " + std::to_string(index) + " (not a keyframe): the dense "
+                             "stage reported points (plugin.h: points come on keyframes only)");
+  if (out.moved_count > 0)
+    throw std::runtime_error("frame " + std::to_string(index) + ": the dense stage moved " +
+                             std::to_string(out.moved_count) + " points (plugin.h: a dense "
+                             "plugin reports new and removed points only)");
+  update->new_points.reserve(update->new_points.size() + out.new_count);
+  for (uint64_t i = 0; i < out.new_count; ++i) {
+    const imr_point_estimate& p = out.new_points[i];
+    engine::NewPoint n;
+    n.id = id_of(p.id);
+    n.position = {p.position[0], p.position[1], p.position[2]};
+    n.camera_ids = Slice(out, p);
+    for (uint64_t c : n.camera_ids)
+      if (c > tracked.index)
+        throw std::runtime_error("frame " + std::to_string(index) + ": dense point " +
+                                 std::to_string(p.id) + " is seen from camera " +
+                                 std::to_string(c) + ", not a frame given so far");
+    if (truth_) dense_errors_.push_back(truth_->scene.Distance(truth_->ToScene(n.position)));
+    update->new_points.push_back(std::move(n));
+  }
+  for (uint64_t i = 0; i < out.removed_count; ++i)
+    update->removed_points.push_back(id_of(out.removed_ids[i]));
+  stats_.dense_new_points += static_cast<int64_t>(out.new_count);
+  stats_.dense_removed_points += static_cast<int64_t>(out.removed_count);
 }
 
 const io::CameraGeometry* ImageFrontEndSource::Camera(uint64_t camera_id) const {
@@ -292,6 +364,18 @@ json ImageFrontEndSource::Summary() const {
   j["frames_per_second"] = {{"read_images", fps(s.read_seconds)},
                             {"features", fps(s.features_seconds)},
                             {"refiner", fps(s.refiner_seconds)}};
+  if (dense_ != nullptr) {
+    j["seconds"]["dense"] = s.dense_seconds;
+    j["dense_points"] = {{"new", s.dense_new_points}, {"removed", s.dense_removed_points}};
+    if (truth_ && !dense_errors_.empty()) {
+      std::vector<double> e = dense_errors_;
+      std::sort(e.begin(), e.end());
+      const auto at = [&](double q) { return e[static_cast<std::size_t>(q * (e.size() - 1))]; };
+      j["dense_points"]["error"] = {{"reference", "distance to the true synthetic surface, metres"},
+                                    {"median", at(0.5)}, {"p90", at(0.9)},
+                                    {"within_tau", static_cast<double>(std::lower_bound(e.begin(), e.end(), options_.tau) - e.begin()) / e.size()}};
+    }
+  }
   j["observations"] = s.observations;
   j["observations_per_frame"] = s.frames > 0 ? static_cast<double>(s.observations) / s.frames : 0.0;
   j["points"] = {{"new", s.new_points}, {"moved", s.moved_points}, {"removed", s.removed_points}};

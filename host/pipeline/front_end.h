@@ -64,6 +64,10 @@ struct FrontEndStats {
   int64_t removed_points = 0;
   // Tracks seen in a keyframe that are still seen keyframe_every frames later (the next
   // keyframe), summed over keyframe intervals; their ratio is the track survival.
+  // The dense stage (when the job has one): its time and points.
+  double dense_seconds = 0.0;
+  int64_t dense_new_points = 0;
+  int64_t dense_removed_points = 0;
   int64_t tracks_at_keyframes = 0;
   int64_t tracks_surviving_interval = 0;
 };
@@ -98,6 +102,16 @@ class ImageFrontEndSource : public io::KeyframeSource {
     watch_refiner_ = refiner;
   }
 
+  // A dense stage (optional; must outlive the source): called per frame after the refiner,
+  // with the frame's image; its points join the refiner's in the same update, their ids moved
+  // to [kDenseIdBase, 2 kDenseIdBase) so that the two plugins' ids never meet (2^23: both fit the
+  // 24-bit point-id channel of glTF exports).
+  void SetDense(const imr::sdk::Instance* dense, const WatchedStage* stage) {
+    dense_ = dense;
+    watch_dense_ = stage;
+  }
+  static constexpr uint64_t kDenseIdBase = uint64_t{1} << 23;
+
   // With track_ahead, the features plugin's calls run on `lane` (where its instance was made and
   // is destroyed: one thread per instance, as the SDK promises); must outlive the source.
   void TrackOn(Lane* lane) { track_lane_ = lane; }
@@ -112,6 +126,7 @@ class ImageFrontEndSource : public io::KeyframeSource {
     bool keyframe = false;
     imr_camera camera{};
     std::vector<imr_track_observation> tracks;  // a copy of the plugin's view
+    io::Image image;  // kept for the dense stage, when there is one
     double read_seconds = 0.0, features_seconds = 0.0;
   };
   bool IsKeyframe(int frame) const;
@@ -122,6 +137,8 @@ class ImageFrontEndSource : public io::KeyframeSource {
   std::pair<io::Image, double> ReadFrame(std::size_t index);
   std::optional<StageWatch::Call> Watched(const WatchedStage* stage);
   void TrackPointError(uint64_t id, const io::Vec3& position, bool is_new);
+  // The frame to the dense stage; on a keyframe its points into `update`.
+  void AddDensePoints(const TrackedFrame& tracked, engine::KeyframeUpdate* update);
 
   io::ImageSequence sequence_;
   const imr::sdk::Instance& features_;
@@ -130,6 +147,8 @@ class ImageFrontEndSource : public io::KeyframeSource {
   StageWatch* watch_ = nullptr;
   const WatchedStage* watch_features_ = nullptr;
   const WatchedStage* watch_refiner_ = nullptr;
+  const imr::sdk::Instance* dense_ = nullptr;
+  const WatchedStage* watch_dense_ = nullptr;
   Lane* track_lane_ = nullptr;
   FrontEndStats stats_;
   std::size_t next_frame_ = 0;     // frames through the refiner
@@ -147,6 +166,7 @@ class ImageFrontEndSource : public io::KeyframeSource {
     int moves = 0;
   };
   std::unordered_map<uint64_t, PointError> point_errors_;
+  std::vector<double> dense_errors_;  // synthetic truth only: each dense point's distance to it
   // track_ahead: TrackFrame on a thread of its own; declared last, so that its thread is joined
   // before anything it uses goes.
   std::unique_ptr<Prefetcher<TrackedFrame>> tracker_;

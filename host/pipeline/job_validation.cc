@@ -243,7 +243,7 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
     }
   }
   if (format != nullptr && !format->needs_front_end) {
-    for (const char* kind : {"features", "refiner"})
+    for (const char* kind : {"features", "refiner", "dense"})
       if (count[kind] > 0)
         v->problems.push_back({"pipeline", std::string("input format '") + format->name +
                                                "' delivers 3D points: a " + kind +
@@ -271,6 +271,9 @@ void ValidateStages(const io::InputFormat* format, const plugin::PluginRegistry&
                                            std::to_string(count["weight_policy"])});
   if (count["exporter"] == 0)
     v->problems.push_back({"pipeline", "no exporter stage: nothing would be written"});
+  if (count["dense"] > 1)
+    v->problems.push_back({"pipeline", "at most one dense stage, found " +
+                                           std::to_string(count["dense"])});
   if (count["mesh_refiner"] > 1)
     v->problems.push_back({"pipeline", "at most one mesh_refiner stage, found " +
                                            std::to_string(count["mesh_refiner"])});

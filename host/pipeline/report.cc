@@ -359,6 +359,7 @@ json BuildReport(const ReportInputs& in) {
     stages["read_images"] = fe.read_seconds;
     stages["features"] = fe.features_seconds;
     stages["refiner"] = fe.refiner_seconds;
+    if (fe.dense_seconds > 0.0) stages["dense"] = fe.dense_seconds;
   }
   stages["engine"] = in.engine_seconds;
   stages["export"] = in.export_seconds;

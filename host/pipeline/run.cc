@@ -63,7 +63,10 @@ class SequenceRun {
   ~SequenceRun() {
     prefetch_.reset();
     source_.reset();
-    if (refiner_lane_) refiner_lane_->Run([&] { refiner_.reset(); });
+    if (refiner_lane_) refiner_lane_->Run([&] {
+      dense_.reset();
+      refiner_.reset();
+    });
     if (features_lane_) features_lane_->Run([&] { features_.reset(); });
   }
   SequenceRun(const SequenceRun&) = delete;
@@ -124,6 +127,8 @@ class SequenceRun {
   std::optional<plugin::PluginWeightPolicy> policy_;
   Exporters exporters_;
   std::optional<plugin::LoadedInstance> features_, refiner_;
+  // The dense stage (optional): called by the front end after the refiner, on its lane.
+  std::optional<plugin::LoadedInstance> dense_;
   // The mesh_refiner stage (surface_refinement.h): during the run on its schedule, and at the end.
   std::optional<SurfaceRefinement> refinement_;
   // Every call into a plugin is watched against its stage's timeout: a hung plugin fails the
@@ -134,7 +139,7 @@ class SequenceRun {
   // The engine's work on one keyframe, watched under --stage-timeout too: a runaway update
   // (a grid or loop too large to finish) fails the sequence like a hung plugin.
   WatchedStage engine_stage_;
-  std::size_t policy_stage_ = 0, features_stage_ = 0, refiner_stage_ = 0;
+  std::size_t policy_stage_ = 0, features_stage_ = 0, refiner_stage_ = 0, dense_stage_ = 0;
 
   // The source.
   const io::InputFormat* format_ = nullptr;
@@ -279,10 +284,12 @@ void SequenceRun::InstantiateStages() {
         throw std::runtime_error(stage.json_path + " (" + stage.kind + "): " + e.what());
       }
     };
+    // The dense stage is called where the refiner is (the front end's keyframe loop).
     Lane* lane = !overlap_                  ? nullptr
                  : stage.kind == "features" ? &features_lane_.emplace()
-                 : stage.kind == "refiner"  ? &refiner_lane_.emplace()
-                                            : nullptr;
+                 : stage.kind == "refiner" || stage.kind == "dense"
+                     ? (refiner_lane_ ? &*refiner_lane_ : &refiner_lane_.emplace())
+                     : nullptr;
     if (lane != nullptr)
       lane->Run([&] {
         watch_.SetPosition("creating the plugin instances");
@@ -301,6 +308,9 @@ void SequenceRun::InstantiateStages() {
     } else if (stage.kind == "refiner") {
       refiner_.emplace(std::move(*instance));
       refiner_stage_ = i;
+    } else if (stage.kind == "dense") {
+      dense_.emplace(std::move(*instance));
+      dense_stage_ = i;
     } else if (stage.kind == "mesh_refiner") {
       refinement_.emplace(stage, std::move(*instance), watched_[i]);
     }
@@ -331,6 +341,7 @@ void SequenceRun::OpenSource() {
     auto fe = std::make_unique<ImageFrontEndSource>(std::move(images), features_->instance,
                                                     refiner_->instance, fo);
     fe->Watch(&watch_, &watched_[features_stage_], &watched_[refiner_stage_]);
+    if (dense_) fe->SetDense(&dense_->instance, &watched_[dense_stage_]);
     if (overlap_) fe->TrackOn(&*features_lane_);
     front_end_ = fe.get();
     source_ = std::move(fe);

@@ -18,6 +18,7 @@ inline const char* KindName(int32_t kind) {
     case IMR_KIND_WEIGHT_POLICY: return "weight_policy";
     case IMR_KIND_EXPORTER: return "exporter";
     case IMR_KIND_MESH_REFINER: return "mesh_refiner";
+    case IMR_KIND_DENSE: return "dense";
     default: return "unknown";
   }
 }
@@ -68,7 +69,8 @@ inline std::string CheckDescriptor(const imr_plugin_descriptor* d) {
     if (t->struct_size < min_size)
       return kind + " table is " + std::to_string(t->struct_size) + " bytes, expected at least " +
              std::to_string(min_size) + " (its ABI " +
-             (d->kind == IMR_KIND_MESH_REFINER ? "1.4" : "1.0") + " size)";
+             (d->kind == IMR_KIND_MESH_REFINER ? "1.4" : d->kind == IMR_KIND_DENSE ? "1.5" : "1.0") +
+             " size)";
     if (!complete) return kind + " table lacks its function";
     return {};
   };
@@ -90,6 +92,11 @@ inline std::string CheckDescriptor(const imr_plugin_descriptor* d) {
                std::to_string(IMR_DESCRIPTOR_SIZE_1_4);
       return table(d->mesh_refiner, IMR_MESH_REFINER_API_SIZE_1_4,
                    d->mesh_refiner && d->mesh_refiner->refine);
+    case IMR_KIND_DENSE:  // a kind of 1.5: its table is in the descriptor's 1.5 tail
+      if (d->struct_size < IMR_DESCRIPTOR_SIZE_1_5)
+        return "kind is dense (ABI 1.5) but the descriptor is " + std::to_string(d->struct_size) +
+               " bytes, expected at least " + std::to_string(IMR_DESCRIPTOR_SIZE_1_5);
+      return table(d->dense, IMR_DENSE_API_SIZE_1_5, d->dense && d->dense->add_frame);
     default: return "unknown plugin kind " + std::to_string(d->kind);
   }
 }
@@ -161,6 +168,13 @@ class Instance {
     request->struct_size = sizeof(imr_refine_request);
     *out = imr_refine_result{};
     Check(d_->mesh_refiner->refine(h_, request, out, &error_), "refine");
+  }
+  // add_frame of a dense plugin (since 1.5): the update is the plugin's, valid until its next call.
+  imr_refiner_update AddDenseFrame(imr_dense_request* request) const {
+    request->struct_size = sizeof(imr_dense_request);
+    imr_refiner_update out{};
+    Check(d_->dense->add_frame(h_, request, &out, &error_), "add_frame");
+    return out;
   }
   imr_refiner_update AddFrame(const imr_camera& camera, const imr_track_observation* obs,
                               uint64_t count, bool is_keyframe) const {

@@ -34,7 +34,8 @@
  *  weight_policy.transfer zero or more times; a mesh refiner's refine runs every N keyframes (the
  *  stage's every_keyframes) and once at the end, before the exports; exporters' export_mesh runs
  *  for snapshots and at the end, once per output format (each format through the first exporter
- *  stage that lists it). Then
+ *  stage that lists it); since ABI 1.5 a dense stage's add_frame runs per frame right after
+ *  the refiner's add_frame of each frame, before a keyframe's engine update. Then
  *  it destroys every instance it created, in no promised order, and only then unloads the library.
  *
  *  Threads. Every call on an instance (create, its calls, destroy) comes from one thread, and
@@ -90,7 +91,7 @@ extern "C" {
  * or newer than its own) and reads only the fields their struct_size covers, and a plugin does
  * the same with what the host passes. */
 #define IMR_ABI_MAJOR 1
-#define IMR_ABI_MINOR 4
+#define IMR_ABI_MINOR 5
 
 #define IMR_ENTRY_SYMBOL "imr_plugin_entry"
 
@@ -177,7 +178,8 @@ typedef enum imr_plugin_kind {
   IMR_KIND_REFINER = 2,       /* 2D tracks + cameras -> new / moved / removed 3D points */
   IMR_KIND_WEIGHT_POLICY = 3, /* removed cells' weights -> new cells' weights */
   IMR_KIND_EXPORTER = 4,      /* mesh -> files */
-  IMR_KIND_MESH_REFINER = 5   /* since ABI 1.4: mesh + keyframe images -> better vertex positions */
+  IMR_KIND_MESH_REFINER = 5,  /* since ABI 1.4: mesh + keyframe images -> better vertex positions */
+  IMR_KIND_DENSE = 6          /* since ABI 1.5: keyframe images + cameras -> many 3D points */
 } imr_plugin_kind;
 
 typedef struct imr_instance imr_instance; /* opaque; defined by each plugin */
@@ -464,6 +466,44 @@ typedef struct imr_mesh_refiner_api {
                        imr_refine_result* out, imr_error* error);
 } imr_mesh_refiner_api;
 
+/* --- dense (since ABI 1.5) ------------------------------------------------------------------ */
+/* Dense evidence from the keyframe images: per keyframe, depth for many pixels against its
+ * neighbouring keyframes (plane sweep, PatchMatch), kept where several views agree, handed to the
+ * host as 3D points with the keyframes that see them. The engine carves with them as with the
+ * refiner's points: each observing camera's ray to the point is free space. The plugin keeps the
+ * keyframes it needs (a window of its own), so its memory stays bounded on a long drive. */
+
+typedef struct imr_dense_request { /* growing; filled by the host */
+  uint32_t struct_size;
+  uint32_t reserved0;
+  const imr_camera* camera;    /* the frame's camera; its id is the frame index */
+  const imr_image_view* image; /* its image: 8-bit gray or BGR, the size of camera->width/height */
+  int32_t is_keyframe;         /* non-zero: a keyframe (points are reported on keyframes only) */
+  int32_t final_call;          /* non-zero: the sequence's last frame (report what is pending) */
+} imr_dense_request;
+
+typedef struct imr_dense_api {
+  uint32_t struct_size;
+  uint32_t reserved0;
+  /* Take one frame; on a keyframe, fill `out` with the points found since the last keyframe
+   * (new points with their observing frames; removed ids of the plugin's earlier points;
+   * moved_count 0); on other frames leave it empty. Keep the frames you need (a depth map of a
+   * keyframe is matched against frames on both sides of it, so its points come a few frames
+   * later, with the next keyframe).
+   * When: once per frame of an image input, in frame order, right after the refiner's add_frame
+   * of the same frame.
+   * Pre: *out is zeroed; the request and everything it points to are valid during the call only.
+   * Post: *out points into the plugin's storage, valid until its next call or destroy. Ids are the
+   * plugin's own (below 2^23: the host keeps them apart from the refiner's, which stay below it too,
+   * and both fit an exporter's 24-bit point-id channel), new ids are new,
+   * removed ids were reported new before, positions finite, every camera id a frame already
+   * given: the host checks and fails the sequence naming the point otherwise.
+   * Returns IMR_OK, or IMR_INVALID_ARGUMENT (a camera without intrinsics, an image of another
+   * size) / IMR_ERROR / IMR_CANCELLED with a message; each fails the sequence. */
+  imr_status (*add_frame)(imr_instance* instance, const imr_dense_request* request,
+                          imr_refiner_update* out, imr_error* error);
+} imr_dense_api;
+
 /* ------------------------------------------------------------------------------------------ */
 /* The descriptor                                                                              */
 
@@ -499,8 +539,9 @@ typedef struct imr_plugin_descriptor { /* growing; filled by the plugin */
    * and not called when the process is ended (see "The process may end during any call"). */
   void (*destroy)(imr_instance* instance);
 
-  /* Exactly one is non-NULL, matching `kind` (mesh_refiner, below, for a mesh refiner); its
-   * struct_size covers at least its ABI 1.0 size (1.4 for the mesh refiner's). */
+  /* Exactly one is non-NULL, matching `kind` (mesh_refiner and dense, below, for those kinds);
+   * its struct_size covers at least its ABI 1.0 size (1.4 for the mesh refiner's, 1.5 for the
+   * dense one's). */
   const imr_features_api* features;
   const imr_refiner_api* refiner;
   const imr_weight_policy_api* weight_policy;
@@ -508,8 +549,11 @@ typedef struct imr_plugin_descriptor { /* growing; filled by the plugin */
   /* --- since ABI 1.4: read only when struct_size covers it (a 1.0-1.3 plugin's reserved[0],
    * zero) --- */
   const imr_mesh_refiner_api* mesh_refiner;
+  /* --- since ABI 1.5: read only when struct_size covers it (a 1.0-1.4 plugin's reserved[0],
+   * zero) --- */
+  const imr_dense_api* dense;
 
-  void* reserved[7]; /* for future minor versions; zero */
+  void* reserved[6]; /* for future minor versions; zero */
 } imr_plugin_descriptor;
 
 /* The entry point every plugin library exports. Returns the index-th descriptor of the library,
@@ -545,6 +589,9 @@ typedef const imr_plugin_descriptor* (*imr_plugin_entry_fn)(uint32_t index);
 #define IMR_REFINE_REQUEST_SIZE_1_4 56
 #define IMR_REFINE_RESULT_SIZE_1_4 40
 #define IMR_MESH_REFINER_API_SIZE_1_4 16
+#define IMR_DESCRIPTOR_SIZE_1_5 112 /* up to dense: what a dense plugin's needs */
+#define IMR_DENSE_REQUEST_SIZE_1_5 32
+#define IMR_DENSE_API_SIZE_1_5 16
 
 /* Pin the layout: these offsets are the ABI. Changing one is an ABI major bump. Checked by C11
  * and C++ compilers alike. */
@@ -563,8 +610,12 @@ IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, create) == 48, "ABI: descripto
 IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, exporter) == 88, "ABI: descriptor layout");
 IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, mesh_refiner) == IMR_DESCRIPTOR_SIZE_1_0,
                   "ABI: descriptor 1.0 size");
-IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, reserved) == IMR_DESCRIPTOR_SIZE_1_4,
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, dense) == IMR_DESCRIPTOR_SIZE_1_4,
                   "ABI: descriptor 1.4");
+IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, reserved) == IMR_DESCRIPTOR_SIZE_1_5,
+                  "ABI: descriptor 1.5");
+IMR_STATIC_ASSERT(sizeof(imr_dense_request) == IMR_DENSE_REQUEST_SIZE_1_5, "ABI: dense request");
+IMR_STATIC_ASSERT(sizeof(imr_dense_api) == IMR_DENSE_API_SIZE_1_5, "ABI: dense table");
 IMR_STATIC_ASSERT(sizeof(imr_refine_request) == IMR_REFINE_REQUEST_SIZE_1_4, "ABI: refine request");
 IMR_STATIC_ASSERT(sizeof(imr_refine_result) == IMR_REFINE_RESULT_SIZE_1_4, "ABI: refine result");
 IMR_STATIC_ASSERT(sizeof(imr_mesh_refiner_api) == IMR_MESH_REFINER_API_SIZE_1_4,

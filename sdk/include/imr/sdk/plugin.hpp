@@ -14,7 +14,8 @@
 //   IMR_PLUGIN_EXPORT(MyPolicy)            // several classes: IMR_PLUGIN_EXPORT(A, B, C)
 //
 // A mesh refiner (since ABI 1.4) derives from imr::sdk::MeshRefiner and overrides Refine: see
-// plugins/refine_photometric in imr's source.
+// plugins/refine_photometric in imr's source. A dense plugin (since ABI 1.5) derives from
+// imr::sdk::Dense and overrides AddFrame: see plugins/dense_patchmatch.
 // An exporter overrides Export (geometry) or, since ABI 1.1, ExportMesh (the request with the
 // keyframe cameras; Host::GetKeyframeImage fetches their images): see the example
 // vertex_color_exporter (installed with the SDK in share/doc/imr_sdk/examples).
@@ -428,6 +429,31 @@ class MeshRefiner : public PluginBase {
   RefineResult result_;
 };
 
+// Dense (since 1.5): points from the images (plugin.h, "dense"), called per frame; keep the frames
+// you need yourself (copy: the image is valid during the call only). `update` is empty on entry;
+// on keyframes fill new_points (and removed_ids) with camera ids of frames already given; on
+// other frames the host ignores it.
+struct DenseRequest {
+  const imr_camera& camera;
+  const imr_image_view& image;
+  bool is_keyframe = false;
+  bool final_call = false;  // the last frame: report whatever is pending
+};
+class Dense : public PluginBase {
+ public:
+  static constexpr imr_plugin_kind kKind = IMR_KIND_DENSE;
+  virtual void AddFrame(const DenseRequest& request, RefinerUpdate* update) = 0;
+  // The C view of the call: by default, AddFrame into storage the wrapper keeps.
+  virtual void AddFrameC(const DenseRequest& request, imr_refiner_update* out) {
+    update_.Clear();
+    AddFrame(request, &update_);
+    *out = update_.View();
+  }
+
+ private:
+  RefinerUpdate update_;
+};
+
 // ---- the wrapper behind IMR_PLUGIN_EXPORT ----------------------------------------------------
 namespace detail {
 
@@ -628,6 +654,19 @@ imr_status RefineMesh(imr_instance* instance, const imr_refine_request* r, imr_r
 }
 
 template <typename T>
+imr_status AddDenseFrame(imr_instance* instance, const imr_dense_request* r, imr_refiner_update* out,
+                         imr_error* error) noexcept {
+  return Guard(error, [&] {
+    if (r == nullptr || out == nullptr || r->struct_size < IMR_DENSE_REQUEST_SIZE_1_5 ||
+        r->camera == nullptr || r->image == nullptr || r->image->pixels == nullptr)
+      throw InvalidArgument("add_frame: no camera, image or update, or a request too small");
+    *out = imr_refiner_update{};
+    static_cast<Dense*>(Self<T>(instance))
+        ->AddFrameC(DenseRequest{*r->camera, *r->image, r->is_keyframe != 0, r->final_call != 0}, out);
+  });
+}
+
+template <typename T>
 const imr_plugin_descriptor* DescriptorFor() noexcept {
   static_assert(std::is_base_of_v<PluginBase, T>, "a plugin class derives from an imr::sdk kind");
   static const imr_plugin_descriptor d = [] {
@@ -659,6 +698,9 @@ const imr_plugin_descriptor* DescriptorFor() noexcept {
     } else if constexpr (T::kKind == IMR_KIND_MESH_REFINER) {
       static const imr_mesh_refiner_api api{sizeof(api), 0, &RefineMesh<T>};
       x.mesh_refiner = &api;
+    } else if constexpr (T::kKind == IMR_KIND_DENSE) {
+      static const imr_dense_api api{sizeof(api), 0, &AddDenseFrame<T>};
+      x.dense = &api;
     }
     return x;
   }();
