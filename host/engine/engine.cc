@@ -627,7 +627,8 @@ std::vector<Point> SteinerGrid::NewPoints(const std::vector<Segment>& segments,
     walked += Visit({v[0], v[1], v[2]}, &fresh);
     if (walked >= next_poll) {
       next_poll = walked + 0x10000;
-      if (stop && stop()) throw Stopped("stopped on request while placing the Steiner grid's nodes");
+      if (stop && stop())
+        throw Stopped("stopped on request while placing the Steiner grid's nodes");
     }
   };
   for (const Segment& seg : segments) {
@@ -643,10 +644,11 @@ std::vector<Point> SteinerGrid::NewPoints(const std::vector<Segment>& segments,
       const double fa = std::floor(ua[d]), fb = std::floor(ub[d]);
       // Node numbers (with the margin) are exact integers in a double up to 2^53.
       if (!(std::abs(fa) < 0x1p52 && std::abs(fb) < 0x1p52))
-        throw std::runtime_error("a ray at " + std::to_string(d == 0 ? seg.b.x() : d == 1 ? seg.b.y() : seg.b.z()) +
-                                 " on axis " + std::to_string(d) +
+        throw std::runtime_error("a ray to " + std::to_string(seg.b[d]) + " on axis " +
+                                 std::to_string(d) +
                                  " is beyond the Steiner grid's node numbers (2^52 steps of "
-                                 "steiner_spacing " + std::to_string(s) + "): raise steiner_spacing");
+                                 "steiner_spacing " + std::to_string(s) +
+                                 "): raise steiner_spacing");
       v[d] = static_cast<int64_t>(fa);
       end[d] = static_cast<int64_t>(fb);
       steps += std::abs(end[d] - v[d]);
@@ -661,7 +663,8 @@ std::vector<Point> SteinerGrid::NewPoints(const std::vector<Segment>& segments,
     // when rounding would stop the walk short: steps bounds it.
     visit(v);
     for (int64_t n = 0; n < steps; ++n) {
-      int d = t_max[0] <= t_max[1] ? (t_max[0] <= t_max[2] ? 0 : 2) : (t_max[1] <= t_max[2] ? 1 : 2);
+      int d = t_max[0] <= t_max[1] ? (t_max[0] <= t_max[2] ? 0 : 2)
+                                   : (t_max[1] <= t_max[2] ? 1 : 2);
       if (v[d] == end[d]) {  // rounding: step on an axis that still has steps to go
         for (int e = 0; e < 3; ++e)
           if (v[e] != end[e]) d = e;

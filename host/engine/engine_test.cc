@@ -156,10 +156,11 @@ TEST(EngineTest, AStopRequestEndsTheUpdate) {
   EXPECT_EQ(polls, 3);
 }
 
-// Issue 47: a camera driving forward that sees a street only 70-100 m ahead (the lengths engine.scale
-// auto chose for tools/bench/far_ahead_street.py: max_ray_length 100). The grid covered a cube of
-// +-(max_ray_length + steiner_margin) around each camera: 537 Steiner points a point here, most of
-// them behind, beside and above the cameras where no ray goes. It follows the rays now.
+// Issue 47: a camera driving forward that sees a street only 70-100 m ahead (the lengths
+// engine.scale auto chose for tools/bench/far_ahead_street.py: max_ray_length 100). The grid
+// covered a cube of +-(max_ray_length + steiner_margin) around each camera: 537 Steiner points a
+// point here, most of them behind, beside and above the cameras where no ray goes. It follows
+// the rays now.
 class ForwardStreetTest : public ::testing::Test {
  protected:
   static constexpr double kHalfWidth = 6.0, kHeight = 8.0;
