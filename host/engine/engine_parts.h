@@ -172,6 +172,7 @@ struct PointRecord {
                                // camera's index + 1): a point named with the last `window`
                                // cameras may still move (Forgetting::Live).
   Vec3 position{};             // Latest estimate received.
+  Vec3 grid_end{};             // Where the Steiner grid last followed its window's rays to.
   std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
   // kExact, parallel to cameras: each ray's state, its generation (+1 at each un-cast: entries
   // made before are stale) << 2 with kCast (and kListed, see ray_list) while it is cast. One word
