@@ -231,6 +231,30 @@ TEST_F(ForwardStreetTest, TheGridFollowsTheRays) {
   EXPECT_TRUE(CheckMesh(m, false).ok);
 }
 
+TEST_F(ForwardStreetTest, AMovedPointsRaysReachNewSpaceOnceItMovesAQuarterStep) {
+  EngineOptions o = Options();
+  o.check_invariants = false;
+  Engine e(o, nullptr);
+  const KeyframeUpdate first = Update(1, 0.0, 1);
+  ASSERT_TRUE(e.ApplyUpdate(first).ok());
+  const NewPoint& p = first.new_points.front();  // on the left wall, 90 m ahead
+  const int64_t placed = e.Stats().steiner_points + e.Stats().steiner_dropped;
+  // A move of a tenth of a step: its rays are not followed again, nothing is placed.
+  KeyframeUpdate small;
+  small.moved_points.push_back({p.id, {p.position[0], p.position[1] - 0.5, p.position[2]}, {}});
+  ASSERT_TRUE(e.ApplyUpdate(small).ok());
+  EXPECT_EQ(e.Stats().steiner_points + e.Stats().steiner_dropped, placed);
+  // Moved 20 m out through the wall: its rays reach space no ray reached; the grid follows.
+  KeyframeUpdate far;
+  far.moved_points.push_back({p.id, {p.position[0], p.position[1] - 20.0, p.position[2]}, {}});
+  ASSERT_TRUE(e.ApplyUpdate(far).ok());
+  const int64_t now = e.Stats().steiner_points + e.Stats().steiner_dropped;
+  EXPECT_GT(now, placed);
+  bool beyond = false;
+  for (const Vec3& v : SteinerVertices(e)) beyond |= v[1] < -kHalfWidth - 11.0;
+  EXPECT_TRUE(beyond);
+}
+
 TEST_F(ForwardStreetTest, LaterRaysAddOnlyTheNodesTheyNewlyReach) {
   const EngineOptions o = Options();
   Engine whole(o, nullptr), split(o, nullptr);
