@@ -1762,11 +1762,12 @@ TEST_F(BadJob, SteinerGridThatWouldNeverEnd) {
 }
 
 TEST_F(BadJob, EngineUpdateThatRunsLong) {
-  // A grid within the bound that still takes seconds per camera (a 0.9 m spacing: a million
-  // Steiner points around the first): the engine's update is watched under --stage-timeout like
-  // a plugin call, and SIGTERM reaches its loops (it used to be ignored until the SIGKILL).
+  // A grid within the bound that still takes seconds per keyframe (a 0.45 m spacing: the grid
+  // follows the rays (issue 47), and along the first keyframe's it takes more than 4 s; 0.9 m
+  // took 1 s): the engine's update is watched under --stage-timeout like a plugin call, and
+  // SIGTERM reaches its loops (it used to be ignored until the SIGKILL).
   json j = GoodJob();
-  j["engine"]["steiner_spacing"] = 0.9;
+  j["engine"]["steiner_spacing"] = 0.45;
   WriteText(Case() / "job.json", j.dump(2));
   const CommandResult t = InCase("run job.json --stage-timeout 1");
   EXPECT_NE(t.status, 0) << t.out << t.err;

@@ -63,14 +63,14 @@ std::string ToString(LongRays rule);
 bool FromString(const std::string& s, LongRays* rule);
 
 // The most Steiner grid nodes around one camera that EngineOptions::CheckSteinerGrid accepts: the
-// grid covers each camera +- (max_ray_length + steiner_margin) in steps of steiner_spacing, and
-// each node becomes a vertex of the triangulation (a kilobyte or so). 1e7 nodes is a spacing of
+// grid covers a camera's rays, at most a cube of +-(max_ray_length + steiner_margin) in steps of
+// steiner_spacing; each node is a vertex of the triangulation (a kB or so). 1e7 nodes: a spacing of
 // 0.42 m at the default reach of 45 m; a reach of 1e12 m or a spacing of 1e-9 m would never end.
 inline constexpr double kMaxSteinerNodesPerCamera = 1e7;
 
 struct EngineOptions {
   double steiner_spacing = 5.0;       // Steiner grid step, metres (paper: 5 m).
-  double steiner_margin = 5.0;        // Grid covers each camera +- (max_ray_length + margin).
+  double steiner_margin = 5.0;        // Grid covers every ray +- margin (>= 1 step; issue 47).
   Vec3 steiner_origin = {0.37, 0.61, 0.23};  // Grid offset in units of spacing (off the axes
                                       // and the z = 0 plane where synthetic surfaces lie).
   double steiner_jitter = 1e-3;       // Each Steiner point moves off its grid node by up to this
@@ -168,8 +168,8 @@ struct EngineOptions {
   // at steps, so a longer one keeps more of them: four steps held ~15-40 MB more on the dense
   // street for ~10 % less forgetting time).
   double ForgetStep() const;
-  // Nodes of the Steiner grid within reach of one camera: a cube of
-  // 2 (max_ray_length + steiner_margin) / steiner_spacing + 2 nodes a side.
+  // Nodes of the Steiner grid one camera's rays can reach at most (rays in every direction): a
+  // cube of 2 (max_ray_length + steiner_margin) / steiner_spacing + 2 nodes a side.
   double SteinerNodesPerCamera() const;
   // Empty when that grid has at most kMaxSteinerNodesPerCamera nodes, else its size, the
   // memory it would take and the options to change. Apart from Check: the lengths a job gives

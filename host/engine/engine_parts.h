@@ -7,7 +7,7 @@
 //                     and the holes a change of the triangulation opens in them (ray_caster.cc)
 //   WeightTransfer    the weights of the cells a change makes, from those it destroys (§3.2)
 //   Carving           O, the outside cells: the manifold test, shrink, peel and grow (§2.2)
-//   SteinerGrid       the Steiner points around each camera
+//   SteinerGrid       the Steiner points along the rays
 //   MovePlanner       exact mode's moves planned on the thread pool and made in order
 //                     (move_planner.cc)
 //   Forgetting        long drives (EngineOptions::forget): what no live change can reach is
@@ -172,6 +172,7 @@ struct PointRecord {
                                // camera's index + 1): a point named with the last `window`
                                // cameras may still move (Forgetting::Live).
   Vec3 position{};             // Latest estimate received.
+  Vec3 grid_end{};             // Where the Steiner grid last followed its window's rays to.
   std::vector<uint32_t> cameras;  // Observing cameras (internal indices), oldest first.
   // kExact, parallel to cameras: each ray's state, its generation (+1 at each un-cast: entries
   // made before are stale) << 2 with kCast (and kListed, see ray_list) while it is cast. One word
@@ -823,31 +824,45 @@ class Carving {
 };
 
 // -------------------------------------------------------------------------------------------------
-// The Steiner grid: spacing steiner_spacing, covering every camera +- (max_ray_length + margin),
-// each point off its node by a deterministic jitter.
+// The Steiner grid: spacing steiner_spacing, placed only where the rays go (issue 47): the cells of
+// the grid (voxels between eight nodes) that a ray segment crosses, each with the nodes up to
+// ceil(steiner_margin / steiner_spacing) steps (at least one) beyond its corners, so every point
+// of a ray has nodes at least steiner_margin away on every side. Each point off its node by a
+// deterministic jitter. A node is placed once; later rays add the nodes they newly reach.
 class SteinerGrid {
  public:
   explicit SteinerGrid(const EngineOptions& opt) : opt_(opt) {}
-  // The grid's points within reach of a camera that were not placed before, in placement order.
-  // `stop` is polled as the nodes are walked (throws Stopped when it says so); throws
-  // std::runtime_error when the camera is too far from the origin for the grid's node numbers.
-  std::vector<Point> NewPoints(const Point& camera, const std::function<bool()>& stop);
-  // Bytes its record of placed nodes takes.
+  // A ray (or a camera's path) as the grid sees it: from a camera centre to the end it carves.
+  struct Segment {
+    Point a, b;
+  };
+  // The grid's points within reach of the segments that were not placed before, in the grid's
+  // order (by node numbers: the same names whatever order the segments come in). `stop` is
+  // polled as the voxels are walked (throws Stopped when it says so); throws std::runtime_error
+  // when a segment is too far from the origin for the grid's node numbers.
+  std::vector<Point> NewPoints(const std::vector<Segment>& segments,
+                               const std::function<bool()>& stop);
+  // Bytes its record of placed nodes and visited voxels takes.
   int64_t MemoryBytes() const {
-    return static_cast<int64_t>(nodes_.size() * (sizeof(Node) + 2 * sizeof(void*)) +
-                                nodes_.bucket_count() * sizeof(void*));
+    return static_cast<int64_t>(
+        (nodes_.size() + voxels_.size()) * (sizeof(Node) + 2 * sizeof(void*)) +
+        (nodes_.bucket_count() + voxels_.bucket_count()) * sizeof(void*));
   }
-  // forget: drops the record of the placed nodes for which gone(node position) holds (where
-  // everything is final: a camera that reaches there again finds its cells final and places
-  // nothing).
+  int64_t nodes() const { return static_cast<int64_t>(nodes_.size()); }
+  // forget: drops the record of the placed nodes (and visited voxels, by their first corner) for
+  // which gone(node position) holds (where everything is final: a ray that reaches there again
+  // finds its cells final and places nothing).
   void Forget(const std::function<bool(const Point&)>& gone);
 
  private:
-  // A node by its integer coordinates, exactly (packing them in 64 bits would alias nodes
-  // 2^21 steps apart).
+  // A node (or the voxel whose first corner it is) by its integer coordinates, exactly (packing
+  // them in 64 bits would alias nodes 2^21 steps apart).
   struct Node {
     int64_t i, j, k;
     bool operator==(const Node& o) const { return i == o.i && j == o.j && k == o.k; }
+    bool operator<(const Node& o) const {
+      return i != o.i ? i < o.i : j != o.j ? j < o.j : k < o.k;
+    }
   };
   struct NodeHash {
     size_t operator()(const Node& n) const {
@@ -857,8 +872,13 @@ class SteinerGrid {
       return static_cast<size_t>(h);
     }
   };
+  // The voxel a segment enters: its nodes and those within the margin, the new ones to `fresh`.
+  // Returns the nodes looked at.
+  int64_t Visit(const Node& voxel, std::vector<Node>* fresh);
+  Point NodePoint(const Node& n) const;
   const EngineOptions& opt_;
-  std::unordered_set<Node, NodeHash> nodes_;  // nodes placed
+  std::unordered_set<Node, NodeHash> nodes_;   // nodes placed
+  std::unordered_set<Node, NodeHash> voxels_;  // voxels a segment crossed (by first corner)
 };
 
 // Thrown from a long loop when the engine's stop check says so (Engine::SetStopCheck).
@@ -1112,7 +1132,8 @@ struct Engine::Impl {
   Vertex_handle InsertPoint(const Point& p, int64_t vertex_id, bool with_policy, bool* duplicate,
                             std::vector<RayEntry>* rays);
   void RemoveVertex(Vertex_handle v, std::vector<RayEntry>* rays);
-  void PlaceSteinerPoints(const Point& camera);
+  // The Steiner points the update's rays (and the new cameras' path) newly reach.
+  void PlaceSteinerPoints(const KeyframeUpdate& update, size_t first_new_camera);
   void TimedCast(uint32_t cam, uint32_t pt, int sign);
   void TimedRecast(std::vector<RayEntry> u, int64_t skip);
   void TimedScan(uint32_t pt);

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -129,8 +130,9 @@ TEST(EngineTest, SteinerNodesFarApartAreNotConfused) {
   o.regrow_radius = 0.0;
   Engine e(o, nullptr);
   ASSERT_TRUE(e.ApplyUpdate({{{1, {0.0, 0.0, 0.0}}}, {}, {}, {}}).ok());
+  // A camera without rays: its own voxel and one step around it (issue 47), 4^3 nodes.
   const int64_t first = e.Stats().steiner_points + e.Stats().steiner_dropped;
-  EXPECT_GT(first, 200);
+  EXPECT_EQ(first, 64);
   ASSERT_TRUE(e.ApplyUpdate({{{2, {2097152.0, 0.0, 0.0}}}, {}, {}, {}}).ok());  // 2^21 steps on
   EXPECT_EQ(e.Stats().steiner_points + e.Stats().steiner_dropped, 2 * first);
 }
@@ -138,14 +140,145 @@ TEST(EngineTest, SteinerNodesFarApartAreNotConfused) {
 TEST(EngineTest, AStopRequestEndsTheUpdate) {
   // A signal reaches the Steiner grid's loops (issue 36: SIGTERM waited for the forced kill).
   EngineOptions o;
-  o.steiner_spacing = 1.0;  // 92^3 nodes around the camera
+  o.steiner_spacing = 0.05;  // 20 rays of 100 steps, 64 nodes looked at a voxel: 3 polls at least
+  o.steiner_margin = 0.05;
+  o.max_ray_length = 5.0;
   Engine e(o, nullptr);
   int polls = 0;
   e.SetStopCheck([&] { return ++polls >= 3; });
-  const Status s = e.ApplyUpdate({{{1, {0.0, 0.0, 0.0}}}, {}, {}, {}});
+  KeyframeUpdate u;
+  u.cameras = {{1, {0.0, 0.0, 0.0}}};
+  for (uint64_t i = 0; i < 20; ++i)
+    u.new_points.push_back({i + 1, {-10.0 + 1.0 * static_cast<double>(i), 30.0, 1.0}, {1}});
+  const Status s = e.ApplyUpdate(u);
   EXPECT_FALSE(s.ok());
   EXPECT_EQ(s.message().rfind("stopped on request", 0), 0u) << s.message();
   EXPECT_EQ(polls, 3);
+}
+
+// Issue 47: a camera driving forward that sees a street only 70-100 m ahead (the lengths
+// engine.scale auto chose for tools/bench/far_ahead_street.py: max_ray_length 100). The grid
+// covered a cube of +-(max_ray_length + steiner_margin) around each camera: 537 Steiner points a
+// point here, most of them behind, beside and above the cameras where no ray goes. It follows
+// the rays now.
+class ForwardStreetTest : public ::testing::Test {
+ protected:
+  static constexpr double kHalfWidth = 6.0, kHeight = 8.0;
+  // Cameras 2 m apart from x = x0 on, the street's points from x0 + 90 m on, each seen from the
+  // cameras 70-100 m behind it.
+  static KeyframeUpdate Update(uint64_t first_camera, double x0, uint64_t first_point) {
+    KeyframeUpdate u;
+    for (int c = 0; c < 10; ++c)
+      u.cameras.push_back({first_camera + c, {x0 + 2.0 * c, 0.0, 1.5}});
+    uint64_t id = first_point;
+    auto add = [&](double x, double y, double z) {
+      NewPoint p{id++, {x, y, z}, {}};
+      for (const Camera& c : u.cameras)
+        if (x - c.center[0] >= 70.0 && x - c.center[0] <= 100.0) p.camera_ids.push_back(c.id);
+      if (p.camera_ids.size() >= 2) u.new_points.push_back(p);
+    };
+    for (double x = x0 + 90.0; x <= x0 + 118.0; x += 2.0) {
+      for (double z = 1.0; z < kHeight; z += 2.0) {
+        add(x, -kHalfWidth, z);
+        add(x + 1.0, kHalfWidth, z + 0.5);
+      }
+      for (double y = -4.0; y <= 4.0; y += 2.0) add(x + 0.5, y, 0.0);
+    }
+    return u;
+  }
+  static std::vector<Vec3> SteinerVertices(const Engine& e) {
+    std::vector<Vec3> out;
+    for (const auto& c : internal::EngineInternals::ProbeCells(e))
+      for (int i = 0; i < 4; ++i)
+        if (c.point_ids[i] < 0) out.push_back(c.vertices[i]);
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    return out;
+  }
+  EngineOptions Options() const {
+    EngineOptions o;
+    o.max_ray_length = 100.0;
+    o.check_invariants = true;
+    return o;
+  }
+};
+
+TEST_F(ForwardStreetTest, TheGridFollowsTheRays) {
+  const EngineOptions o = Options();
+  Engine e(o, nullptr);
+  const KeyframeUpdate u = Update(1, 0.0, 1);
+  ASSERT_TRUE(e.ApplyUpdate(u).ok());
+  const EngineStats& st = e.Stats();
+  ASSERT_GT(st.points_inserted, 150);
+  // Bounded by a multiple of the points (the cube placed 92,928 for 173 points; now 787).
+  EXPECT_LE(st.steiner_points + st.steiner_dropped, 10 * st.points_inserted);
+  // Every Steiner point is within the margin and a grid step (the voxel) of a ray: none behind
+  // the first camera, beside the street or above it beyond that.
+  const double reach = o.steiner_margin + o.steiner_spacing + 0.01 * o.steiner_spacing;
+  const std::vector<Vec3> steiner = SteinerVertices(e);
+  EXPECT_EQ(static_cast<int64_t>(steiner.size()), st.steiner_points);
+  for (const Vec3& p : steiner) {
+    EXPECT_GE(p[0], 0.0 - reach) << p[0] << " " << p[1] << " " << p[2];
+    EXPECT_LE(p[0], 119.0 + reach);
+    EXPECT_LE(std::abs(p[1]), kHalfWidth + reach);
+    EXPECT_GE(p[2], 0.0 - reach);
+    EXPECT_LE(p[2], kHeight + reach);
+  }
+  // The street is carved: a surface, manifold.
+  EXPECT_TRUE(e.CheckInvariants().ok) << e.CheckInvariants().message;
+  const Mesh m = e.ExtractMesh();
+  EXPECT_GT(m.faces.size(), 0u);
+  EXPECT_TRUE(CheckMesh(m, false).ok);
+}
+
+TEST_F(ForwardStreetTest, AMovedPointsRaysReachNewSpaceOnceItMovesAQuarterStep) {
+  EngineOptions o = Options();
+  o.check_invariants = false;
+  Engine e(o, nullptr);
+  const KeyframeUpdate first = Update(1, 0.0, 1);
+  ASSERT_TRUE(e.ApplyUpdate(first).ok());
+  const NewPoint& p = first.new_points.front();  // on the left wall, 90 m ahead
+  const int64_t placed = e.Stats().steiner_points + e.Stats().steiner_dropped;
+  // A move of a tenth of a step: its rays are not followed again, nothing is placed.
+  KeyframeUpdate small;
+  small.moved_points.push_back({p.id, {p.position[0], p.position[1] - 0.5, p.position[2]}, {}});
+  ASSERT_TRUE(e.ApplyUpdate(small).ok());
+  EXPECT_EQ(e.Stats().steiner_points + e.Stats().steiner_dropped, placed);
+  // Moved 20 m out through the wall: its rays reach space no ray reached; the grid follows.
+  KeyframeUpdate far;
+  far.moved_points.push_back({p.id, {p.position[0], p.position[1] - 20.0, p.position[2]}, {}});
+  ASSERT_TRUE(e.ApplyUpdate(far).ok());
+  const int64_t now = e.Stats().steiner_points + e.Stats().steiner_dropped;
+  EXPECT_GT(now, placed);
+  bool beyond = false;
+  for (const Vec3& v : SteinerVertices(e)) beyond |= v[1] < -kHalfWidth - 11.0;
+  EXPECT_TRUE(beyond);
+}
+
+TEST_F(ForwardStreetTest, LaterRaysAddOnlyTheNodesTheyNewlyReach) {
+  const EngineOptions o = Options();
+  Engine whole(o, nullptr), split(o, nullptr);
+  KeyframeUpdate both = Update(1, 0.0, 1);
+  const KeyframeUpdate later = Update(101, 20.0, 10001);
+  both.cameras.insert(both.cameras.end(), later.cameras.begin(), later.cameras.end());
+  both.new_points.insert(both.new_points.end(), later.new_points.begin(), later.new_points.end());
+  ASSERT_TRUE(whole.ApplyUpdate(both).ok());
+  ASSERT_TRUE(split.ApplyUpdate(Update(1, 0.0, 1)).ok());
+  const int64_t first = split.Stats().steiner_points + split.Stats().steiner_dropped;
+  ASSERT_TRUE(split.ApplyUpdate(later).ok());
+  const int64_t second = split.Stats().steiner_points + split.Stats().steiner_dropped - first;
+  // The second keyframe's rays overlap the first's: it adds nodes, fewer than it would alone,
+  // and each node once: the same nodes as the two keyframes at once.
+  Engine alone(o, nullptr);
+  ASSERT_TRUE(alone.ApplyUpdate(later).ok());
+  EXPECT_GT(second, 0);
+  EXPECT_LT(second, alone.Stats().steiner_points + alone.Stats().steiner_dropped);
+  EXPECT_EQ(first + second, whole.Stats().steiner_points + whole.Stats().steiner_dropped);
+  // Deterministic: the same keyframes, the same cells and weights.
+  Engine again(o, nullptr);
+  ASSERT_TRUE(again.ApplyUpdate(Update(1, 0.0, 1)).ok());
+  ASSERT_TRUE(again.ApplyUpdate(later).ok());
+  EXPECT_EQ(again.CellWeights(), split.CellWeights());
 }
 
 // A tiny hand-made scene: a camera, a wall of points at y = 10 seen from it.

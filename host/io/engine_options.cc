@@ -69,7 +69,8 @@ std::vector<EngineOption> MakeTable() {
       Option("steiner_spacing", &E::steiner_spacing, Min(1e-9), "m",
              "Steiner grid step (paper: 5 m)"),
       Option("steiner_margin", &E::steiner_margin, Min(0.0), "m",
-             "grid covers each camera +- (max_ray_length + margin)"),
+             "the grid covers every ray (and each camera's step) with this much of it on every side "
+             "(at least one step of steiner_spacing)"),
       Option("w1", &E::w1, Min(0.0), "", "weight added to cells a ray traverses"),
       Option("w2", &E::w2, Min(0.0), "", "weight added to their neighbours"),
       Option("w3", &E::w3, Min(0.0), "", "weight added to the neighbours' neighbours"),

@@ -166,6 +166,24 @@ std::string ForgettingWarning(const engine::EngineStats& s, const engine::Engine
          "longer, and engine.forget false keeps every place (memory grows with the drive)";
 }
 
+std::string SteinerGridWarning(const engine::EngineStats& s, const engine::EngineOptions& o) {
+  const int64_t points = s.points_inserted + s.points_reentered;
+  if (s.steiner_points < kSteinerWarnFloor ||
+      static_cast<double>(s.steiner_points) <= kSteinerWarnRatio * static_cast<double>(points))
+    return {};
+  char text[640];
+  std::snprintf(text, sizeof text,
+                "the Steiner grid has %lld points for %lld data points (%.0f a point; more than "
+                "%.0f makes the run slow and large): the grid covers every ray (up to "
+                "max_ray_length %.6g) and steiner_margin %.6g around it in steps of "
+                "steiner_spacing %.6g; a larger engine.steiner_spacing (or a smaller "
+                "engine.steiner_margin or engine.max_ray_length) makes it smaller",
+                static_cast<long long>(s.steiner_points), static_cast<long long>(points),
+                static_cast<double>(s.steiner_points) / static_cast<double>(std::max<int64_t>(points, 1)),
+                kSteinerWarnRatio, o.max_ray_length, o.steiner_margin, o.steiner_spacing);
+  return text;
+}
+
 json EngineStatsJson(const engine::EngineStats& s) {
   const auto& t = s.time;
   // Every counter engine::EngineStats keeps (REPORT.md lists them).

@@ -49,6 +49,16 @@ bool MostPointsRefused(const engine::EngineStats& stats);
 // was refused or ignored (or forgetting is off).
 std::string ForgettingWarning(const engine::EngineStats& stats, const engine::EngineOptions& options);
 
+// The Steiner grid follows the rays (a margin around each), so it grows with the points and
+// their rays; a grid step far below the scene's scale still makes it outgrow them, and with it
+// the run's time and memory (about 1.1 kB a Steiner point). Said, with the options to change, when
+// it holds more than kSteinerWarnRatio Steiner points a data point and at least
+// kSteinerWarnFloor of them (a small scene's grid costs little whatever the ratio). Empty
+// otherwise.
+inline constexpr double kSteinerWarnRatio = 20.0;
+inline constexpr int64_t kSteinerWarnFloor = 100000;
+std::string SteinerGridWarning(const engine::EngineStats& stats, const engine::EngineOptions& options);
+
 // What the report is made of, gathered by the run (host/pipeline/run.cc) as it goes.
 struct ReportInputs {
   const ValidatedJob* job = nullptr;

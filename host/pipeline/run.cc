@@ -697,6 +697,7 @@ void SequenceRun::WarnAbout() {
     }
   }
   if (const std::string w = ForgettingWarning(stats, engine_options_); !w.empty()) Warn(w);
+  if (const std::string w = SteinerGridWarning(stats, engine_options_); !w.empty()) Warn(w);
   if (MostPointsRefused(stats))
     if (const std::string w = RefusedPointsWarning(stats, mesh_ ? *mesh_ : WholeMesh()); !w.empty())
       Warn(w);

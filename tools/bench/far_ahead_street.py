@@ -4,10 +4,13 @@
 Writes a COLMAP model of a camera driving forward down a street 12 units wide (walls 8 high at
 y = +-6, the ground at z = 0) that sees it only 70-100 units ahead, meshes it with `imr mesh`
 twice: as `auto` chooses and with the lengths the rays alone ask for (scale 5), and prints the
-time, the chosen grid and the share of the mesh's area within 0.5 of a wall or the ground (a
-slab around the points scores low).
+time, the chosen grid, the Steiner points against the model's points, the peak RSS and the share
+of the mesh's area within 0.5 of a wall or the ground (a slab around the points scores low).
+With --before OTHER_IMR (another build, e.g. of the commit before a change) each row is run with
+both and printed side by side, and the issue 47 targets (Steiner points <= 10x the points, wall
+<= 5 s, peak RSS <= 300 MB, auto's lengths) are checked for --imr.
 
-  tools/bench/far_ahead_street.py --imr build/bin/imr [--images 177 --points 4217] [--work DIR]
+  tools/bench/far_ahead_street.py --imr build/bin/imr [--before OTHER_IMR] [--images 177 --points 4217] [--work DIR]
 """
 import argparse, json, math, os, random, struct, subprocess, sys, tempfile, time
 
@@ -100,6 +103,7 @@ def near_share(path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--imr", required=True)
+    ap.add_argument("--before", help="another imr to run beside it (today's build, before a change)")
     ap.add_argument("--images", type=int, default=177)
     ap.add_argument("--step", type=float, default=0.5, help="distance between images")
     ap.add_argument("--points", type=int, default=4217)
@@ -109,22 +113,34 @@ def main():
     model = os.path.join(work, "model")
     write_model(model, a.images, a.step, a.points)
     print(f"model: {model} ({a.images} images {a.step} apart, {a.points} points 70-100 ahead)")
-    print("| lengths | seconds | steiner_spacing | max_ray_length | decided by | faces | area within 0.5 of a wall or the ground |")
-    print("|---|---|---|---|---|---|---|")
+    builds = [("before", a.before), ("now", a.imr)] if a.before else [("now", a.imr)]
+    print("| lengths | build | seconds | peak RSS MB | Steiner points | a point | steiner_spacing | "
+          "max_ray_length | decided by | faces | area within 0.5 of a wall or the ground |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    missed = []
     for name, sets in (("auto", {}), ("the rays alone (scale 5)", RAYS_ALONE)):
-        out = os.path.join(work, ("auto" if not sets else "rays") + ".ply")
-        cmd = [a.imr, "mesh", "-q", "--force", "--input", model, "--format", "colmap", "--out", out]
-        for k, v in sets.items():
-            cmd += ["--set", f"engine.{k}={v}"]
-        t0 = time.time()
-        subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
-        seconds = time.time() - t0
-        report = json.load(open(os.path.join(os.path.splitext(out)[0] + ".imr", "mesh", "report.json")))
-        o, s = report["engine_options"], report["engine_scale"]
-        faces, share = near_share(out)
-        print(f"| {name} | {seconds:.1f} | {o['steiner_spacing']:g} | {o['max_ray_length']:g} | "
-              f"{s['decided_by'] if not sets else 'the job'} | {faces} | {share:.3f} |")
-
+        for build, imr in builds:
+            out = os.path.join(work, ("auto" if not sets else "rays") + f"-{build}.ply")
+            cmd = [imr, "mesh", "-q", "--force", "--input", model, "--format", "colmap", "--out", out]
+            for k, v in sets.items():
+                cmd += ["--set", f"engine.{k}={v}"]
+            t0 = time.time()
+            subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
+            seconds = time.time() - t0
+            report = json.load(open(os.path.join(os.path.splitext(out)[0] + ".imr", "mesh", "report.json")))
+            o, s, e = report["engine_options"], report["engine_scale"], report["engine"]
+            rss = report.get("memory", {}).get("peak_rss_bytes", 0) / 2**20
+            steiner = e["steiner_points"] + e.get("steiner_dropped", 0)
+            faces, share = near_share(out)
+            print(f"| {name} | {build} | {seconds:.1f} | {rss:.0f} | {steiner} | {steiner / a.points:.1f} | "
+                  f"{o['steiner_spacing']:g} | {o['max_ray_length']:g} | "
+                  f"{s['decided_by'] if not sets else 'the job'} | {faces} | {share:.3f} |")
+            if build == "now" and not sets:
+                for what, ok in (("Steiner points <= 10x the points", steiner <= 10 * a.points),
+                                 ("wall <= 5 s", seconds <= 5.0), ("peak RSS <= 300 MB", rss <= 300)):
+                    if not ok:
+                        missed.append(what)
+    print("issue 47 targets (auto, --imr): " + ("met" if not missed else "missed: " + ", ".join(missed)))
 
 if __name__ == "__main__":
     sys.exit(main())
