@@ -183,7 +183,8 @@ int CmdRun(const std::vector<std::string>& args) {
     const std::optional<imr::batch::Manifest> m = imr::batch::ReadManifest(output, &why);
     if (!m) return;
     std::string line;
-    for (const std::string& f : imr::batch::WrittenFilesForLog(*m)) line += (line.empty() ? "" : ", ") + f;
+    for (const std::string& f : imr::batch::WrittenFilesForLog(*m))
+      line += (line.empty() ? "" : ", ") + f;
     std::printf("        wrote: %s\n", line.c_str());
   };
   for (const auto& s : result.outcomes) {

@@ -212,8 +212,9 @@ struct FrameSource {
 // them ("poses (lines)"), `per_image` what is expected ("one pose per image"). More lines than
 // images is a trimmed sequence (the first N images kept, times.txt and the poses left whole, the
 // usual way to cut a sequence) when the images are 0..N-1 with none missing: the first N lines
-// serve, said in the summary's "trimmed" (the run logs it, report.json lists it as a warning). An image
-// missing among them (a gap), or fewer lines than images, is refused, naming the file and line.
+// serve, said in the summary's "trimmed" (the run logs it, report.json lists it as a warning).
+// An image missing among them (a gap), or fewer lines than images, is refused, naming the file
+// and the line. (A last image lost by accident looks like a cut: the warning says what was used.)
 void MatchLinesToImages(const std::string& path, std::size_t lines, const std::string& unit,
                         const std::string& per_image, const FrameSource& s, ImageSequence* seq) {
   const std::size_t images = static_cast<std::size_t>(s.count);
