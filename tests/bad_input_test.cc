@@ -1452,6 +1452,40 @@ TEST_F(BadImages, FolderNamedLikeAnImage) {
                                  "pose line 4"});
 }
 
+// Issue 47: the first 8 of 12 images kept, times.txt and poses.txt left whole (the usual way to
+// cut a sequence; it was refused: "12 timestamps (lines), but ... has 8 images"). The first 8
+// lines serve; the log says so at the default verbosity and report.json lists it as a warning.
+// frame_count within the kept images works the same.
+TEST_F(BadImages, ATrimmedSequenceUsesTheFirstLinesAndSaysSo) {
+  const fs::path seq = CopySequence();
+  for (const auto& folder : fs::directory_iterator(seq))
+    if (folder.is_directory() && folder.path().filename().string().rfind("image_", 0) == 0)
+      for (int i = 8; i < 12; ++i) {
+        char name[32];
+        std::snprintf(name, sizeof name, "%06d.png", i);
+        fs::remove(folder.path() / name);
+      }
+  ASSERT_FALSE(fs::exists(seq / "image_0/000008.png"));
+  ASSERT_TRUE(fs::exists(seq / "image_0/000007.png"));
+  const CommandResult r = Run(ImageJob({"bad"}));
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const std::string note = (seq / "times.txt").string() + ": 12 timestamps (lines) for the 8 images of " +
+                           (seq / "image_0").string() + " (000000.png .. 000007.png): a trimmed "
+                           "sequence; the first 8 are used";
+  EXPECT_NE(r.err.find("[bad] " + note), std::string::npos) << r.err;
+  const json report = ReadJson(Case() / "runs/bad/report.json");
+  EXPECT_EQ(report["input"]["summary"]["frames"], 8) << report["input"].dump();
+  const std::string warnings = report.value("warnings", json::array()).dump();
+  EXPECT_NE(warnings.find(note), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find((seq / "poses.txt").string() + ": 12 poses (lines) for the 8 images"),
+            std::string::npos) << warnings;
+
+  // --set input.options.frame_count=6 (it failed the same way): 6 frames.
+  const CommandResult six = Run(ImageJob({"bad"}), "--set input.options.frame_count=6");
+  ASSERT_EQ(six.status, 0) << six.out << six.err;
+  EXPECT_EQ(ReadJson(Case() / "runs/bad/report.json")["input"]["summary"]["frames"], 6);
+}
+
 TEST_F(BadImages, PngDeclaring60000Squared) {
   // Beyond what the decoder itself accepts: still named by size, without OpenCV's own text.
   const fs::path png = CopySequence() / "image_0/000000.png";

@@ -229,6 +229,37 @@ TEST_F(Cli, MeshBuildsTheJobAndWritesTheMeshWhereAsked) {
   EXPECT_NE(bad.err.find("needs --input"), std::string::npos) << bad.err;
 }
 
+// Issue 47 items 3 and 5: imr mesh saves its --set overrides in WORK/job.json (running that job
+// again gives the same mesh bytes; it used to leave them out), its last lines name every file
+// the run wrote, and the scale decision is one line at the default verbosity (it was -v only).
+TEST_F(Cli, MeshSavesItsOverridesNamesItsFilesAndSaysTheScale) {
+  const fs::path out = dir_ / "saved/street.ply";
+  fs::create_directories(out.parent_path());
+  const CommandResult r =
+      Imr("mesh --input street --format synthetic --out " + Quote(out.string()) +
+          " --set input.options.frames=30 --set input.options.seed=5 --set engine.scale=auto");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find("[street] engine.scale auto: median ray"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("decided every length"), std::string::npos) << r.err;
+  const fs::path work = dir_ / "saved/street.imr";
+  EXPECT_NE(r.out.find("wrote: street.ply, report.json, manifest.json\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("summary: " + (work / "mesh/summary.md").string() + ", summary.json"),
+            std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("mesh: " + out.string() + "\njob: " + (work / "job.json").string()),
+            std::string::npos) << r.out;
+  const json job = json::parse(ReadText(work / "job.json"));
+  EXPECT_EQ(job["input"]["options"]["frames"], 30) << job.dump();
+  EXPECT_EQ(job["input"]["options"]["seed"], 5) << job.dump();
+  EXPECT_EQ(job["engine"]["scale"], "auto") << job.dump();
+  // The saved job alone redoes the same mesh.
+  const std::string mesh = ReadText(out);
+  fs::remove(work / "mesh/street.ply");
+  const CommandResult again = Imr("run -q --force " + Quote((work / "job.json").string()));
+  ASSERT_EQ(again.status, 0) << again.out << again.err;
+  EXPECT_EQ(ReadText(work / "mesh/street.ply"), mesh);
+  EXPECT_EQ(json::parse(ReadText(work / "mesh/report.json"))["input"]["options"]["frames"], 30);
+}
+
 TEST_F(Cli, ValidateAcceptsAGoodJob) {
   auto r = Imr("validate " + Quote(WriteJob(SmallJob()).string()));
   EXPECT_EQ(r.status, 0) << r.err;

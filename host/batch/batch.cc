@@ -557,6 +557,8 @@ void SequenceRunner::HandleMessage(Running& r, const std::string& line) {
       r.shown.progress = {p.at(0).get<int>(), p.at(1).get<int>(), p.at(2).get<int>()};
     } else if (m.contains("result")) {
       r.result = m["result"];
+    } else if (m.contains("note")) {
+      Say(LogLevel::kInfo, m["note"].get<std::string>());  // RunOptions::note, already "[name] ..."
     }
   } catch (const std::exception&) {
     r.tail.Add("(unreadable message from the child: " + line + ")");
@@ -825,6 +827,7 @@ int RunOneChild(const ChildArguments& args, MessageChannel& channel,
     last = Clock::now();
     channel.Send({{"progress", {p.keyframes, p.total_keyframes, p.frame}}});
   };
+  run_options.note = [&](const std::string& line) { channel.Send({{"note", line}}); };
   // A hung plugin cannot be unwound: report like any failure, clear what the stalled write
   // leaves (staging folders, temporaries) and end the process.
   run_options.on_stage_timeout = [&](const std::string& message) {

@@ -6,6 +6,7 @@
 #include "host/util/input_file.h"
 #include "host/util/json_text.h"
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -232,6 +233,33 @@ int RemoveLeftovers(const fs::path& output_directory) {
     }
   }
   return removed;
+}
+
+std::vector<std::string> WrittenFilesForLog(const Manifest& m) {
+  // Folder (as written: "" for the output folder's own files) -> its files, in first-seen order.
+  std::vector<std::pair<std::string, std::vector<std::string>>> folders;
+  for (const ManifestEntry& e : m.files) {
+    const fs::path p(e.path);
+    const std::string folder = p.has_parent_path() ? p.parent_path().string() : "";
+    auto it = std::find_if(folders.begin(), folders.end(),
+                           [&](const auto& f) { return f.first == folder; });
+    if (it == folders.end()) it = folders.insert(folders.end(), {folder, {}});
+    it->second.push_back(e.path);
+  }
+  std::vector<std::string> out;
+  for (const auto& [folder, files] : folders) {
+    if (folder.empty() || files.size() <= 3) {
+      out.insert(out.end(), files.begin(), files.end());
+    } else {
+      out.push_back(folder + "/ (" + std::to_string(files.size()) + " files)");
+    }
+  }
+  // The output folder's own files first (the mesh, report.json), then sub-folders and exports.
+  std::stable_partition(out.begin(), out.end(), [](const std::string& f) {
+    return f.find('/') == std::string::npos;
+  });
+  out.push_back(kManifestFile);
+  return out;
 }
 
 }  // namespace imr::batch

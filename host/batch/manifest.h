@@ -56,6 +56,12 @@ void WriteManifest(const Manifest& m, const std::filesystem::path& output_direct
 std::optional<Manifest> ReadManifest(const std::filesystem::path& output_directory,
                                      std::string* error);
 
+// What a finished run wrote, as its last log lines name it (issue 47): the output folder's own
+// files by name, a sub-folder of more than three files as one entry ("tiles/ (120 files)"),
+// files outside the folder (exports) by absolute path, those of a folder of more than three as
+// one entry; manifest.json itself last. In the manifest's order otherwise.
+std::vector<std::string> WrittenFilesForLog(const Manifest& m);
+
 struct ManifestCheck {
   bool up_to_date = false;
   std::string reason;  // why not (or "manifest matches"), for logs and the summary

@@ -93,6 +93,21 @@ TEST_F(ManifestTest, FilesOutsideTheFolderAreAbsolute) {
   fs::remove(outside);
 }
 
+// Issue 47: the run's last lines name every file it wrote, a tiles folder as one entry.
+TEST_F(ManifestTest, WrittenFilesForLogNamesEveryFileAndFoldsAFolderOfMany) {
+  Manifest m;
+  for (const char* p : {"/x/colmap/cameras.txt", "/x/colmap/images.txt", "/x/colmap/points3D.txt",
+                        "/x/stream.json", "tiles/tile_000001.glb", "tiles/tile_000002.glb",
+                        "tiles/tile_000003.glb", "tiles/tile_000004.glb", "tileset.json",
+                        "mesh.ply", "report.json"})
+    m.files.push_back({p, 1, ""});
+  EXPECT_EQ(WrittenFilesForLog(m),
+            std::vector<std::string>({"tileset.json", "mesh.ply", "report.json",
+                                      "/x/colmap/cameras.txt", "/x/colmap/images.txt",
+                                      "/x/colmap/points3D.txt", "/x/stream.json",
+                                      "tiles/ (4 files)", "manifest.json"}));
+}
+
 TEST_F(ManifestTest, LeftoversOfAKilledRunGoFinalNamesStay) {
   Write("mesh.ply", "whole");
   Write(".mesh.ply.tmp-0123456789ab", "half");

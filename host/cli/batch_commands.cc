@@ -2,6 +2,7 @@
 // report (a batch folder's summary and viewer page), and the children's hidden command.
 #include "host/batch/batch.h"
 #include "host/batch/child.h"
+#include "host/batch/manifest.h"
 #include "host/batch/run_flags.h"
 #include "host/batch/slurm.h"
 #include "host/batch/summary.h"
@@ -175,16 +176,31 @@ int CmdRun(const std::vector<std::string>& args) {
   // only the ones that say why (errors), and no summary lines: the exit status tells the rest.
   const bool quiet = vm.count("quiet") > 0;
   using imr::batch::SequenceStatus;
+  // Under a finished sequence's line, every file it wrote (its manifest's list): the mesh, the
+  // report, tiles, exports (issue 47: users looked for them).
+  const auto written = [](const fs::path& output) {
+    std::string why;
+    const std::optional<imr::batch::Manifest> m = imr::batch::ReadManifest(output, &why);
+    if (!m) return;
+    std::string line;
+    for (const std::string& f : imr::batch::WrittenFilesForLog(*m))
+      line += (line.empty() ? "" : ", ") + f;
+    std::printf("        wrote: %s\n", line.c_str());
+  };
   for (const auto& s : result.outcomes) {
     const char* name = s.name.c_str();
     switch (s.status) {
       case SequenceStatus::kOk:
-        if (!quiet)
+        if (!quiet) {
           std::printf("ok      %-20s %7.2f s  %s\n", name, s.seconds, s.output_directory.string().c_str());
+          written(s.output_directory);
+        }
         break;
       case SequenceStatus::kSkipped:
-        if (!quiet)
+        if (!quiet) {
           std::printf("skipped %-20s up to date  %s\n", name, s.output_directory.string().c_str());
+          written(s.output_directory);
+        }
         break;
       case SequenceStatus::kFailed:
         std::printf("FAILED  %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
@@ -210,7 +226,8 @@ int CmdRun(const std::vector<std::string>& args) {
       std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
                   batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
     else if (result.summary_written)
-      std::printf("\nsummary: %s%s%s\n", (result.batch_directory / "summary.md").string().c_str(),
+      std::printf("\nsummary: %s, summary.json (imr's bookkeeping: imr-batch/)%s%s\n",
+                  (result.batch_directory / "summary.md").string().c_str(),
                   result.viewer_page.empty() ? "" : "\nviewer page: ",
                   result.viewer_page.string().c_str());
     else
@@ -335,6 +352,18 @@ int CmdMesh(const std::vector<std::string>& args) {
     job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
   }
   job["pipeline"].push_back({{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}});
+  // The --set overrides go into the saved job, so that `imr run WORK/job.json` redoes this very
+  // mesh (issue 47); ones that do not apply are left to imr run, which names them.
+  std::vector<std::string> overrides = JobOverrides(vm);
+  {
+    nlohmann::json applied = job;
+    std::vector<io::Problem> problems;
+    io::ApplyJobOverrides(overrides, &applied, &problems);
+    if (problems.empty()) {
+      job = std::move(applied);
+      overrides.clear();
+    }
+  }
   const fs::path job_file = work / "job.json";
   try {
     EnsureWritableDirectory(work);
@@ -345,7 +374,7 @@ int CmdMesh(const std::vector<std::string>& args) {
   }
 
   std::vector<std::string> run_args = {job_file.string()};
-  for (const std::string& o : JobOverrides(vm)) run_args.insert(run_args.end(), {"--set", o});
+  for (const std::string& o : overrides) run_args.insert(run_args.end(), {"--set", o});
   if (vm.count("quiet")) run_args.push_back("-q");
   if (vm.count("verbose")) run_args.push_back("-v");
   run_args.insert(run_args.end(), forwarded.begin(), forwarded.end());
@@ -388,9 +417,12 @@ int CmdMesh(const std::vector<std::string>& args) {
   for (const std::string& n : copied)
     if (n != out.filename().string()) companions += (companions.empty() ? " (with " : ", ") + n;
   if (!companions.empty()) companions += ")";
+  // The last lines: the mesh where asked, and the job that redoes it (the run's own files are
+  // named above them, under its "ok" line).
   if (!vm.count("quiet"))
-    std::printf("mesh: %s%s\nthe run (job.json, mesh/report.json): %s\n", out.string().c_str(),
-                companions.c_str(), work.string().c_str());
+    std::printf("mesh: %s%s\njob: %s (imr run it to redo this mesh; the run's files are in %s)\n",
+                out.string().c_str(), companions.c_str(), job_file.string().c_str(),
+                folder.string().c_str());
   return kExitOk;
 }
 

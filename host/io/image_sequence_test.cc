@@ -360,10 +360,11 @@ TEST(KittiOdometry, RefusesBadInputNamingFileLineAndWhat) {
   ExpectError([&] { ReadKittiOdometry(r, {}); }, {"calib.txt:1", "not a rectified projection"});
   Write(root / "calib.txt", OdometryCalib());
 
-  // Poses: count, numbers, rotations.
-  Write(root / "poses.txt", TwoPoses() + kPose0 + "\n");
+  // Poses: count (fewer lines than images; more is a trimmed sequence, below), numbers, rotations.
+  Write(root / "poses.txt", std::string(kPose0) + "\n");
   ExpectError([&] { ReadKittiOdometry(r, {}); },
-              {(root / "poses.txt").string(), "3 poses (lines)", "has 2 images"});
+              {(root / "poses.txt").string(), "1 poses (lines)", "has 2 images",
+               "000001.png has no line"});
   Write(root / "poses.txt", std::string(kPose0) + "\n0 0 1 1 0 1 0 nan -1 0 0 3\n");
   ExpectError([&] { ReadKittiOdometry(r, {}); },
               {"poses.txt:2", "column 15", "number 8", "'nan'", "not a finite number"});
@@ -386,9 +387,10 @@ TEST(KittiOdometry, RefusesBadInputNamingFileLineAndWhat) {
   // Times: missing, count.
   fs::remove(root / "times.txt");
   ExpectError([&] { ReadKittiOdometry(r, {}); }, {(root / "times.txt").string(), "no such file"});
-  Write(root / "times.txt", "0\n0.1\n0.2\n");
+  Write(root / "times.txt", "0\n");
   ExpectError([&] { ReadKittiOdometry(r, {}); },
-              {(root / "times.txt").string(), "3 timestamps", "has 2 images"});
+              {(root / "times.txt").string(), "1 timestamps", "has 2 images",
+               "000001.png has no line"});
   Write(root / "times.txt", "0\n0.1 0.2\n");
   ExpectError([&] { ReadKittiOdometry(r, {}); }, {"times.txt:2", "2 numbers, expected 1"});
   Write(root / "times.txt", "0\n0.1\n");
@@ -403,6 +405,54 @@ TEST(KittiOdometry, RefusesBadInputNamingFileLineAndWhat) {
   late.first_frame = 2;
   ExpectError([&] { ReadKittiOdometry(r, late); }, {r, "first_frame 2", "has 2"});
   EXPECT_EQ(ReadKittiOdometry(r, {}).frames.size(), 2u);  // and all is well again
+}
+
+// Issue 47: the usual way to cut a sequence keeps the first N images and leaves times.txt and the
+// poses whole; the first N lines serve, and the cut is said (summary "trimmed"). A gap in the
+// images, or fewer lines than images, is still refused, naming the file and the image.
+TEST(KittiOdometry, ATrimmedSequenceUsesTheFirstLinesOfTimesAndPoses) {
+  TempDir dir;
+  const fs::path root = dir / "00";
+  const std::string r = root.string();
+  std::string poses = TwoPoses();
+  for (int i = 2; i < 6; ++i) poses += std::string(kPose0) + "\n";
+  MakeOdometry(root, 6, {0}, poses);  // 6 images, 6 timestamps, 6 poses
+  for (int i = 4; i < 6; ++i) fs::remove(root / "image_0" / ("00000" + std::to_string(i) + ".png"));
+
+  const ImageSequence s = ReadKittiOdometry(r, {});
+  ASSERT_EQ(s.frames.size(), 4u);
+  EXPECT_DOUBLE_EQ(s.frames[3].timestamp, 0.3);
+  ExpectVec(s.frames[1].camera.center, kC1, 1e-12);  // line 2 of poses.txt
+  ASSERT_TRUE(s.summary.contains("trimmed")) << s.summary.dump();
+  ASSERT_EQ(s.summary["trimmed"].size(), 2u);  // poses.txt and times.txt
+  const std::string poses_note = s.summary["trimmed"][0].get<std::string>();
+  const std::string times_note = s.summary["trimmed"][1].get<std::string>();
+  EXPECT_NE(poses_note.find((root / "poses.txt").string() + ": 6 poses (lines) for the 4 images of " +
+                            (root / "image_0").string() + " (000000.png .. 000003.png)"),
+            std::string::npos) << poses_note;
+  EXPECT_NE(times_note.find((root / "times.txt").string() + ": 6 timestamps (lines) for the 4 images"),
+            std::string::npos) << times_note;
+  EXPECT_NE(times_note.find("a trimmed sequence; the first 4 are used"), std::string::npos) << times_note;
+
+  // frame_count within the images, and past them (at most that many).
+  ImageSequenceOptions o;
+  o.frame_count = 3;
+  EXPECT_EQ(ReadKittiOdometry(r, o).frames.size(), 3u);
+  o.frame_count = 160;
+  EXPECT_EQ(ReadKittiOdometry(r, o).frames.size(), 4u);
+
+  // A gap (000001.png missing: the images are not the first 3): refused, naming the image.
+  fs::rename(root / "image_0" / "000001.png", dir / "kept.png");
+  ExpectError([&] { ReadKittiOdometry(r, {}); },
+              {(root / "image_0" / "000001.png").string(), "no such file", "pose line 2",
+               (root / "poses.txt").string(), "has 3 images for 6 poses (lines)"});
+  fs::rename(dir / "kept.png", root / "image_0" / "000001.png");
+
+  // Fewer timestamps than images: refused, naming the file and the images without a line.
+  Write(root / "times.txt", "0\n0.1\n");
+  ExpectError([&] { ReadKittiOdometry(r, {}); },
+              {(root / "times.txt").string(), "2 timestamps (lines)", "has 4 images",
+               "000002.png .. 000003.png have no line"});
 }
 
 // --- KITTI raw -----------------------------------------------------------------------------------
@@ -588,9 +638,29 @@ TEST(KittiRaw, RefusesBadInputNamingFileLineAndWhat) {
   const RawDrive d = MakeRawDrive(dir, 2, {2});
   const std::string r = d.drive.string();
   ExpectError([&] { ReadKittiRaw(r, {}); }, {r, "no poses", "oxts"});
-  WriteOxts(d);  // 3 records for 2 images
+  WriteOxts(d);  // 3 records for 2 images: a trimmed drive (issue 47), the first 2 serve
+  {
+    const ImageSequence t = ReadKittiRaw(r, {});
+    EXPECT_EQ(t.frames.size(), 2u);
+    ASSERT_EQ(t.summary["trimmed"].size(), 1u) << t.summary.dump();
+    EXPECT_NE(t.summary["trimmed"][0].get<std::string>().find(
+                  (d.drive / "oxts" / "data").string() + ": 3 oxts records (.txt) for the 2 images"),
+              std::string::npos) << t.summary["trimmed"][0];
+    // Dates for 3 images, 2 kept: the same cut.
+    Write(d.drive / "image_02" / "timestamps.txt",
+          "2011-09-26 13:02:25.5\n2011-09-26 13:02:25.6\n2011-09-26 13:02:25.7\n");
+    const ImageSequence u = ReadKittiRaw(r, {});
+    EXPECT_EQ(u.summary["trimmed"].size(), 2u) << u.summary.dump();
+    EXPECT_NEAR(u.frames[1].timestamp, 0.1, 1e-9);
+    fs::remove(d.drive / "image_02" / "timestamps.txt");
+  }
+  fs::remove(d.drive / "image_02" / "data" / "0000000001.png");  // now a gap: 0 and (not) 1
+  Write(d.drive / "image_02" / "data" / "0000000005.png", "");
   ExpectError([&] { ReadKittiRaw(r, {}); },
-              {(d.drive / "oxts" / "data").string(), "3 oxts records", "has 2 images"});
+              {(d.drive / "image_02" / "data" / "0000000001.png").string(), "no such file",
+               "line 2 of " + (d.drive / "oxts" / "data").string()});
+  fs::remove(d.drive / "image_02" / "data" / "0000000005.png");
+  WritePng(d.drive / "image_02" / "data" / "0000000001.png");
   fs::remove(d.drive / "oxts" / "data" / "0000000002.txt");
   Write(d.drive / "oxts" / "data" / "0000000001.txt", "49 8.4 110 0 0 0\n");
   ExpectError([&] { ReadKittiRaw(r, {}); },

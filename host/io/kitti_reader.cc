@@ -201,14 +201,56 @@ std::vector<Rigid> ReadPosesFile(const std::string& path) {
   return poses;
 }
 
-// times.txt: one number (seconds) per line, one line per image.
-std::vector<double> ReadTimesFile(const std::string& path, int image_count,
-                                  const std::string& image_dir) {
+// Images and their source numbers; checks every selected image exists.
+struct FrameSource {
+  fs::path image_dir;
+  int digits = 6;  // file names: zero-padded source index (odometry 6, raw 10 digits)
+  int count = 0;   // .png files in image_dir
+};
+
+// A file of one line (or record) per image, `lines` of them for the s.count images: `unit` names
+// them ("poses (lines)"), `per_image` what is expected ("one pose per image"). More lines than
+// images is a trimmed sequence (the first N images kept, times.txt and the poses left whole, the
+// usual way to cut a sequence) when the images are 0..N-1 with none missing: the first N lines
+// serve, said in the summary's "trimmed" (the run logs it, report.json lists it as a warning).
+// An image missing among them (a gap), or fewer lines than images, is refused, naming the file
+// and the line. (A last image lost by accident looks like a cut: the warning says what was used.)
+void MatchLinesToImages(const std::string& path, std::size_t lines, const std::string& unit,
+                        const std::string& per_image, const FrameSource& s, ImageSequence* seq) {
+  const std::size_t images = static_cast<std::size_t>(s.count);
+  const auto name = [&](std::size_t i) { return Numbered(static_cast<int>(i), s.digits, ".png"); };
+  if (lines < images)
+    Fail(path + ": " + std::to_string(lines) + " " + unit + ", but " + s.image_dir.string() +
+         " has " + std::to_string(images) + " images (.png); expected " + per_image + " (" +
+         name(lines) + (images - lines > 1 ? " .. " + name(images - 1) + " have" : " has") +
+         (unit.rfind("oxts", 0) == 0 ? " no record)" : " no line)"));
+  if (lines == images) return;
+  // More lines than images: usually one image lost from the middle (name it), else a trim.
+  for (std::size_t i = 0; i < images; ++i) {
+    const fs::path image = s.image_dir / name(i);
+    if (const std::string p = FileProblem(image.string(), "a .png image"); !p.empty())
+      Fail(image.string() + ": " + p + " (the image of " +
+           (unit.rfind("poses", 0) == 0 ? "pose line " : "line ") + std::to_string(i + 1) + " of " +
+           path + "; " + s.image_dir.string() + " has " + std::to_string(images) + " images for " +
+           std::to_string(lines) + " " + unit + ")");
+  }
+  const std::string note = path + ": " + std::to_string(lines) + " " + unit + " for the " +
+                           std::to_string(images) + " images of " + s.image_dir.string() + " (" +
+                           name(0) + " .. " + name(images - 1) +
+                           "): a trimmed sequence; the first " + std::to_string(images) +
+                           " are used";
+  json& trimmed = seq->summary["trimmed"];
+  if (!trimmed.is_array()) trimmed = json::array();
+  trimmed.push_back(note);
+}
+
+// times.txt: one number (seconds) per line, one line per image (the first of more: trimmed).
+std::vector<double> ReadTimesFile(const std::string& path, const FrameSource& s,
+                                  ImageSequence* seq) {
   std::vector<std::string> lines = ReadTextLines(path, "timestamps: seconds, one line per image");
   while (!lines.empty() && IsBlankLine(lines.back())) lines.pop_back();
-  if (static_cast<int>(lines.size()) != image_count)
-    Fail(path + ": " + std::to_string(lines.size()) + " timestamps (lines), but " + image_dir +
-         " has " + std::to_string(image_count) + " images; expected one per image");
+  MatchLinesToImages(path, lines.size(), "timestamps (lines)", "one per image", s, seq);
+  lines.resize(static_cast<std::size_t>(s.count));
   std::vector<double> times;
   for (std::size_t i = 0; i < lines.size(); ++i) {
     const int line = static_cast<int>(i + 1);
@@ -232,14 +274,13 @@ int64_t DaysFromCivil(int64_t y, unsigned m, unsigned d) {
 
 // KITTI raw image_0X/timestamps.txt: "2011-09-26 13:02:25.964389445" a line, as seconds since
 // the first line.
-std::vector<double> ReadDateTimestamps(const std::string& path, int image_count,
-                                       const std::string& image_dir) {
+std::vector<double> ReadDateTimestamps(const std::string& path, const FrameSource& source,
+                                       ImageSequence* seq) {
   std::vector<std::string> lines =
       ReadTextLines(path, "timestamps: 'YYYY-MM-DD hh:mm:ss.fraction', one line per image");
   while (!lines.empty() && IsBlankLine(lines.back())) lines.pop_back();
-  if (static_cast<int>(lines.size()) != image_count)
-    Fail(path + ": " + std::to_string(lines.size()) + " timestamps (lines), but " + image_dir +
-         " has " + std::to_string(image_count) + " images; expected one per image");
+  MatchLinesToImages(path, lines.size(), "timestamps (lines)", "one per image", source, seq);
+  lines.resize(static_cast<std::size_t>(source.count));
   std::vector<double> times;
   int64_t day0 = 0;
   double second0 = 0;
@@ -316,33 +357,11 @@ void DecidePosesCamera(const ImageSequenceOptions& o, PosesChoice* pc) {
   }
 }
 
-// Images and their source numbers; checks every selected image exists.
-struct FrameSource {
-  fs::path image_dir;
-  int digits = 6;  // file names: zero-padded source index (odometry 6, raw 10 digits)
-  int count = 0;   // .png files in image_dir
-};
-
 FrameSource ReadFrameSource(const fs::path& image_dir, int digits) {
   RequireFolder(image_dir, "the images of the chosen camera");
   FrameSource s{image_dir, digits, CountFiles(image_dir, ".png")};
   if (s.count == 0) Fail(image_dir.string() + ": no .png images");
   return s;
-}
-
-void CheckPoseCount(const std::string& poses_path, std::size_t poses, const FrameSource& s) {
-  if (static_cast<int>(poses) == s.count) return;
-  // Fewer images than poses is usually one image lost from the middle: name it.
-  for (std::size_t i = 0; i < poses && static_cast<int>(poses) > s.count; ++i) {
-    const fs::path image = s.image_dir / Numbered(static_cast<int>(i), s.digits, ".png");
-    if (const std::string p = FileProblem(image.string(), "a .png image"); !p.empty())
-      Fail(image.string() + ": " + p + " (the image of pose line " + std::to_string(i + 1) +
-           " of " + poses_path + "; " + s.image_dir.string() + " has " + std::to_string(s.count) +
-           " images for " + std::to_string(poses) + " poses (lines))");
-  }
-  if (static_cast<int>(poses) != s.count)
-    Fail(poses_path + ": " + std::to_string(poses) + " poses (lines), but " + s.image_dir.string() +
-         " has " + std::to_string(s.count) + " images (.png); expected one pose per image");
 }
 
 // Frames with cameras: `camera_to_world[src]` is the pose (poses camera -> world) of source
@@ -512,10 +531,9 @@ ImageSequence ReadKittiOdometry(const std::string& root_arg, const ImageSequence
       pc.camera == seq.camera ? rect
                               : ReadProjection(calib, "P" + std::to_string(pc.camera), pc.camera);
   const std::vector<Rigid> poses = ReadPosesFile(pc.path);
-  CheckPoseCount(pc.path, poses.size(), source);
+  MatchLinesToImages(pc.path, poses.size(), "poses (lines)", "one pose per image", source, &seq);
   const std::string times_path = (root / "times.txt").string();
-  const std::vector<double> times =
-      ReadTimesFile(times_path, source.count, source.image_dir.string());
+  const std::vector<double> times = ReadTimesFile(times_path, source, &seq);
 
   const std::vector<int> selected = SelectSourceFrames(source.count, o, root_arg);
   const Vec3 offset = Sub(rect.baseline, poses_rect.baseline);
@@ -632,7 +650,8 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
             ? rect
             : ReadProjection(cam_to_cam, "P_rect_0" + std::to_string(pc.camera), pc.camera);
     camera_to_world = ReadPosesFile(pc.path);
-    CheckPoseCount(pc.path, camera_to_world.size(), source);
+    MatchLinesToImages(pc.path, camera_to_world.size(), "poses (lines)", "one pose per image",
+                       source, &seq);
     offset = Sub(rect.baseline, poses_rect.baseline);
     s["poses"] = {{"file", pc.path},
                   {"chosen_by", pc.chosen_by},
@@ -645,11 +664,8 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
            ": no poses: the option poses is empty, there is no poses*.txt in the "
            "drive folder and no " +
            oxts.string() + " folder");
-    const int oxts_count = CountFiles(oxts, ".txt");
-    if (oxts_count != source.count)
-      Fail(oxts.string() + ": " + std::to_string(oxts_count) + " oxts records (.txt), but " +
-           source.image_dir.string() + " has " + std::to_string(source.count) +
-           " images; expected one per image");
+    MatchLinesToImages(oxts.string(), static_cast<std::size_t>(CountFiles(oxts, ".txt")),
+                       "oxts records (.txt)", "one per image", source, &seq);
     const CalibFile imu_to_velo(date / "calib_imu_to_velo.txt",
                                 "KITTI raw calibration imu -> velodyne: R, T; needed for oxts");
     // IMU -> rectified camera k: [I | b_k] R_rect_00 T_velo_to_cam T_imu_to_velo.
@@ -679,10 +695,10 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
   const fs::path dates = root / ("image_" + k) / "timestamps.txt";
   const fs::path seconds = root / "times.txt";
   if (Present(dates)) {
-    times = ReadDateTimestamps(dates.string(), source.count, source.image_dir.string());
+    times = ReadDateTimestamps(dates.string(), source, &seq);
     s["times"] = dates.string() + " (seconds since the first)";
   } else if (Present(seconds)) {
-    times = ReadTimesFile(seconds.string(), source.count, source.image_dir.string());
+    times = ReadTimesFile(seconds.string(), source, &seq);
     s["times"] = seconds.string();
   } else {
     for (int i = 0; i < source.count; ++i) times.push_back(0.1 * i);

@@ -105,6 +105,7 @@ class SequenceRun {
   const engine::EngineStats& EngineStats() const { return engine_ ? engine_->Stats() : engine_stats_; }
   void WarnAbout();
   void Warn(const std::string& warning);
+  void Note(const std::string& line);
   void WriteStreamExports();
   void EvaluateMesh(const engine::Mesh& mesh);
   void WriteMeshAndReport(std::future<void>* evaluation);
@@ -326,6 +327,13 @@ void SequenceRun::OpenSource() {
     fo.keyframe_every = io::ImageSequenceOptionsFromJson(v_.input_options).keyframe_every;
     fo.track_ahead = overlap_;
     io::ImageSequence images = format_->open_images(seq_.source, v_.input_options);
+    // A trimmed sequence (the first lines of longer times/poses files used): said now, and a
+    // warning in report.json.
+    if (const auto t = images.summary.find("trimmed"); t != images.summary.end())
+      for (const json& note : *t) {
+        Note(note.get<std::string>());
+        result_->warnings.push_back(note.get<std::string>());
+      }
     // A short image set (a Middlebury ring of 16) at the default keyframe_every would give the
     // engine too few keyframes to mesh: unless the job chose it, fewer frames between keyframes.
     if (!job_.input.options.contains("keyframe_every")) {
@@ -376,7 +384,8 @@ void SequenceRun::StartEngine() {
     scale_ = probe_.Estimate();
     std::string line;
     engine_options_ = AutoScaledOptions(v_.engine_options, scale_, explicit_keys_, &line);
-    (scale_.rays == 0 ? LogWarning : LogInfo)("[" + JsonText(seq_.name) + "] " + line);
+    if (scale_.rays == 0) LogWarning("[" + JsonText(seq_.name) + "] " + line);
+    else Note(line);
   }
   if (options_.threads > 0) engine_options_.num_threads = options_.threads;  // --threads
   engine_.emplace(engine_options_, watched_policy_ ? &*watched_policy_ : nullptr);
@@ -647,6 +656,13 @@ std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh
 void SequenceRun::Warn(const std::string& warning) {
   LogWarning("[" + JsonText(seq_.name) + "] " + warning);
   result_->warnings.push_back(warning);
+}
+
+// A line worth reading at the default verbosity (RunOptions::note).
+void SequenceRun::Note(const std::string& line) {
+  const std::string shown = "[" + JsonText(seq_.name) + "] " + line;
+  if (options_.note) options_.note(shown);
+  else LogInfo(shown);
 }
 
 // What looks wrong though a mesh was made; no surface at all fails the sequence.

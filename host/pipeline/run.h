@@ -74,6 +74,10 @@ struct RunOptions {
   bool overlap = true;
   // Called after every keyframe (from the running thread); empty: not called.
   std::function<void(const SequenceProgress&)> progress;
+  // Called (from the running thread) with the lines a user should read at the default verbosity,
+  // "[sequence] ..." (the scale decision, a trimmed sequence): `imr run` shows its sequences'
+  // other info lines only with -v. Empty: logged at info.
+  std::function<void(const std::string&)> note;
   // Called on the watchdog thread when a stage times out, with the message; must end the
   // process (the plugin call cannot be unwound). Empty: log it and exit with status 124.
   std::function<void(const std::string&)> on_stage_timeout;

@@ -226,9 +226,13 @@ std::string ScaleLogLine(const ScaleEstimate& estimate, const engine::EngineOpti
     s += "; extent seen per camera " + Number(estimate.view_extent) + " (" +
          std::to_string(estimate.views) + " cameras; the defaults assume " +
          Number(kReferenceViewExtent) + "): ratio " + Number(estimate.extent_ratio);
+  // Which figure decided, always said: a user reads it at the default verbosity (issue 47).
   if (estimate.scene_factor != estimate.factor)
     s += ", scale " + Number(estimate.scene_factor) + " for every length but max_ray_length (the " +
          estimate.decided_by + " decided)";
+  else
+    s += std::string(estimate.views > 0 ? ";" : ",") + " the " + estimate.decided_by +
+         " decided every length" + (estimate.around_an_object ? " (cameras around an object)" : "");
   if (estimate.reach_factor != estimate.factor)
     s += "; max_ray_length from the 95th percentile ray " + Number(estimate.p95_ray) +
          " (the defaults assume " + Number(kReferenceP95Ray) + "): scale " + Number(estimate.reach_factor);

@@ -109,7 +109,8 @@ TEST(ScaleTest, EveryLengthTheJobDoesNotSetIsScaled) {
   EXPECT_EQ(j["given_by_the_job"], json::array({"steiner_spacing"}));
   EXPECT_EQ(ScaleJson(ScaleMode::kMetric, e, o, {}), json({{"mode", "metric"}}));
   const std::string line = ScaleLogLine(e, o, {"steiner_spacing"});
-  EXPECT_NE(line.find("ratio 1, scale 0.1, steiner_margin 0.5, max_ray_length 4"), std::string::npos) << line;
+  EXPECT_NE(line.find("ratio 1, scale 0.1, the rays decided every length, steiner_margin 0.5, "
+                      "max_ray_length 4"), std::string::npos) << line;
 }
 
 // Points on two walls 12 apart and the ground between them, x in [x0, x1].

@@ -6,11 +6,14 @@ build/lib/imr/plugins (into imr/plugins, where the package looks first).
     /usr/bin/python3 -m pip install --no-build-isolation --break-system-packages host/python
     (or, in a venv made with --system-site-packages: pip install --no-build-isolation host/python)
 
-IMR_BUILD_DIR names another build folder (default: ../../build from here).
+IMR_BUILD_DIR names another build folder (default: ../../build from here). Nothing is written into
+the source tree: setuptools' build/ and imr.egg-info go to a temporary folder, removed at exit.
 """
+import atexit
 import glob
 import os
 import shutil
+import tempfile
 
 from setuptools import setup
 from setuptools.command.build_py import build_py
@@ -18,6 +21,12 @@ from setuptools.dist import Distribution
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 BUILD = os.path.abspath(os.environ.get("IMR_BUILD_DIR", os.path.join(HERE, "..", "..", "build")))
+# setuptools' own scratch (build/, bdist.*, imr.egg-info) out of the source tree (issue 47: `pip
+# install host/python` left them there, beside the tracked files).
+SCRATCH = tempfile.mkdtemp(prefix="imr-python-setup-")
+atexit.register(shutil.rmtree, SCRATCH, True)
+SCRATCH_OPTIONS = {"build": {"build_base": os.path.join(SCRATCH, "build")},
+                   "egg_info": {"egg_base": SCRATCH}}
 
 
 class BinaryDistribution(Distribution):
@@ -43,4 +52,4 @@ class CopyBuilt(build_py):
 
 setup(name="imr", version="0.1.0", description="incremental manifold reconstruction with moving points",
       packages=["imr"], cmdclass={"build_py": CopyBuilt}, distclass=BinaryDistribution,
-      install_requires=[], python_requires=">=3.9")
+      install_requires=[], python_requires=">=3.9", options=SCRATCH_OPTIONS)

@@ -717,12 +717,23 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
   }
   h << "</tbody>\n</table>\n";
 
-  if (viewer) {
-    h << "<h2>Mesh</h2>\n<p id=\"viewer-status\">"
-      << (result.meshes_viewable > 0 ? "Loading ..." : "No mesh to show.") << "</p>\n"
+  if (viewer && result.meshes_viewable > 0) {
+    h << "<h2>Mesh</h2>\n<p id=\"viewer-status\">Loading ...</p>\n"
       << "<model-viewer id=\"viewer\" camera-controls interaction-prompt=\"none\" "
          "shadow-intensity=\"0\" exposure=\"1.1\" alt=\"the selected sequence's mesh\">"
          "</model-viewer>\n";
+  } else if (viewer && !no_mesh.empty()) {
+    // No empty, grey viewer that looks broken (issue 47): why there is no 3D view, and what
+    // gives one.
+    h << "<h2>Mesh</h2>\n<p id=\"viewer-status\" class=\"note\">No 3D view: it shows .glb and "
+         ".gltf meshes, and "
+      << (no_mesh.size() == 1 ? "this run" : std::to_string(no_mesh.size()) + " sequences")
+      << " wrote neither (the mesh files are linked in the table). Add \"glb\" to the job's "
+         "output.formats (with imr mesh: --out NAME.glb) to see "
+      << (no_mesh.size() == 1 ? "it" : "them") << " here.</p>\n";
+  } else if (viewer && result.tilesets_viewable == 0) {
+    h << "<h2>Mesh</h2>\n<p id=\"viewer-status\" class=\"note\">No mesh to show: no sequence "
+         "finished with one.</p>\n";
   }
   if (result.tilesets_viewable > 0)
     h << "<h2>Tiles</h2>\n<p id=\"tiles-status\">Loading ...</p>\n<div id=\"tiles-viewer\"></div>\n";

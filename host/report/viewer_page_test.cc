@@ -225,6 +225,15 @@ TEST_F(ViewerPage, SequencesWithoutAGlbAreNamedOnceAsInfo) {
   ASSERT_EQ(r.info.size(), 1u);
   EXPECT_NE(r.info[0].find("4 sequences wrote neither (a, b, c, ...)"), std::string::npos) << r.info[0];
   EXPECT_NE(r.info[0].find("add \"glb\" to output.formats"), std::string::npos) << r.info[0];
+  // The page says why there is no 3D view, with no empty viewer (issue 47: "No mesh to show"
+  // above a grey, empty frame looked broken).
+  const std::string html = Read(r.page);
+  EXPECT_EQ(html.find("<model-viewer id"), std::string::npos);
+  EXPECT_EQ(html.find("No mesh to show"), std::string::npos);
+  EXPECT_NE(html.find("No 3D view: it shows .glb and .gltf meshes, and 4 sequences wrote neither"),
+            std::string::npos) << html;
+  EXPECT_NE(html.find("Add \"glb\" to the job's output.formats (with imr mesh: --out NAME.glb)"),
+            std::string::npos) << html;
 }
 
 TEST_F(ViewerPage, WithoutModelViewerThePageSaysSo) {

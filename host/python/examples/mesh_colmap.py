@@ -6,12 +6,15 @@ where installed (python3-open3d) and a display is there.
     PYTHONPATH=build/lib/python /usr/bin/python3 host/python/examples/mesh_colmap.py MODEL \
         --out mesh.ply [--views-per-keyframe 4] [--show]
 
-The PLY has the same bytes as
+The PLY has the same bytes as the `imr mesh` command it prints:
     imr mesh --input MODEL --format colmap --out mesh.ply \
         --set input.options.mode=replay --set input.options.views_per_keyframe=4
+(the views replayed, 4 to a keyframe; `imr mesh` without those --set meshes the model as one
+keyframe, its default, and gives another mesh).
 """
 import argparse
 import os
+import shlex
 import time
 
 import imr
@@ -44,6 +47,10 @@ def main():
     print("vertices %s %s, faces %s %s" % (vertices.dtype, vertices.shape, faces.dtype, faces.shape))
     engine.write(args.out)
     print("wrote", args.out)
+    print("the same bytes as:", " ".join(shlex.quote(a) for a in [
+        "imr", "mesh", "--input", args.model, "--format", "colmap", "--out", args.out,
+        "--set", "input.options.mode=replay",
+        "--set", "input.options.views_per_keyframe=%d" % args.views_per_keyframe]))
 
     try:
         import open3d as o3d
