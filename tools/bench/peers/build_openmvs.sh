@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds OpenMVS's InterfaceCOLMAP and RefineMesh from source checkouts the user made, into a cache
-# folder outside the repository, for `imr-bench quality --openmvs` only (never CI). OpenMVS is
+# Builds OpenMVS's InterfaceCOLMAP, DensifyPointCloud, ReconstructMesh and RefineMesh from source
+# checkouts the user made, into a cache folder outside the repository, for `imr-bench quality
+# --openmvs` only (never CI): RefineMesh on imr's mesh, and the whole pipeline as its own row. OpenMVS is
 # AGPL: nothing of it enters this repository; it is only run, as a separate program.
 #
 #   git clone https://github.com/cdcseacave/openMVS.git   # tested: ce03889 (v2.3.0, master)
@@ -11,8 +12,8 @@
 #
 # Steps: install the Build-Depends from Debian (Boost iostreams/program_options/serialization/
 # system, Eigen 3.4, OpenCV, CGAL, libpng/jpeg/tiff, zlib), configure with CUDA, OpenGL (the
-# viewer), Python, BreakPad, Ceres and the tests off, build the two executables only. About 8
-# minutes on 2 cores (JOBS=N: parallel jobs, default nproc). Prints the bin folder last; re-running
+# viewer), Python, BreakPad, Ceres and the tests off, build the four executables only (they share
+# libMVS; Densify and Reconstruct need no package beyond these). About 8 minutes on 2 cores (JOBS=N: parallel jobs, default nproc). Prints the bin folder last; re-running
 # reuses the build (remove CACHE_DIR/openmvs-build to rebuild from other checkouts). Needs root
 # (apt) and the machine's configured Debian mirror.
 set -euo pipefail
@@ -41,7 +42,10 @@ mkdir -p "$cache"
 
 build="$cache/openmvs-build"
 bin="$build/bin"
-if [[ -x "$bin/RefineMesh" && -x "$bin/InterfaceCOLMAP" ]]; then
+exes=(InterfaceCOLMAP DensifyPointCloud ReconstructMesh RefineMesh)
+all_built=1
+for exe in "${exes[@]}"; do [[ -x "$bin/$exe" ]] || all_built=0; done
+if [[ $all_built == 1 ]]; then
   echo "$bin"
   exit 0
 fi
@@ -72,10 +76,10 @@ cmake -S "$src" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DVCG_ROOT="$vcg
   -DOpenMVS_USE_OPENMP=ON -DBUILD_SHARED_LIBS=OFF \
   >"$cache/openmvs-cmake.log" 2>&1 || { tail -n 40 "$cache/openmvs-cmake.log" >&2; exit 1; }
 
-# 3. Build the two executables (and the libraries they need).
-ninja -C "$build" -j "$jobs" InterfaceCOLMAP RefineMesh >"$cache/openmvs-build.log" 2>&1 ||
+# 3. Build the four executables (and the libraries they need).
+ninja -C "$build" -j "$jobs" "${exes[@]}" >"$cache/openmvs-build.log" 2>&1 ||
   { tail -n 60 "$cache/openmvs-build.log" >&2; exit 1; }
-for exe in InterfaceCOLMAP RefineMesh; do
+for exe in "${exes[@]}"; do
   [[ -x "$bin/$exe" ]] || { echo "build_openmvs.sh: no $exe in $bin" >&2; exit 1; }
 done
 echo "$bin"

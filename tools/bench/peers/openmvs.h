@@ -1,8 +1,9 @@
-// OpenMVS's RefineMesh (Vu et al.'s photometric mesh refinement) as a peer of imr's own
-// refinement (issue 34), for `imr-bench quality --openmvs BIN_DIR`: the same unrefined mesh and
-// the same images, refined by OpenMVS, scored by the same code. OpenMVS is AGPL: it is built
-// outside the repository by tools/bench/peers/build_openmvs.sh and only run as separate
-// processes (InterfaceCOLMAP, RefineMesh); none of its code is here.
+// OpenMVS beside imr in `imr-bench quality --openmvs BIN_DIR`, scored by the same code: its
+// RefineMesh (Vu et al.'s photometric mesh refinement) on imr's unrefined mesh and the same
+// images (issue 34), and its whole pipeline on the same keyframes and images (issue 45:
+// InterfaceCOLMAP -> DensifyPointCloud -> ReconstructMesh -> RefineMesh). OpenMVS is AGPL: it is
+// built outside the repository by tools/bench/peers/build_openmvs.sh and only run as separate
+// processes, each `nice -n 10` (it takes every core); none of its code is here.
 #pragma once
 
 #include <filesystem>
@@ -46,5 +47,47 @@ OpenMvsResult RunOpenMvs(const std::filesystem::path& bin_dir, const std::filesy
                          const std::filesystem::path& mesh,
                          const std::vector<std::string>& extra_args,
                          double timeout_seconds = 7200.0);
+
+// The whole pipeline's settings. Image resolution is what its time follows: the KITTI raw
+// sample's 78 frames took about 50 min of depth maps at full resolution and 8.4 min at half on 2
+// cores, so the default is half, on the keyframes only.
+struct OpenMvsPipelineOptions {
+  int resolution_level = 1;   // DensifyPointCloud and RefineMesh: images halved this many times
+  // Their --min-resolution: OpenMVS's 640 would keep a 1242 px KITTI image whole at level 1.
+  int min_resolution = 320;
+  // DensifyPointCloud --tower-mode 0: its default (4) may add a cylinder of points assuming the
+  // scene is z-up, which a street seen by a car (y down) is not.
+  bool no_tower = true;
+  std::vector<std::string> densify_args, reconstruct_args, refine_args;  // appended as given
+  double timeout_seconds = 7200.0;  // per step
+
+  // "" when usable, else which field and why.
+  std::string Check() const;
+  // One line: the settings as they will be passed (for the bench's output).
+  std::string Describe() const;
+};
+
+struct OpenMvsPipelineResult {
+  struct Step {
+    std::string name;          // InterfaceCOLMAP, DensifyPointCloud, ReconstructMesh, RefineMesh
+    double seconds = 0.0;
+    double peak_rss_mb = 0.0;  // the step's own process (wait4's rusage)
+    std::string command;       // as run
+  };
+  bool ok = false;
+  std::string error;               // why not, naming the step and the log to read
+  std::vector<Step> steps;         // those that ran
+  std::filesystem::path mesh;      // <work>/refined.ply when ok
+  double Seconds() const;          // summed over the steps
+  double PeakRssMb() const;        // the largest step's
+};
+
+// The four steps in `work` (prepared by PrepareOpenMvsColmap), each `nice -n 10`, their output in
+// work/openmvs-pipeline.log: scene.mvs, dense.mvs (+ dense.ply), mesh.ply, then RefineMesh on
+// dense.mvs with --mesh-file mesh.ply -> refined.ply. Stops at the first step that fails or
+// writes nothing. Never throws.
+OpenMvsPipelineResult RunOpenMvsPipeline(const std::filesystem::path& bin_dir,
+                                         const std::filesystem::path& work,
+                                         const OpenMvsPipelineOptions& options);
 
 }  // namespace imr::bench
