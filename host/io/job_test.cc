@@ -67,7 +67,7 @@ TEST(Job, ReportsEveryStructuralProblem) {
   EXPECT_TRUE(HasProblem(p, "sequences: expected at least one entry")) << Dump(p);
   EXPECT_TRUE(HasProblem(p, "input.format: required key is missing")) << Dump(p);
   EXPECT_TRUE(HasProblem(p, "input.fromat: unknown key")) << Dump(p);
-  EXPECT_TRUE(HasProblem(p, "pipeline[0].kind: expected features, refiner, weight_policy, "
+  EXPECT_TRUE(HasProblem(p, "pipeline[0].kind: expected features, refiner, dense, weight_policy, "
                             "mesh_refiner or exporter, got \"policy\"")) << Dump(p);
   EXPECT_TRUE(HasProblem(p, "pipeline[0].plugin: expected string, got integer 3")) << Dump(p);
   EXPECT_TRUE(HasProblem(p, "pipeline[0].parms: unknown key")) << Dump(p);

@@ -33,7 +33,8 @@ TEST(Registry, RefusesWithTheFileNamed) {
   r.Scan({IMR_BAD_ABI_PLUGIN, IMR_NO_ENTRY_PLUGIN, "/no/such/folder"});
   ASSERT_EQ(r.refusals().size(), 3u);
   EXPECT_NE(r.refusals()[0].ToString().find("test_bad_abi_plugin.so: plugin #0 refused: built "
-                                            "for plugin ABI 2.3, this host speaks ABI 1.4"),
+                                            "for plugin ABI 2.3, this host speaks ABI 1." +
+                                            std::to_string(IMR_ABI_MINOR)),
             std::string::npos)
       << r.refusals()[0].ToString();
   EXPECT_NE(r.refusals()[1].ToString().find("no entry symbol"), std::string::npos);
