@@ -68,6 +68,10 @@ struct Neighbour {
   Eigen::Vector3d tr;
   Eigen::Matrix3d K;
   int w, h;
+  // The plane's homography H = K (Rr + tr n^T / offset) Kref^-1 = A + b m^T, with
+  // m = Kref^-T n / offset: A and b once per neighbour, a rank-one term per plane.
+  Eigen::Matrix3d A;
+  Eigen::Vector3d b;
 };
 
 struct Plane {
@@ -84,8 +88,11 @@ class Solver {
       : ref_(ref), o_(o), w_(ref.gray.cols), h_(ref.gray.rows) {
     Kinv_ = ref.K.inverse();
     for (const View& v : nbs) {
-      Neighbour n{&v, v.R * ref.R.transpose(), Eigen::Vector3d::Zero(), v.K, v.gray.cols, v.gray.rows};
+      Neighbour n{&v, v.R * ref.R.transpose(), Eigen::Vector3d::Zero(), v.K, v.gray.cols, v.gray.rows,
+                  Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero()};
       n.tr = v.t - n.Rr * ref.t;
+      n.A = v.K * n.Rr * Kinv_;
+      n.b = v.K * n.tr;
       nb_.push_back(n);
     }
     best_ = std::max<int>(1, (static_cast<int>(nb_.size()) + 1) / 2);
@@ -248,21 +255,26 @@ class Solver {
     if (std::abs(offset) < 1e-12 || ref_std_[i] < 1e-3f) {
       return 2.0f;
     }
+    const Eigen::Vector3d m = Kinv_.transpose() * n / offset;
     for (int k = 0; k < nn; ++k) {
       const Neighbour& nb = nb_[k];
-      const Eigen::Matrix3d H = nb.K * (nb.Rr + nb.tr * n.transpose() / offset) * Kinv_;
+      const Eigen::Matrix3d H = nb.A + nb.b * m.transpose();
       double sr = 0, sn = 0, snn = 0, srn = 0;
       int count = 0;
       bool inside = true;
+      // H (xx, yy, 1) = H (x, y, 1) + dx H.col(0) + dy H.col(1).
+      const Eigen::Vector3d centre = H * Eigen::Vector3d(x, y, 1.0);
+      const Eigen::Vector3d cx = H.col(0), cy = H.col(1);
       for (auto [dx, dy] : offsets_) {
         const int xx = x + dx, yy = y + dy;
         if (xx < 0 || yy < 0 || xx >= w_ || yy >= h_) continue;
-        const Eigen::Vector3d q = H * Eigen::Vector3d(xx, yy, 1.0);
+        const Eigen::Vector3d q = centre + dx * cx + dy * cy;
         if (q.z() <= 1e-9) {
           inside = false;
           break;
         }
-        const double u = q.x() / q.z(), v = q.y() / q.z();
+        const double iz = 1.0 / q.z();
+        const double u = q.x() * iz, v = q.y() * iz;
         if (!(u >= 0.0 && v >= 0.0 && u <= nb.w - 1.001 && v <= nb.h - 1.001)) {
           inside = false;
           break;
