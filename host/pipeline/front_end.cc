@@ -37,10 +37,12 @@ engine::Camera ToEngineCamera(const io::CameraGeometry& g) {
   return c;
 }
 
-std::vector<uint64_t> Slice(const imr_refiner_update& u, const imr_point_estimate& p) {
+// A point's observing cameras in the update of `stage` (the refiner's or the dense stage's).
+std::vector<uint64_t> Slice(const imr_refiner_update& u, const imr_point_estimate& p,
+                            const char* stage = "refiner") {
   if (p.camera_count == 0) return {};
   if (p.first_camera + p.camera_count > u.camera_id_count)
-    throw std::runtime_error("refiner: point " + std::to_string(p.id) + " refers to cameras " +
+    throw std::runtime_error(std::string(stage) + ": point " + std::to_string(p.id) + " refers to cameras " +
                              std::to_string(p.first_camera) + ".." +
                              std::to_string(p.first_camera + p.camera_count - 1) + " of only " +
                              std::to_string(u.camera_id_count) + " camera ids");
@@ -330,7 +332,7 @@ void ImageFrontEndSource::AddDensePoints(const TrackedFrame& tracked,
     engine::NewPoint n;
     n.id = id_of(p.id);
     n.position = {p.position[0], p.position[1], p.position[2]};
-    n.camera_ids = Slice(out, p);
+    n.camera_ids = Slice(out, p, "dense stage");
     for (uint64_t c : n.camera_ids)
       if (c > tracked.index)
         throw std::runtime_error("frame " + std::to_string(index) + ": dense point " +

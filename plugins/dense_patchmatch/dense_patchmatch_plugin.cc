@@ -30,10 +30,10 @@ using imr::dense::View;
 
 bool HasIntrinsics(const imr_camera& c) { return c.K[0] > 0.0 && c.K[4] > 0.0; }
 
-struct Keyframe {   // a frame, key or not
+struct Frame {
   uint64_t id = 0;  // frame index (the camera id the host knows)
   View view;        // at the working resolution
-  bool keyframe = false;
+  bool keyframe = false;  // a depth map is made of keyframes only
 };
 
 class DensePatchMatch : public imr::sdk::Dense {
@@ -120,7 +120,7 @@ class DensePatchMatch : public imr::sdk::Dense {
     // A keyframe's map waits for the frames `far_` after it; at the end, every keyframe not yet
     // made is made with the frames there are.
     for (int i = 0; i < static_cast<int>(window_.size()); ++i) {
-      const Keyframe& k = window_[i];
+      const Frame& k = window_[i];
       if (!k.keyframe || k.id < next_reference_) continue;
       if (k.id + far_ <= c.id || r.final_call) Densify(i);
     }
@@ -132,7 +132,7 @@ class DensePatchMatch : public imr::sdk::Dense {
   }
 
  private:
-  Keyframe Load(const imr_camera& c, const imr_image_view& image, bool keyframe) const {
+  Frame Load(const imr_camera& c, const imr_image_view& image, bool keyframe) const {
     const int type = image.channels == 3 ? CV_8UC3 : CV_8UC1;
     if (image.channels != 1 && image.channels != 3)
       throw imr::sdk::InvalidArgument("keyframe " + std::to_string(c.id) + ": image has " +
@@ -153,7 +153,7 @@ class DensePatchMatch : public imr::sdk::Dense {
       }
     full.t = Eigen::Vector3d(c.t[0], c.t[1], c.t[2]);
     full.gray = gray;
-    Keyframe k;
+    Frame k;
     k.id = c.id;
     k.keyframe = keyframe;
     k.view = imr::dense::Downscaled(full, scale_);
@@ -164,7 +164,7 @@ class DensePatchMatch : public imr::sdk::Dense {
   // points (pending until the next keyframe).
   void Densify(int ref) {
     imr::sdk::RefinerUpdate* update = &pending_;
-    const Keyframe& rk = window_[ref];
+    const Frame& rk = window_[ref];
     next_reference_ = rk.id + 1;
     std::vector<View> nbs;
     std::vector<uint64_t> nb_ids;
@@ -189,7 +189,7 @@ class DensePatchMatch : public imr::sdk::Dense {
     previous_ = Previous{rk.id, rk.view, m.depth};
   }
 
-  void ToPoints(const Keyframe& rk, const std::vector<View>& nbs, const std::vector<uint64_t>& nb_ids,
+  void ToPoints(const Frame& rk, const std::vector<View>& nbs, const std::vector<uint64_t>& nb_ids,
                 const DepthMap& m, imr::sdk::RefinerUpdate* update) {
     const View& v = rk.view;
     const Eigen::Matrix3d Kinv = v.K.inverse();
@@ -281,7 +281,7 @@ class DensePatchMatch : public imr::sdk::Dense {
   int point_step_ = 2;
   double spacing_ = 0.0, spacing_ratio_ = 0.01, consistency_ = 0.01;
   std::optional<Previous> previous_;  // the last depth map made, for the consistency check
-  std::deque<Keyframe> window_;
+  std::deque<Frame> window_;  // the last 2 far_ + 1 frames
   uint64_t next_reference_ = 0;  // the next keyframe id a depth map is owed for
   uint64_t next_id_ = 0;
   std::unordered_set<uint64_t> cells_;  // 3D grid cells holding a point

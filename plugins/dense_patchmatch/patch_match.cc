@@ -61,17 +61,14 @@ struct Random {
   double Signed() { return 2.0 * Uniform() - 1.0; }
 };
 
-// A neighbour view seen from the reference camera: Y_n = Rr * Y_ref + tr.
+// A neighbour view seen from the reference camera (Y_n = Rr Y_ref + tr): the homography of the
+// plane n . Y_ref = offset is K (Rr + tr n^T / offset) Kref^-1 = A + b m^T with m =
+// Kref^-T n / offset, so A and b once per neighbour and a rank-one term per plane.
 struct Neighbour {
   const View* view;
-  Eigen::Matrix3d Rr;
-  Eigen::Vector3d tr;
-  Eigen::Matrix3d K;
   int w, h;
-  // The plane's homography H = K (Rr + tr n^T / offset) Kref^-1 = A + b m^T, with
-  // m = Kref^-T n / offset: A and b once per neighbour, a rank-one term per plane.
-  Eigen::Matrix3d A;
-  Eigen::Vector3d b;
+  Eigen::Matrix3d A;  // K Rr Kref^-1
+  Eigen::Vector3d b;  // K tr
 };
 
 struct Plane {
@@ -88,18 +85,15 @@ class Solver {
       : ref_(ref), o_(o), w_(ref.gray.cols), h_(ref.gray.rows) {
     Kinv_ = ref.K.inverse();
     for (const View& v : nbs) {
-      Neighbour n{&v, v.R * ref.R.transpose(), Eigen::Vector3d::Zero(), v.K, v.gray.cols, v.gray.rows,
-                  Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero()};
-      n.tr = v.t - n.Rr * ref.t;
-      n.A = v.K * n.Rr * Kinv_;
-      n.b = v.K * n.tr;
-      nb_.push_back(n);
+      const Eigen::Matrix3d Rr = v.R * ref.R.transpose();
+      const Eigen::Vector3d tr = v.t - Rr * ref.t;
+      nb_.push_back(Neighbour{&v, v.gray.cols, v.gray.rows, v.K * Rr * Kinv_, v.K * tr});
     }
     best_ = std::max<int>(1, (static_cast<int>(nb_.size()) + 1) / 2);
     planes_.assign(static_cast<std::size_t>(w_) * h_, Plane{});
     cost_.assign(planes_.size(), 2.0f);
     cos_max_ = static_cast<float>(std::cos(o_.max_normal_angle_deg * M_PI / 180.0));
-    // The reference patch's samples, mean and spread, once per pixel.
+    // The reference patch's samples and their spread, once per pixel.
     const int r = o_.window_radius, s = o_.window_step;
     for (int dy = -r; dy <= r; dy += s)
       for (int dx = -r; dx <= r; dx += s) offsets_.emplace_back(dx, dy);
@@ -119,7 +113,6 @@ class Solver {
         const double lmin = 0.5 * (a + c) - std::sqrt(0.25 * (a - c) * (a - c) + b * b);
         texture_[Index(x, y)] = static_cast<float>(std::sqrt(std::max(0.0, lmin)));
       }
-    ref_mean_.assign(planes_.size(), 0.0f);
     ref_std_.assign(planes_.size(), 0.0f);
     for (int y = 0; y < h_; ++y)
       for (int x = 0; x < w_; ++x) {
@@ -133,7 +126,6 @@ class Solver {
           ++n;
         }
         const double m = sum / n;
-        ref_mean_[Index(x, y)] = static_cast<float>(m);
         ref_std_[Index(x, y)] = static_cast<float>(std::sqrt(std::max(0.0, sum2 / n - m * m)));
       }
   }
@@ -160,11 +152,11 @@ class Solver {
     m.normal = cv::Mat::zeros(h_, w_, CV_32FC3);
     m.score = cv::Mat::zeros(h_, w_, CV_32FC1);
     m.views = cv::Mat::zeros(h_, w_, CV_32SC1);
+    std::vector<float> zncc;
     for (int y = 0; y < h_; ++y)
       for (int x = 0; x < w_; ++x) {
         const std::size_t i = Index(x, y);
         if (texture_[i] < o_.min_texture) continue;
-        std::vector<float> zncc;
         Cost(x, y, planes_[i], &zncc);
         int mask = 0, agree = 0;
         double sum = 0;
@@ -361,7 +353,7 @@ class Solver {
   int best_ = 1;
   float cos_max_ = 0.0f;
   std::vector<std::pair<int, int>> offsets_;
-  std::vector<float> ref_mean_, ref_std_, texture_;
+  std::vector<float> ref_std_, texture_;
   std::vector<Plane> planes_;
   std::vector<float> cost_;
 };
