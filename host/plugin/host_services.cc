@@ -4,6 +4,7 @@
 #include "host/util/log.h"
 
 #include <atomic>
+#include <csignal>
 #include <cstdio>
 
 namespace imr::plugin {
@@ -58,8 +59,13 @@ const imr_host_services* HostServices() {
 }
 
 void RequestCancel(int signal) {
-  int none = 0;
-  if (signal != 0) g_cancel_signal.compare_exchange_strong(none, signal);
+  // The first signal names the cause, but a terminal's (SIGINT, SIGHUP) wins over an earlier
+  // SIGTERM: a batch forwards SIGTERM to its sequences, so Ctrl-C to the whole process group can
+  // reach a sequence just after its batch's SIGTERM (lock-free atomics: safe in a handler).
+  int seen = g_cancel_signal.load();
+  while (signal != 0 && (seen == 0 || (seen == SIGTERM && signal != SIGTERM)) &&
+         !g_cancel_signal.compare_exchange_weak(seen, signal)) {
+  }
   g_cancel = true;
 }
 bool CancelRequested() { return g_cancel.load(); }

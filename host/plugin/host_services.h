@@ -18,7 +18,8 @@ namespace imr::plugin {
 const imr_host_services* HostServices();
 
 // Cancellation: set by the signal handlers the CLI installs (async-signal-safe); plugins poll
-// it. CancelSignal: the first signal that asked (0: none, or asked without a signal).
+// it. CancelSignal: the first signal that asked (0: none, or asked without a signal), or a
+// SIGINT / SIGHUP that came after a SIGTERM (the batch's forward of a Ctrl-C the group got too).
 void RequestCancel(int signal = 0);
 bool CancelRequested();
 int CancelSignal();
