@@ -26,6 +26,9 @@
 #ifndef IMR_TILES_VIEWER_SCRIPT
 #define IMR_TILES_VIEWER_SCRIPT ""
 #endif
+#ifndef IMR_VIEWER_PAGE_TEMPLATE
+#define IMR_VIEWER_PAGE_TEMPLATE ""
+#endif
 
 namespace imr::report {
 namespace {
@@ -35,6 +38,7 @@ using nlohmann::json;
 
 constexpr const char* kModelViewerName = "model-viewer-umd.min.js";
 constexpr const char* kTilesViewerName = "imr-tiles-viewer.js";
+constexpr const char* kPageTemplateName = "viewer_page.html";
 
 // Through the open rule (host/util/input_file.h): a FIFO or a device where a run's file was is
 // refused by name, never waited on. What a page shows is imr's own output, not an input.
@@ -214,110 +218,6 @@ json AccuracyOf(const Row& r) {
   return a.is_null() ? At(r.row, "/accuracy") : a;
 }
 
-const char* kStyle = R"CSS(
-body { font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }
-h1 { font-size: 1.5em; margin-bottom: 0.2em; }
-.sub { color: #666; margin-top: 0; }
-table { border-collapse: collapse; margin: 1em 0; }
-th, td { border: 1px solid #ccc; padding: 0.3em 0.6em; text-align: left; vertical-align: top; }
-th { background: #f0f0f0; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
-tr.failed td { background: #fff0f0; }
-.status-ok { color: #070; font-weight: 600; }
-.status-bad { color: #b00; font-weight: 600; }
-.error { color: #b00; max-width: 40em; white-space: pre-wrap; }
-#viewer { width: 100%; height: 520px; background: #eef1f4; border: 1px solid #ccc; }
-#viewer-status, #tiles-status { color: #555; margin: 0.3em 0; }
-#tiles-viewer { width: 100%; height: 520px; background: #eef1f4; border: 1px solid #ccc; }
-.plots img { max-width: 100%; border: 1px solid #ddd; margin: 0.5em 0; }
-button { cursor: pointer; }
-.note { color: #666; }
-)CSS";
-
-// The page's script: loads a mesh's script on demand and shows it in <model-viewer>.
-const char* kScript = R"JS(
-(function () {
-  'use strict';
-  const meshes = JSON.parse(document.getElementById('imr-meshes').textContent);
-  const viewer = document.getElementById('viewer');
-  const status = document.getElementById('viewer-status');
-  const urls = {};
-  let current = -1;
-  // For tests and the curious: what the viewer has done.
-  window.imrViewer = { loads: 0, errors: [], shown: null };
-  function say(text) { if (status) status.textContent = text; }
-  window.imrMeshLoaded = function (i, b64) {
-    const bin = atob(b64);
-    const bytes = new Uint8Array(bin.length);
-    for (let k = 0; k < bin.length; ++k) bytes[k] = bin.charCodeAt(k);
-    urls[i] = URL.createObjectURL(new Blob([bytes], { type: 'model/gltf-binary' }));
-    if (i === current) viewer.src = urls[i];
-  };
-  // An upright imr mesh opens at the start of its camera path, looking along it (a street is
-  // long and narrow: the whole of it is a sliver); any other mesh is framed whole.
-  function frame(m) {
-    if (m.view) {
-      const f = m.view.from, t = m.view.to;
-      const dx = f[0] - t[0], dz = f[2] - t[2];
-      const d = Math.max(Math.hypot(dx, dz), 1e-6);
-      viewer.minCameraOrbit = 'auto auto 0m';
-      viewer.maxFieldOfView = '60deg';
-      viewer.cameraTarget = t[0] + 'm ' + t[1] + 'm ' + t[2] + 'm';
-      viewer.cameraOrbit = (Math.atan2(dx, dz) * 180 / Math.PI) + 'deg 75deg ' + (1.2 * d) + 'm';
-      viewer.fieldOfView = '50deg';
-    } else {
-      viewer.minCameraOrbit = 'auto auto auto';
-      viewer.cameraTarget = 'auto auto auto';
-      viewer.cameraOrbit = '0deg 75deg 105%';
-      viewer.fieldOfView = 'auto';
-    }
-  }
-  function show(i) {
-    const m = meshes[i];
-    if (!m || !viewer) return;
-    current = i;
-    frame(m);
-    say('Loading ' + m.name + ' ...');
-    document.querySelectorAll('button[data-mesh]').forEach(function (b) {
-      b.disabled = Number(b.dataset.mesh) === i;
-    });
-    if (urls[i]) { viewer.src = urls[i]; return; }
-    const s = document.createElement('script');
-    s.src = m.script;
-    s.onerror = function () { say('Could not load ' + m.script); };
-    document.head.appendChild(s);
-  }
-  if (viewer) {
-    viewer.addEventListener('load', function () {
-      window.imrViewer.loads += 1;
-      window.imrViewer.shown = current;
-      const m = meshes[current];
-      say(m.name + ': ' + m.faces + ' triangles. Drag to turn, scroll to zoom, right-drag to pan.');
-      try {  // a plain mesh gets a colour that shows its shape; a textured or coloured one keeps its own
-        for (const mat of viewer.model.materials) {
-          if (!m.colored) mat.pbrMetallicRoughness.setBaseColorFactor([0.92, 0.65, 0.3, 1]);
-          mat.pbrMetallicRoughness.setMetallicFactor(0);
-          mat.pbrMetallicRoughness.setRoughnessFactor(m.colored ? 1 : 0.8);
-          mat.setDoubleSided(true);
-        }
-      } catch (e) { /* the view works without */ }
-    });
-    viewer.addEventListener('error', function (e) {
-      window.imrViewer.errors.push(String(e.detail && e.detail.type));
-      say('Could not show the mesh (' + String(e.detail && e.detail.type) + ')');
-    });
-  }
-  document.querySelectorAll('button[data-mesh]').forEach(function (b) {
-    b.addEventListener('click', function () {
-      show(Number(b.dataset.mesh));
-      viewer.scrollIntoView({ behavior: 'smooth' });
-    });
-  });
-  const first = meshes.findIndex(function (m) { return m !== null; });
-  if (viewer && first >= 0) show(first);
-})();
-)JS";
-
 // A GLB's JSON chunk (null when it has none that parses).
 json GlbJson(const std::string& glb) {
   if (glb.size() < 20) return nullptr;
@@ -370,6 +270,8 @@ std::string ViewerPageOptions::Check() const {
   if (max_mesh_bytes == 0) return "max_mesh_bytes must be positive";
   if (!model_viewer_script.empty() && !fs::is_regular_file(model_viewer_script))
     return "model_viewer_script " + model_viewer_script.string() + ": no such file";
+  if (!page_template.empty() && !fs::is_regular_file(page_template))
+    return "page_template " + page_template.string() + ": no such file";
   return "";
 }
 
@@ -397,6 +299,20 @@ fs::path FindModelViewerScript() {
     if (fs::is_regular_file(installed, ec)) return installed;
   }
   const fs::path source = IMR_MODEL_VIEWER_SOURCE;
+  if (!source.empty() && fs::is_regular_file(source, ec)) return source;
+  return {};
+}
+
+fs::path FindViewerPageTemplate() {
+  if (const char* env = std::getenv("IMR_VIEWER_PAGE_TEMPLATE"); env != nullptr && *env != '\0')
+    return fs::is_regular_file(env) ? fs::path(env) : fs::path();
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = exe.parent_path().parent_path() / "share" / "imr" / kPageTemplateName;
+    if (fs::is_regular_file(installed, ec)) return installed;
+  }
+  const fs::path source = IMR_VIEWER_PAGE_TEMPLATE;
   if (!source.empty() && fs::is_regular_file(source, ec)) return source;
   return {};
 }
@@ -499,151 +415,160 @@ std::string ReadAsGlb(const fs::path& path) {
   return glb;
 }
 
-ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
-                                const ViewerPageOptions& options) {
-  if (const std::string p = options.Check(); !p.empty()) throw std::invalid_argument("viewer page options: " + p);
-  if (!summary.is_object() || !summary.contains("sequences") || !summary["sequences"].is_array())
-    throw std::invalid_argument("summary: expected an object with a \"sequences\" array");
-  const fs::path run_dir = fs::absolute(run_dir_in).lexically_normal();
-  if (!fs::is_directory(run_dir)) throw std::runtime_error(run_dir.string() + ": no such folder");
-  ViewerPageResult result;
-  result.page = run_dir / "index.html";
+namespace {
 
-  std::vector<Row> rows;
-  std::vector<std::string> no_mesh;  // sequences with neither a .glb/.gltf mesh nor tiles
-  for (std::size_t i = 0; i < summary["sequences"].size(); ++i)
-    rows.push_back(ReadRow(summary["sequences"][i], i, run_dir, &result.notes, &no_mesh));
-  if (!no_mesh.empty()) {
-    std::string names;
-    for (std::size_t i = 0; i < no_mesh.size() && i < 3; ++i) names += (i ? ", " : "") + no_mesh[i];
-    if (no_mesh.size() > 3) names += ", ...";
-    result.info.push_back(
-        "the 3D view shows .glb and .gltf meshes; " +
-        (no_mesh.size() == 1 ? std::string("1 sequence")
-                             : std::to_string(no_mesh.size()) + " sequences") +
-        " wrote neither (" + names + "): add \"glb\" to output.formats to see " +
-        (no_mesh.size() == 1 ? "it" : "them") + " there");
-  }
+// "the 3D view shows ..." said once for the sequences that wrote no .glb/.gltf nor tiles.
+std::string NoMeshInfo(const std::vector<std::string>& no_mesh) {
+  std::string names;
+  for (std::size_t i = 0; i < no_mesh.size() && i < 3; ++i) names += (i ? ", " : "") + no_mesh[i];
+  if (no_mesh.size() > 3) names += ", ...";
+  return "the 3D view shows .glb and .gltf meshes; " +
+         (no_mesh.size() == 1 ? std::string("1 sequence")
+                              : std::to_string(no_mesh.size()) + " sequences") +
+         " wrote neither (" + names + "): add \"glb\" to output.formats to see " +
+         (no_mesh.size() == 1 ? "it" : "them") + " there";
+}
 
-  // <model-viewer> beside the page.
-  const fs::path assets = run_dir / "assets";
-  fs::path script = options.model_viewer_script.empty() ? FindModelViewerScript() : options.model_viewer_script;
-  const bool viewer = !script.empty();
-  if (viewer) {
-    fs::create_directories(assets / "meshes");
-    WriteFileAtomically(assets / kModelViewerName, ReadBytes(script, "the <model-viewer> script"));
-    result.files.push_back(assets / kModelViewerName);
-  } else {
+// <model-viewer> beside the page; false (and a note) when there is none to copy.
+bool CopyModelViewer(const fs::path& assets, const ViewerPageOptions& options,
+                     ViewerPageResult& result) {
+  const fs::path script =
+      options.model_viewer_script.empty() ? FindModelViewerScript() : options.model_viewer_script;
+  if (script.empty()) {
     result.notes.push_back("no 3D view: <model-viewer> not found (run tools/setup.sh, or set IMR_MODEL_VIEWER_JS)");
+    return false;
   }
+  fs::create_directories(assets / "meshes");
+  WriteFileAtomically(assets / kModelViewerName, ReadBytes(script, "the <model-viewer> script"));
+  result.files.push_back(assets / kModelViewerName);
+  return true;
+}
 
-  // Meshes as scripts, for the 3D view.
+// Row i's mesh as a script for the 3D view, and its entry in the page's mesh table (null when
+// it has none to show, with a note saying why when it could not be shown).
+json WriteMeshScript(const Row& r, std::size_t i, const fs::path& run_dir, const fs::path& assets,
+                     const ViewerPageOptions& options, ViewerPageResult& result) {
+  std::string glb;
+  try {
+    glb = ReadAsGlb(r.mesh);
+  } catch (const std::exception& e) {
+    result.notes.push_back(r.name + ": no 3D view: " + e.what());
+    return nullptr;
+  }
+  if (glb.size() > options.max_mesh_bytes) {
+    result.notes.push_back(r.name + ": no 3D view: " + r.mesh.string() + " is " +
+                           std::to_string(glb.size() >> 20) + " MiB, more than max_mesh_bytes");
+    return nullptr;
+  }
+  const fs::path js = assets / "meshes" / (std::to_string(i) + ".js");
+  const json gltf = GlbJson(glb);
+  const bool colored = HasColor(gltf);
+  WriteFileAtomically(js, "imrMeshLoaded(" + std::to_string(i) + ",\"" + Base64Encode(glb) + "\");\n");
+  result.files.push_back(js);
+  const json faces = At(r.report, "/mesh/faces");
+  ++result.meshes_viewable;
+  return {{"name", r.name},
+          {"script", UrlPath(js.lexically_relative(run_dir))},
+          {"faces", faces.is_null() ? json("?") : faces},
+          {"colored", colored},
+          {"view", OpeningView(gltf)}};
+}
+
+// Meshes as scripts, for the 3D view: the page's mesh table, one entry (or null) per row.
+json WriteMeshScripts(const std::vector<Row>& rows, bool viewer, const fs::path& run_dir,
+                      const fs::path& assets, const ViewerPageOptions& options,
+                      ViewerPageResult& result) {
   json meshes = json::array();
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const Row& r = rows[i];
-    if (!viewer || r.mesh.empty()) {
-      meshes.push_back(nullptr);
-      continue;
-    }
-    std::string glb;
-    try {
-      glb = ReadAsGlb(r.mesh);
-    } catch (const std::exception& e) {
-      result.notes.push_back(r.name + ": no 3D view: " + e.what());
-      meshes.push_back(nullptr);
-      continue;
-    }
-    if (glb.size() > options.max_mesh_bytes) {
-      result.notes.push_back(r.name + ": no 3D view: " + r.mesh.string() + " is " +
-                             std::to_string(glb.size() >> 20) + " MiB, more than max_mesh_bytes");
-      meshes.push_back(nullptr);
-      continue;
-    }
-    const fs::path js = assets / "meshes" / (std::to_string(i) + ".js");
-    const json gltf = GlbJson(glb);
-    const bool colored = HasColor(gltf);
-    WriteFileAtomically(js, "imrMeshLoaded(" + std::to_string(i) + ",\"" + Base64Encode(glb) + "\");\n");
-    result.files.push_back(js);
-    const json faces = At(r.report, "/mesh/faces");
-    meshes.push_back({{"name", r.name},
-                      {"script", UrlPath(js.lexically_relative(run_dir))},
-                      {"faces", faces.is_null() ? json("?") : faces},
-                      {"colored", colored},
-                      {"view", OpeningView(gltf)}});
-    ++result.meshes_viewable;
-  }
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    meshes.push_back(!viewer || rows[i].mesh.empty()
+                         ? json(nullptr)
+                         : WriteMeshScript(rows[i], i, run_dir, assets, options, result));
+  return meshes;
+}
 
-  // Tiled runs: the tiles view's script, each run's tileset and tiles as scripts.
-  json tilesets = json::array();
+// The tiles view's script beside the page when a row has tiles; empty (and a note) when none.
+fs::path CopyTilesViewer(const std::vector<Row>& rows, const fs::path& assets,
+                         const ViewerPageOptions& options, ViewerPageResult& result) {
   bool any_tiles = false;
   for (const Row& r : rows) any_tiles = any_tiles || !r.tileset.empty();
-  fs::path tiles_script;
-  if (any_tiles) {
-    tiles_script = options.tiles_viewer_script.empty() ? FindTilesViewerScript() : options.tiles_viewer_script;
-    if (tiles_script.empty())
-      result.notes.push_back("no view of 3D Tiles: imr-tiles-viewer.js not found (built with node "
-                             "and tools/node's esbuild: tools/setup.sh; or set IMR_TILES_VIEWER_JS)");
-    else {
-      fs::create_directories(assets);
-      WriteFileAtomically(assets / kTilesViewerName, ReadBytes(tiles_script, "the tiles view's script"));
-      result.files.push_back(assets / kTilesViewerName);
-    }
+  if (!any_tiles) return {};
+  fs::path tiles_script =
+      options.tiles_viewer_script.empty() ? FindTilesViewerScript() : options.tiles_viewer_script;
+  if (tiles_script.empty()) {
+    result.notes.push_back("no view of 3D Tiles: imr-tiles-viewer.js not found (built with node "
+                           "and tools/node's esbuild: tools/setup.sh; or set IMR_TILES_VIEWER_JS)");
+    return {};
   }
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const Row& r = rows[i];
-    if (tiles_script.empty() || r.tileset.empty()) {
-      tilesets.push_back(nullptr);
-      continue;
-    }
-    try {
-      const std::string text = ReadBytes(r.tileset, "a tileset");
-      const json ts = json::parse(text);
-      std::vector<std::string> uris;
-      std::vector<const json*> todo = {&ts.at("root")};
-      while (!todo.empty()) {
-        const json* t = todo.back();
-        todo.pop_back();
-        if (t->contains("content")) uris.push_back(t->at("content").at("uri").get<std::string>());
-        if (t->contains("children"))
-          for (const json& c : t->at("children")) todo.push_back(&c);
-      }
-      std::uintmax_t bytes = 0;
-      for (const std::string& u : uris) {
-        // Only imr's tile names, inside the run's tiles/ folder: the tileset is read, not trusted.
-        const std::string name = u.rfind("tiles/", 0) == 0 ? u.substr(6) : "";
-        if (name.size() != 15 || name.rfind("tile_", 0) != 0 || name.substr(11) != ".glb" ||
-            name.substr(5, 6).find_first_not_of("0123456789") != std::string::npos)
-          throw std::runtime_error(r.tileset.string() + ": content uri '" + JsonText(u) + "' is not a tile of imr");
-        bytes += fs::file_size(r.output / u);
-      }
-      if (bytes > options.max_tiles_bytes) {
-        result.notes.push_back(r.name + ": no view of its tiles: " + std::to_string(bytes >> 20) +
-                               " MiB of tiles, more than max_tiles_bytes");
-        tilesets.push_back(nullptr);
-        continue;
-      }
-      const fs::path dir = assets / "tiles" / std::to_string(i);
-      fs::create_directories(dir);
-      auto put = [&](const std::string& path, const std::string& name, const std::string& data) {
-        WriteFileAtomically(dir / (name + ".js"), "imrTileData(" + std::to_string(i) + "," + DumpJson(json(path)) +
-                                                      ",\"" + Base64Encode(data) + "\");\n");
-        result.files.push_back(dir / (name + ".js"));
-      };
-      put("tileset.json", "tileset", text);
-      for (const std::string& u : uris)
-        put(u, u.substr(6, 11), ReadBytes(r.output / u, "a tile"));
-      tilesets.push_back({{"name", r.name},
-                          {"scripts", UrlPath(dir.lexically_relative(run_dir))},
-                          {"tiles", uris.size()},
-                          {"triangles", At(r.report, "/tiles/triangles").is_null() ? json("?") : At(r.report, "/tiles/triangles")}});
-      ++result.tilesets_viewable;
-    } catch (const std::exception& e) {
-      result.notes.push_back(r.name + ": no view of its tiles: " + e.what());
-      tilesets.push_back(nullptr);
-    }
-  }
+  fs::create_directories(assets);
+  WriteFileAtomically(assets / kTilesViewerName, ReadBytes(tiles_script, "the tiles view's script"));
+  result.files.push_back(assets / kTilesViewerName);
+  return tiles_script;
+}
 
-  // Plots.
+// The content uris of a tileset, depth first as its children are listed.
+std::vector<std::string> TileUris(const json& ts) {
+  std::vector<std::string> uris;
+  std::vector<const json*> todo = {&ts.at("root")};
+  while (!todo.empty()) {
+    const json* t = todo.back();
+    todo.pop_back();
+    if (t->contains("content")) uris.push_back(t->at("content").at("uri").get<std::string>());
+    if (t->contains("children"))
+      for (const json& c : t->at("children")) todo.push_back(&c);
+  }
+  return uris;
+}
+
+// Only imr's tile names, inside the run's tiles/ folder: the tileset is read, not trusted.
+void CheckTileUri(const std::string& u, const fs::path& tileset) {
+  const std::string name = u.rfind("tiles/", 0) == 0 ? u.substr(6) : "";
+  if (name.size() != 15 || name.rfind("tile_", 0) != 0 || name.substr(11) != ".glb" ||
+      name.substr(5, 6).find_first_not_of("0123456789") != std::string::npos)
+    throw std::runtime_error(tileset.string() + ": content uri '" + JsonText(u) + "' is not a tile of imr");
+}
+
+// Row i's tileset and tiles as scripts, and its entry in the page's tiles table (null, with a
+// note, when they are too large or cannot be read).
+json WriteTileScripts(const Row& r, std::size_t i, const fs::path& run_dir, const fs::path& assets,
+                      const ViewerPageOptions& options, ViewerPageResult& result) {
+  try {
+    const std::string text = ReadBytes(r.tileset, "a tileset");
+    const std::vector<std::string> uris = TileUris(json::parse(text));
+    std::uintmax_t bytes = 0;
+    for (const std::string& u : uris) {
+      CheckTileUri(u, r.tileset);
+      bytes += fs::file_size(r.output / u);
+    }
+    if (bytes > options.max_tiles_bytes) {
+      result.notes.push_back(r.name + ": no view of its tiles: " + std::to_string(bytes >> 20) +
+                             " MiB of tiles, more than max_tiles_bytes");
+      return nullptr;
+    }
+    const fs::path dir = assets / "tiles" / std::to_string(i);
+    fs::create_directories(dir);
+    auto put = [&](const std::string& path, const std::string& name, const std::string& data) {
+      WriteFileAtomically(dir / (name + ".js"), "imrTileData(" + std::to_string(i) + "," + DumpJson(json(path)) +
+                                                    ",\"" + Base64Encode(data) + "\");\n");
+      result.files.push_back(dir / (name + ".js"));
+    };
+    put("tileset.json", "tileset", text);
+    for (const std::string& u : uris)
+      put(u, u.substr(6, 11), ReadBytes(r.output / u, "a tile"));
+    ++result.tilesets_viewable;
+    const json triangles = At(r.report, "/tiles/triangles");
+    return {{"name", r.name},
+            {"scripts", UrlPath(dir.lexically_relative(run_dir))},
+            {"tiles", uris.size()},
+            {"triangles", triangles.is_null() ? json("?") : triangles}};
+  } catch (const std::exception& e) {
+    result.notes.push_back(r.name + ": no view of its tiles: " + e.what());
+    return nullptr;
+  }
+}
+
+// The PNGs the page shows: the options' list, else every *.png in RUN_DIR and RUN_DIR/plots.
+std::vector<fs::path> FindPlots(const fs::path& run_dir, const ViewerPageOptions& options,
+                                ViewerPageResult& result) {
   std::vector<fs::path> plots;
   if (!options.plots.empty()) {
     for (const fs::path& p : options.plots) {
@@ -651,95 +576,104 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
       if (!fs::is_regular_file(a)) result.notes.push_back(a.string() + ": no such plot");
       else plots.push_back(a);
     }
-  } else {
-    for (const fs::path& dir : {run_dir, run_dir / "plots"}) {
-      if (!fs::is_directory(dir)) continue;
-      std::vector<fs::path> found;
-      for (const auto& e : fs::directory_iterator(dir))
-        if (e.is_regular_file() && Lower(e.path().extension().string()) == ".png" &&
-            e.path().filename().string().front() != '.')
-          found.push_back(e.path());
-      std::sort(found.begin(), found.end());
-      plots.insert(plots.end(), found.begin(), found.end());
-    }
+    return plots;
   }
+  for (const fs::path& dir : {run_dir, run_dir / "plots"}) {
+    if (!fs::is_directory(dir)) continue;
+    std::vector<fs::path> found;
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.is_regular_file() && Lower(e.path().extension().string()) == ".png" &&
+          e.path().filename().string().front() != '.')
+        found.push_back(e.path());
+    std::sort(found.begin(), found.end());
+    plots.insert(plots.end(), found.begin(), found.end());
+  }
+  return plots;
+}
 
-  // The page.
-  const std::string title = summary.value("title", options.title);
+// What a page is made of, gathered before it is written.
+struct PageParts {
+  std::vector<Row> rows;
+  std::vector<std::string> no_mesh;  // sequences with neither a .glb/.gltf mesh nor tiles
+  bool viewer = false;               // <model-viewer> copied beside the page
+  json meshes = json::array();       // per row: its 3D view, or null
+  json tilesets = json::array();     // per row: the view of its tiles, or null
+  std::vector<fs::path> plots;
+};
+
+std::string SubtitleHtml(const json& summary, const std::vector<Row>& rows) {
   std::ostringstream h;
-  h << "<!doctype html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
-    << "<meta name=\"generator\" content=\"imr\">\n"  // how imr knows the page is its own
-    << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
-    << "<title>" << HtmlEscape(title) << "</title>\n<style>" << kStyle << "</style>\n";
-  if (viewer) h << "<script src=\"assets/" << kModelViewerName << "\"></script>\n";
-  h << "</head>\n<body>\n<h1>" << HtmlEscape(title) << "</h1>\n<p class=\"sub\">";
   if (summary.contains("job") && summary["job"].is_string())
     h << "Job <code>" << HtmlEscape(summary["job"].get<std::string>()) << "</code> &middot; ";
   int ok = 0;
   for (const Row& r : rows) ok += r.ok ? 1 : 0;
   h << rows.size() << " sequence" << (rows.size() == 1 ? "" : "s") << ", " << ok << " ok, "
-    << rows.size() - static_cast<std::size_t>(ok) << " not &middot; page written " << LocalTime()
-    << "</p>\n";
+    << rows.size() - static_cast<std::size_t>(ok) << " not &middot; page written " << LocalTime();
+  return h.str();
+}
 
-  h << "<h2>Sequences</h2>\n<table id=\"summary\">\n<thead><tr><th>#</th><th>sequence</th>"
-       "<th>status</th><th>frames</th><th>time (s)</th><th>vertices</th><th>faces</th>"
-       "<th title=\"mean distance from each ground-truth point to the nearest triangle of the "
-       "mesh (the paper's accuracy), scene units; ground truth cropped to what the cameras saw "
-       "(the report's accuracy says how)\">mean distance truth → mesh</th><th>error</th><th>files</th><th>3D</th></tr></thead>\n<tbody>\n";
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const Row& r = rows[i];
-    h << "<tr class=\"" << (r.ok ? "ok" : "failed") << "\"><td class=\"num\">" << i + 1 << "</td><td>"
-      << HtmlEscape(r.name) << "</td><td class=\"" << (r.ok ? "status-ok" : "status-bad") << "\">"
-      << HtmlEscape(r.status) << "</td><td class=\"num\">" << FramesCell(r) << "</td><td class=\"num\">"
-      << (r.seconds ? FormatNumber(*r.seconds, "%.1f") : "") << "</td>";
-    json vertices = At(r.report, "/mesh/vertices"), faces = At(r.report, "/mesh/faces");
-    if (vertices.is_null()) vertices = At(r.row, "/mesh/vertices");
-    if (faces.is_null()) faces = At(r.row, "/mesh/faces");
-    h << "<td class=\"num\">" << (vertices.is_number() ? vertices.dump() : "") << "</td><td class=\"num\">"
-      << (faces.is_number() ? faces.dump() : "") << "</td>";
-    const json accuracy = AccuracyOf(r);
-    const std::optional<double> mean = Accuracy(accuracy);
-    h << "<td class=\"num\"" << (accuracy.is_null() ? "" : " title=\"" + HtmlEscape(accuracy.dump()) + "\"")
-      << ">" << (mean ? FormatNumber(*mean, "%.4g") : "") << "</td>";
-    h << "<td class=\"error\">" << HtmlEscape(r.error) << "</td><td>";
-    std::vector<std::pair<std::string, fs::path>> links;
-    if (!r.output.empty() && fs::is_regular_file(r.output / "report.json"))
-      links.emplace_back("report", r.output / "report.json");
-    if (!r.mesh.empty()) links.emplace_back(r.mesh.extension().string().substr(1), r.mesh);
-    if (!r.tileset.empty()) links.emplace_back("tileset", r.tileset);
-    for (std::size_t k = 0; k < links.size(); ++k)
-      h << (k ? " " : "") << "<a href=\"" << HtmlEscape(UrlPath(links[k].second.lexically_relative(run_dir)))
-        << "\">" << HtmlEscape(links[k].first) << "</a>";
-    h << "</td><td>";
-    if (!meshes[i].is_null()) h << "<button data-mesh=\"" << i << "\">view</button>";
-    if (!tilesets[i].is_null()) h << " <button data-tiles=\"" << i << "\">tiles</button>";
-    h << "</td></tr>\n";
-  }
-  h << "</tbody>\n</table>\n";
+// Row i of the sequences table.
+std::string RowHtml(const PageParts& parts, std::size_t i, const fs::path& run_dir) {
+  const Row& r = parts.rows[i];
+  std::ostringstream h;
+  h << "<tr class=\"" << (r.ok ? "ok" : "failed") << "\"><td class=\"num\">" << i + 1 << "</td><td>"
+    << HtmlEscape(r.name) << "</td><td class=\"" << (r.ok ? "status-ok" : "status-bad") << "\">"
+    << HtmlEscape(r.status) << "</td><td class=\"num\">" << FramesCell(r) << "</td><td class=\"num\">"
+    << (r.seconds ? FormatNumber(*r.seconds, "%.1f") : "") << "</td>";
+  json vertices = At(r.report, "/mesh/vertices"), faces = At(r.report, "/mesh/faces");
+  if (vertices.is_null()) vertices = At(r.row, "/mesh/vertices");
+  if (faces.is_null()) faces = At(r.row, "/mesh/faces");
+  h << "<td class=\"num\">" << (vertices.is_number() ? vertices.dump() : "") << "</td><td class=\"num\">"
+    << (faces.is_number() ? faces.dump() : "") << "</td>";
+  const json accuracy = AccuracyOf(r);
+  const std::optional<double> mean = Accuracy(accuracy);
+  h << "<td class=\"num\"" << (accuracy.is_null() ? "" : " title=\"" + HtmlEscape(accuracy.dump()) + "\"")
+    << ">" << (mean ? FormatNumber(*mean, "%.4g") : "") << "</td>";
+  h << "<td class=\"error\">" << HtmlEscape(r.error) << "</td><td>";
+  std::vector<std::pair<std::string, fs::path>> links;
+  if (!r.output.empty() && fs::is_regular_file(r.output / "report.json"))
+    links.emplace_back("report", r.output / "report.json");
+  if (!r.mesh.empty()) links.emplace_back(r.mesh.extension().string().substr(1), r.mesh);
+  if (!r.tileset.empty()) links.emplace_back("tileset", r.tileset);
+  for (std::size_t k = 0; k < links.size(); ++k)
+    h << (k ? " " : "") << "<a href=\"" << HtmlEscape(UrlPath(links[k].second.lexically_relative(run_dir)))
+      << "\">" << HtmlEscape(links[k].first) << "</a>";
+  h << "</td><td>";
+  if (!parts.meshes[i].is_null()) h << "<button data-mesh=\"" << i << "\">view</button>";
+  if (!parts.tilesets[i].is_null()) h << " <button data-tiles=\"" << i << "\">tiles</button>";
+  h << "</td></tr>\n";
+  return h.str();
+}
 
-  if (viewer && result.meshes_viewable > 0) {
+// The sections after the table: the mesh view (or why there is none), the tiles view, the
+// plots, the notes.
+std::string SectionsHtml(const PageParts& parts, const fs::path& run_dir,
+                         const ViewerPageResult& result) {
+  std::ostringstream h;
+  if (parts.viewer && result.meshes_viewable > 0) {
     h << "<h2>Mesh</h2>\n<p id=\"viewer-status\">Loading ...</p>\n"
       << "<model-viewer id=\"viewer\" camera-controls interaction-prompt=\"none\" "
          "shadow-intensity=\"0\" exposure=\"1.1\" alt=\"the selected sequence's mesh\">"
          "</model-viewer>\n";
-  } else if (viewer && !no_mesh.empty()) {
+  } else if (parts.viewer && !parts.no_mesh.empty()) {
     // No empty, grey viewer that looks broken (issue 47): why there is no 3D view, and what
     // gives one.
+    const std::size_t n = parts.no_mesh.size();
     h << "<h2>Mesh</h2>\n<p id=\"viewer-status\" class=\"note\">No 3D view: it shows .glb and "
          ".gltf meshes, and "
-      << (no_mesh.size() == 1 ? "this run" : std::to_string(no_mesh.size()) + " sequences")
+      << (n == 1 ? "this run" : std::to_string(n) + " sequences")
       << " wrote neither (the mesh files are linked in the table). Add \"glb\" to the job's "
          "output.formats (with imr mesh: --out NAME.glb) to see "
-      << (no_mesh.size() == 1 ? "it" : "them") << " here.</p>\n";
-  } else if (viewer && result.tilesets_viewable == 0) {
+      << (n == 1 ? "it" : "them") << " here.</p>\n";
+  } else if (parts.viewer && result.tilesets_viewable == 0) {
     h << "<h2>Mesh</h2>\n<p id=\"viewer-status\" class=\"note\">No mesh to show: no sequence "
          "finished with one.</p>\n";
   }
   if (result.tilesets_viewable > 0)
     h << "<h2>Tiles</h2>\n<p id=\"tiles-status\">Loading ...</p>\n<div id=\"tiles-viewer\"></div>\n";
-  if (!plots.empty()) {
+  if (!parts.plots.empty()) {
     h << "<h2>Plots</h2>\n<div class=\"plots\">\n";
-    for (const fs::path& p : plots) {
+    for (const fs::path& p : parts.plots) {
       const fs::path rel = p.lexically_relative(run_dir);
       h << "<figure><img src=\"" << HtmlEscape(UrlPath(rel)) << "\" alt=\"" << HtmlEscape(p.stem().string())
         << "\"><figcaption>" << HtmlEscape(rel.generic_string()) << "</figcaption></figure>\n";
@@ -751,21 +685,116 @@ ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
     for (const std::string& n : result.notes) h << "<li>" << HtmlEscape(n) << "</li>\n";
     h << "</ul>\n";
   }
-  // The mesh table as JSON; "</" cannot end the script element early once escaped.
-  std::string meshes_json = DumpJson(meshes);
-  for (std::size_t pos = 0; (pos = meshes_json.find("</", pos)) != std::string::npos; pos += 3)
-    meshes_json.replace(pos, 2, "<\\/");
-  h << "<script type=\"application/json\" id=\"imr-meshes\">" << meshes_json << "</script>\n"
-    << "<script>" << kScript << "</script>\n";
-  if (result.tilesets_viewable > 0) {
-    std::string tiles_json = DumpJson(tilesets);
-    for (std::size_t pos = 0; (pos = tiles_json.find("</", pos)) != std::string::npos; pos += 3)
-      tiles_json.replace(pos, 2, "<\\/");
-    h << "<script type=\"application/json\" id=\"imr-tiles\">" << tiles_json << "</script>\n"
-      << "<script src=\"assets/" << kTilesViewerName << "\"></script>\n";
+  return h.str();
+}
+
+// JSON for a <script type="application/json">: "</" cannot end the element early once escaped.
+std::string ScriptJson(const json& j) {
+  std::string text = DumpJson(j);
+  for (std::size_t pos = 0; (pos = text.find("</", pos)) != std::string::npos; pos += 3)
+    text.replace(pos, 2, "<\\/");
+  return text;
+}
+
+// The page's template with each {{name}} replaced by values[name]; the values are not scanned
+// again, so a title holding "{{" stays as it is. A name the template has and `values` has not
+// (or a "{{" without "}}") is an error naming the template, so a template from another version
+// of imr is refused rather than shown half filled.
+std::string FillTemplate(const std::string& text, const fs::path& path,
+                         const std::vector<std::pair<std::string, std::string>>& values) {
+  std::string out;
+  out.reserve(text.size());
+  std::size_t at = 0;
+  for (std::size_t open; (open = text.find("{{", at)) != std::string::npos;) {
+    const std::size_t close = text.find("}}", open + 2);
+    const std::string line = std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(open), '\n'));
+    if (close == std::string::npos)
+      throw std::runtime_error(path.string() + ":" + line + ": \"{{\" without \"}}\"");
+    const std::string name = text.substr(open + 2, close - open - 2);
+    const auto v = std::find_if(values.begin(), values.end(), [&](const auto& p) { return p.first == name; });
+    if (v == values.end())
+      throw std::runtime_error(path.string() + ":" + line + ": unknown placeholder {{" + JsonText(name) + "}}");
+    out.append(text, at, open - at);
+    out += v->second;
+    at = close + 2;
   }
-  h << "</body>\n</html>\n";
-  WriteFileAtomically(result.page, h.str());
+  out.append(text, at, std::string::npos);
+  return out;
+}
+
+// What the page's template may hold: {{title}} (escaped), {{head_scripts}} (<model-viewer>'s
+// script element, or nothing), {{subtitle}}, {{rows}} (the sequences table's rows), {{sections}}
+// (the mesh and tiles views, plots, notes), {{meshes_json}}, {{tiles_scripts}}.
+constexpr const char* kPagePlaceholders[] = {"title", "head_scripts", "subtitle", "rows",
+                                             "sections", "meshes_json", "tiles_scripts"};
+
+// The page's template (viewer_page.html: the markup, style and script that never change), read
+// before anything is written.
+struct PageTemplate {
+  fs::path path;
+  std::string text;
+};
+
+PageTemplate ReadPageTemplate(const ViewerPageOptions& options) {
+  const fs::path path = options.page_template.empty() ? FindViewerPageTemplate() : options.page_template;
+  if (path.empty())
+    throw std::runtime_error("the viewer page's template " + std::string(kPageTemplateName) +
+                             " is not installed (share/imr beside the executables; or set "
+                             "IMR_VIEWER_PAGE_TEMPLATE)");
+  PageTemplate page{path, ReadBytes(path, "the viewer page's template")};
+  std::vector<std::pair<std::string, std::string>> names;
+  for (const char* name : kPagePlaceholders) names.emplace_back(name, "");
+  FillTemplate(page.text, page.path, names);  // its placeholders checked before anything is written
+  return page;
+}
+
+// The page: its template filled with the parts of this batch.
+std::string PageHtml(const PageTemplate& page, const json& summary, const PageParts& parts,
+                     const fs::path& run_dir, const ViewerPageOptions& options,
+                     const ViewerPageResult& result) {
+  std::string rows;
+  for (std::size_t i = 0; i < parts.rows.size(); ++i) rows += RowHtml(parts, i, run_dir);
+  const std::string title = HtmlEscape(summary.value("title", options.title));
+  return FillTemplate(
+      page.text, page.path,
+      {{"title", title},
+       {"head_scripts", parts.viewer ? "<script src=\"assets/" + std::string(kModelViewerName) + "\"></script>\n" : ""},
+       {"subtitle", SubtitleHtml(summary, parts.rows)},
+       {"rows", rows},
+       {"sections", SectionsHtml(parts, run_dir, result)},
+       {"meshes_json", ScriptJson(parts.meshes)},
+       {"tiles_scripts", result.tilesets_viewable == 0 ? "" :
+            "<script type=\"application/json\" id=\"imr-tiles\">" + ScriptJson(parts.tilesets) +
+            "</script>\n<script src=\"assets/" + kTilesViewerName + "\"></script>\n"}});
+}
+
+}  // namespace
+
+ViewerPageResult WriteBatchPage(const fs::path& run_dir_in, const json& summary,
+                                const ViewerPageOptions& options) {
+  if (const std::string p = options.Check(); !p.empty()) throw std::invalid_argument("viewer page options: " + p);
+  if (!summary.is_object() || !summary.contains("sequences") || !summary["sequences"].is_array())
+    throw std::invalid_argument("summary: expected an object with a \"sequences\" array");
+  const fs::path run_dir = fs::absolute(run_dir_in).lexically_normal();
+  if (!fs::is_directory(run_dir)) throw std::runtime_error(run_dir.string() + ": no such folder");
+  ViewerPageResult result;
+  result.page = run_dir / "index.html";
+  const PageTemplate page = ReadPageTemplate(options);
+
+  PageParts parts;
+  for (std::size_t i = 0; i < summary["sequences"].size(); ++i)
+    parts.rows.push_back(ReadRow(summary["sequences"][i], i, run_dir, &result.notes, &parts.no_mesh));
+  if (!parts.no_mesh.empty()) result.info.push_back(NoMeshInfo(parts.no_mesh));
+  const fs::path assets = run_dir / "assets";
+  parts.viewer = CopyModelViewer(assets, options, result);
+  parts.meshes = WriteMeshScripts(parts.rows, parts.viewer, run_dir, assets, options, result);
+  const fs::path tiles_script = CopyTilesViewer(parts.rows, assets, options, result);
+  for (std::size_t i = 0; i < parts.rows.size(); ++i)
+    parts.tilesets.push_back(tiles_script.empty() || parts.rows[i].tileset.empty()
+                                 ? json(nullptr)
+                                 : WriteTileScripts(parts.rows[i], i, run_dir, assets, options, result));
+  parts.plots = FindPlots(run_dir, options, result);
+  WriteFileAtomically(result.page, PageHtml(page, summary, parts, run_dir, options, result));
   result.files.push_back(result.page);
   return result;
 }

@@ -76,6 +76,9 @@ struct ViewerPageOptions {
   std::filesystem::path tiles_viewer_script;
   // A run's tiles (all of them, bytes) above this are linked but not embedded for the view.
   std::uintmax_t max_tiles_bytes = std::uintmax_t{256} << 20;
+  // The page's template (viewer_page.html). Empty: FindViewerPageTemplate(); without one no
+  // page is written.
+  std::filesystem::path page_template;
 
   // Empty when usable, else which field and why.
   std::string Check() const;
@@ -108,6 +111,11 @@ std::filesystem::path FindTilesViewerScript();
 // <executable's folder>/../share/imr/model-viewer-umd.min.js (an install); else the copy
 // tools/setup.sh put in the source tree's tools/node/node_modules. Empty when none exists.
 std::filesystem::path FindModelViewerScript();
+
+// Where the page's template is: $IMR_VIEWER_PAGE_TEMPLATE if set; else <executable's
+// folder>/../share/imr/viewer_page.html (an install); else host/report/viewer_page.html in the
+// source tree. Empty when none exists.
+std::filesystem::path FindViewerPageTemplate();
 
 // A glTF 2.0 file with external or data-URI buffers and images (PNG, JPEG: a texture atlas
 // beside it) packed into one GLB (bytes); a .glb is returned as it is. Throws

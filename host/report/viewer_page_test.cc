@@ -338,5 +338,53 @@ TEST_F(ViewerPage, BadSummaryIsRefusedNamingTheKey) {
   EXPECT_THROW(WriteBatchPage(dir_ / "nope", {{"sequences", json::array()}}, options_), std::runtime_error);
 }
 
+// The page is its template (viewer_page.html) with each {{name}} filled once: a value holding
+// "{{" is not expanded again.
+TEST_F(ViewerPage, PageIsItsTemplateFilledOnce) {
+  fs::create_directories(dir_ / "run");
+  fs::create_directories(dir_ / "run");
+  options_.page_template = Write("page.html", "<h1>{{title}}</h1>\n{{rows}}{{head_scripts}}end\n");
+  const json summary = {{"title", "a {{rows}} <b>"},
+                        {"sequences", {{{"name", "s"}, {"ok", false}, {"error", "e"}}}}};
+  const ViewerPageResult r = WriteBatchPage(dir_ / "run", summary, options_);
+  const std::string html = Read(r.page);
+  const std::string head = "<h1>a {{rows}} &lt;b&gt;</h1>\n<tr class=\"failed\"><td class=\"num\">1</td>";
+  EXPECT_EQ(html.substr(0, head.size()), head);
+  EXPECT_NE(html.find("</tr>\n<script src=\"assets/model-viewer-umd.min.js\"></script>\nend\n"),
+            std::string::npos);
+  EXPECT_EQ(html.find("{{head_scripts}}"), std::string::npos);
+}
+
+// A template with a name the page does not fill (one from another version of imr) is refused
+// naming the file and line, before anything is written; a missing one is a bad option.
+TEST_F(ViewerPage, TemplateWithAnUnknownPlaceholderIsRefusedBeforeAnythingIsWritten) {
+  Write("run/s/mesh.glb", TetraGlb());
+  const json summary = {{"sequences", {{{"name", "s"}, {"ok", true}, {"output_directory", "s"}}}}};
+  options_.page_template = Write("page.html", "<h1>{{title}}</h1>\n<p>{{sidebar}}</p>\n");
+  try {
+    WriteBatchPage(dir_ / "run", summary, options_);
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), (dir_ / "page.html").string() + ":2: unknown placeholder {{sidebar}}");
+  }
+  options_.page_template = Write("page.html", "<h1>{{title</h1>\n");
+  EXPECT_THROW(WriteBatchPage(dir_ / "run", summary, options_), std::runtime_error);
+  EXPECT_FALSE(fs::exists(dir_ / "run/assets"));
+  EXPECT_FALSE(fs::exists(dir_ / "run/index.html"));
+  options_.page_template = dir_ / "missing.html";
+  EXPECT_EQ(options_.Check(), "page_template " + (dir_ / "missing.html").string() + ": no such file");
+}
+
+TEST_F(ViewerPage, FindsItsTemplateBesideTheSources) {
+  const fs::path found = FindViewerPageTemplate();
+  ASSERT_FALSE(found.empty());
+  const std::string text = Read(found);
+  for (const char* name : {"{{title}}", "{{rows}}", "{{sections}}", "{{meshes_json}}"})
+    EXPECT_NE(text.find(name), std::string::npos) << name;
+  ::setenv("IMR_VIEWER_PAGE_TEMPLATE", (dir_ / "nowhere.html").c_str(), 1);
+  EXPECT_TRUE(FindViewerPageTemplate().empty());
+  ::unsetenv("IMR_VIEWER_PAGE_TEMPLATE");
+}
+
 }  // namespace
 }  // namespace imr::report
