@@ -516,86 +516,82 @@ bool UprightRotation(std::span<const imr_camera> keyframes, double rotation[9]) 
   return true;
 }
 
-TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr_camera> keyframes,
-                             const KeyframeImageFetch& fetch, const TexturingOptions& options,
-                             const std::function<void()>& check_cancelled) {
-  if (const std::string e = options.Check(); !e.empty()) throw std::invalid_argument(e);
-  const auto start = Clock::now();
-  const std::size_t nv = mesh.vertex_count(), nf = mesh.face_count();
-  const double* X = mesh.vertices.data();
-  TexturedMesh out;
-  out.stats.faces = static_cast<int64_t>(nf);
-  out.face_page.assign(nf, -1);
-  out.face_view.assign(nf, -1);
-  out.face_patch.assign(nf, -1);
-  out.face_uv.assign(6 * nf, 0.0f);
+namespace {
 
+// The keyframes that are textured from: every keyframe_step-th and the last, when usable.
+std::vector<View> TexturingViews(std::span<const imr_camera> keyframes, const TexturingOptions& options) {
   std::vector<View> views;
   const int nk = static_cast<int>(keyframes.size());
   for (int i = 0; i < nk; ++i)
     if ((i % options.keyframe_step == 0 || i + 1 == nk) && View::Usable(keyframes[i]))
       views.emplace_back(i, keyframes[i]);
-  out.stats.views = static_cast<int>(views.size());
-  if (views.empty() || nf == 0) {
-    out.stats.seconds_total = Since(start);
-    return out;
-  }
+  return views;
+}
 
-  // The scene's extent sets the near plane (the clipping of faces through a camera).
+// The near plane (the clipping of faces through a camera), from the scene's extent.
+double NearPlane(const imr::sdk::MeshView& mesh, const std::vector<View>& views) {
+  const double* X = mesh.vertices.data();
   double extent = 0.0;
-  for (std::size_t i = 0; i < 3 * nv; ++i) extent = std::max(extent, std::fabs(X[i]));
+  for (std::size_t i = 0; i < 3 * mesh.vertex_count(); ++i) extent = std::max(extent, std::fabs(X[i]));
   for (const View& v : views) extent = std::max({extent, std::fabs(v.center[0]), std::fabs(v.center[1]), std::fabs(v.center[2])});
-  const double near = std::max(extent, 1.0) * kNearRelative;
+  return std::max(extent, 1.0) * kNearRelative;
+}
 
-  const std::vector<double> normals = VertexNormals(mesh);
-  std::vector<Vec3> face_normal(nf);
-  std::vector<Vec3> centroid(nf);
-  for (std::size_t f = 0; f < nf; ++f) {
-    const double* a = X + 3 * mesh.faces[3 * f];
-    const double* b = X + 3 * mesh.faces[3 * f + 1];
-    const double* c = X + 3 * mesh.faces[3 * f + 2];
-    face_normal[f] = Cross(Sub({b[0], b[1], b[2]}, {a[0], a[1], a[2]}), Sub({c[0], c[1], c[2]}, {a[0], a[1], a[2]}));
-    centroid[f] = {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3};
+void Project(const View& view, const Vec3& p, double* u, double* v) {
+  *u = view.fx * p[0] / p[2] + view.cx;
+  *v = view.fy * p[1] / p[2] + view.cy;
+}
+
+// Pass 1: per view, the z-buffer, the vertex colour samples and the faces it sees whole.
+class VisibilityPass {
+ public:
+  VisibilityPass(const imr::sdk::MeshView& mesh, double near, bool texture)
+      : mesh_(mesh), X_(mesh.vertices.data()), nv_(mesh.vertex_count()), nf_(mesh.face_count()),
+        near_(near), texture_(texture), normals_(VertexNormals(mesh)), face_normal_(nf_),
+        centroid_(nf_), color_sum_(3 * nv_, 0.0), weight_sum_(nv_, 0.0), cam_(nv_), own_pixels_(nf_) {
+    for (std::size_t f = 0; f < nf_; ++f) {
+      const double* a = X_ + 3 * mesh.faces[3 * f];
+      const double* b = X_ + 3 * mesh.faces[3 * f + 1];
+      const double* c = X_ + 3 * mesh.faces[3 * f + 2];
+      face_normal_[f] = Cross(Sub({b[0], b[1], b[2]}, {a[0], a[1], a[2]}), Sub({c[0], c[1], c[2]}, {a[0], a[1], a[2]}));
+      centroid_[f] = {(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3};
+    }
   }
 
-  // ---- Pass 1: per view, the z-buffer, which faces it sees whole, the vertex colour samples.
-  auto t0 = Clock::now();
-  std::vector<double> color_sum(3 * nv, 0.0), weight_sum(nv, 0.0);
-  std::vector<Candidate> candidates;
-  std::vector<Vec3> cam(nv);
-  std::vector<uint32_t> own_pixels(nf);
-  ZBuffer zb;
-  for (std::size_t vi = 0; vi < views.size(); ++vi) {
-    if (check_cancelled) check_cancelled();
-    const View& view = views[vi];
-    const imr::sdk::KeyframeImage image = fetch(static_cast<uint64_t>(view.index));
+  // View vi (views[vi]) with its image.
+  void See(std::size_t vi, const View& view, const imr::sdk::KeyframeImage& image) {
     if (image.width() != view.width || image.height() != view.height)
       throw std::runtime_error("keyframe " + std::to_string(view.index) + ": its image is " +
                                std::to_string(image.width()) + "x" + std::to_string(image.height()) +
                                ", its camera says " + std::to_string(view.width) + "x" +
                                std::to_string(view.height));
-    for (std::size_t i = 0; i < nv; ++i) cam[i] = view.ToCamera(X + 3 * i);
-    Rasterize(cam, mesh, view, near, &zb);
-    std::fill(own_pixels.begin(), own_pixels.end(), 0u);
-    for (const int32_t f : zb.face)
-      if (f >= 0) ++own_pixels[static_cast<std::size_t>(f)];
-    auto project = [&](const Vec3& p, double* u, double* v) {
-      *u = view.fx * p[0] / p[2] + view.cx;
-      *v = view.fy * p[1] / p[2] + view.cy;
-    };
-    const double umax = view.width - 1.0, vmax = view.height - 1.0;
+    for (std::size_t i = 0; i < nv_; ++i) cam_[i] = view.ToCamera(X_ + 3 * i);
+    Rasterize(cam_, mesh_, view, near_, &zb_);
+    std::fill(own_pixels_.begin(), own_pixels_.end(), 0u);
+    for (const int32_t f : zb_.face)
+      if (f >= 0) ++own_pixels_[static_cast<std::size_t>(f)];
+    SampleVertexColours(view, image);
+    if (texture_) AddFaceCandidates(vi, view);
+  }
 
-    // Vertex colours: every vertex this view sees, on the side its normal points to.
-    for (std::size_t i = 0; i < nv; ++i) {
-      const Vec3& p = cam[i];
-      if (!(p[2] > near)) continue;
+  const std::vector<double>& color_sum() const { return color_sum_; }
+  const std::vector<double>& weight_sum() const { return weight_sum_; }
+  std::vector<Candidate>& candidates() { return candidates_; }
+
+ private:
+  // Every vertex this view sees, on the side its normal points to.
+  void SampleVertexColours(const View& view, const imr::sdk::KeyframeImage& image) {
+    const double umax = view.width - 1.0, vmax = view.height - 1.0;
+    for (std::size_t i = 0; i < nv_; ++i) {
+      const Vec3& p = cam_[i];
+      if (!(p[2] > near_)) continue;
       double u, v;
-      project(p, &u, &v);
+      Project(view, p, &u, &v);
       if (!(u >= 0 && v >= 0 && u <= umax && v <= vmax) ||
-          !VertexSeen(zb, mesh, u, v, static_cast<uint32_t>(i)))
+          !VertexSeen(zb_, mesh_, u, v, static_cast<uint32_t>(i)))
         continue;
-      const Vec3 ray = Sub(view.center, {X[3 * i], X[3 * i + 1], X[3 * i + 2]});
-      const Vec3 n = {normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+      const Vec3 ray = Sub(view.center, {X_[3 * i], X_[3 * i + 1], X_[3 * i + 2]});
+      const Vec3 n = {normals_[3 * i], normals_[3 * i + 1], normals_[3 * i + 2]};
       double cosine = 1.0;
       if (Dot(n, n) > 0.0) {
         cosine = Dot(n, ray) / Norm(ray);
@@ -603,37 +599,56 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr
       }
       const double w = (cosine / p[2]) * (cosine / p[2]);
       const std::array<double, 3> rgb = Sample(image, u, v);
-      for (int k = 0; k < 3; ++k) color_sum[3 * i + k] += w * rgb[k];
-      weight_sum[i] += w;
-    }
-
-    // Faces seen whole: candidates for the texture, with their projected area as quality.
-    if (options.texture) {
-      for (std::size_t f = 0; f < nf; ++f) {
-        if (!(Dot(face_normal[f], Sub(view.center, centroid[f])) > 0.0)) continue;  // back face
-        double u[3], v[3];
-        bool ok = true;
-        for (int k = 0; k < 3 && ok; ++k) {
-          const Vec3& p = cam[mesh.faces[3 * f + k]];
-          ok = p[2] > near;
-          if (!ok) break;
-          project(p, &u[k], &v[k]);
-          ok = u[k] >= 0.5 && v[k] >= 0.5 && u[k] <= umax - 0.5 && v[k] <= vmax - 0.5 &&
-               VertexSeen(zb, mesh, u[k], v[k], mesh.faces[3 * f + k]);
-        }
-        if (!ok) continue;
-        const Vec3 c = view.ToCamera(centroid[f].data());
-        double cu, cv;
-        project(c, &cu, &cv);
-        if (!FaceSeen(zb, mesh, cu, cv, static_cast<uint32_t>(f))) continue;
-        const double area = 0.5 * std::fabs((u[1] - u[0]) * (v[2] - v[0]) - (v[1] - v[0]) * (u[2] - u[0]));
-        if (area >= kMinOwnPixelsArea && own_pixels[f] < kMinOwnPixelsShare * area) continue;
-        candidates.push_back({static_cast<uint32_t>(f), static_cast<int32_t>(vi), static_cast<float>(area)});
-      }
+      for (int k = 0; k < 3; ++k) color_sum_[3 * i + k] += w * rgb[k];
+      weight_sum_[i] += w;
     }
   }
 
-  // Vertex colours: the weighted means, then vertices nobody saw from their neighbours.
+  // Faces seen whole: candidates for the texture, with their projected area as quality.
+  void AddFaceCandidates(std::size_t vi, const View& view) {
+    const double umax = view.width - 1.0, vmax = view.height - 1.0;
+    for (std::size_t f = 0; f < nf_; ++f) {
+      if (!(Dot(face_normal_[f], Sub(view.center, centroid_[f])) > 0.0)) continue;  // back face
+      double u[3], v[3];
+      bool ok = true;
+      for (int k = 0; k < 3 && ok; ++k) {
+        const Vec3& p = cam_[mesh_.faces[3 * f + k]];
+        ok = p[2] > near_;
+        if (!ok) break;
+        Project(view, p, &u[k], &v[k]);
+        ok = u[k] >= 0.5 && v[k] >= 0.5 && u[k] <= umax - 0.5 && v[k] <= vmax - 0.5 &&
+             VertexSeen(zb_, mesh_, u[k], v[k], mesh_.faces[3 * f + k]);
+      }
+      if (!ok) continue;
+      const Vec3 c = view.ToCamera(centroid_[f].data());
+      double cu, cv;
+      Project(view, c, &cu, &cv);
+      if (!FaceSeen(zb_, mesh_, cu, cv, static_cast<uint32_t>(f))) continue;
+      const double area = 0.5 * std::fabs((u[1] - u[0]) * (v[2] - v[0]) - (v[1] - v[0]) * (u[2] - u[0]));
+      if (area >= kMinOwnPixelsArea && own_pixels_[f] < kMinOwnPixelsShare * area) continue;
+      candidates_.push_back({static_cast<uint32_t>(f), static_cast<int32_t>(vi), static_cast<float>(area)});
+    }
+  }
+
+  const imr::sdk::MeshView& mesh_;
+  const double* X_;
+  std::size_t nv_, nf_;
+  double near_;
+  bool texture_;
+  std::vector<double> normals_;
+  std::vector<Vec3> face_normal_, centroid_;
+  std::vector<double> color_sum_, weight_sum_;
+  std::vector<Candidate> candidates_;
+  std::vector<Vec3> cam_;  // the vertices in the current view's camera frame
+  std::vector<uint32_t> own_pixels_;
+  ZBuffer zb_;
+};
+
+// Vertex colours: the weighted means, then vertices nobody saw from their neighbours.
+void VertexColours(const imr::sdk::MeshView& mesh, const VisibilityPass& pass, TexturedMesh& out) {
+  const std::size_t nv = mesh.vertex_count(), nf = mesh.face_count();
+  const std::vector<double>& color_sum = pass.color_sum();
+  const std::vector<double>& weight_sum = pass.weight_sum();
   out.vertex_rgb.assign(3 * nv, 128);
   std::vector<uint8_t> known(nv, 0);
   for (std::size_t i = 0; i < nv; ++i) {
@@ -642,154 +657,142 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr
     known[i] = 1;
     ++out.stats.vertices_seen;
   }
-  {
-    // Rings of neighbours: each round colours the unknown vertices next to known ones.
-    std::vector<std::vector<uint32_t>> ring(nv);
-    for (std::size_t f = 0; f < nf; ++f)
-      for (int k = 0; k < 3; ++k) {
-        const uint32_t a = mesh.faces[3 * f + k], b = mesh.faces[3 * f + (k + 1) % 3];
-        ring[a].push_back(b);
-        ring[b].push_back(a);
-      }
-    for (bool progress = true; progress;) {
-      progress = false;
-      std::vector<uint32_t> now;
-      for (std::size_t i = 0; i < nv; ++i) {
-        if (known[i]) continue;
-        double sum[3] = {0, 0, 0};
-        int count = 0;
-        for (uint32_t j : ring[i])
-          if (known[j] == 1) {
-            for (int k = 0; k < 3; ++k) sum[k] += out.vertex_rgb[3 * j + k];
-            ++count;
-          }
-        if (count == 0) continue;
-        for (int k = 0; k < 3; ++k) out.vertex_rgb[3 * i + k] = Byte(sum[k] / count);
-        now.push_back(static_cast<uint32_t>(i));
-      }
-      for (uint32_t i : now) known[i] = 1;
-      progress = !now.empty();
+  // Rings of neighbours: each round colours the unknown vertices next to known ones.
+  std::vector<std::vector<uint32_t>> ring(nv);
+  for (std::size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = mesh.faces[3 * f + k], b = mesh.faces[3 * f + (k + 1) % 3];
+      ring[a].push_back(b);
+      ring[b].push_back(a);
     }
+  for (bool progress = true; progress;) {
+    std::vector<uint32_t> now;
+    for (std::size_t i = 0; i < nv; ++i) {
+      if (known[i]) continue;
+      double sum[3] = {0, 0, 0};
+      int count = 0;
+      for (uint32_t j : ring[i])
+        if (known[j] == 1) {
+          for (int k = 0; k < 3; ++k) sum[k] += out.vertex_rgb[3 * j + k];
+          ++count;
+        }
+      if (count == 0) continue;
+      for (int k = 0; k < 3; ++k) out.vertex_rgb[3 * i + k] = Byte(sum[k] / count);
+      now.push_back(static_cast<uint32_t>(i));
+    }
+    for (uint32_t i : now) known[i] = 1;
+    progress = !now.empty();
   }
-  out.stats.seconds_visibility = Since(t0);
-  if (!options.texture) {
-    out.stats.seconds_total = Since(start);
-    return out;
-  }
+}
 
-  // ---- Labelling: best view, then alpha-expansion with the Potts term.
-  t0 = Clock::now();
-  out.stats.candidates = static_cast<int64_t>(candidates.size());
-  const Adjacency adjacency = FaceAdjacency(mesh);
-  std::vector<int32_t> label =
-      SelectViewsOn(adjacency, nf, std::move(candidates), static_cast<int>(views.size()),
-                    options.seam_penalty, &out.stats);
-
-  // Each labelled face's corners in its view's image.
+// Each labelled face's corners in its view's image (u, v per corner).
+std::vector<double> ImageCorners(const imr::sdk::MeshView& mesh, const std::vector<View>& views,
+                                 const std::vector<int32_t>& label) {
+  const std::size_t nf = mesh.face_count();
+  const double* X = mesh.vertices.data();
   std::vector<double> img_uv(6 * nf, 0.0);
   for (std::size_t f = 0; f < nf; ++f) {
     if (label[f] < 0) continue;
     const View& view = views[static_cast<std::size_t>(label[f])];
     for (int k = 0; k < 3; ++k) {
       const Vec3 p = view.ToCamera(X + 3 * mesh.faces[3 * f + k]);
-      img_uv[6 * f + 2 * k] = view.fx * p[0] / p[2] + view.cx;
-      img_uv[6 * f + 2 * k + 1] = view.fy * p[1] / p[2] + view.cy;
+      Project(view, p, &img_uv[6 * f + 2 * k], &img_uv[6 * f + 2 * k + 1]);
     }
   }
+  return img_uv;
+}
 
-  // Patches: connected faces with one label, grown breadth-first while the rectangle they need
-  // (with padding) still fits a page.
-  std::vector<Patch> patches;
+// The patch grown from `seed`: connected faces with its label, breadth-first while the
+// rectangle they need (with padding) still fits a page; false when the seed alone is larger than
+// a page (left untextured). Marks its faces in out.face_patch.
+bool GrowPatch(std::size_t seed, int32_t id, const Adjacency& adjacency, const std::vector<int32_t>& label,
+               const std::vector<double>& img_uv, const std::vector<View>& views,
+               const TexturingOptions& options, TexturedMesh& out, Patch* patch) {
   const int pad = options.padding, limit = options.atlas_size;
-  {
-    std::vector<uint32_t> queue;
-    for (std::size_t seed = 0; seed < nf; ++seed) {
-      if (label[seed] < 0 || out.face_patch[seed] >= 0) continue;
-      const auto id = static_cast<int32_t>(patches.size());
-      double lo[2] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
-      double hi[2] = {-lo[0], -lo[1]};
-      auto fits = [&](std::size_t f, double* nlo, double* nhi) {
-        for (int a = 0; a < 2; ++a) {
-          nlo[a] = lo[a], nhi[a] = hi[a];
-          for (int k = 0; k < 3; ++k) {
-            nlo[a] = std::min(nlo[a], img_uv[6 * f + 2 * k + a]);
-            nhi[a] = std::max(nhi[a], img_uv[6 * f + 2 * k + a]);
-          }
-          if (std::ceil(nhi[a]) - std::floor(nlo[a]) + 1 + 2 * pad > limit) return false;
-        }
-        return true;
-      };
-      double nlo[2], nhi[2];
-      if (!fits(seed, nlo, nhi)) continue;  // one face larger than a page: left untextured
+  double lo[2] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
+  double hi[2] = {-lo[0], -lo[1]};
+  auto fits = [&](std::size_t f, double* nlo, double* nhi) {
+    for (int a = 0; a < 2; ++a) {
+      nlo[a] = lo[a], nhi[a] = hi[a];
+      for (int k = 0; k < 3; ++k) {
+        nlo[a] = std::min(nlo[a], img_uv[6 * f + 2 * k + a]);
+        nhi[a] = std::max(nhi[a], img_uv[6 * f + 2 * k + a]);
+      }
+      if (std::ceil(nhi[a]) - std::floor(nlo[a]) + 1 + 2 * pad > limit) return false;
+    }
+    return true;
+  };
+  double nlo[2], nhi[2];
+  if (!fits(seed, nlo, nhi)) return false;
+  std::copy(nlo, nlo + 2, lo);
+  std::copy(nhi, nhi + 2, hi);
+  out.face_patch[seed] = id;
+  std::vector<uint32_t> queue(1, static_cast<uint32_t>(seed));
+  for (std::size_t q = 0; q < queue.size(); ++q) {
+    const uint32_t f = queue[q];
+    for (uint32_t a = adjacency.begin[f]; a < adjacency.begin[f + 1]; ++a) {
+      const uint32_t g = adjacency.adj[a];
+      if (label[g] != label[seed] || out.face_patch[g] >= 0 || !fits(g, nlo, nhi)) continue;
       std::copy(nlo, nlo + 2, lo);
       std::copy(nhi, nhi + 2, hi);
-      out.face_patch[seed] = id;
-      queue.assign(1, static_cast<uint32_t>(seed));
-      for (std::size_t q = 0; q < queue.size(); ++q) {
-        const uint32_t f = queue[q];
-        for (uint32_t a = adjacency.begin[f]; a < adjacency.begin[f + 1]; ++a) {
-          const uint32_t g = adjacency.adj[a];
-          if (label[g] != label[seed] || out.face_patch[g] >= 0 || !fits(g, nlo, nhi)) continue;
-          std::copy(nlo, nlo + 2, lo);
-          std::copy(nhi, nhi + 2, hi);
-          out.face_patch[g] = id;
-          queue.push_back(g);
-        }
-      }
-      const View& view = views[static_cast<std::size_t>(label[seed])];
-      Patch p;
-      p.view = label[seed];
-      p.x0 = std::max(0, static_cast<int>(std::floor(lo[0])) - pad);
-      p.y0 = std::max(0, static_cast<int>(std::floor(lo[1])) - pad);
-      p.width = std::min(view.width - 1, static_cast<int>(std::ceil(hi[0])) + pad) - p.x0 + 1;
-      p.height = std::min(view.height - 1, static_cast<int>(std::ceil(hi[1])) + pad) - p.y0 + 1;
-      patches.push_back(p);
+      out.face_patch[g] = id;
+      queue.push_back(g);
     }
   }
-  out.stats.patches = static_cast<int64_t>(patches.size());
+  const View& view = views[static_cast<std::size_t>(label[seed])];
+  Patch& p = *patch;
+  p.view = label[seed];
+  p.x0 = std::max(0, static_cast<int>(std::floor(lo[0])) - pad);
+  p.y0 = std::max(0, static_cast<int>(std::floor(lo[1])) - pad);
+  p.width = std::min(view.width - 1, static_cast<int>(std::ceil(hi[0])) + pad) - p.x0 + 1;
+  p.height = std::min(view.height - 1, static_cast<int>(std::ceil(hi[1])) + pad) - p.y0 + 1;
+  return true;
+}
 
-  // Shelf packing, tallest first, into pages of atlas_size^2; pages are cut to what they use.
-  {
-    std::vector<std::size_t> order(patches.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return patches[a].height > patches[b].height ||
-             (patches[a].height == patches[b].height && (patches[a].width > patches[b].width ||
-                                                         (patches[a].width == patches[b].width && a < b)));
-    });
-    int page = -1, x = 0, shelf_y = 0, shelf_h = 0;
-    std::vector<std::array<int, 2>> used;
-    for (std::size_t i : order) {
-      Patch& p = patches[i];
-      if (page < 0 || x + p.width > limit) {  // next shelf
-        shelf_y += shelf_h;
-        x = 0;
-        shelf_h = p.height;
-      }
-      if (page < 0 || shelf_y + p.height > limit) {  // next page
-        ++page;
-        used.push_back({0, 0});
-        x = 0, shelf_y = 0, shelf_h = p.height;
-      }
-      p.page = page, p.px = x, p.py = shelf_y;
-      x += p.width;
-      used[static_cast<std::size_t>(page)][0] = std::max(used[static_cast<std::size_t>(page)][0], x);
-      used[static_cast<std::size_t>(page)][1] = std::max(used[static_cast<std::size_t>(page)][1], shelf_y + p.height);
-      out.stats.patch_pixels += static_cast<int64_t>(p.width) * p.height;
+// Shelf packing, tallest first, into pages of atlas_size^2; pages are cut to what they use.
+void PackPatches(std::vector<Patch>& patches, int limit, TexturedMesh& out) {
+  std::vector<std::size_t> order(patches.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return patches[a].height > patches[b].height ||
+           (patches[a].height == patches[b].height && (patches[a].width > patches[b].width ||
+                                                       (patches[a].width == patches[b].width && a < b)));
+  });
+  int page = -1, x = 0, shelf_y = 0, shelf_h = 0;
+  std::vector<std::array<int, 2>> used;
+  for (std::size_t i : order) {
+    Patch& p = patches[i];
+    if (page < 0 || x + p.width > limit) {  // next shelf
+      shelf_y += shelf_h;
+      x = 0;
+      shelf_h = p.height;
     }
-    for (const auto& [w, h] : used) {
-      AtlasPage pg;
-      pg.width = (w + 3) / 4 * 4;  // rows of whole 4-byte groups: friendlier to every decoder
-      pg.height = (h + 3) / 4 * 4;
-      pg.rgb.assign(static_cast<std::size_t>(pg.width) * pg.height * 3, 0);
-      out.stats.atlas_pixels += static_cast<int64_t>(pg.width) * pg.height;
-      out.pages.push_back(std::move(pg));
+    if (page < 0 || shelf_y + p.height > limit) {  // next page
+      ++page;
+      used.push_back({0, 0});
+      x = 0, shelf_y = 0, shelf_h = p.height;
     }
+    p.page = page, p.px = x, p.py = shelf_y;
+    x += p.width;
+    used[static_cast<std::size_t>(page)][0] = std::max(used[static_cast<std::size_t>(page)][0], x);
+    used[static_cast<std::size_t>(page)][1] = std::max(used[static_cast<std::size_t>(page)][1], shelf_y + p.height);
+    out.stats.patch_pixels += static_cast<int64_t>(p.width) * p.height;
   }
+  for (const auto& [w, h] : used) {
+    AtlasPage pg;
+    pg.width = (w + 3) / 4 * 4;  // rows of whole 4-byte groups: friendlier to every decoder
+    pg.height = (h + 3) / 4 * 4;
+    pg.rgb.assign(static_cast<std::size_t>(pg.width) * pg.height * 3, 0);
+    out.stats.atlas_pixels += static_cast<int64_t>(pg.width) * pg.height;
+    out.pages.push_back(std::move(pg));
+  }
+}
 
-  // Texture coordinates: image pixel (x, y) lands on texel (x - x0 + px, y - y0 + py), whose
-  // centre is at +0.5 in texture space.
-  for (std::size_t f = 0; f < nf; ++f) {
+// Texture coordinates: image pixel (x, y) lands on texel (x - x0 + px, y - y0 + py), whose
+// centre is at +0.5 in texture space.
+void TextureCoordinates(const std::vector<Patch>& patches, const std::vector<View>& views,
+                        const std::vector<double>& img_uv, std::vector<int32_t>& label, TexturedMesh& out) {
+  for (std::size_t f = 0; f < label.size(); ++f) {
     if (out.face_patch[f] < 0) {
       label[f] = -1;  // larger than a page on its own: vertex colours
       continue;
@@ -806,10 +809,37 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr
     }
     ++out.stats.faces_textured;
   }
-  out.stats.seconds_labelling = Since(t0);
+}
 
-  // ---- Pass 2: copy each patch's rectangle from its view's image.
-  t0 = Clock::now();
+// Labelling, patches, packing and texture coordinates: best view, then alpha-expansion with the
+// Potts term; the faces of one label grown into patches that are packed into pages.
+std::vector<Patch> LayOutAtlas(const imr::sdk::MeshView& mesh, const std::vector<View>& views,
+                               std::vector<Candidate> candidates, const TexturingOptions& options,
+                               TexturedMesh& out) {
+  const std::size_t nf = mesh.face_count();
+  out.stats.candidates = static_cast<int64_t>(candidates.size());
+  const Adjacency adjacency = FaceAdjacency(mesh);
+  std::vector<int32_t> label =
+      SelectViewsOn(adjacency, nf, std::move(candidates), static_cast<int>(views.size()),
+                    options.seam_penalty, &out.stats);
+  const std::vector<double> img_uv = ImageCorners(mesh, views, label);
+  std::vector<Patch> patches;
+  for (std::size_t seed = 0; seed < nf; ++seed) {
+    if (label[seed] < 0 || out.face_patch[seed] >= 0) continue;
+    Patch p;
+    if (GrowPatch(seed, static_cast<int32_t>(patches.size()), adjacency, label, img_uv, views, options, out, &p))
+      patches.push_back(p);
+  }
+  out.stats.patches = static_cast<int64_t>(patches.size());
+  PackPatches(patches, options.atlas_size, out);
+  TextureCoordinates(patches, views, img_uv, label, out);
+  return patches;
+}
+
+// Pass 2: copy each patch's rectangle from its view's image (BGR or gray) into its page (RGB).
+void CopyPatches(const std::vector<Patch>& patches, const std::vector<View>& views,
+                 const KeyframeImageFetch& fetch, const std::function<void()>& check_cancelled,
+                 TexturedMesh& out) {
   std::vector<std::vector<std::size_t>> by_view(views.size());
   for (std::size_t i = 0; i < patches.size(); ++i) by_view[static_cast<std::size_t>(patches[i].view)].push_back(i);
   for (std::size_t vi = 0; vi < views.size(); ++vi) {
@@ -833,6 +863,48 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr
       }
     }
   }
+}
+
+}  // namespace
+
+TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr_camera> keyframes,
+                             const KeyframeImageFetch& fetch, const TexturingOptions& options,
+                             const std::function<void()>& check_cancelled) {
+  if (const std::string e = options.Check(); !e.empty()) throw std::invalid_argument(e);
+  const auto start = Clock::now();
+  const std::size_t nf = mesh.face_count();
+  TexturedMesh out;
+  out.stats.faces = static_cast<int64_t>(nf);
+  out.face_page.assign(nf, -1);
+  out.face_view.assign(nf, -1);
+  out.face_patch.assign(nf, -1);
+  out.face_uv.assign(6 * nf, 0.0f);
+  const std::vector<View> views = TexturingViews(keyframes, options);
+  out.stats.views = static_cast<int>(views.size());
+  if (views.empty() || nf == 0) {
+    out.stats.seconds_total = Since(start);
+    return out;
+  }
+
+  auto t0 = Clock::now();
+  VisibilityPass pass(mesh, NearPlane(mesh, views), options.texture);
+  for (std::size_t vi = 0; vi < views.size(); ++vi) {
+    if (check_cancelled) check_cancelled();
+    pass.See(vi, views[vi], fetch(static_cast<uint64_t>(views[vi].index)));
+  }
+  VertexColours(mesh, pass, out);
+  out.stats.seconds_visibility = Since(t0);
+  if (!options.texture) {
+    out.stats.seconds_total = Since(start);
+    return out;
+  }
+
+  t0 = Clock::now();
+  const std::vector<Patch> patches = LayOutAtlas(mesh, views, std::move(pass.candidates()), options, out);
+  out.stats.seconds_labelling = Since(t0);
+
+  t0 = Clock::now();
+  CopyPatches(patches, views, fetch, check_cancelled, out);
   out.stats.seconds_atlas = Since(t0);
   out.stats.seconds_total = Since(start);
   return out;
