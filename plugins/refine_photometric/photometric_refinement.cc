@@ -880,34 +880,11 @@ bool RefineOptions::Check(std::string* error) const {
   return true;
 }
 
-bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_t, 3>>& faces,
-            const std::vector<uint8_t>& active_in, const RefineOptions& options,
-            std::vector<Eigen::Vector3d>* vertices, RefineStats* stats_out,
-            const std::function<bool()>& cancelled) {
-  const auto start = std::chrono::steady_clock::now();
-  Validate(views, faces, active_in, options, vertices);
-  RefineStats local_stats;
-  RefineStats& stats = stats_out ? *stats_out : local_stats;
-  stats = RefineStats{};
-  std::vector<Vec3>& p = *vertices;
-  const std::size_t n = p.size();
-  const std::vector<Vec3> input = p;
-  std::vector<uint8_t> active = active_in;
-  if (active.empty()) active.assign(n, 1);
-  for (uint8_t& a : active) a = a ? 1 : 0;
-  stats.vertices = static_cast<int64_t>(n);
-  for (uint8_t a : active) stats.vertices_active += a;
-  const int threads = options.threads;
+namespace {
 
-  const Topology topo = BuildTopology(n, faces);
-  std::vector<Vec3> input_face_normals(faces.size(), Vec3::Zero());
-  for (std::size_t f = 0; f < faces.size(); ++f)
-    if (topo.face_ok[f]) input_face_normals[f] = FaceCross(p, faces[f]);
-  const double mean_edge = MeanEdge(p, faces, topo);
-
-  // Views: projections and float pyramids. Coarse levels stop at kMinPyramidSide pixels.
-  std::vector<ViewData> vd(views.size());
-  int image_levels = options.image_scale_levels;
+// How many pyramid levels every view can have: coarse levels stop at kMinPyramidSide pixels.
+int ImageLevels(const std::vector<View>& views, int wanted) {
+  int image_levels = wanted;
   for (const View& w : views) {
     int possible = 1;
     for (int c = w.gray.cols, r = w.gray.rows; possible < image_levels; ++possible) {
@@ -917,6 +894,12 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
     }
     image_levels = std::min(image_levels, possible);
   }
+  return image_levels;
+}
+
+// Views: projections and float pyramids.
+std::vector<ViewData> PrepareViews(const std::vector<View>& views, int image_levels, int threads) {
+  std::vector<ViewData> vd(views.size());
   ParallelFor(static_cast<int64_t>(views.size()), threads, 1, [&](int64_t begin, int64_t end) {
     for (int64_t j = begin; j < end; ++j) {
       const View& w = views[j];
@@ -941,55 +924,61 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
       }
     }
   });
+  return vd;
+}
 
-  const PatchGeometry patch{options.patch_size / 2, options.patch_pixels};
-  ViewChoice choice;
-  choice.max_views = std::max(
-      2,
-      std::min<int>(options.max_views, static_cast<int>(std::max<std::size_t>(views.size(), 2))));
-  choice.max_views = std::min(choice.max_views, 255);
-  VisibilityParams vis;
-  vis.cos_max_angle = std::cos(options.max_view_angle_deg * kPi / 180.0);
-  vis.slack = kDepthEdgeSlack * mean_edge;
+std::vector<Vec3> InputFaceNormals(const std::vector<Vec3>& p, const std::vector<Face>& faces,
+                                   const Topology& topo) {
+  std::vector<Vec3> normals(faces.size(), Vec3::Zero());
+  for (std::size_t f = 0; f < faces.size(); ++f)
+    if (topo.face_ok[f]) normals[f] = FaceCross(p, faces[f]);
+  return normals;
+}
 
-  std::vector<DepthMap> maps(views.size());
-  std::vector<Vec3> p_maps;  // positions the depth maps were drawn from
-  auto build_maps = [&] {
-    ParallelFor(static_cast<int64_t>(views.size()), threads, 1, [&](int64_t begin, int64_t end) {
-      std::vector<Vec3> cam;
-      std::vector<uint8_t> codes;
-      for (int64_t j = begin; j < end; ++j)
-        BuildDepthMap(views[j], vd[j], options.depth_map_scale, p, faces, topo, &maps[j], &cam,
-                      &codes);
-    });
-    p_maps = p;
-  };
-  std::vector<Vec3> normals;
-  std::vector<uint8_t> normal_ok;
-  auto margin_for = [&](int level) {
-    return (patch.half + 1) * options.patch_pixels * std::ldexp(1.0, level) + 1.0;
-  };
+// One call of Refine: the mesh, its views, and what the passes share.
+class Refinement {
+ public:
+  Refinement(const std::vector<View>& views, const std::vector<Face>& faces,
+             std::vector<uint8_t> active, const RefineOptions& options, std::vector<Vec3>* p)
+      : views_(views), faces_(faces), options_(options), p_(*p), n_(p->size()), input_(*p),
+        active_(std::move(active)), threads_(options.threads), topo_(BuildTopology(n_, faces)),
+        input_face_normals_(InputFaceNormals(p_, faces, topo_)), mean_edge_(MeanEdge(p_, faces, topo_)),
+        image_levels_(ImageLevels(views, options.image_scale_levels)),
+        vd_(PrepareViews(views, image_levels_, threads_)),
+        patch_{options.patch_size / 2, options.patch_pixels}, maps_(views.size()),
+        offsets_(static_cast<std::size_t>(2 * options.search_steps + 1)), match_(n_, 0.0),
+        matched_(n_, 0), ever_matched_(n_, 0), target_(n_), planned_(n_, 0.0) {
+    choice_.max_views = std::max(
+        2,
+        std::min<int>(options.max_views, static_cast<int>(std::max<std::size_t>(views.size(), 2))));
+    choice_.max_views = std::min(choice_.max_views, 255);
+    vis_.cos_max_angle = std::cos(options.max_view_angle_deg * kPi / 180.0);
+    vis_.slack = kDepthEdgeSlack * mean_edge_;
+  }
+
+  const std::vector<Vec3>& input() const { return input_; }
+  const std::vector<uint8_t>& ever_matched() const { return ever_matched_; }
 
   // Mean ZNCC at the current positions (offset 0, full resolution) over active vertices two
   // views see; `seen` counts those vertices.
-  auto evaluate = [&](int64_t* seen) {
-    if (p_maps != p) build_maps();
-    VertexNormals(p, faces, topo, &normals, &normal_ok);
-    vis.margin_pixels = margin_for(0);
-    ChooseViews(vd, maps, p, p_maps, normals, normal_ok, active, vis, threads, &choice);
-    std::vector<double> score(n, kNaN);
-    ParallelFor(static_cast<int64_t>(n), threads, 256, [&](int64_t begin, int64_t end) {
+  double Evaluate(int64_t* seen) {
+    if (p_maps_ != p_) BuildMaps();
+    VertexNormals(p_, faces_, topo_, &normals_, &normal_ok_);
+    vis_.margin_pixels = MarginFor(0);
+    ChooseViews(vd_, maps_, p_, p_maps_, normals_, normal_ok_, active_, vis_, threads_, &choice_);
+    std::vector<double> score(n_, kNaN);
+    ParallelFor(static_cast<int64_t>(n_), threads_, 256, [&](int64_t begin, int64_t end) {
       std::vector<float> scratch;
       const double zero = 0;
       for (int64_t v = begin; v < end; ++v)
-        if (choice.count[v] >= 2)
-          ScoreOffsets(vd, &choice.ids[v * choice.max_views], choice.count[v], 0, p[v], normals[v],
-                       patch, &zero, 1, &scratch, &score[v]);
+        if (choice_.count[v] >= 2)
+          ScoreOffsets(vd_, &choice_.ids[v * choice_.max_views], choice_.count[v], 0, p_[v], normals_[v],
+                       patch_, &zero, 1, &scratch, &score[v]);
     });
     double sum = 0;
     int64_t scored = 0, count = 0;
-    for (std::size_t v = 0; v < n; ++v) {
-      count += choice.count[v] >= 2 ? 1 : 0;
+    for (std::size_t v = 0; v < n_; ++v) {
+      count += choice_.count[v] >= 2 ? 1 : 0;
       if (!std::isnan(score[v])) {
         sum += score[v];
         ++scored;
@@ -997,150 +986,231 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
     }
     if (seen) *seen = count;
     return scored > 0 ? sum / scored : 0.0;
-  };
+  }
 
-  stats.mean_zncc_before = views.size() >= 2 ? evaluate(&stats.vertices_seen) : 0.0;
+  // Coarse to fine; false when cancelled. Counts the moves the guard refused in `undone`.
+  bool CoarseToFine(const std::function<bool()>& cancelled, int64_t* undone) {
+    MoveGuard guard(faces_, topo_, input_face_normals_, &p_);
+    const int S = options_.search_steps;
+    for (int round = 0; round < options_.levels; ++round) {
+      // The first round searches search_range on the coarsest images; each round halves the
+      // range, and the last one uses full resolution.
+      const int level = std::min(options_.levels - 1 - round, image_levels_ - 1);
+      const double range = options_.search_range / std::ldexp(1.0, round);
+      for (int k = -S; k <= S; ++k) offsets_[k + S] = range * k / S;
+      if (views_.size() >= 2 && p_maps_ != p_) BuildMaps();
+      for (int it = 0; it < options_.iterations_per_level; ++it) {
+        if (cancelled && cancelled()) return false;
+        VertexNormals(p_, faces_, topo_, &normals_, &normal_ok_);
+        SmoothNormals();
+        Search(level, range);
+        for (std::size_t v = 0; v < n_; ++v) ever_matched_[v] |= matched_[v];
+        PlanTargets();
+        ApplyTargets(guard, undone);
+      }
+    }
+    return true;
+  }
 
-  // Coarse to fine.
-  bool completed = true;
-  MoveGuard guard(faces, topo, input_face_normals, &p);
-  const int S = options.search_steps;
-  std::vector<double> offsets(static_cast<std::size_t>(2 * S + 1));
-  std::vector<double> match(n, 0.0);  // accepted offset along the normal
-  std::vector<uint8_t> matched(n, 0);
-  std::vector<uint8_t> ever_matched(n, 0);  // stats.vertices_matched
-  std::vector<Vec3> target(n);
-  std::vector<double> planned(n, 0.0);
-  std::vector<uint32_t> search;
-  for (int round = 0; round < options.levels && completed; ++round) {
-    // The first round searches search_range on the coarsest images; each round halves the
-    // range, and the last one uses full resolution.
-    const int level = std::min(options.levels - 1 - round, image_levels - 1);
-    const double range = options.search_range / std::ldexp(1.0, round);
-    for (int k = -S; k <= S; ++k) offsets[k + S] = range * k / S;
-    if (views.size() >= 2 && p_maps != p) build_maps();
-    for (int it = 0; it < options.iterations_per_level; ++it) {
-      if (cancelled && cancelled()) {
-        completed = false;
-        break;
+ private:
+  void BuildMaps() {
+    ParallelFor(static_cast<int64_t>(views_.size()), threads_, 1, [&](int64_t begin, int64_t end) {
+      std::vector<Vec3> cam;
+      std::vector<uint8_t> codes;
+      for (int64_t j = begin; j < end; ++j)
+        BuildDepthMap(views_[j], vd_[j], options_.depth_map_scale, p_, faces_, topo_, &maps_[j], &cam,
+                      &codes);
+    });
+    p_maps_ = p_;
+  }
+
+  double MarginFor(int level) const {
+    return (patch_.half + 1) * options_.patch_pixels * std::ldexp(1.0, level) + 1.0;
+  }
+
+  // The patch planes from a smoothed normal field: a spike's own normal points anywhere.
+  void SmoothNormals() {
+    for (int s = 0; s < options_.normal_smoothing; ++s) {
+      std::vector<Vec3> smoothed(n_);
+      for (std::size_t v = 0; v < n_; ++v) {
+        Vec3 sum = normal_ok_[v] ? normals_[v] : Vec3::Zero();
+        for (uint32_t i = topo_.nb_begin[v]; i < topo_.nb_begin[v + 1]; ++i)
+          if (normal_ok_[topo_.nb[i]]) sum += normals_[topo_.nb[i]];
+        smoothed[v] = sum.norm() > 1e-12 ? Vec3(sum.normalized()) : normals_[v];
       }
-      VertexNormals(p, faces, topo, &normals, &normal_ok);
-      // The patch planes from a smoothed normal field: a spike's own normal points anywhere.
-      for (int s = 0; s < options.normal_smoothing; ++s) {
-        std::vector<Vec3> smoothed(n);
-        for (std::size_t v = 0; v < n; ++v) {
-          Vec3 sum = normal_ok[v] ? normals[v] : Vec3::Zero();
-          for (uint32_t i = topo.nb_begin[v]; i < topo.nb_begin[v + 1]; ++i)
-            if (normal_ok[topo.nb[i]]) sum += normals[topo.nb[i]];
-          smoothed[v] = sum.norm() > 1e-12 ? Vec3(sum.normalized()) : normals[v];
-        }
-        normals.swap(smoothed);
-      }
-      // Photometric search (parallel; each vertex writes only its own slots).
-      std::fill(matched.begin(), matched.end(), 0);
-      search.clear();
-      if (views.size() >= 2) {
-        vis.margin_pixels = margin_for(level);
-        ChooseViews(vd, maps, p, p_maps, normals, normal_ok, active, vis, threads, &choice);
-        for (std::size_t v = 0; v < n; ++v)
-          if (choice.count[v] >= 2) search.push_back(static_cast<uint32_t>(v));
-      }
-      ParallelFor(
-          static_cast<int64_t>(search.size()), threads, 64, [&](int64_t begin, int64_t end) {
-            std::vector<float> scratch;
-            std::vector<double> score(offsets.size());
-            for (int64_t i = begin; i < end; ++i) {
-              const uint32_t v = search[i];
-              ScoreOffsets(vd, &choice.ids[static_cast<std::size_t>(v) * choice.max_views],
-                           choice.count[v], level, p[v], normals[v], patch, offsets.data(),
-                           static_cast<int>(offsets.size()), &scratch, score.data());
-              int best = -1;
-              for (int k = 0; k < static_cast<int>(score.size()); ++k)
-                if (!std::isnan(score[k]) && (best < 0 || score[k] > score[best])) best = k;
-              if (best < 0 || score[best] < options.min_zncc) continue;
-              // A vertex that already looks right stays: the match must beat where it is.
-              const double here = score[static_cast<std::size_t>(S)];
-              if (!std::isnan(here) && score[best] - here < options.min_gain) continue;
-              double d = offsets[best];
-              // Sub-step refinement: the vertex of the parabola through the best and its
-              // neighbours.
-              if (best > 0 && best + 1 < static_cast<int>(score.size()) &&
-                  !std::isnan(score[best - 1]) && !std::isnan(score[best + 1])) {
-                const double denom = score[best - 1] - 2 * score[best] + score[best + 1];
-                if (denom < 0) {
-                  const double shift =
-                      std::clamp(0.5 * (score[best - 1] - score[best + 1]) / denom, -0.5, 0.5);
-                  d += shift * (range / S);
-                }
-              }
-              match[v] = d;
-              matched[v] = 1;
-            }
-          });
-      for (std::size_t v = 0; v < n; ++v) ever_matched[v] |= matched[v];
-      // Targets (Jacobi: all from the positions at the start of the pass).
-      for (std::size_t v = 0; v < n; ++v) {
-        target[v] = p[v];
-        planned[v] = 0;
-        if (!active[v]) continue;
-        Vec3 move = Vec3::Zero();
-        if (matched[v]) move += options.step * match[v] * normals[v];
-        const uint32_t b = topo.nb_begin[v], e = topo.nb_begin[v + 1];
-        if (!topo.boundary[v] && e > b) {
-          Vec3 mean = Vec3::Zero();
-          for (uint32_t i = b; i < e; ++i) mean += p[topo.nb[i]];
-          mean /= static_cast<double>(e - b);
-          Vec3 umbrella = mean - p[v];
-          // Along the normal only: a spike is flattened without pulling the sheet sideways.
-          if (options.smooth_along_normal && normal_ok[v]) umbrella = umbrella.dot(normals[v]) * normals[v];
-          if (!options.smooth_matched && matched[v]) umbrella.setZero();
-          move += options.smoothness * umbrella;
-          // A spike: neighbours on a plane, the vertex well off it, and the images do not say
-          // where it belongs. It goes onto its neighbours' plane; a corner (neighbours not on
-          // one plane) stays.
-          if (options.flatten_spikes > 0 && !matched[v] && e - b >= 4) {
-            Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-            for (uint32_t i = b; i < e; ++i) {
-              const Vec3 d = p[topo.nb[i]] - mean;
-              cov += d * d.transpose();
-            }
-            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov / static_cast<double>(e - b));
-            const Vec3 plane_normal = eig.eigenvectors().col(0);
-            const double residual = std::sqrt(std::max(eig.eigenvalues()(0), 0.0));
-            const double off = (p[v] - mean).dot(plane_normal);
-            if (std::fabs(off) > options.flatten_spikes * std::max(residual, 1e-12))
-              move -= off * plane_normal;
-          }
-        }
-        Vec3 t = p[v] + move;
-        const Vec3 off = t - input[v];
-        const double len = off.norm();
-        if (len > options.max_move) t = input[v] + off * (options.max_move / len);
-        // Displacements at rounding level are noise, not moves.
-        if ((t - p[v]).norm() <= 1e-12 * std::max(mean_edge, 1e-300)) continue;
-        target[v] = t;
-        planned[v] = (t - p[v]).norm();
-      }
-      // Apply vertex by vertex so every check sees the current neighbours; a refused step is
-      // halved, then dropped.
-      guard.Prepare(planned);
-      for (std::size_t v = 0; v < n; ++v) {
-        if (planned[v] == 0) continue;
-        const Vec3 delta = target[v] - p[v];
-        bool done = false;
-        for (int h = 0; h <= kMaxHalvings && !done; ++h) {
-          const Vec3 q = p[v] + std::ldexp(1.0, -h) * delta;
-          if (guard.Allows(static_cast<uint32_t>(v), q)) {
-            p[v] = q;
-            done = true;
-          }
-        }
-        if (!done) ++stats.moves_undone;
-      }
+      normals_.swap(smoothed);
     }
   }
 
-  stats.mean_zncc_after = views.size() >= 2 ? evaluate(nullptr) : 0.0;
+  // Photometric search (parallel; each vertex writes only its own slots).
+  void Search(int level, double range) {
+    std::fill(matched_.begin(), matched_.end(), 0);
+    search_.clear();
+    if (views_.size() >= 2) {
+      vis_.margin_pixels = MarginFor(level);
+      ChooseViews(vd_, maps_, p_, p_maps_, normals_, normal_ok_, active_, vis_, threads_, &choice_);
+      for (std::size_t v = 0; v < n_; ++v)
+        if (choice_.count[v] >= 2) search_.push_back(static_cast<uint32_t>(v));
+    }
+    ParallelFor(
+        static_cast<int64_t>(search_.size()), threads_, 64, [&](int64_t begin, int64_t end) {
+          std::vector<float> scratch;
+          std::vector<double> score(offsets_.size());
+          for (int64_t i = begin; i < end; ++i) SearchVertex(search_[i], level, range, &scratch, &score);
+        });
+  }
+
+  // The offset along the normal where vertex v's views agree best, when it beats where v is.
+  void SearchVertex(uint32_t v, int level, double range, std::vector<float>* scratch,
+                    std::vector<double>* score_out) {
+    const int S = options_.search_steps;
+    std::vector<double>& score = *score_out;
+    ScoreOffsets(vd_, &choice_.ids[static_cast<std::size_t>(v) * choice_.max_views],
+                 choice_.count[v], level, p_[v], normals_[v], patch_, offsets_.data(),
+                 static_cast<int>(offsets_.size()), scratch, score.data());
+    int best = -1;
+    for (int k = 0; k < static_cast<int>(score.size()); ++k)
+      if (!std::isnan(score[k]) && (best < 0 || score[k] > score[best])) best = k;
+    if (best < 0 || score[best] < options_.min_zncc) return;
+    // A vertex that already looks right stays: the match must beat where it is.
+    const double here = score[static_cast<std::size_t>(S)];
+    if (!std::isnan(here) && score[best] - here < options_.min_gain) return;
+    double d = offsets_[best];
+    // Sub-step refinement: the vertex of the parabola through the best and its neighbours.
+    if (best > 0 && best + 1 < static_cast<int>(score.size()) &&
+        !std::isnan(score[best - 1]) && !std::isnan(score[best + 1])) {
+      const double denom = score[best - 1] - 2 * score[best] + score[best + 1];
+      if (denom < 0) {
+        const double shift =
+            std::clamp(0.5 * (score[best - 1] - score[best + 1]) / denom, -0.5, 0.5);
+        d += shift * (range / S);
+      }
+    }
+    match_[v] = d;
+    matched_[v] = 1;
+  }
+
+  // A spike: neighbours on a plane, the vertex well off it, and the images do not say where it
+  // belongs. Its move onto its neighbours' plane; a corner (neighbours not on one plane) stays.
+  Vec3 SpikeMove(std::size_t v, const Vec3& mean, uint32_t b, uint32_t e) const {
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (uint32_t i = b; i < e; ++i) {
+      const Vec3 d = p_[topo_.nb[i]] - mean;
+      cov += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov / static_cast<double>(e - b));
+    const Vec3 plane_normal = eig.eigenvectors().col(0);
+    const double residual = std::sqrt(std::max(eig.eigenvalues()(0), 0.0));
+    const double off = (p_[v] - mean).dot(plane_normal);
+    if (std::fabs(off) > options_.flatten_spikes * std::max(residual, 1e-12)) return -off * plane_normal;
+    return Vec3::Zero();
+  }
+
+  // Targets (Jacobi: all from the positions at the start of the pass): the match along the
+  // normal, the umbrella's pull, a spike flattened; within max_move of the input.
+  void PlanTargets() {
+    for (std::size_t v = 0; v < n_; ++v) {
+      target_[v] = p_[v];
+      planned_[v] = 0;
+      if (!active_[v]) continue;
+      Vec3 move = Vec3::Zero();
+      if (matched_[v]) move += options_.step * match_[v] * normals_[v];
+      const uint32_t b = topo_.nb_begin[v], e = topo_.nb_begin[v + 1];
+      if (!topo_.boundary[v] && e > b) {
+        Vec3 mean = Vec3::Zero();
+        for (uint32_t i = b; i < e; ++i) mean += p_[topo_.nb[i]];
+        mean /= static_cast<double>(e - b);
+        Vec3 umbrella = mean - p_[v];
+        // Along the normal only: a spike is flattened without pulling the sheet sideways.
+        if (options_.smooth_along_normal && normal_ok_[v]) umbrella = umbrella.dot(normals_[v]) * normals_[v];
+        if (!options_.smooth_matched && matched_[v]) umbrella.setZero();
+        move += options_.smoothness * umbrella;
+        if (options_.flatten_spikes > 0 && !matched_[v] && e - b >= 4) move += SpikeMove(v, mean, b, e);
+      }
+      Vec3 t = p_[v] + move;
+      const Vec3 off = t - input_[v];
+      const double len = off.norm();
+      if (len > options_.max_move) t = input_[v] + off * (options_.max_move / len);
+      // Displacements at rounding level are noise, not moves.
+      if ((t - p_[v]).norm() <= 1e-12 * std::max(mean_edge_, 1e-300)) continue;
+      target_[v] = t;
+      planned_[v] = (t - p_[v]).norm();
+    }
+  }
+
+  // Apply vertex by vertex so every check sees the current neighbours; a refused step is
+  // halved, then dropped.
+  void ApplyTargets(MoveGuard& guard, int64_t* undone) {
+    guard.Prepare(planned_);
+    for (std::size_t v = 0; v < n_; ++v) {
+      if (planned_[v] == 0) continue;
+      const Vec3 delta = target_[v] - p_[v];
+      bool done = false;
+      for (int h = 0; h <= kMaxHalvings && !done; ++h) {
+        const Vec3 q = p_[v] + std::ldexp(1.0, -h) * delta;
+        if (guard.Allows(static_cast<uint32_t>(v), q)) {
+          p_[v] = q;
+          done = true;
+        }
+      }
+      if (!done) ++*undone;
+    }
+  }
+
+  const std::vector<View>& views_;
+  const std::vector<Face>& faces_;
+  const RefineOptions& options_;
+  std::vector<Vec3>& p_;
+  const std::size_t n_;
+  const std::vector<Vec3> input_;
+  const std::vector<uint8_t> active_;
+  const int threads_;
+  const Topology topo_;
+  const std::vector<Vec3> input_face_normals_;
+  const double mean_edge_;
+  const int image_levels_;
+  std::vector<ViewData> vd_;
+  const PatchGeometry patch_;
+  ViewChoice choice_;
+  VisibilityParams vis_;
+  std::vector<DepthMap> maps_;
+  std::vector<Vec3> p_maps_;  // positions the depth maps were drawn from
+  std::vector<Vec3> normals_;
+  std::vector<uint8_t> normal_ok_;
+  std::vector<double> offsets_;
+  std::vector<double> match_;         // accepted offset along the normal
+  std::vector<uint8_t> matched_;
+  std::vector<uint8_t> ever_matched_;  // stats.vertices_matched
+  std::vector<Vec3> target_;
+  std::vector<double> planned_;
+  std::vector<uint32_t> search_;
+};
+
+}  // namespace
+
+bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_t, 3>>& faces,
+            const std::vector<uint8_t>& active_in, const RefineOptions& options,
+            std::vector<Eigen::Vector3d>* vertices, RefineStats* stats_out,
+            const std::function<bool()>& cancelled) {
+  const auto start = std::chrono::steady_clock::now();
+  Validate(views, faces, active_in, options, vertices);
+  RefineStats local_stats;
+  RefineStats& stats = stats_out ? *stats_out : local_stats;
+  stats = RefineStats{};
+  const std::vector<Vec3>& p = *vertices;
+  const std::size_t n = p.size();
+  std::vector<uint8_t> active = active_in;
+  if (active.empty()) active.assign(n, 1);
+  for (uint8_t& a : active) a = a ? 1 : 0;
+  stats.vertices = static_cast<int64_t>(n);
+  for (uint8_t a : active) stats.vertices_active += a;
+
+  Refinement refinement(views, faces, std::move(active), options, vertices);
+  stats.mean_zncc_before = views.size() >= 2 ? refinement.Evaluate(&stats.vertices_seen) : 0.0;
+  const bool completed = refinement.CoarseToFine(cancelled, &stats.moves_undone);
+  stats.mean_zncc_after = views.size() >= 2 ? refinement.Evaluate(nullptr) : 0.0;
+
+  const std::vector<Vec3>& input = refinement.input();
   double moved = 0;
   for (std::size_t v = 0; v < n; ++v)
     if (p[v] != input[v]) {
@@ -1148,7 +1218,7 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
       moved += (p[v] - input[v]).norm();
     }
   stats.mean_move = stats.vertices_moved > 0 ? moved / stats.vertices_moved : 0.0;
-  for (uint8_t m : ever_matched) stats.vertices_matched += m;
+  for (uint8_t m : refinement.ever_matched()) stats.vertices_matched += m;
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return completed;
 }
