@@ -70,6 +70,90 @@ bool Sees(const imr_camera& c, const double* p, double max_depth) {
   return u >= 0.0 && v >= 0.0 && u <= c.width - 1.0 && v <= c.height - 1.0;
 }
 
+// Which vertices: all at the end of a run refined only then; otherwise those the engine changed
+// since the last call and those a recent keyframe sees within its depth limit (kept positions
+// elsewhere).
+std::vector<uint8_t> ActiveVertices(const imr::sdk::RefineRequest& r, const std::vector<double>& depth_limit) {
+  const std::size_t n = r.mesh.vertex_count();
+  std::vector<uint8_t> active(n, 0);
+  const bool all = r.final_call && r.recent_keyframes_begin == 0;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (r.Fixed(v)) continue;
+    bool a = all || r.Changed(v);
+    for (std::size_t k = r.recent_keyframes_begin; !a && k < r.keyframes.size(); ++k)
+      a = HasIntrinsics(r.keyframes[k]) && Sees(r.keyframes[k], &r.mesh.vertices[3 * v], depth_limit[k]);
+    active[v] = a ? 1 : 0;
+  }
+  return active;
+}
+
+// The part of the surface a call refines, numbered on its own.
+struct LocalMesh {
+  std::vector<uint32_t> global;                  // the request's vertex of each local one
+  std::vector<std::array<uint32_t, 3>> faces;    // local numbering
+  std::vector<std::size_t> faces_taken;          // the request's face of each local one
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<uint8_t> active;
+};
+
+// The part of the surface in `region` (every face with a corner in it): the active vertices,
+// and around them the rest as fixed context (occluders, neighbours). The work of a call is
+// bounded by what the recent keyframes see, not by the surface so far.
+LocalMesh ExtractLocalMesh(const imr::sdk::MeshView& mesh, const Eigen::AlignedBox3d& region,
+                           const std::vector<uint8_t>& active) {
+  LocalMesh m;
+  std::vector<uint32_t> local(mesh.vertex_count(), UINT32_MAX);
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    bool inside = false;
+    for (int k = 0; k < 3 && !inside; ++k) {
+      const double* q = &mesh.vertices[3 * mesh.faces[3 * f + k]];
+      inside = region.contains(Eigen::Vector3d(q[0], q[1], q[2]));
+    }
+    if (!inside) continue;
+    std::array<uint32_t, 3> face;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t g = mesh.faces[3 * f + k];
+      if (local[g] == UINT32_MAX) {
+        local[g] = static_cast<uint32_t>(m.global.size());
+        m.global.push_back(g);
+      }
+      face[k] = local[g];
+    }
+    m.faces.push_back(face);
+    m.faces_taken.push_back(f);
+  }
+  m.vertices.resize(m.global.size());
+  m.active.resize(m.global.size());
+  for (std::size_t i = 0; i < m.global.size(); ++i) {
+    const double* q = &mesh.vertices[3 * m.global[i]];
+    m.vertices[i] = Eigen::Vector3d(q[0], q[1], q[2]);
+    m.active[i] = active[m.global[i]];
+  }
+  return m;
+}
+
+// Back to the request's numbering; added vertices after the request's. With edges split, the
+// faces too: the request's faces not taken, then the local ones.
+void WriteBack(const imr::sdk::MeshView& mesh, const LocalMesh& m, bool split,
+               imr::sdk::RefineResult* out) {
+  const std::size_t n = mesh.vertex_count();
+  const std::size_t added = m.vertices.size() - m.global.size();
+  out->vertices.resize(3 * (n + added));
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    const std::size_t g = i < m.global.size() ? m.global[i] : n + (i - m.global.size());
+    for (int k = 0; k < 3; ++k) out->vertices[3 * g + k] = m.vertices[i][k];
+  }
+  if (!split) return;
+  std::vector<uint8_t> taken(mesh.face_count(), 0);
+  for (std::size_t f : m.faces_taken) taken[f] = 1;
+  out->faces.reserve(3 * (mesh.face_count() + m.faces.size()));
+  for (std::size_t f = 0; f < mesh.face_count(); ++f)
+    if (!taken[f]) out->faces.insert(out->faces.end(), &mesh.faces[3 * f], &mesh.faces[3 * f] + 3);
+  for (const auto& f : m.faces)
+    for (uint32_t i : f)
+      out->faces.push_back(i < m.global.size() ? m.global[i] : static_cast<uint32_t>(n + (i - m.global.size())));
+}
+
 class PhotometricRefiner : public imr::sdk::MeshRefiner {
  public:
   static constexpr const char* kId = "org.imr.refine.photometric";
@@ -164,113 +248,25 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
       throw imr::sdk::InvalidArgument(
           std::string(kId) + " needs the keyframe images, and this input has none (a SLAM/SfM "
           "export or a synthetic stream): refine a run from images, or remove the stage");
-
-    // Which vertices: all at the end of a run refined only then; otherwise those the engine
-    // changed since the last call and those a recent keyframe sees within its depth limit (kept
-    // positions elsewhere).
     const double edge = MedianEdge(r.mesh);
     std::vector<double> depth_limit(r.keyframes.size());
     for (std::size_t k = 0; k < r.keyframes.size(); ++k)
       depth_limit[k] = DepthLimit(r.keyframes[k], edge, max_depth_, min_edge_pixels_);
-    std::vector<uint8_t> active(n, 0);
-    const bool all = r.final_call && r.recent_keyframes_begin == 0;
-    std::size_t active_count = 0;
-    for (std::size_t v = 0; v < n; ++v) {
-      if (r.Fixed(v)) continue;
-      bool a = all || r.Changed(v);
-      for (std::size_t k = r.recent_keyframes_begin; !a && k < r.keyframes.size(); ++k)
-        a = HasIntrinsics(r.keyframes[k]) && Sees(r.keyframes[k], &r.mesh.vertices[3 * v], depth_limit[k]);
-      active[v] = a ? 1 : 0;
-      active_count += a ? 1 : 0;
-    }
-    if (active_count == 0) return;
+    const std::vector<uint8_t> active = ActiveVertices(r, depth_limit);
+    if (std::find(active.begin(), active.end(), 1) == active.end()) return;
 
-    // The keyframes that see an active vertex within their depth limit, their images in gray; the
-    // region of the work: the active vertices and those keyframes' centres.
-    std::vector<View> views;
+    // The region of the work: the active vertices and the centres of the keyframes that see them.
     Eigen::AlignedBox3d region;
     for (std::size_t v = 0; v < n; ++v)
       if (active[v]) region.extend(Eigen::Vector3d(r.mesh.vertices[3 * v], r.mesh.vertices[3 * v + 1], r.mesh.vertices[3 * v + 2]));
-    for (std::size_t k = 0; k < r.keyframes.size(); ++k) {
-      const imr_camera& c = r.keyframes[k];
-      if (!HasIntrinsics(c)) continue;
-      bool useful = false;
-      for (std::size_t v = 0; v < n && !useful; v += 1)
-        useful = active[v] && Sees(c, &r.mesh.vertices[3 * v], depth_limit[k]);
-      if (!useful) continue;
-      host_.CheckCancelled();
-      View view;
-      try {
-        imr::sdk::KeyframeImage image = host_.GetKeyframeImage(k);
-        if (image.width() != c.width || image.height() != c.height)
-          throw std::runtime_error("keyframe " + std::to_string(k) + ": its image is " +
-                                   std::to_string(image.width()) + "x" + std::to_string(image.height()) +
-                                   ", its camera says " + std::to_string(c.width) + "x" +
-                                   std::to_string(c.height));
-        const cv::Mat wrapped(image.height(), image.width(), image.channels() == 1 ? CV_8UC1 : CV_8UC3,
-                              const_cast<uint8_t*>(image.view().pixels),
-                              static_cast<std::size_t>(image.view().stride_bytes));
-        if (image.channels() == 1)
-          wrapped.copyTo(view.gray);
-        else
-          cv::cvtColor(wrapped, view.gray, cv::COLOR_BGR2GRAY);
-      } catch (const imr::sdk::InvalidArgument&) {
-        throw;
-      } catch (const std::exception& e) {
-        // The host's message names the keyframe and its file ("keyframe image 2: <path>: ..."):
-        // passed on as it is, not prefixed again.
-        if (!skip_missing_) throw std::runtime_error(e.what());
-        host_.Warning(std::string(kId) + ": " + e.what() + "; that keyframe is left out");
-        continue;
-      }
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
-          view.K(i, j) = c.K[3 * i + j];
-          view.R(i, j) = c.R[3 * i + j];
-        }
-      view.t = Eigen::Vector3d(c.t[0], c.t[1], c.t[2]);
-      views.push_back(std::move(view));
-      region.extend(Center(c));
-    }
+    const std::vector<View> views = Views(r, active, depth_limit, &region);
     if (views.size() < 2) {  // nothing to compare
       if (!depth_excluded_) depth_excluded_ = DepthExcludesAll(r, active);
       return;
     }
-
-    // The part of the surface in that region (every face with a corner in it): the active
-    // vertices, and around them the rest as fixed context (occluders, neighbours). The work of a
-    // call is bounded by what the recent keyframes see, not by the surface so far.
     region.extend(region.min() - Eigen::Vector3d::Constant(2 * edge));
     region.extend(region.max() + Eigen::Vector3d::Constant(2 * edge));
-    std::vector<uint32_t> local(n, UINT32_MAX), global;
-    std::vector<std::array<uint32_t, 3>> faces;
-    std::vector<std::size_t> faces_taken;
-    for (std::size_t f = 0; f < r.mesh.face_count(); ++f) {
-      bool inside = false;
-      for (int k = 0; k < 3 && !inside; ++k) {
-        const double* q = &r.mesh.vertices[3 * r.mesh.faces[3 * f + k]];
-        inside = region.contains(Eigen::Vector3d(q[0], q[1], q[2]));
-      }
-      if (!inside) continue;
-      std::array<uint32_t, 3> face;
-      for (int k = 0; k < 3; ++k) {
-        const uint32_t g = r.mesh.faces[3 * f + k];
-        if (local[g] == UINT32_MAX) {
-          local[g] = static_cast<uint32_t>(global.size());
-          global.push_back(g);
-        }
-        face[k] = local[g];
-      }
-      faces.push_back(face);
-      faces_taken.push_back(f);
-    }
-    std::vector<Eigen::Vector3d> vertices(global.size());
-    std::vector<uint8_t> local_active(global.size());
-    for (std::size_t i = 0; i < global.size(); ++i) {
-      const double* q = &r.mesh.vertices[3 * global[i]];
-      vertices[i] = Eigen::Vector3d(q[0], q[1], q[2]);
-      local_active[i] = active[global[i]];
-    }
+    LocalMesh local = ExtractLocalMesh(r.mesh, region, active);
 
     imr::photometric::RefineOptions o = o_;
     o.search_range = search_range_ * edge;
@@ -280,10 +276,11 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     // of its own vertices between calls, not added ones.
     imr::photometric::SubdivisionStats split;
     if (subdivide_ > 0.0 && r.final_call)
-      split = imr::photometric::SubdivideLongEdges(subdivide_ * edge, 1, &vertices, &faces, &local_active);
+      split = imr::photometric::SubdivideLongEdges(subdivide_ * edge, 1, &local.vertices, &local.faces,
+                                                   &local.active);
     imr::photometric::RefineStats stats;
     try {
-      imr::photometric::Refine(views, faces, local_active, o, &vertices, &stats,
+      imr::photometric::Refine(views, local.faces, local.active, o, &local.vertices, &stats,
                                [this] { return host_.IsCancelled(); });
     } catch (const std::invalid_argument& e) {
       throw imr::sdk::InvalidArgument(e.what());
@@ -293,23 +290,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     run_.active += stats.vertices_active;
     run_.seen += stats.vertices_seen;
     run_.matched += stats.vertices_matched;
-    // Back to the request's numbering; added vertices after the request's.
-    const std::size_t added = vertices.size() - global.size();
-    out->vertices.resize(3 * (n + added));
-    for (std::size_t i = 0; i < vertices.size(); ++i) {
-      const std::size_t g = i < global.size() ? global[i] : n + (i - global.size());
-      for (int k = 0; k < 3; ++k) out->vertices[3 * g + k] = vertices[i][k];
-    }
-    if (split.edges_split > 0) {
-      std::vector<uint8_t> taken(r.mesh.face_count(), 0);
-      for (std::size_t f : faces_taken) taken[f] = 1;
-      out->faces.reserve(3 * (r.mesh.face_count() + faces.size()));
-      for (std::size_t f = 0; f < r.mesh.face_count(); ++f)
-        if (!taken[f]) out->faces.insert(out->faces.end(), &r.mesh.faces[3 * f], &r.mesh.faces[3 * f] + 3);
-      for (const auto& f : faces)
-        for (uint32_t i : f)
-          out->faces.push_back(i < global.size() ? global[i] : static_cast<uint32_t>(n + (i - global.size())));
-    }
+    WriteBack(r.mesh, local, split.edges_split > 0, out);
     char line[320];
     std::snprintf(line, sizeof(line),
                   "%s: %lld of %lld vertices refined from %zu keyframes (%lld seen twice, %lld "
@@ -320,6 +301,62 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                   stats.mean_zncc_before, stats.mean_zncc_after,
                   static_cast<long long>(stats.moves_undone), stats.seconds);
     host_.Info(line);
+  }
+
+  // The keyframes that see an active vertex within their depth limit, their images in gray;
+  // `region` grows by their centres.
+  std::vector<View> Views(const imr::sdk::RefineRequest& r, const std::vector<uint8_t>& active,
+                          const std::vector<double>& depth_limit, Eigen::AlignedBox3d* region) {
+    std::vector<View> views;
+    for (std::size_t k = 0; k < r.keyframes.size(); ++k) {
+      const imr_camera& c = r.keyframes[k];
+      if (!HasIntrinsics(c)) continue;
+      bool useful = false;
+      for (std::size_t v = 0; v < active.size() && !useful; v += 1)
+        useful = active[v] && Sees(c, &r.mesh.vertices[3 * v], depth_limit[k]);
+      if (!useful) continue;
+      host_.CheckCancelled();
+      View view;
+      if (!ReadGray(k, c, &view.gray)) continue;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          view.K(i, j) = c.K[3 * i + j];
+          view.R(i, j) = c.R[3 * i + j];
+        }
+      view.t = Eigen::Vector3d(c.t[0], c.t[1], c.t[2]);
+      views.push_back(std::move(view));
+      region->extend(Center(c));
+    }
+    return views;
+  }
+
+  // Keyframe k's image in gray; false (with a warning) when it cannot be read and
+  // missing_image is "skip".
+  bool ReadGray(std::size_t k, const imr_camera& c, cv::Mat* gray) {
+    try {
+      imr::sdk::KeyframeImage image = host_.GetKeyframeImage(k);
+      if (image.width() != c.width || image.height() != c.height)
+        throw std::runtime_error("keyframe " + std::to_string(k) + ": its image is " +
+                                 std::to_string(image.width()) + "x" + std::to_string(image.height()) +
+                                 ", its camera says " + std::to_string(c.width) + "x" +
+                                 std::to_string(c.height));
+      const cv::Mat wrapped(image.height(), image.width(), image.channels() == 1 ? CV_8UC1 : CV_8UC3,
+                            const_cast<uint8_t*>(image.view().pixels),
+                            static_cast<std::size_t>(image.view().stride_bytes));
+      if (image.channels() == 1)
+        wrapped.copyTo(*gray);
+      else
+        cv::cvtColor(wrapped, *gray, cv::COLOR_BGR2GRAY);
+      return true;
+    } catch (const imr::sdk::InvalidArgument&) {
+      throw;
+    } catch (const std::exception& e) {
+      // The host's message names the keyframe and its file ("keyframe image 2: <path>: ..."):
+      // passed on as it is, not prefixed again.
+      if (!skip_missing_) throw std::runtime_error(e.what());
+      host_.Warning(std::string(kId) + ": " + e.what() + "; that keyframe is left out");
+      return false;
+    }
   }
 
   // Whether, without the depth limit (max_depth, min_edge_pixels), two keyframes would see an
