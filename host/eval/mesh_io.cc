@@ -250,8 +250,36 @@ class PlyReader {
   std::size_t pos_ = 0;
 };
 
-TriangleMesh ParsePly(std::string_view data, const fs::path& path) {
-  // Header: text lines up to "end_header".
+// A PLY header: the body's format, its elements, imr's origin, where the body starts.
+struct PlyHeader {
+  PlyFormat format = PlyFormat::kAscii;
+  std::vector<PlyElement> elements;
+  Vec3 origin = {0.0, 0.0, 0.0};
+  std::size_t body = 0;
+};
+
+// One "property <type> <name>" or "property list <t> <t> <name>" line, tokenised.
+PlyProperty ParsePlyProperty(const std::vector<std::string_view>& tok, const fs::path& path,
+                             const std::string& where) {
+  PlyProperty p;
+  if (tok.size() == 5 && tok[1] == "list") {
+    p.is_list = true;
+    if (!PlyTypeFromName(std::string(tok[2]), &p.count_type) || !PlyIsInteger(p.count_type) ||
+        !PlyTypeFromName(std::string(tok[3]), &p.type))
+      Fail(path, where + "bad list property types");
+    p.name = tok[4];
+  } else if (tok.size() == 3) {
+    if (!PlyTypeFromName(std::string(tok[1]), &p.type))
+      Fail(path, where + "unknown property type '" + std::string(tok[1]) + "'");
+    p.name = tok[2];
+  } else {
+    Fail(path, where + "expected 'property <type> <name>' or 'property list <t> <t> <name>'");
+  }
+  return p;
+}
+
+// Header: text lines up to "end_header".
+PlyHeader ParsePlyHeader(std::string_view data, const fs::path& path) {
   std::size_t pos = 0;
   auto next_line = [&](std::string_view* line) {
     if (pos >= data.size()) return false;
@@ -264,11 +292,9 @@ TriangleMesh ParsePly(std::string_view data, const fs::path& path) {
   };
   std::string_view line;
   if (!next_line(&line) || line != "ply") Fail(path, "not a PLY file (no 'ply' first line)");
-  PlyFormat format = PlyFormat::kAscii;
+  PlyHeader h;
   bool have_format = false, ended = false;
-  std::vector<PlyElement> elements;
   std::vector<std::string_view> tok;
-  Vec3 origin = {0.0, 0.0, 0.0};
   int header_line = 1;
   while (next_line(&line)) {
     ++header_line;
@@ -277,7 +303,7 @@ TriangleMesh ParsePly(std::string_view data, const fs::path& path) {
     // imr's exporter writes vertices relative to "comment imr_origin X Y Z" (far from 0).
     if (tok.size() >= 5 && tok[0] == "comment" && tok[1] == "imr_origin") {
       for (int k = 0; k < 3; ++k)
-        if (!ParseDouble(tok[2 + k], &origin[k])) Fail(path, where() + "bad imr_origin");
+        if (!ParseDouble(tok[2 + k], &h.origin[k])) Fail(path, where() + "bad imr_origin");
       continue;
     }
     if (tok.empty() || tok[0] == "comment" || tok[0] == "obj_info") continue;
@@ -287,104 +313,111 @@ TriangleMesh ParsePly(std::string_view data, const fs::path& path) {
     }
     if (tok[0] == "format") {
       if (tok.size() < 2) Fail(path, where() + "format needs a name");
-      if (tok[1] == "ascii") format = PlyFormat::kAscii;
-      else if (tok[1] == "binary_little_endian") format = PlyFormat::kBinaryLE;
-      else if (tok[1] == "binary_big_endian") format = PlyFormat::kBinaryBE;
+      if (tok[1] == "ascii") h.format = PlyFormat::kAscii;
+      else if (tok[1] == "binary_little_endian") h.format = PlyFormat::kBinaryLE;
+      else if (tok[1] == "binary_big_endian") h.format = PlyFormat::kBinaryBE;
       else Fail(path, where() + "unknown format '" + std::string(tok[1]) + "'");
       have_format = true;
     } else if (tok[0] == "element") {
       int64_t count = -1;
       if (tok.size() != 3 || !ParseInt(tok[2], &count) || count < 0)
         Fail(path, where() + "expected 'element <name> <count>'");
-      elements.push_back({std::string(tok[1]), static_cast<uint64_t>(count), {}});
+      h.elements.push_back({std::string(tok[1]), static_cast<uint64_t>(count), {}});
     } else if (tok[0] == "property") {
-      if (elements.empty()) Fail(path, where() + "property before any element");
-      PlyProperty p;
-      if (tok.size() == 5 && tok[1] == "list") {
-        p.is_list = true;
-        if (!PlyTypeFromName(std::string(tok[2]), &p.count_type) || !PlyIsInteger(p.count_type) ||
-            !PlyTypeFromName(std::string(tok[3]), &p.type))
-          Fail(path, where() + "bad list property types");
-        p.name = tok[4];
-      } else if (tok.size() == 3) {
-        if (!PlyTypeFromName(std::string(tok[1]), &p.type))
-          Fail(path, where() + "unknown property type '" + std::string(tok[1]) + "'");
-        p.name = tok[2];
-      } else {
-        Fail(path, where() + "expected 'property <type> <name>' or 'property list <t> <t> <name>'");
-      }
-      elements.back().properties.push_back(p);
+      if (h.elements.empty()) Fail(path, where() + "property before any element");
+      h.elements.back().properties.push_back(ParsePlyProperty(tok, path, where()));
     } else {
       Fail(path, where() + "unexpected '" + std::string(tok[0]) + "'");
     }
   }
   if (!ended) Fail(path, "PLY header has no end_header");
   if (!have_format) Fail(path, "PLY header has no format line");
+  h.body = pos;
+  return h;
+}
 
-  TriangleMesh m;
-  PlyReader r(data.substr(pos), format, path);
-  bool have_vertex = false;
+// The columns of an element the mesh takes: x, y, z of "vertex", the index list of "face".
+struct PlyColumns {
+  int ix = -1, iy = -1, iz = -1, iface = -1;
+};
+
+PlyColumns FindPlyColumns(const PlyElement& e, const fs::path& path) {
+  PlyColumns c;
+  const bool is_vertex = e.name == "vertex", is_face = e.name == "face";
+  for (std::size_t k = 0; k < e.properties.size(); ++k) {
+    const PlyProperty& p = e.properties[k];
+    const int ik = static_cast<int>(k);
+    if (is_vertex && !p.is_list) {
+      if (p.name == "x") c.ix = ik;
+      if (p.name == "y") c.iy = ik;
+      if (p.name == "z") c.iz = ik;
+    }
+    if (is_face && p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index"))
+      c.iface = ik;
+  }
+  if (is_vertex && (c.ix < 0 || c.iy < 0 || c.iz < 0))
+    Fail(path, "element vertex has no x, y and z properties");
+  if (is_face && c.iface < 0 && e.count > 0)
+    Fail(path, "element face has no list property vertex_indices (or vertex_index)");
+  return c;
+}
+
+// Element e's items from the body: vertices and faces into `m`, anything else read past.
+void ReadPlyElement(PlyReader& r, const PlyElement& e, const Vec3& origin, const fs::path& path,
+                    TriangleMesh* m) {
+  const PlyColumns c = FindPlyColumns(e, path);
+  const bool is_vertex = e.name == "vertex", is_face = e.name == "face";
+  // Reserve no more than the body could hold (a corrupt count must not exhaust memory).
+  if (is_vertex) m->vertices.reserve(std::min<uint64_t>(e.count, r.remaining() / 3 + 1));
+  if (is_face) m->triangles.reserve(std::min<uint64_t>(e.count, r.remaining() / 4 + 1));
   std::vector<double> values;
   std::vector<int64_t> poly;
-  for (const PlyElement& e : elements) {
-    int ix = -1, iy = -1, iz = -1, iface = -1;
-    const bool is_vertex = e.name == "vertex", is_face = e.name == "face";
+  for (uint64_t i = 0; i < e.count; ++i) {
+    const auto what = [&] { return e.name + " " + std::to_string(i) + " of " + std::to_string(e.count); };
+    values.assign(e.properties.size(), 0.0);
     for (std::size_t k = 0; k < e.properties.size(); ++k) {
       const PlyProperty& p = e.properties[k];
-      const int ik = static_cast<int>(k);
-      if (is_vertex && !p.is_list) {
-        if (p.name == "x") ix = ik;
-        if (p.name == "y") iy = ik;
-        if (p.name == "z") iz = ik;
+      if (!p.is_list) {
+        values[k] = r.Read(p.type, e, i);
+        continue;
       }
-      if (is_face && p.is_list && (p.name == "vertex_indices" || p.name == "vertex_index"))
-        iface = ik;
+      const double count = r.Read(p.count_type, e, i);
+      if (count < 0) Fail(path, what() + ": negative list length");
+      const bool keep = is_face && static_cast<int>(k) == c.iface;
+      if (keep) {
+        if (count < 3) Fail(path, what() + ": a face needs at least 3 vertices, has " +
+                                      std::to_string(static_cast<int64_t>(count)));
+        if (!PlyIsInteger(p.type)) Fail(path, "face vertex indices must be integers");
+        poly.clear();
+      }
+      for (int64_t j = 0; j < static_cast<int64_t>(count); ++j) {
+        const double v = r.Read(p.type, e, i);
+        if (keep) {
+          if (v < 0 || v > std::numeric_limits<uint32_t>::max())
+            Fail(path, what() + ": vertex index " + std::to_string(static_cast<int64_t>(v)) +
+                           " is out of range");
+          poly.push_back(static_cast<int64_t>(v));
+        }
+      }
+      if (keep) AddPolygon(poly, m);
     }
     if (is_vertex) {
-      if (ix < 0 || iy < 0 || iz < 0) Fail(path, "element vertex has no x, y and z properties");
-      have_vertex = true;
+      const Vec3 v = {values[c.ix] + origin[0], values[c.iy] + origin[1], values[c.iz] + origin[2]};
+      if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
+        Fail(path, what() + ": coordinate is not finite");
+      m->vertices.push_back(v);
     }
-    if (is_face && iface < 0 && e.count > 0)
-      Fail(path, "element face has no list property vertex_indices (or vertex_index)");
-    // Reserve no more than the body could hold (a corrupt count must not exhaust memory).
-    if (is_vertex) m.vertices.reserve(std::min<uint64_t>(e.count, r.remaining() / 3 + 1));
-    if (is_face) m.triangles.reserve(std::min<uint64_t>(e.count, r.remaining() / 4 + 1));
-    for (uint64_t i = 0; i < e.count; ++i) {
-      const auto what = [&] { return e.name + " " + std::to_string(i) + " of " + std::to_string(e.count); };
-      values.assign(e.properties.size(), 0.0);
-      for (std::size_t k = 0; k < e.properties.size(); ++k) {
-        const PlyProperty& p = e.properties[k];
-        if (!p.is_list) {
-          values[k] = r.Read(p.type, e, i);
-          continue;
-        }
-        const double count = r.Read(p.count_type, e, i);
-        if (count < 0) Fail(path, what() + ": negative list length");
-        const bool keep = is_face && static_cast<int>(k) == iface;
-        if (keep) {
-          if (count < 3) Fail(path, what() + ": a face needs at least 3 vertices, has " +
-                                        std::to_string(static_cast<int64_t>(count)));
-          if (!PlyIsInteger(p.type)) Fail(path, "face vertex indices must be integers");
-          poly.clear();
-        }
-        for (int64_t j = 0; j < static_cast<int64_t>(count); ++j) {
-          const double v = r.Read(p.type, e, i);
-          if (keep) {
-            if (v < 0 || v > std::numeric_limits<uint32_t>::max())
-              Fail(path, what() + ": vertex index " + std::to_string(static_cast<int64_t>(v)) +
-                             " is out of range");
-            poly.push_back(static_cast<int64_t>(v));
-          }
-        }
-        if (keep) AddPolygon(poly, &m);
-      }
-      if (is_vertex) {
-        const Vec3 v = {values[ix] + origin[0], values[iy] + origin[1], values[iz] + origin[2]};
-        if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
-          Fail(path, what() + ": coordinate is not finite");
-        m.vertices.push_back(v);
-      }
-    }
+  }
+}
+
+TriangleMesh ParsePly(std::string_view data, const fs::path& path) {
+  const PlyHeader h = ParsePlyHeader(data, path);
+  TriangleMesh m;
+  PlyReader r(data.substr(h.body), h.format, path);
+  bool have_vertex = false;
+  for (const PlyElement& e : h.elements) {
+    have_vertex = have_vertex || e.name == "vertex";
+    ReadPlyElement(r, e, h.origin, path, &m);
   }
   if (!have_vertex) Fail(path, "PLY has no vertex element");
   CheckIndices(m, path);
