@@ -412,6 +412,90 @@ void ApplyJobOverrides(const std::vector<std::string>& overrides, json* job,
   }
 }
 
+// The job file's JSON object; nullopt (with the problem) when it is too deep, malformed or not
+// an object. Never throws.
+std::optional<json> ParseJobRoot(const std::string& text, const fs::path& file,
+                                 std::vector<Problem>* problems) {
+  if (const std::size_t at = TooDeepAt(text, kMaxJsonDepth); at != std::string::npos) {
+    problems->push_back({"", file.string() + ": " + LineColumn(text, at) +
+                                 ": arrays and objects nested deeper than " +
+                                 std::to_string(kMaxJsonDepth) + " levels"});
+    return std::nullopt;
+  }
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    std::string what = e.what();
+    // Keep nlohmann's explanation, drop its "[json.exception.parse_error.101] parse error at
+    // line x, column y:" prefix in favour of ours.
+    const auto colon = what.find(": ", what.find("parse error"));
+    if (colon != std::string::npos) what = what.substr(colon + 2);
+    problems->push_back({"", file.string() + ": malformed JSON at " + LineColumn(text, e.byte == 0 ? 0 : e.byte - 1) +
+                                 ": " + what});
+    return std::nullopt;
+  } catch (const json::exception& e) {
+    // Not a parse_error: e.g. out_of_range.406, a number too large for a double ("1e999"). Found
+    // by tests/fuzz/job_fuzz; ParseJobText must never throw. nlohmann names the number, not
+    // where it is: find it.
+    const std::string what = e.what();
+    std::string where;
+    const auto open = what.find('\''), close = what.rfind('\'');
+    if (open != std::string::npos && close > open + 1)
+      if (const auto at = text.find(what.substr(open + 1, close - open - 1)); at != std::string::npos)
+        where = " at " + LineColumn(text, at);
+    problems->push_back({"", file.string() + ": malformed JSON" + where + ": " + what});
+    return std::nullopt;
+  }
+  if (!root.is_object()) {
+    problems->push_back({"", file.string() + ": expected a JSON object at the top level, got " +
+                                 TypeName(root)});
+    return std::nullopt;
+  }
+  return root;
+}
+
+// The job's "output": folder template, stem, tiles, formats, snapshots.
+void ParseOutput(const json& output, JobSpec* job, std::vector<Problem>* problems) {
+  ObjectReader orr(output, "output", problems);
+  if (auto d = orr.String("directory", true)) {
+    job->output.directory = *d;
+    auto p = CheckOutputTemplate(*d, "output.directory");
+    problems->insert(problems->end(), p.begin(), p.end());
+    if (d->find("{sequence}") == std::string::npos && job->sequences.size() > 1)
+      problems->push_back({"output.directory", "several sequences would share one folder: "
+                                               "put {sequence} in the template"});
+  }
+  if (auto s = orr.String("stem", false)) {
+    // Plain names only: the stem also names companion files referenced from inside outputs
+    // (a glTF's .bin), where spaces or slashes would need escaping.
+    const bool plain = !s->empty() && (*s)[0] != '.' &&
+                       s->find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                            "0123456789._-") == std::string::npos;
+    if (!plain)
+      problems->push_back({"output.stem", "expected a file name of letters, digits, '.', '_' "
+                                          "and '-' (not starting with '.'), got " + Describe(*s)});
+    else
+      job->output.stem = *s;
+  }
+  if (const json* t = orr.Get("tiles", false)) {
+    if (t->is_object() || t->is_boolean())
+      job->output.tiles = *t;
+    else
+      problems->push_back({"output.tiles", "expected an object of tile options (or true), got " +
+                                               Describe(*t)});
+  }
+  const bool tiles = job->output.tiles.is_object() || job->output.tiles == json(true);
+  if (auto f = orr.Strings("formats", false, false)) {
+    job->output.formats = *f;
+    if (f->empty() && !tiles)
+      problems->push_back({"output.formats", "expected at least one entry, got [] (formats [] "
+                                             "with output.tiles writes tiles only)"});
+  }
+  if (auto n = orr.Integer("snapshot_every", false, 0)) job->output.snapshot_every = static_cast<int>(*n);
+  orr.RejectUnknown();
+}
+
 JobParseResult ParseJobText(const std::string& text, const fs::path& file,
                             const std::vector<std::string>& overrides) {
   JobParseResult result;
@@ -425,42 +509,9 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file,
                      .lexically_normal();
   auto& problems = result.problems;
 
-  if (const std::size_t at = TooDeepAt(text, kMaxJsonDepth); at != std::string::npos) {
-    problems.push_back({"", file.string() + ": " + LineColumn(text, at) +
-                                ": arrays and objects nested deeper than " +
-                                std::to_string(kMaxJsonDepth) + " levels"});
-    return result;
-  }
-  json root;
-  try {
-    root = json::parse(text);
-  } catch (const json::parse_error& e) {
-    std::string what = e.what();
-    // Keep nlohmann's explanation, drop its "[json.exception.parse_error.101] parse error at
-    // line x, column y:" prefix in favour of ours.
-    const auto colon = what.find(": ", what.find("parse error"));
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    problems.push_back({"", file.string() + ": malformed JSON at " + LineColumn(text, e.byte == 0 ? 0 : e.byte - 1) +
-                                ": " + what});
-    return result;
-  } catch (const json::exception& e) {
-    // Not a parse_error: e.g. out_of_range.406, a number too large for a double ("1e999"). Found
-    // by tests/fuzz/job_fuzz; ParseJobText must never throw. nlohmann names the number, not
-    // where it is: find it.
-    const std::string what = e.what();
-    std::string where;
-    const auto open = what.find('\''), close = what.rfind('\'');
-    if (open != std::string::npos && close > open + 1)
-      if (const auto at = text.find(what.substr(open + 1, close - open - 1)); at != std::string::npos)
-        where = " at " + LineColumn(text, at);
-    problems.push_back({"", file.string() + ": malformed JSON" + where + ": " + what});
-    return result;
-  }
-  if (!root.is_object()) {
-    problems.push_back({"", file.string() + ": expected a JSON object at the top level, got " +
-                                TypeName(root)});
-    return result;
-  }
+  std::optional<json> parsed = ParseJobRoot(text, file, &problems);
+  if (!parsed) return result;
+  json root = std::move(*parsed);
   for (Problem& p : DuplicateKeys(text)) problems.push_back(std::move(p));
   ApplyJobOverrides(overrides, &root, &problems);
   job.overrides = overrides;
@@ -487,45 +538,7 @@ JobParseResult ParseJobText(const std::string& text, const fs::path& file,
     }
   }
 
-  if (const json* output = r.Object("output", true)) {
-    ObjectReader orr(*output, "output", &problems);
-    if (auto d = orr.String("directory", true)) {
-      job.output.directory = *d;
-      auto p = CheckOutputTemplate(*d, "output.directory");
-      problems.insert(problems.end(), p.begin(), p.end());
-      if (d->find("{sequence}") == std::string::npos && job.sequences.size() > 1)
-        problems.push_back({"output.directory", "several sequences would share one folder: "
-                                                "put {sequence} in the template"});
-    }
-    if (auto s = orr.String("stem", false)) {
-      // Plain names only: the stem also names companion files referenced from inside outputs
-      // (a glTF's .bin), where spaces or slashes would need escaping.
-      const bool plain = !s->empty() && (*s)[0] != '.' &&
-                         s->find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
-                                              "0123456789._-") == std::string::npos;
-      if (!plain)
-        problems.push_back({"output.stem", "expected a file name of letters, digits, '.', '_' "
-                                           "and '-' (not starting with '.'), got " + Describe(*s)});
-      else
-        job.output.stem = *s;
-    }
-    if (const json* t = orr.Get("tiles", false)) {
-      if (t->is_object() || t->is_boolean())
-        job.output.tiles = *t;
-      else
-        problems.push_back({"output.tiles", "expected an object of tile options (or true), got " +
-                                                Describe(*t)});
-    }
-    const bool tiles = job.output.tiles.is_object() || job.output.tiles == json(true);
-    if (auto f = orr.Strings("formats", false, false)) {
-      job.output.formats = *f;
-      if (f->empty() && !tiles)
-        problems.push_back({"output.formats", "expected at least one entry, got [] (formats [] "
-                                              "with output.tiles writes tiles only)"});
-    }
-    if (auto n = orr.Integer("snapshot_every", false, 0)) job.output.snapshot_every = static_cast<int>(*n);
-    orr.RejectUnknown();
-  }
+  if (const json* output = r.Object("output", true)) ParseOutput(*output, &job, &problems);
 
   if (const json* e = r.Object("evaluation", false)) job.evaluation = *e;
 
