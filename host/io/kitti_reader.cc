@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <numbers>
 #include <stdexcept>
@@ -573,6 +574,111 @@ ImageSequence ReadKittiOdometry(const std::string& root_arg, const ImageSequence
   return seq;
 }
 
+namespace {
+
+// A raw drive's poses: the option, else poses*.txt in the drive folder (several: the one named
+// for `camera`), else none (path "": oxts).
+PosesChoice FindRawPoses(const fs::path& root, const std::string& root_arg, int camera,
+                         const ImageSequenceOptions& o) {
+  PosesChoice pc;
+  if (!o.poses.empty()) {
+    pc.path = o.poses;
+    pc.chosen_by = "option poses";
+    return pc;
+  }
+  std::vector<fs::path> found;
+  for (const auto& e : fs::directory_iterator(root)) {
+    const std::string name = e.path().filename().string();
+    if (!e.is_directory() && name.rfind("poses", 0) == 0 && e.path().extension() == ".txt")
+      found.push_back(e.path());
+  }
+  std::sort(found.begin(), found.end());
+  if (found.size() > 1) {  // several: the one named for the chosen camera
+    std::vector<fs::path> mine;
+    for (const auto& p : found)
+      if (CameraFromName(p.filename().string()) == camera) mine.push_back(p);
+    if (mine.size() != 1) {
+      std::string names;
+      for (const auto& p : found) names += (names.empty() ? "" : ", ") + p.filename().string();
+      Fail(root_arg + ": several poses files (" + names +
+           ") and not exactly one named for "
+           "camera " +
+           std::to_string(camera) + " (poses_cam" + std::to_string(camera) +
+           "*); name one with the option poses");
+    }
+    found = mine;
+    pc.chosen_by = "the poses*.txt in the drive folder named for camera 0" + std::to_string(camera);
+  } else {
+    pc.chosen_by = "the only poses*.txt in the drive folder";
+  }
+  if (!found.empty()) pc.path = found.front().string();
+  return pc;
+}
+
+// A raw drive's camera poses from its oxts records (one per image; world = the chosen camera
+// at source frame 0), for the selected frames.
+std::vector<Rigid> OxtsPoses(const fs::path& root, const std::string& root_arg, const fs::path& date,
+                             const RectifiedCamera& rect, const std::function<Rigid()>& velo_to_rect,
+                             const FrameSource& source, const std::vector<int>& selected,
+                             ImageSequence* seq) {
+  std::error_code ec;
+  const fs::path oxts = root / "oxts" / "data";
+  if (!fs::is_directory(oxts, ec))
+    Fail(root_arg +
+         ": no poses: the option poses is empty, there is no poses*.txt in the "
+         "drive folder and no " +
+         oxts.string() + " folder");
+  MatchLinesToImages(oxts.string(), static_cast<std::size_t>(CountFiles(oxts, ".txt")),
+                     "oxts records (.txt)", "one per image", source, seq);
+  const CalibFile imu_to_velo(date / "calib_imu_to_velo.txt",
+                              "KITTI raw calibration imu -> velodyne: R, T; needed for oxts");
+  // IMU -> rectified camera k: [I | b_k] R_rect_00 T_velo_to_cam T_imu_to_velo.
+  const Rigid cam_from_imu = Compose(Compose(Rigid{Identity3(), rect.baseline}, velo_to_rect()),
+                                     imu_to_velo.RotationTranslation("imu -> velodyne"));
+  const Rigid imu_from_cam = Inverse(cam_from_imu);
+  const auto record = [&](int src) { return ReadOxts(oxts / Numbered(src, 10, ".txt")); };
+  const OxtsRecord first = record(0);
+  const double scale = std::cos(first.lat * std::numbers::pi / 180.0);
+  const Rigid world0_from_world = Inverse(OxtsToImuPose(first, scale));
+  std::vector<Rigid> camera_to_world(static_cast<std::size_t>(source.count));
+  for (const int src : selected) {
+    // IMU pose relative to the first (the devkit's pose{i}), then the camera's: world =
+    // camera k of source frame 0.
+    const Rigid imu = Compose(world0_from_world, OxtsToImuPose(record(src), scale));
+    camera_to_world[static_cast<std::size_t>(src)] =
+        Compose(cam_from_imu, Compose(imu, imu_from_cam));
+  }
+  seq->summary["poses"] = {{"file", oxts.string()},
+                           {"chosen_by", "oxts (no poses option, no poses*.txt in the drive folder)"},
+                           {"camera", seq->camera},
+                           {"camera_from", "computed for the chosen camera through the calibration"},
+                           {"mercator_scale", scale}};
+  return camera_to_world;
+}
+
+// A raw drive's timestamps: image_0X/timestamps.txt (dates), else times.txt (seconds), else
+// 10 Hz.
+std::vector<double> DriveTimes(const fs::path& root, const std::string& k, const FrameSource& source,
+                               ImageSequence* seq) {
+  std::vector<double> times;
+  const fs::path dates = root / ("image_" + k) / "timestamps.txt";
+  const fs::path seconds = root / "times.txt";
+  json& s = seq->summary;
+  if (Present(dates)) {
+    times = ReadDateTimestamps(dates.string(), source, seq);
+    s["times"] = dates.string() + " (seconds since the first)";
+  } else if (Present(seconds)) {
+    times = ReadTimesFile(seconds.string(), source, seq);
+    s["times"] = seconds.string();
+  } else {
+    for (int i = 0; i < source.count; ++i) times.push_back(0.1 * i);
+    s["times"] = "none found: 0.1 s steps (KITTI's 10 Hz)";
+  }
+  return times;
+}
+
+}  // namespace
+
 ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptions& o) {
   if (const std::string p = o.Check(); !p.empty()) Fail(root_arg + ": option " + p);
   const fs::path root(root_arg);
@@ -606,39 +712,7 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
   s["camera_chosen_by"] = camera_chosen_by;
   s["calibration"] = cam_to_cam.path();
 
-  // Poses: the option, else poses*.txt in the drive folder, else oxts.
-  PosesChoice pc;
-  if (!o.poses.empty()) {
-    pc.path = o.poses;
-    pc.chosen_by = "option poses";
-  } else {
-    std::vector<fs::path> found;
-    for (const auto& e : fs::directory_iterator(root)) {
-      const std::string name = e.path().filename().string();
-      if (!e.is_directory() && name.rfind("poses", 0) == 0 && e.path().extension() == ".txt")
-        found.push_back(e.path());
-    }
-    std::sort(found.begin(), found.end());
-    if (found.size() > 1) {  // several: the one named for the chosen camera
-      std::vector<fs::path> mine;
-      for (const auto& p : found)
-        if (CameraFromName(p.filename().string()) == seq.camera) mine.push_back(p);
-      if (mine.size() != 1) {
-        std::string names;
-        for (const auto& p : found) names += (names.empty() ? "" : ", ") + p.filename().string();
-        Fail(root_arg + ": several poses files (" + names +
-             ") and not exactly one named for "
-             "camera " +
-             std::to_string(seq.camera) + " (poses_cam" + std::to_string(seq.camera) +
-             "*); name one with the option poses");
-      }
-      found = mine;
-      pc.chosen_by = "the poses*.txt in the drive folder named for camera " + k;
-    } else {
-      pc.chosen_by = "the only poses*.txt in the drive folder";
-    }
-    if (!found.empty()) pc.path = found.front().string();
-  }
+  PosesChoice pc = FindRawPoses(root, root_arg, seq.camera, o);
 
   std::vector<Rigid> camera_to_world(static_cast<std::size_t>(source.count));
   Vec3 offset{};
@@ -658,53 +732,10 @@ ImageSequence ReadKittiRaw(const std::string& root_arg, const ImageSequenceOptio
                   {"camera", pc.camera},
                   {"camera_from", pc.camera_from}};
   } else {
-    const fs::path oxts = root / "oxts" / "data";
-    if (!fs::is_directory(oxts, ec))
-      Fail(root_arg +
-           ": no poses: the option poses is empty, there is no poses*.txt in the "
-           "drive folder and no " +
-           oxts.string() + " folder");
-    MatchLinesToImages(oxts.string(), static_cast<std::size_t>(CountFiles(oxts, ".txt")),
-                       "oxts records (.txt)", "one per image", source, &seq);
-    const CalibFile imu_to_velo(date / "calib_imu_to_velo.txt",
-                                "KITTI raw calibration imu -> velodyne: R, T; needed for oxts");
-    // IMU -> rectified camera k: [I | b_k] R_rect_00 T_velo_to_cam T_imu_to_velo.
-    const Rigid cam_from_imu = Compose(Compose(Rigid{Identity3(), rect.baseline}, velo_to_rect()),
-                                       imu_to_velo.RotationTranslation("imu -> velodyne"));
-    const Rigid imu_from_cam = Inverse(cam_from_imu);
-    const auto record = [&](int src) { return ReadOxts(oxts / Numbered(src, 10, ".txt")); };
-    const OxtsRecord first = record(0);
-    const double scale = std::cos(first.lat * std::numbers::pi / 180.0);
-    const Rigid world0_from_world = Inverse(OxtsToImuPose(first, scale));
-    for (const int src : selected) {
-      // IMU pose relative to the first (the devkit's pose{i}), then the camera's: world =
-      // camera k of source frame 0.
-      const Rigid imu = Compose(world0_from_world, OxtsToImuPose(record(src), scale));
-      camera_to_world[static_cast<std::size_t>(src)] =
-          Compose(cam_from_imu, Compose(imu, imu_from_cam));
-    }
-    s["poses"] = {{"file", oxts.string()},
-                  {"chosen_by", "oxts (no poses option, no poses*.txt in the drive folder)"},
-                  {"camera", seq.camera},
-                  {"camera_from", "computed for the chosen camera through the calibration"},
-                  {"mercator_scale", scale}};
+    camera_to_world = OxtsPoses(root, root_arg, date, rect, velo_to_rect, source, selected, &seq);
   }
 
-  // Timestamps: image_0X/timestamps.txt (dates), else times.txt (seconds), else 10 Hz.
-  std::vector<double> times;
-  const fs::path dates = root / ("image_" + k) / "timestamps.txt";
-  const fs::path seconds = root / "times.txt";
-  if (Present(dates)) {
-    times = ReadDateTimestamps(dates.string(), source, &seq);
-    s["times"] = dates.string() + " (seconds since the first)";
-  } else if (Present(seconds)) {
-    times = ReadTimesFile(seconds.string(), source, &seq);
-    s["times"] = seconds.string();
-  } else {
-    for (int i = 0; i < source.count; ++i) times.push_back(0.1 * i);
-    s["times"] = "none found: 0.1 s steps (KITTI's 10 Hz)";
-  }
-
+  const std::vector<double> times = DriveTimes(root, k, source, &seq);
   AddFrames(source, selected, camera_to_world, offset, times, rect, o, &seq);
   s["baseline_applied"] = ToJson(offset);
   SummariseFrames(source, selected, o, &seq);
