@@ -275,46 +275,36 @@ std::string ViewerPageOptions::Check() const {
   return "";
 }
 
-fs::path FindTilesViewerScript() {
-  if (const char* env = std::getenv("IMR_TILES_VIEWER_JS"); env != nullptr && *env != '\0')
+namespace {
+
+// One of the page's files: $ENV_VAR if set (empty when it names no file); else <executable's
+// folder>/../share/imr/NAME (an install, or the build tree's share/imr); else `fallback` (a path
+// in the source or build tree fixed at build time). Empty when none exists.
+fs::path FindShared(const char* env_var, const char* name, const fs::path& fallback) {
+  if (const char* env = std::getenv(env_var); env != nullptr && *env != '\0')
     return fs::is_regular_file(env) ? fs::path(env) : fs::path();
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
-    const fs::path beside = exe.parent_path().parent_path() / "share" / "imr" / kTilesViewerName;
+    const fs::path beside = exe.parent_path().parent_path() / "share" / "imr" / name;
     if (fs::is_regular_file(beside, ec)) return beside;
   }
-  const fs::path built = IMR_TILES_VIEWER_SCRIPT;
-  if (!built.empty() && fs::is_regular_file(built, ec)) return built;
+  if (!fallback.empty() && fs::is_regular_file(fallback, ec)) return fallback;
   return {};
+}
+
+}  // namespace
+
+fs::path FindTilesViewerScript() {
+  return FindShared("IMR_TILES_VIEWER_JS", kTilesViewerName, IMR_TILES_VIEWER_SCRIPT);
 }
 
 fs::path FindModelViewerScript() {
-  if (const char* env = std::getenv("IMR_MODEL_VIEWER_JS"); env != nullptr && *env != '\0')
-    return fs::is_regular_file(env) ? fs::path(env) : fs::path();
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const fs::path installed = exe.parent_path().parent_path() / "share" / "imr" / kModelViewerName;
-    if (fs::is_regular_file(installed, ec)) return installed;
-  }
-  const fs::path source = IMR_MODEL_VIEWER_SOURCE;
-  if (!source.empty() && fs::is_regular_file(source, ec)) return source;
-  return {};
+  return FindShared("IMR_MODEL_VIEWER_JS", kModelViewerName, IMR_MODEL_VIEWER_SOURCE);
 }
 
 fs::path FindViewerPageTemplate() {
-  if (const char* env = std::getenv("IMR_VIEWER_PAGE_TEMPLATE"); env != nullptr && *env != '\0')
-    return fs::is_regular_file(env) ? fs::path(env) : fs::path();
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const fs::path installed = exe.parent_path().parent_path() / "share" / "imr" / kPageTemplateName;
-    if (fs::is_regular_file(installed, ec)) return installed;
-  }
-  const fs::path source = IMR_VIEWER_PAGE_TEMPLATE;
-  if (!source.empty() && fs::is_regular_file(source, ec)) return source;
-  return {};
+  return FindShared("IMR_VIEWER_PAGE_TEMPLATE", kPageTemplateName, IMR_VIEWER_PAGE_TEMPLATE);
 }
 
 std::string ReadAsGlb(const fs::path& path) {
