@@ -26,6 +26,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <memory>
+#include <optional>
 
 namespace imr::cli {
 namespace {
@@ -86,6 +88,126 @@ bool LoadRunnableJob(const char* cmd, const fs::path& job, const po::variables_m
   return problems.empty();
 }
 
+// The batch's options from imr run's flags; false (having said why) on a bad value.
+bool ReadBatchOptions(const po::variables_map& vm, imr::batch::BatchOptions* batch) {
+  batch->jobs = vm["jobs"].as<int>();
+  batch->force = vm.count("force") > 0;
+  batch->verbose = vm.count("verbose") > 0;
+  batch->executable = SelfPath();
+  batch->viewer_page = vm.count("no-viewer") == 0;
+  if (!ParseSize(vm, "run", &batch->max_rss)) return false;
+  if (vm.count("sequences-from")) {
+    batch->sequences_from = vm["sequences-from"].as<std::string>();
+    NoteInput(batch->sequences_from, "the list of sequences (--sequences-from)");
+  }
+  std::string error;
+  if (vm.count("shard")) {
+    auto shard = imr::batch::ParseShard(vm["shard"].as<std::string>(), &error);
+    if (!shard) {
+      std::cerr << "imr run: --shard: " << error << "\n";
+      return false;
+    }
+    batch->shard = *shard;
+    batch->shard_origin = "--shard";
+  } else if (auto shard = imr::batch::ShardFromSlurm(&std::getenv, &error)) {
+    batch->shard = *shard;
+    batch->shard_origin = std::string("Slurm array task ") + std::getenv("SLURM_ARRAY_TASK_ID");
+  } else if (!error.empty()) {
+    std::cerr << "imr run: " << error << "\n";
+    return false;
+  }
+  batch->progress = vm.count("quiet") ? imr::batch::ProgressMode::kNone
+                    : ::isatty(STDERR_FILENO) ? imr::batch::ProgressMode::kBar
+                                              : imr::batch::ProgressMode::kLines;
+  return true;
+}
+
+// The batch folder, and this run's hold on it: an environment problem, not a failure. The exit
+// status when it cannot be held (having said why).
+std::optional<int> HoldBatchFolder(const fs::path& batch_dir, const imr::batch::BatchOptions& batch,
+                                   std::shared_ptr<imr::batch::BatchLock>* lock) {
+  if (const std::string foreign = io::ForeignBatchFiles(batch_dir, batch.viewer_page);
+      !foreign.empty()) {
+    std::cerr << "imr run: " << foreign << "\n";
+    return imr::kExitCantCreate;
+  }
+  try {
+    *lock = imr::batch::LockBatchFolder(batch_dir, batch.shard);
+  } catch (const imr::batch::BatchFolderBusy& e) {
+    std::cerr << "imr run: " << e.what() << "\n";
+    return imr::kExitTempFail;
+  } catch (const std::exception& e) {
+    std::cerr << "imr run: " << batch_dir.string() << ": cannot create the batch folder ("
+              << e.what() << ")\n";
+    return imr::kExitCantCreate;
+  }
+  return std::nullopt;
+}
+
+// Under a finished sequence's line, every file it wrote (its manifest's list): the mesh, the
+// report, tiles, exports (issue 47: users looked for them).
+void PrintWrittenFiles(const fs::path& output) {
+  std::string why;
+  const std::optional<imr::batch::Manifest> m = imr::batch::ReadManifest(output, &why);
+  if (!m) return;
+  std::string line;
+  for (const std::string& f : imr::batch::WrittenFilesForLog(*m))
+    line += (line.empty() ? "" : ", ") + f;
+  std::printf("        wrote: %s\n", line.c_str());
+}
+
+// One line per sequence on stdout: where the results are, or why there are none; with -q only
+// the ones that say why (errors).
+void PrintOutcomes(const imr::batch::BatchRunResult& result, bool quiet) {
+  using imr::batch::SequenceStatus;
+  for (const auto& s : result.outcomes) {
+    const char* name = s.name.c_str();
+    switch (s.status) {
+      case SequenceStatus::kOk:
+        if (!quiet) {
+          std::printf("ok      %-20s %7.2f s  %s\n", name, s.seconds, s.output_directory.string().c_str());
+          PrintWrittenFiles(s.output_directory);
+        }
+        break;
+      case SequenceStatus::kSkipped:
+        if (!quiet) {
+          std::printf("skipped %-20s up to date  %s\n", name, s.output_directory.string().c_str());
+          PrintWrittenFiles(s.output_directory);
+        }
+        break;
+      case SequenceStatus::kFailed:
+        std::printf("FAILED  %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
+        break;
+      case SequenceStatus::kInterrupted:
+        std::printf("stopped %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
+        break;
+      case SequenceStatus::kNotRun:
+        std::printf("not run %-20s %s\n", name, s.detail.c_str());
+        break;
+    }
+  }
+}
+
+// The summary lines (not with -q: the exit status tells the rest).
+void PrintBatchTotals(const imr::batch::BatchRunResult& result, const imr::batch::BatchOptions& batch) {
+  using imr::batch::SequenceStatus;
+  std::printf("%zu sequence%s, %d failed", result.outcomes.size(),
+              result.outcomes.size() == 1 ? "" : "s", result.Count(SequenceStatus::kFailed));
+  if (const int n = result.Count(SequenceStatus::kInterrupted)) std::printf(", %d interrupted", n);
+  if (const int n = result.Count(SequenceStatus::kSkipped)) std::printf(", %d skipped (up to date)", n);
+  if (const int n = result.Count(SequenceStatus::kNotRun)) std::printf(", %d not run", n);
+  if (batch.shard.active())
+    std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
+                batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
+  else if (result.summary_written)
+    std::printf("\nsummary: %s, summary.json (imr's bookkeeping: imr-batch/)%s%s\n",
+                (result.batch_directory / "summary.md").string().c_str(),
+                result.viewer_page.empty() ? "" : "\nviewer page: ",
+                result.viewer_page.string().c_str());
+  else
+    std::printf("\n");
+}
+
 int CmdRun(const std::vector<std::string>& args) {
   po::options_description opts("imr run options");
   opts.add_options()("job", po::value<std::string>()->required(), "job file (JSON)");
@@ -117,122 +239,24 @@ int CmdRun(const std::vector<std::string>& args) {
   imr::pipeline::RunOptions run_options;
   if (!ReadRunOptions(vm, "run", &run_options)) return kExitUsage;
   NoteInput(job, "the job file");
-
   imr::batch::BatchOptions batch;
-  batch.jobs = vm["jobs"].as<int>();
-  batch.force = vm.count("force") > 0;
-  batch.verbose = vm.count("verbose") > 0;
-  batch.executable = SelfPath();
-  batch.viewer_page = vm.count("no-viewer") == 0;
-  if (!ParseSize(vm, "run", &batch.max_rss)) return kExitUsage;
-  if (vm.count("sequences-from")) {
-    batch.sequences_from = vm["sequences-from"].as<std::string>();
-    NoteInput(batch.sequences_from, "the list of sequences (--sequences-from)");
-  }
-  std::string error;
-  if (vm.count("shard")) {
-    auto shard = imr::batch::ParseShard(vm["shard"].as<std::string>(), &error);
-    if (!shard) {
-      std::cerr << "imr run: --shard: " << error << "\n";
-      return kExitUsage;
-    }
-    batch.shard = *shard;
-    batch.shard_origin = "--shard";
-  } else if (auto shard = imr::batch::ShardFromSlurm(&std::getenv, &error)) {
-    batch.shard = *shard;
-    batch.shard_origin = std::string("Slurm array task ") + std::getenv("SLURM_ARRAY_TASK_ID");
-  } else if (!error.empty()) {
-    std::cerr << "imr run: " << error << "\n";
-    return kExitUsage;
-  }
-  batch.progress = vm.count("quiet") ? imr::batch::ProgressMode::kNone
-                   : ::isatty(STDERR_FILENO) ? imr::batch::ProgressMode::kBar
-                                             : imr::batch::ProgressMode::kLines;
+  if (!ReadBatchOptions(vm, &batch)) return kExitUsage;
 
   imr::plugin::PluginRegistry registry;
   imr::pipeline::ValidatedJob v;
   if (!LoadRunnableJob("run", job, vm, run_options, batch, &registry, &v)) return kExitUsage;
-  // The batch folder, and this run's hold on it: an environment problem, not a failure.
-  const fs::path batch_dir = imr::batch::BatchDirectory(v.job);
-  if (const std::string foreign = io::ForeignBatchFiles(batch_dir, batch.viewer_page);
-      !foreign.empty()) {
-    std::cerr << "imr run: " << foreign << "\n";
-    return imr::kExitCantCreate;
-  }
   std::shared_ptr<imr::batch::BatchLock> lock;
-  try {
-    lock = imr::batch::LockBatchFolder(batch_dir, batch.shard);
-  } catch (const imr::batch::BatchFolderBusy& e) {
-    std::cerr << "imr run: " << e.what() << "\n";
-    return imr::kExitTempFail;
-  } catch (const std::exception& e) {
-    std::cerr << "imr run: " << batch_dir.string() << ": cannot create the batch folder ("
-              << e.what() << ")\n";
-    return imr::kExitCantCreate;
-  }
+  if (const std::optional<int> held = HoldBatchFolder(imr::batch::BatchDirectory(v.job), batch, &lock))
+    return *held;
   HandleStopSignals();
   const auto result = imr::batch::RunBatch(v, registry, run_options, batch);
-  // One line per sequence on stdout: where the results are, or why there are none; with -q
-  // only the ones that say why (errors), and no summary lines: the exit status tells the rest.
   const bool quiet = vm.count("quiet") > 0;
+  PrintOutcomes(result, quiet);
+  if (!quiet) PrintBatchTotals(result, batch);
   using imr::batch::SequenceStatus;
-  // Under a finished sequence's line, every file it wrote (its manifest's list): the mesh, the
-  // report, tiles, exports (issue 47: users looked for them).
-  const auto written = [](const fs::path& output) {
-    std::string why;
-    const std::optional<imr::batch::Manifest> m = imr::batch::ReadManifest(output, &why);
-    if (!m) return;
-    std::string line;
-    for (const std::string& f : imr::batch::WrittenFilesForLog(*m))
-      line += (line.empty() ? "" : ", ") + f;
-    std::printf("        wrote: %s\n", line.c_str());
-  };
-  for (const auto& s : result.outcomes) {
-    const char* name = s.name.c_str();
-    switch (s.status) {
-      case SequenceStatus::kOk:
-        if (!quiet) {
-          std::printf("ok      %-20s %7.2f s  %s\n", name, s.seconds, s.output_directory.string().c_str());
-          written(s.output_directory);
-        }
-        break;
-      case SequenceStatus::kSkipped:
-        if (!quiet) {
-          std::printf("skipped %-20s up to date  %s\n", name, s.output_directory.string().c_str());
-          written(s.output_directory);
-        }
-        break;
-      case SequenceStatus::kFailed:
-        std::printf("FAILED  %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
-        break;
-      case SequenceStatus::kInterrupted:
-        std::printf("stopped %-20s %7.2f s  %s\n", name, s.seconds, s.detail.c_str());
-        break;
-      case SequenceStatus::kNotRun:
-        std::printf("not run %-20s %s\n", name, s.detail.c_str());
-        break;
-    }
-  }
   const int failed = result.Count(SequenceStatus::kFailed) +
                      result.Count(SequenceStatus::kInterrupted) +
                      result.Count(SequenceStatus::kNotRun);
-  if (!quiet) {
-    std::printf("%zu sequence%s, %d failed", result.outcomes.size(),
-                result.outcomes.size() == 1 ? "" : "s", result.Count(SequenceStatus::kFailed));
-    if (const int n = result.Count(SequenceStatus::kInterrupted)) std::printf(", %d interrupted", n);
-    if (const int n = result.Count(SequenceStatus::kSkipped)) std::printf(", %d skipped (up to date)", n);
-    if (const int n = result.Count(SequenceStatus::kNotRun)) std::printf(", %d not run", n);
-    if (batch.shard.active())
-      std::printf(" (shard %s)\nwhen every shard is done: imr report %s\n",
-                  batch.shard.ToString().c_str(), result.batch_directory.string().c_str());
-    else if (result.summary_written)
-      std::printf("\nsummary: %s, summary.json (imr's bookkeeping: imr-batch/)%s%s\n",
-                  (result.batch_directory / "summary.md").string().c_str(),
-                  result.viewer_page.empty() ? "" : "\nviewer page: ",
-                  result.viewer_page.string().c_str());
-    else
-      std::printf("\n");
-  }
   // The summary is the batch's result: not writing it is the batch folder's failure (its error
   // is on stderr), whatever the sequences did.
   if (!batch.shard.active() && !result.summary_written) return imr::kExitCantCreate;
@@ -252,7 +276,24 @@ const char* kMeshNotes =
     "Exit status: 0 written; 1 the run failed (its report and log say why); 64 bad usage; 73\n"
     "the mesh could not be copied to --out (the run's result stays in WORK/mesh).\n";
 
-int CmdMesh(const std::vector<std::string>& args) {
+// imr mesh's request, as given and checked.
+struct MeshRequest {
+  po::variables_map vm;
+  std::vector<std::string> forwarded;  // options of imr run
+  std::string input, format;
+  const io::InputFormat* f = nullptr;
+  fs::path out;     // absolute
+  std::string ext;  // --out's extension, lower case
+  fs::path work;
+};
+
+int MeshUsage(const std::string& what) {
+  std::cerr << "imr mesh: " << what << " (imr mesh --help)\n";
+  return kExitUsage;
+}
+
+// imr mesh's flags into m.vm and m.forwarded; an exit status when done (help, bad usage).
+std::optional<int> ParseMeshFlags(const std::vector<std::string>& args, MeshRequest* m) {
   po::options_description opts("imr mesh options");
   opts.add_options()("input,i", po::value<std::string>()->value_name("PATH"),
                      "the sequence: a folder or file (e.g. a COLMAP sparse/0), or a synthetic "
@@ -265,126 +306,119 @@ int CmdMesh(const std::vector<std::string>& args) {
   AddJobOverrideFlag(opts);
   opts.add_options()("help,h", "show this help")("quiet,q", "errors and warnings only")("verbose,v",
                                                                            "debug output");
-  po::variables_map vm;
-  std::vector<std::string> forwarded;  // options of imr run
   const std::string synopsis =
       std::string("imr mesh --input PATH --format FORMAT --out MESH.ply [--set KEY=VALUE]...\n"
                   "         [--work DIR] [imr run options]\n\n") +
       kMeshNotes;
-  auto usage = [](const std::string& what) {
-    std::cerr << "imr mesh: " << what << " (imr mesh --help)\n";
-    return kExitUsage;
-  };
   try {
     const po::parsed_options parsed =
         po::command_line_parser(args).options(opts).allow_unregistered().run();
-    po::store(parsed, vm);
-    forwarded = po::collect_unrecognized(parsed.options, po::include_positional);
-    if (vm.count("help")) {
+    po::store(parsed, m->vm);
+    m->forwarded = po::collect_unrecognized(parsed.options, po::include_positional);
+    if (m->vm.count("help")) {
       std::cout << "Usage: " << synopsis << "\n" << opts << "\n";
       return kExitOk;
     }
-    po::notify(vm);
+    po::notify(m->vm);
   } catch (const po::error& e) {
-    return usage(e.what());
+    return MeshUsage(e.what());
   }
+  return std::nullopt;
+}
+
+// The flags' values, checked before anything is written; an exit status when they are wrong.
+std::optional<int> CheckMeshFlags(MeshRequest* m) {
+  const po::variables_map& vm = m->vm;
   for (const char* required : {"input", "format", "out"})
-    if (!vm.count(required)) return usage(std::string("needs --") + required);
-  if (vm["out"].as<std::string>().empty()) return usage("--out: expected a mesh file name, got ''");
+    if (!vm.count(required)) return MeshUsage(std::string("needs --") + required);
+  if (vm["out"].as<std::string>().empty()) return MeshUsage("--out: expected a mesh file name, got ''");
   // --out decides the output: the run must write there and nowhere else.
   for (const std::string& o : JobOverrides(vm)) {
     const std::string key = o.substr(0, o.find('='));
     for (const char* owned : {"output", "output.directory", "output.stem", "output.formats"})
       if (key == owned || key.rfind(std::string(owned) + "[", 0) == 0 ||
           (key.rfind(std::string(owned) + ".", 0) == 0 && std::string(owned) != "output"))
-        return usage("--set " + OneLine(o, 200) + ": imr mesh sets output.directory, output.stem "
-                     "and output.formats from --out (and --work); change those instead");
+        return MeshUsage("--set " + OneLine(o, 200) + ": imr mesh sets output.directory, output.stem "
+                         "and output.formats from --out (and --work); change those instead");
   }
-  const std::string input = vm["input"].as<std::string>();
-  const std::string format = vm["format"].as<std::string>();
-  const io::InputFormat* f = io::FindInputFormat(format);
-  if (f == nullptr) {
+  m->input = vm["input"].as<std::string>();
+  m->format = vm["format"].as<std::string>();
+  m->f = io::FindInputFormat(m->format);
+  if (m->f == nullptr) {
     std::vector<std::string> names;
     for (const io::InputFormat& x : io::InputFormats()) names.push_back(x.name);
-    return usage("--format: expected " + io::JoinAlternatives(names) + ", got '" + format + "'");
+    return MeshUsage("--format: expected " + io::JoinAlternatives(names) + ", got '" + m->format + "'");
   }
-  const fs::path out = fs::absolute(vm["out"].as<std::string>()).lexically_normal();
-  if (std::error_code ec; fs::is_directory(out, ec))
-    return usage("--out: " + out.string() + " is a folder; name the mesh file (e.g. " +
-                 (out / "mesh.ply").string() + ")");
-  std::string ext = out.extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (ext != ".ply" && ext != ".obj" && ext != ".gltf" && ext != ".glb")
-    return usage("--out: expected a file ending in .ply, .obj, .gltf or .glb, got '" +
-                 out.filename().string() + "'");
-  const fs::path work = vm.count("work") ? fs::absolute(vm["work"].as<std::string>())
-                                         : out.parent_path() / (out.stem().string() + ".imr");
-  // What the input is, before anything is written: a path that does not exist, or a folder that
-  // is something else than the model (a mapper's sparse/ above its sub-models, a folder of
-  // photos), is a usage error that names --input.
-  if (f->sequences_are_paths) {
-    const fs::path in = fs::absolute(input).lexically_normal();
+  m->out = fs::absolute(vm["out"].as<std::string>()).lexically_normal();
+  if (std::error_code ec; fs::is_directory(m->out, ec))
+    return MeshUsage("--out: " + m->out.string() + " is a folder; name the mesh file (e.g. " +
+                     (m->out / "mesh.ply").string() + ")");
+  m->ext = m->out.extension().string();
+  for (char& c : m->ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (m->ext != ".ply" && m->ext != ".obj" && m->ext != ".gltf" && m->ext != ".glb")
+    return MeshUsage("--out: expected a file ending in .ply, .obj, .gltf or .glb, got '" +
+                     m->out.filename().string() + "'");
+  m->work = vm.count("work") ? fs::absolute(vm["work"].as<std::string>())
+                             : m->out.parent_path() / (m->out.stem().string() + ".imr");
+  return std::nullopt;
+}
+
+// What the input is, before anything is written: a path that does not exist, or a folder that
+// is something else than the model (a mapper's sparse/ above its sub-models, a folder of
+// photos), is a usage error that names --input. Then --out: a file imr may not write costs no
+// run.
+std::optional<int> CheckMeshInputAndOutput(const MeshRequest& m) {
+  if (m.f->sequences_are_paths) {
+    const fs::path in = fs::absolute(m.input).lexically_normal();
     std::error_code ec;
     if (!fs::exists(in, ec))
-      return usage("--input: " + in.string() + " does not exist");
-    if (format == "colmap" && fs::is_directory(in, ec) && !fs::exists(in / "cameras.bin", ec) &&
+      return MeshUsage("--input: " + in.string() + " does not exist");
+    if (m.format == "colmap" && fs::is_directory(in, ec) && !fs::exists(in / "cameras.bin", ec) &&
         !fs::exists(in / "cameras.txt", ec)) {
       const std::string hint = io::ColmapFolderHint(in);
-      if (!hint.empty()) return usage("--input: " + in.string() + " is not a COLMAP model: " + hint);
+      if (!hint.empty()) return MeshUsage("--input: " + in.string() + " is not a COLMAP model: " + hint);
     }
   }
-
-  if (f->sequences_are_paths) NoteInput(fs::absolute(input), "the input (--input)");
-  // --out before the run: a file imr may not write costs no run.
-  if (const std::string why = WhyNotWritable(out); !why.empty()) {
-    std::cerr << "imr mesh: --out " << out.string() << ": " << why << "; nothing ran\n";
+  if (m.f->sequences_are_paths) NoteInput(fs::absolute(m.input), "the input (--input)");
+  if (const std::string why = WhyNotWritable(m.out); !why.empty()) {
+    std::cerr << "imr mesh: --out " << m.out.string() << ": " << why << "; nothing ran\n";
     return kExitCantCreate;
   }
-  // The job imr run would be given. Paths are absolute: the job file lives in WORK.
+  return std::nullopt;
+}
+
+// The job imr run would be given (paths absolute: the job file lives in WORK). The --set
+// overrides go into the saved job, so that `imr run WORK/job.json` redoes this very mesh (issue
+// 47); ones that do not apply are left in `overrides` for imr run, which names them.
+nlohmann::json MeshJob(const MeshRequest& m, std::vector<std::string>* overrides) {
   nlohmann::json job = {
-      {"description", "built by imr mesh: " + input + " (" + format + ") -> " + out.string()},
-      {"sequences", {f->sequences_are_paths ? fs::absolute(input).lexically_normal().string() : input}},
-      {"input", {{"format", format}}},
+      {"description", "built by imr mesh: " + m.input + " (" + m.format + ") -> " + m.out.string()},
+      {"sequences", {m.f->sequences_are_paths ? fs::absolute(m.input).lexically_normal().string() : m.input}},
+      {"input", {{"format", m.format}}},
       {"pipeline", nlohmann::json::array()},
-      {"output", {{"directory", "mesh"}, {"stem", out.stem().string()}, {"formats", {ext.substr(1)}}}}};
-  if (f->needs_front_end) {
+      {"output", {{"directory", "mesh"}, {"stem", m.out.stem().string()}, {"formats", {m.ext.substr(1)}}}}};
+  if (m.f->needs_front_end) {
     job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
     job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
   }
   job["pipeline"].push_back({{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}});
-  // The --set overrides go into the saved job, so that `imr run WORK/job.json` redoes this very
-  // mesh (issue 47); ones that do not apply are left to imr run, which names them.
-  std::vector<std::string> overrides = JobOverrides(vm);
-  {
-    nlohmann::json applied = job;
-    std::vector<io::Problem> problems;
-    io::ApplyJobOverrides(overrides, &applied, &problems);
-    if (problems.empty()) {
-      job = std::move(applied);
-      overrides.clear();
-    }
+  *overrides = JobOverrides(m.vm);
+  nlohmann::json applied = job;
+  std::vector<io::Problem> problems;
+  io::ApplyJobOverrides(*overrides, &applied, &problems);
+  if (problems.empty()) {
+    job = std::move(applied);
+    overrides->clear();
   }
-  const fs::path job_file = work / "job.json";
-  try {
-    EnsureWritableDirectory(work);
-    WriteFileAtomically(job_file, job.dump(2) + "\n");
-  } catch (const std::exception& e) {
-    std::cerr << "imr mesh: " << work.string() << ": cannot write the job (" << e.what() << ")\n";
-    return kExitCantCreate;
-  }
+  return job;
+}
 
-  std::vector<std::string> run_args = {job_file.string()};
-  for (const std::string& o : overrides) run_args.insert(run_args.end(), {"--set", o});
-  if (vm.count("quiet")) run_args.push_back("-q");
-  if (vm.count("verbose")) run_args.push_back("-v");
-  run_args.insert(run_args.end(), forwarded.begin(), forwarded.end());
-  if (const int status = CmdRun(run_args); status != kExitOk) return status;
-
-  // The run's output folder holds the mesh and its companions; report.json lists them. The mesh
-  // is copied to --out as named (the exporter writes the extension in lower case), companions
-  // by their names; each copy is atomic, and a failure is the output's, not the run's (73).
-  const fs::path folder = work / "mesh";
-  const std::string mesh_name = out.stem().string() + ext;
+// The run's output folder holds the mesh and its companions; report.json lists them. The mesh
+// is copied to --out as named (the exporter writes the extension in lower case), companions by
+// their names; each copy is atomic, and a failure is the output's, not the run's (73).
+int CopyMeshToOut(const MeshRequest& m, const fs::path& job_file) {
+  const fs::path folder = m.work / "mesh";
+  const std::string mesh_name = m.out.stem().string() + m.ext;
   std::vector<std::string> files;
   try {
     InputStream in(folder / "report.json", "the report of imr mesh's run", InputRole::kOwnOutput);
@@ -403,7 +437,7 @@ int CmdMesh(const std::vector<std::string>& args) {
   std::vector<std::string> copied;
   for (const std::string& n : files) {
     if (n == "report.json") continue;
-    const fs::path to = n == mesh_name ? out : out.parent_path() / n;
+    const fs::path to = n == mesh_name ? m.out : m.out.parent_path() / n;
     try {
       CopyFileAtomically(folder / n, to);
     } catch (const std::exception& e) {
@@ -415,15 +449,40 @@ int CmdMesh(const std::vector<std::string>& args) {
   }
   std::string companions;
   for (const std::string& n : copied)
-    if (n != out.filename().string()) companions += (companions.empty() ? " (with " : ", ") + n;
+    if (n != m.out.filename().string()) companions += (companions.empty() ? " (with " : ", ") + n;
   if (!companions.empty()) companions += ")";
   // The last lines: the mesh where asked, and the job that redoes it (the run's own files are
   // named above them, under its "ok" line).
-  if (!vm.count("quiet"))
+  if (!m.vm.count("quiet"))
     std::printf("mesh: %s%s\njob: %s (imr run it to redo this mesh; the run's files are in %s)\n",
-                out.string().c_str(), companions.c_str(), job_file.string().c_str(),
+                m.out.string().c_str(), companions.c_str(), job_file.string().c_str(),
                 folder.string().c_str());
   return kExitOk;
+}
+
+int CmdMesh(const std::vector<std::string>& args) {
+  MeshRequest m;
+  if (const std::optional<int> done = ParseMeshFlags(args, &m)) return *done;
+  if (const std::optional<int> bad = CheckMeshFlags(&m)) return *bad;
+  if (const std::optional<int> bad = CheckMeshInputAndOutput(m)) return *bad;
+  std::vector<std::string> overrides;
+  const nlohmann::json job = MeshJob(m, &overrides);
+  const fs::path job_file = m.work / "job.json";
+  try {
+    EnsureWritableDirectory(m.work);
+    WriteFileAtomically(job_file, job.dump(2) + "\n");
+  } catch (const std::exception& e) {
+    std::cerr << "imr mesh: " << m.work.string() << ": cannot write the job (" << e.what() << ")\n";
+    return kExitCantCreate;
+  }
+
+  std::vector<std::string> run_args = {job_file.string()};
+  for (const std::string& o : overrides) run_args.insert(run_args.end(), {"--set", o});
+  if (m.vm.count("quiet")) run_args.push_back("-q");
+  if (m.vm.count("verbose")) run_args.push_back("-v");
+  run_args.insert(run_args.end(), m.forwarded.begin(), m.forwarded.end());
+  if (const int status = CmdRun(run_args); status != kExitOk) return status;
+  return CopyMeshToOut(m, job_file);
 }
 
 const char* kSubmitNotes =
