@@ -177,7 +177,52 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
   }
 
   void Build() {
-    // Intrinsics of the views.
+    ResolveIntrinsics();
+    NumberViewKeyframes();
+    KeyframeList list = ListKeyframes();
+    OrderObservations(list);
+    std::unordered_map<uint64_t, PointState> points;
+    updates_.resize(list.numbers.size());
+    frames_ = list.frames;
+    Delivery d;
+    for (std::size_t k = 0; k < list.numbers.size(); ++k) DeliverKeyframe(list, k, &points, &d);
+    int64_t pending = 0;
+    for (const auto& [id, s] : points) pending += s.entered ? 0 : 1;
+    summary_ = {{"file", f_.file()},
+                {"views", views_.size()},
+                {"observations", d.observations},
+                {"points", points.size()},
+                {"points_never_entered", pending},
+                {"moves", d.moves},
+                {"min_views", list.min_views},
+                {"keyframes", updates_.size()},
+                {"imr_stream", !imr_stream_.is_null()}};
+    obs_ = {};
+  }
+
+  // The keyframes: numbers, the frame each ends at, the points each removes.
+  struct KeyframeList {
+    std::vector<int64_t> numbers;
+    std::vector<int> frames;
+    std::vector<std::vector<uint64_t>> removed;
+    int min_views = 0;
+  };
+
+  // A point as the stream has delivered it so far.
+  struct PointState {
+    bool entered = false, removed = false;
+    Vec3 position{};
+    std::vector<uint64_t> cameras;
+  };
+
+  // Where the delivery of the keyframes stands: the next view and observation, the counts.
+  struct Delivery {
+    std::size_t vi = 0, oi = 0;
+    int64_t moves = 0, observations = 0;
+  };
+
+  // Intrinsics of the views.
+  void ResolveIntrinsics() {
     for (ViewRec& v : views_) {
       if (!v.has_intrinsic) continue;
       auto it = intrinsics_.find(v.intrinsic);
@@ -190,7 +235,10 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
       if (v.geometry.intrinsics.width <= 0 && v.width > 0) v.geometry.intrinsics.width = v.width;
       if (v.geometry.intrinsics.height <= 0 && v.height > 0) v.geometry.intrinsics.height = v.height;
     }
-    // Keyframe of each view: its own number, or views_per_keyframe consecutive views.
+  }
+
+  // Keyframe of each view: its own number, or views_per_keyframe consecutive views.
+  void NumberViewKeyframes() {
     const bool numbered = !views_.empty() && views_[0].keyframe != kNone;
     for (std::size_t i = 0; i < views_.size(); ++i) {
       ViewRec& v = views_[i];
@@ -203,45 +251,51 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
                                           " comes after keyframe " + std::to_string(views_[i - 1].keyframe) +
                                           " (views must be in keyframe order)");
     }
-    // The keyframes: imr_stream's list (every update, removals), else those of the views.
-    std::vector<int64_t> numbers;
-    std::vector<int> frames;
-    std::vector<std::vector<uint64_t>> removed;
-    int min_views = opt_.min_views;
+  }
+
+  // The keyframes: imr_stream's list (every update, removals), else those of the views.
+  KeyframeList ListKeyframes() {
+    KeyframeList list;
+    list.min_views = opt_.min_views;
     if (!imr_stream_.is_null()) {
       const json* mv = f_.Optional(imr_stream_, "min_views", "imr_stream");
-      if (mv != nullptr && min_views == 0) min_views = static_cast<int>(f_.Integer(*mv, "imr_stream.min_views"));
+      if (mv != nullptr && list.min_views == 0) list.min_views = static_cast<int>(f_.Integer(*mv, "imr_stream.min_views"));
       const json& ks = f_.Member(imr_stream_, "keyframes", "imr_stream");
       if (!ks.is_array()) f_.Fail("imr_stream.keyframes", "expected an array");
       for (std::size_t i = 0; i < ks.size(); ++i) {
         const std::string p = "imr_stream.keyframes[" + std::to_string(i) + "]";
-        numbers.push_back(f_.Integer(f_.Member(ks[i], "keyframe", p), p + ".keyframe"));
-        if (i > 0 && numbers[i] <= numbers[i - 1]) f_.Fail(p + ".keyframe", "keyframes must increase");
-        frames.push_back(static_cast<int>(f_.Integer(f_.Member(ks[i], "frame", p), p + ".frame")));
-        removed.emplace_back();
+        list.numbers.push_back(f_.Integer(f_.Member(ks[i], "keyframe", p), p + ".keyframe"));
+        if (i > 0 && list.numbers[i] <= list.numbers[i - 1]) f_.Fail(p + ".keyframe", "keyframes must increase");
+        list.frames.push_back(static_cast<int>(f_.Integer(f_.Member(ks[i], "frame", p), p + ".frame")));
+        list.removed.emplace_back();
         if (const json* r = f_.Optional(ks[i], "removed_points", p)) {
           if (!r->is_array()) f_.Fail(p + ".removed_points", "expected an array of point ids");
           for (std::size_t j = 0; j < r->size(); ++j)
-            removed.back().push_back(f_.Id((*r)[j], p + ".removed_points[" + std::to_string(j) + "]"));
+            list.removed.back().push_back(f_.Id((*r)[j], p + ".removed_points[" + std::to_string(j) + "]"));
         }
       }
     } else {
       for (std::size_t i = 0; i < views_.size(); ++i) {
-        if (numbers.empty() || numbers.back() != views_[i].keyframe) {
-          numbers.push_back(views_[i].keyframe);
-          frames.push_back(0);
-          removed.emplace_back();
+        if (list.numbers.empty() || list.numbers.back() != views_[i].keyframe) {
+          list.numbers.push_back(views_[i].keyframe);
+          list.frames.push_back(0);
+          list.removed.emplace_back();
         }
-        frames.back() = static_cast<int>(i);
+        list.frames.back() = static_cast<int>(i);
       }
     }
-    if (min_views <= 0) min_views = 2;
+    if (list.min_views <= 0) list.min_views = 2;
+    return list;
+  }
+
+  // Every view and observation in a listed keyframe; the observations in delivery order:
+  // (keyframe, view order, order in the view).
+  void OrderObservations(const KeyframeList& list) {
     std::unordered_map<int64_t, std::size_t> slot;
-    for (std::size_t i = 0; i < numbers.size(); ++i) slot[numbers[i]] = i;
+    for (std::size_t i = 0; i < list.numbers.size(); ++i) slot[list.numbers[i]] = i;
     for (const ViewRec& v : views_)
       if (!slot.count(v.keyframe))
         f_.Fail(v.path + ".keyframe", "keyframe " + std::to_string(v.keyframe) + " is not in imr_stream.keyframes");
-    // Observations in delivery order: (keyframe, view order, order in the view).
     for (Obs& o : obs_) {
       const int64_t vk = views_[o.view].keyframe;
       if (o.keyframe == kNone) o.keyframe = vk;
@@ -252,85 +306,67 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
         f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) + " is not in imr_stream.keyframes");
     }
     std::stable_sort(obs_.begin(), obs_.end(), [](const Obs& a, const Obs& b) { return a.keyframe < b.keyframe; });
+  }
 
-    struct State {
-      bool entered = false, removed = false;
-      Vec3 position{};
-      std::vector<uint64_t> cameras;
+  // Keyframe k's update: its cameras, its removals, and its observations as new points (seen by
+  // min_views cameras) and moved ones.
+  void DeliverKeyframe(const KeyframeList& list, std::size_t k,
+                       std::unordered_map<uint64_t, PointState>* points_in, Delivery* d) {
+    std::unordered_map<uint64_t, PointState>& points = *points_in;
+    engine::KeyframeUpdate& u = updates_[k];
+    for (; d->vi < views_.size() && views_[d->vi].keyframe == list.numbers[k]; ++d->vi)
+      u.cameras.push_back({views_[d->vi].geometry.id, views_[d->vi].geometry.center});
+    for (uint64_t id : list.removed[k]) {
+      auto it = points.find(id);
+      if (it == points.end() || !it->second.entered || it->second.removed)
+        f_.Fail("imr_stream.keyframes[" + std::to_string(k) + "].removed_points",
+                PointNotInStream(id, list.numbers[k]));
+      it->second.removed = true;
+    }
+    u.removed_points = list.removed[k];
+    std::vector<uint64_t> touched;
+    struct Move {
+      engine::MovedPoint m;
+      Vec3 before;  // the estimate the engine has
     };
-    std::unordered_map<uint64_t, State> points;
-    updates_.resize(numbers.size());
-    frames_ = frames;
-    std::size_t vi = 0, oi = 0;
-    int64_t moves = 0, observations = 0;
-    for (std::size_t k = 0; k < numbers.size(); ++k) {
-      engine::KeyframeUpdate& u = updates_[k];
-      for (; vi < views_.size() && views_[vi].keyframe == numbers[k]; ++vi)
-        u.cameras.push_back({views_[vi].geometry.id, views_[vi].geometry.center});
-      for (uint64_t id : removed[k]) {
-        auto it = points.find(id);
-        if (it == points.end() || !it->second.entered || it->second.removed)
-          f_.Fail("imr_stream.keyframes[" + std::to_string(k) + "].removed_points",
-                  PointNotInStream(id, numbers[k]));
-        it->second.removed = true;
+    std::unordered_map<uint64_t, Move> moved;
+    for (; d->oi < obs_.size() && obs_[d->oi].keyframe == list.numbers[k]; ++d->oi) {
+      const Obs& o = obs_[d->oi];
+      ++d->observations;
+      PointState& s = points[o.point];
+      if (s.removed)
+        f_.Fail(ObsPath(o), ObservedAfterRemoval(o.point));
+      const uint64_t cam = views_[o.view].geometry.id;
+      const bool new_cam = std::find(s.cameras.begin(), s.cameras.end(), cam) == s.cameras.end();
+      if (new_cam) s.cameras.push_back(cam);
+      if (!s.entered) {
+        s.position = o.x;
+        touched.push_back(o.point);
+        continue;
       }
-      u.removed_points = removed[k];
-      std::vector<uint64_t> touched;
-      struct Move {
-        engine::MovedPoint m;
-        Vec3 before;  // the estimate the engine has
-      };
-      std::unordered_map<uint64_t, Move> moved;
-      for (; oi < obs_.size() && obs_[oi].keyframe == numbers[k]; ++oi) {
-        const Obs& o = obs_[oi];
-        ++observations;
-        State& s = points[o.point];
-        if (s.removed)
-          f_.Fail(ObsPath(o), ObservedAfterRemoval(o.point));
-        const uint64_t cam = views_[o.view].geometry.id;
-        const bool new_cam = std::find(s.cameras.begin(), s.cameras.end(), cam) == s.cameras.end();
-        if (new_cam) s.cameras.push_back(cam);
-        if (!s.entered) {
-          s.position = o.x;
-          touched.push_back(o.point);
-          continue;
-        }
-        auto [it, first] = moved.try_emplace(o.point, Move{{o.point, s.position, {}}, s.position});
-        if (first) touched.push_back(o.point);
-        if (new_cam) it->second.m.camera_ids.push_back(cam);
-        const double d = std::hypot(o.x[0] - s.position[0], o.x[1] - s.position[1], o.x[2] - s.position[2]);
-        if (o.x != s.position && d > opt_.min_move) {
-          s.position = o.x;
-          it->second.m.position = o.x;
-        }
-      }
-      std::sort(touched.begin(), touched.end());
-      touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-      for (uint64_t id : touched) {
-        State& s = points[id];
-        auto m = moved.find(id);
-        if (m != moved.end()) {
-          const bool move = m->second.m.position != m->second.before;
-          if (move) ++moves;
-          if (move || !m->second.m.camera_ids.empty()) u.moved_points.push_back(std::move(m->second.m));
-        } else if (!s.entered && static_cast<int>(s.cameras.size()) >= min_views) {
-          s.entered = true;
-          u.new_points.push_back({id, s.position, s.cameras});
-        }
+      auto [it, first] = moved.try_emplace(o.point, Move{{o.point, s.position, {}}, s.position});
+      if (first) touched.push_back(o.point);
+      if (new_cam) it->second.m.camera_ids.push_back(cam);
+      const double dist = std::hypot(o.x[0] - s.position[0], o.x[1] - s.position[1], o.x[2] - s.position[2]);
+      if (o.x != s.position && dist > opt_.min_move) {
+        s.position = o.x;
+        it->second.m.position = o.x;
       }
     }
-    int64_t pending = 0;
-    for (const auto& [id, s] : points) pending += s.entered ? 0 : 1;
-    summary_ = {{"file", f_.file()},
-                {"views", views_.size()},
-                {"observations", observations},
-                {"points", points.size()},
-                {"points_never_entered", pending},
-                {"moves", moves},
-                {"min_views", min_views},
-                {"keyframes", updates_.size()},
-                {"imr_stream", !imr_stream_.is_null()}};
-    obs_ = {};
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    for (uint64_t id : touched) {
+      PointState& s = points[id];
+      auto m = moved.find(id);
+      if (m != moved.end()) {
+        const bool move = m->second.m.position != m->second.before;
+        if (move) ++d->moves;
+        if (move || !m->second.m.camera_ids.empty()) u.moved_points.push_back(std::move(m->second.m));
+      } else if (!s.entered && static_cast<int>(s.cameras.size()) >= list.min_views) {
+        s.entered = true;
+        u.new_points.push_back({id, s.position, s.cameras});
+      }
+    }
   }
 
   JsonFields f_;
