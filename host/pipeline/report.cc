@@ -256,6 +256,130 @@ json EngineStatsJson(const engine::EngineStats& s) {
             {"live", LiveSamplesJson(s.live_samples)}}}};
 }
 
+// Peak and final RSS, and the engine's bytes by structure.
+json MemoryJson(const ReportInputs& in) {
+  const engine::EngineMemory& m = in.engine_memory;
+  return {{"peak_rss_bytes", in.peak_rss_bytes},
+          {"final_rss_bytes", in.final_rss_bytes},
+          {"engine_bytes",
+           {{"total", m.Total()},
+            {"cells", m.cells},
+            {"vertices", m.vertices},
+            {"ray_entries", m.ray_entries},
+            {"points", m.points},
+            {"ray_batch_lists", m.ray_batch_lists},
+            {"steiner_nodes", m.steiner_nodes},
+            {"cameras", m.cameras}}},
+          {"ray_entries",
+           {{"held", m.ray_entries_used}, {"live", m.ray_entries_live}}}};
+}
+
+// The mesh: tiles only (its size from the surface stream), written in blocks from the spool, or
+// written whole (with its topology and how much of it the cameras saw from behind).
+json MeshJson(const ReportInputs& in) {
+  json mesh_json;
+  if (in.job->job.output.formats.empty() && in.streamed != nullptr) {
+    // Tiles only: no single mesh was put together; its size from the surface stream.
+    mesh_json = {{"vertices", in.streamed->stream.vertices_released},
+                 {"faces", in.streamed->stream.triangles_released},
+                 {"written", false},
+                 {"manifold", nullptr},
+                 {"boundary_closed_manifold", in.boundary_check.ok},
+                 {"boundary_triangles", in.boundary_check.boundary_triangles}};
+  } else if (in.mesh == nullptr) {
+    // Written in blocks from the spool (streamed_surface.h): its counts, check and topology as
+    // measured while it was spooled; no per-component list (that needs the mesh whole).
+    const StreamedSurface& s = *in.streamed_mesh;
+    mesh_json = {{"vertices", s.vertex_count()},
+                 {"faces", s.face_count()},
+                 {"written", true},
+                 {"written_in_blocks", in.formats_streamed},
+                 {"manifold", in.mesh_check.ok},
+                 {"boundary_closed_manifold", in.boundary_check.ok},
+                 {"boundary_triangles", in.boundary_check.boundary_triangles}};
+    const std::array<double, 3> origin = ExportOrigin(s.bounds());
+    mesh_json["export_origin"] = {origin[0], origin[1], origin[2]};
+    mesh_json["stats"] = s.statistics().ToJson();
+  } else {
+    const engine::Mesh& mesh = *in.mesh;
+    mesh_json = {{"vertices", mesh.vertices.size() / 3},
+                 {"faces", mesh.faces.size() / 3},
+                 {"written", true},
+                 {"written_in_blocks", in.formats_streamed},
+                 {"manifold", in.mesh_check.ok},
+                 {"boundary_closed_manifold", in.boundary_check.ok},
+                 {"boundary_triangles", in.boundary_check.boundary_triangles}};
+    // PLY and glTF/GLB vertices are relative to it (0 near the origin): mesh_export.h.
+    const std::array<double, 3> origin = ExportOrigin(mesh);
+    mesh_json["export_origin"] = {origin[0], origin[1], origin[2]};
+    // Topology of what was written: components, Euler characteristic, genus, boundary loops.
+    mesh_json["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
+    if (in.back_facing)
+      mesh_json["back_facing"] = {{"views", in.back_facing->views},
+                                  {"pixels", in.back_facing->pixels},
+                                  {"back_pixels", in.back_facing->back_pixels},
+                                  {"share", in.back_facing->Share()}};
+  }
+  return mesh_json;
+}
+
+// The surface streamed part by part (engine parts, held and released triangles, the spool).
+json SurfacePartsJson(const StreamedSurfaceStats& ss) {
+  return {{"parts", ss.engine_parts},
+          {"triangles", ss.stream.triangles_in},
+          {"triangles_released", ss.stream.triangles_released},
+          {"vertices_released", ss.stream.vertices_released},
+          {"holes_filled", ss.stream.holes_filled},
+          {"vertices_split", ss.stream.vertices_split},
+          {"peak_held_triangles", ss.stream.peak_held_triangles},
+          {"peak_held_vertices", ss.stream.peak_held_vertices},
+          {"spool_bytes", ss.spool_bytes},
+          {"peak_seam_vertices", ss.peak_seam_vertices},
+          {"seconds", ss.seconds},
+          {"max_keyframe_seconds", ss.max_update_seconds}};
+}
+
+// The 3D Tiles written (in.tiles set), and how the keyframe images were served to them.
+json TilesJson(const ReportInputs& in) {
+  const TilesStats& t = *in.tiles;
+  json tiles = {{"tileset", "tileset.json"},
+          {"folder", "tiles"},
+          {"count", t.tiles},
+          {"triangles", t.triangles},
+          {"vertices", t.vertices},
+          {"bytes", t.bytes},
+          {"open_tiles_peak", t.open_tiles_peak},
+          {"seconds", t.seconds},
+          {"keyframes_given", in.tile_images.keyframes}};
+  const ExportImageStats& ti = in.tile_images;
+  if (ti.store.requests > 0)
+    tiles["image_service"] = {{"requests", ti.store.requests},
+                              {"decodes", ti.store.decodes},
+                              {"evictions", ti.store.evictions},
+                              {"peak_bytes", ti.store.peak_bytes},
+                              {"decode_seconds", ti.store.decode_seconds}};
+  return tiles;
+}
+
+// Wall time per stage of the chain (reader -> features -> refiner -> engine -> exporter).
+json StageSecondsJson(const ReportInputs& in) {
+  json stages = json::object();
+  if (in.front_end != nullptr) {
+    const FrontEndStats& fe = in.front_end->stats();
+    stages["read_images"] = fe.read_seconds;
+    stages["features"] = fe.features_seconds;
+    stages["refiner"] = fe.refiner_seconds;
+    if (fe.dense_seconds > 0.0) stages["dense"] = fe.dense_seconds;
+  }
+  stages["engine"] = in.engine_seconds;
+  stages["export"] = in.export_seconds;
+  if (in.snapshots != nullptr && !in.snapshots->list().empty()) stages["snapshots"] = in.snapshots->seconds();
+  if (in.tiles != nullptr) stages["tiles"] = in.tiles->seconds;
+  if (in.refinement != nullptr) stages["mesh_refiner"] = in.refinement->seconds;
+  if (!in.job->evaluation.is_null()) stages["evaluation"] = in.evaluation_seconds;
+  return stages;
+}
+
 json BuildReport(const ReportInputs& in) {
   const engine::EngineStats& stats = *in.stats;
   json report;
@@ -277,110 +401,13 @@ json BuildReport(const ReportInputs& in) {
   // N_mov, needs a second run with frozen points: imr-bench paper measures it.
   report["engine"]["move_seconds_per_moved_point"] =
       stats.points_moved > 0 ? stats.time.move / static_cast<double>(stats.points_moved) : 0.0;
-  const engine::EngineMemory& m = in.engine_memory;
-  report["memory"] = {{"peak_rss_bytes", in.peak_rss_bytes},
-                      {"final_rss_bytes", in.final_rss_bytes},
-                      {"engine_bytes",
-                       {{"total", m.Total()},
-                        {"cells", m.cells},
-                        {"vertices", m.vertices},
-                        {"ray_entries", m.ray_entries},
-                        {"points", m.points},
-                        {"ray_batch_lists", m.ray_batch_lists},
-                        {"steiner_nodes", m.steiner_nodes},
-                        {"cameras", m.cameras}}},
-                      {"ray_entries",
-                       {{"held", m.ray_entries_used}, {"live", m.ray_entries_live}}}};
-  if (in.job->job.output.formats.empty() && in.streamed != nullptr) {
-    // Tiles only: no single mesh was put together; its size from the surface stream.
-    report["mesh"] = {{"vertices", in.streamed->stream.vertices_released},
-                      {"faces", in.streamed->stream.triangles_released},
-                      {"written", false},
-                      {"manifold", nullptr},
-                      {"boundary_closed_manifold", in.boundary_check.ok},
-                      {"boundary_triangles", in.boundary_check.boundary_triangles}};
-  } else if (in.mesh == nullptr) {
-    // Written in blocks from the spool (streamed_surface.h): its counts, check and topology as
-    // measured while it was spooled; no per-component list (that needs the mesh whole).
-    const StreamedSurface& s = *in.streamed_mesh;
-    report["mesh"] = {{"vertices", s.vertex_count()},
-                      {"faces", s.face_count()},
-                      {"written", true},
-                      {"written_in_blocks", in.formats_streamed},
-                      {"manifold", in.mesh_check.ok},
-                      {"boundary_closed_manifold", in.boundary_check.ok},
-                      {"boundary_triangles", in.boundary_check.boundary_triangles}};
-    const std::array<double, 3> origin = ExportOrigin(s.bounds());
-    report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
-    report["mesh"]["stats"] = s.statistics().ToJson();
-  } else {
-    const engine::Mesh& mesh = *in.mesh;
-    report["mesh"] = {{"vertices", mesh.vertices.size() / 3},
-                      {"faces", mesh.faces.size() / 3},
-                      {"written", true},
-                      {"written_in_blocks", in.formats_streamed},
-                      {"manifold", in.mesh_check.ok},
-                      {"boundary_closed_manifold", in.boundary_check.ok},
-                      {"boundary_triangles", in.boundary_check.boundary_triangles}};
-    // PLY and glTF/GLB vertices are relative to it (0 near the origin): mesh_export.h.
-    const std::array<double, 3> origin = ExportOrigin(mesh);
-    report["mesh"]["export_origin"] = {origin[0], origin[1], origin[2]};
-    // Topology of what was written: components, Euler characteristic, genus, boundary loops.
-    report["mesh"]["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
-    if (in.back_facing)
-      report["mesh"]["back_facing"] = {{"views", in.back_facing->views},
-                                       {"pixels", in.back_facing->pixels},
-                                       {"back_pixels", in.back_facing->back_pixels},
-                                       {"share", in.back_facing->Share()}};
-  }
-  if (in.streamed != nullptr) {
-    const StreamedSurfaceStats& ss = *in.streamed;
-    report["surface_parts"] = {{"parts", ss.engine_parts},
-                               {"triangles", ss.stream.triangles_in},
-                               {"triangles_released", ss.stream.triangles_released},
-                               {"vertices_released", ss.stream.vertices_released},
-                               {"holes_filled", ss.stream.holes_filled},
-                               {"vertices_split", ss.stream.vertices_split},
-                               {"peak_held_triangles", ss.stream.peak_held_triangles},
-                               {"peak_held_vertices", ss.stream.peak_held_vertices},
-                               {"spool_bytes", ss.spool_bytes},
-                               {"peak_seam_vertices", ss.peak_seam_vertices},
-                               {"seconds", ss.seconds},
-                               {"max_keyframe_seconds", ss.max_update_seconds}};
-  }
-  if (in.tiles != nullptr) {
-    const TilesStats& t = *in.tiles;
-    report["tiles"] = {{"tileset", "tileset.json"},
-                       {"folder", "tiles"},
-                       {"count", t.tiles},
-                       {"triangles", t.triangles},
-                       {"vertices", t.vertices},
-                       {"bytes", t.bytes},
-                       {"open_tiles_peak", t.open_tiles_peak},
-                       {"seconds", t.seconds},
-                       {"keyframes_given", in.tile_images.keyframes}};
-    const ExportImageStats& ti = in.tile_images;
-    if (ti.store.requests > 0)
-      report["tiles"]["image_service"] = {{"requests", ti.store.requests},
-                                          {"decodes", ti.store.decodes},
-                                          {"evictions", ti.store.evictions},
-                                          {"peak_bytes", ti.store.peak_bytes},
-                                          {"decode_seconds", ti.store.decode_seconds}};
-  }
+  report["memory"] = MemoryJson(in);
+  report["mesh"] = MeshJson(in);
+  if (in.streamed != nullptr) report["surface_parts"] = SurfacePartsJson(*in.streamed);
+  if (in.tiles != nullptr) report["tiles"] = TilesJson(in);
   if (in.refinement != nullptr) report["refinement"] = in.refinement->ToJson();
   if (!in.accuracy.is_null()) report["accuracy"] = in.accuracy;
   if (!in.accuracy_known_scene.is_null()) report["accuracy_known_scene"] = in.accuracy_known_scene;
-  // Wall time per stage of the chain (reader -> features -> refiner -> engine -> exporter).
-  json stages = json::object();
-  if (in.front_end != nullptr) {
-    const FrontEndStats& fe = in.front_end->stats();
-    stages["read_images"] = fe.read_seconds;
-    stages["features"] = fe.features_seconds;
-    stages["refiner"] = fe.refiner_seconds;
-    if (fe.dense_seconds > 0.0) stages["dense"] = fe.dense_seconds;
-  }
-  stages["engine"] = in.engine_seconds;
-  stages["export"] = in.export_seconds;
   // What the exporters were given (SDK 1.1) and how the keyframe images were served to them.
   const ExportImageStats& ei = in.export_images;
   report["export_input"] = {{"keyframes", ei.keyframes}, {"keyframe_images", in.keyframe_images}};
@@ -390,13 +417,8 @@ json BuildReport(const ReportInputs& in) {
                                                {"evictions", ei.store.evictions},
                                                {"peak_bytes", ei.store.peak_bytes},
                                                {"decode_seconds", ei.store.decode_seconds}};
-  const bool snapshots = in.snapshots != nullptr && !in.snapshots->list().empty();
-  if (snapshots) stages["snapshots"] = in.snapshots->seconds();
-  if (in.tiles != nullptr) stages["tiles"] = in.tiles->seconds;
-  if (in.refinement != nullptr) stages["mesh_refiner"] = in.refinement->seconds;
-  if (!in.job->evaluation.is_null()) stages["evaluation"] = in.evaluation_seconds;
-  report["stage_seconds"] = stages;
-  if (snapshots) report["snapshots"] = in.snapshots->list();
+  report["stage_seconds"] = StageSecondsJson(in);
+  if (in.snapshots != nullptr && !in.snapshots->list().empty()) report["snapshots"] = in.snapshots->list();
   if (!in.exports.empty()) report["exports"] = in.exports;
   if (!in.warnings.empty()) report["warnings"] = in.warnings;
   if (in.checks != nullptr)
