@@ -412,14 +412,10 @@ class PyReader {
   std::unique_ptr<Reader> reader_;
 };
 
-}  // namespace
-}  // namespace imr::python
 
-PYBIND11_MODULE(_imr, m) {
-  using namespace imr::python;
-  namespace engine = imr::engine;
-  m.doc() = "imr: incremental manifold reconstruction with moving points (docs/python.md)";
-
+// imr.Error, imr.SequenceError, imr.WriteRefused, and which C++ exception becomes which
+// Python one.
+void RegisterErrors(py::module_& m) {
   static py::exception<std::runtime_error> error(m, "Error", PyExc_RuntimeError);
   static py::exception<SequenceError> sequence_error(m, "SequenceError", error.ptr());
   // A write the write rule refused (host/util/write_rule.h): a PermissionError, as the OS's own.
@@ -443,7 +439,10 @@ PYBIND11_MODULE(_imr, m) {
       error(e.what());
     }
   });
+}
 
+// imr.Camera.
+void BindCamera(py::module_& m) {
   py::class_<engine::Camera>(m, "Camera",
                              "A camera: id, centre (world), rotation (world -> camera, 3x3 rows), "
                              "intrinsics (fx, fy, cx, cy; 0: unknown).")
@@ -481,7 +480,10 @@ PYBIND11_MODULE(_imr, m) {
         return "imr.Camera(id=" + std::to_string(c.id) + ", center=(" + std::to_string(c.center[0]) +
                ", " + std::to_string(c.center[1]) + ", " + std::to_string(c.center[2]) + "))";
       });
+}
 
+// imr.Keyframe.
+void BindKeyframe(py::module_& m) {
   py::class_<Keyframe>(m, "Keyframe",
                        "One engine update: its cameras, new, moved and removed points.")
       .def(py::init(&BuildKeyframe), py::arg("camera") = py::none(), py::arg("new_ids") = py::none(),
@@ -509,7 +511,10 @@ PYBIND11_MODULE(_imr, m) {
                std::to_string(k.update.moved_points.size()) + ", removed=" +
                std::to_string(k.update.removed_points.size()) + ")";
       });
+}
 
+// imr.Engine.
+void BindEngine(py::module_& m) {
   py::class_<PyEngine>(m, "Engine",
                        "The engine, fed keyframe by keyframe: Engine(weight_policy=None, "
                        "weight_policy_params=None, **options), options as a job's \"engine\" "
@@ -540,7 +545,10 @@ PYBIND11_MODULE(_imr, m) {
       .def("write", &PyEngine::Write, py::arg("path"),
            "writes the mesh as imr run does (org.imr.exporter.assimp): .ply, .obj, .gltf or .glb")
       .def_property_readonly("keyframes", &PyEngine::keyframes);
+}
 
+// imr.Reader.
+void BindReader(py::module_& m) {
   py::class_<PyReader>(m, "Reader")
       .def(py::init<const std::string&, const std::string&, const py::dict&>(), py::arg("format"),
            py::arg("path"), py::arg("options"))
@@ -550,7 +558,10 @@ PYBIND11_MODULE(_imr, m) {
         if (r.Count() < 0) throw py::type_error("this reader does not know its length");
         return r.Count();
       });
+}
 
+// _run and _evaluate (imr.run and imr.evaluate in __init__.py).
+void BindRunAndEvaluate(py::module_& m) {
   m.def("_run", [](const std::string& job_file, const py::object& job_text,
                    const std::vector<std::string>& overrides, int threads, const std::string& job_name) {
     json reports;
@@ -586,6 +597,10 @@ PYBIND11_MODULE(_imr, m) {
     });
     return ToPython(report);
   });
+}
+
+// _set_plugin_directory and set_log_level.
+void BindSettings(py::module_& m) {
   m.def("_set_plugin_directory", [](const std::string& d) { SetPluginDirectory(d); });
   m.def("set_log_level", [](const std::string& level) {
     using imr::LogLevel;
@@ -596,5 +611,20 @@ PYBIND11_MODULE(_imr, m) {
       if (level == name) return imr::SetLogLevel(l);
     throw OptionError("set_log_level: expected debug, info, warning, error or quiet, got '" + level + "'");
   }, py::arg("level"), "What imr logs to stderr: debug, info (default), warning, error or quiet.");
+}
+
+}  // namespace
+}  // namespace imr::python
+
+PYBIND11_MODULE(_imr, m) {
+  using namespace imr::python;
+  m.doc() = "imr: incremental manifold reconstruction with moving points (docs/python.md)";
+  RegisterErrors(m);
+  BindCamera(m);
+  BindKeyframe(m);
+  BindEngine(m);
+  BindReader(m);
+  BindRunAndEvaluate(m);
+  BindSettings(m);
   m.attr("__version__") = imr::pipeline::Version();
 }
