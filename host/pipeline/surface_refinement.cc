@@ -35,6 +35,55 @@ bool Same(const std::array<double, 3>& a, const double* p) {
   return a[0] == p[0] && a[1] == p[1] && a[2] == p[2];
 }
 
+// What the plugin says it did, checked before anything of it is used, as a mesh: its vertices
+// (the request's first, each FIXED one where it was), and its faces when it subdivided (a
+// manifold with as many boundary loops as `mesh`), else `mesh`'s, moved out of it.
+engine::Mesh RefinedMesh(const imr_refine_result& result, engine::Mesh& mesh,
+                         const std::vector<uint8_t>& flags, bool streamed, const std::string& where) {
+  const std::size_t n = mesh.vertices.size() / 3;
+  if (result.vertices == nullptr || result.vertex_count < n ||
+      (result.faces == nullptr && result.vertex_count != n))
+    throw std::runtime_error(where + ": refine returned " + std::to_string(result.vertex_count) +
+                             " vertices for " + std::to_string(n) +
+                             (result.faces == nullptr ? " (and no faces)" : ""));
+  for (uint64_t i = 0; i < 3 * result.vertex_count; ++i)
+    if (!std::isfinite(result.vertices[i]))
+      throw std::runtime_error(where + ": refine returned a non-finite coordinate for vertex " +
+                               std::to_string(i / 3));
+  for (std::size_t i = 0; i < n; ++i)
+    if ((flags[i] & IMR_REFINE_VERTEX_FIXED) != 0 &&
+        !Same({mesh.vertices[3 * i], mesh.vertices[3 * i + 1], mesh.vertices[3 * i + 2]},
+              &result.vertices[3 * i]))
+      throw std::runtime_error(where + ": refine moved vertex " + std::to_string(i) +
+                               ", which was flagged FIXED (written already)");
+  if (streamed && result.faces != nullptr)
+    throw std::runtime_error(where + ": refine subdivided the surface, which a run that writes it "
+                             "in parts (engine.forget, output.tiles) cannot take: turn the "
+                             "plugin's subdivision off");
+  engine::Mesh refined;
+  refined.vertices.assign(result.vertices, result.vertices + 3 * result.vertex_count);
+  refined.point_ids = mesh.point_ids;
+  refined.point_ids.resize(result.vertex_count, -1);
+  if (result.faces == nullptr) {
+    refined.faces = std::move(mesh.faces);
+    return refined;
+  }
+  refined.faces.assign(result.faces, result.faces + 3 * result.face_count);
+  for (uint32_t f : refined.faces)
+    if (f >= result.vertex_count)
+      throw std::runtime_error(where + ": refine returned a face naming vertex " +
+                               std::to_string(f) + " of " + std::to_string(result.vertex_count));
+  const engine::ManifoldCheckResult check = engine::CheckMesh(refined, /*closed=*/false);
+  if (!check.ok)
+    throw std::runtime_error(where + ": the subdivided surface is not a manifold: " + check.message);
+  const int64_t before = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).boundary_loops;
+  const int64_t after = eval::ComputeMeshStatistics(refined.vertices, refined.faces).boundary_loops;
+  if (before != after)
+    throw std::runtime_error(where + ": the subdivided surface has " + std::to_string(after) +
+                             " boundary loops, the surface it was given " + std::to_string(before));
+  return refined;
+}
+
 }  // namespace
 
 nlohmann::json SurfaceRefinementStats::ToJson() const {
@@ -212,47 +261,7 @@ void SurfaceRefinement::Refine(engine::Mesh* mesh, const ExportContext& context,
   }
   keyframes_at_last_call_ = context.keyframes.size();
 
-  // What the plugin says it did, checked before anything of it is used.
-  if (result.vertices == nullptr || result.vertex_count < n ||
-      (result.faces == nullptr && result.vertex_count != n))
-    throw std::runtime_error(where + ": refine returned " + std::to_string(result.vertex_count) +
-                             " vertices for " + std::to_string(n) +
-                             (result.faces == nullptr ? " (and no faces)" : ""));
-  for (uint64_t i = 0; i < 3 * result.vertex_count; ++i)
-    if (!std::isfinite(result.vertices[i]))
-      throw std::runtime_error(where + ": refine returned a non-finite coordinate for vertex " +
-                               std::to_string(i / 3));
-  for (std::size_t i = 0; i < n; ++i)
-    if ((flags[i] & IMR_REFINE_VERTEX_FIXED) != 0 &&
-        !Same({mesh->vertices[3 * i], mesh->vertices[3 * i + 1], mesh->vertices[3 * i + 2]},
-              &result.vertices[3 * i]))
-      throw std::runtime_error(where + ": refine moved vertex " + std::to_string(i) +
-                               ", which was flagged FIXED (written already)");
-  if (streamed_ && result.faces != nullptr)
-    throw std::runtime_error(where + ": refine subdivided the surface, which a run that writes it "
-                             "in parts (engine.forget, output.tiles) cannot take: turn the "
-                             "plugin's subdivision off");
-  engine::Mesh refined;
-  refined.vertices.assign(result.vertices, result.vertices + 3 * result.vertex_count);
-  refined.point_ids = mesh->point_ids;
-  refined.point_ids.resize(result.vertex_count, -1);
-  if (result.faces != nullptr) {
-    refined.faces.assign(result.faces, result.faces + 3 * result.face_count);
-    for (uint32_t f : refined.faces)
-      if (f >= result.vertex_count)
-        throw std::runtime_error(where + ": refine returned a face naming vertex " +
-                                 std::to_string(f) + " of " + std::to_string(result.vertex_count));
-    const engine::ManifoldCheckResult check = engine::CheckMesh(refined, /*closed=*/false);
-    if (!check.ok)
-      throw std::runtime_error(where + ": the subdivided surface is not a manifold: " + check.message);
-    const int64_t before = eval::ComputeMeshStatistics(mesh->vertices, mesh->faces).boundary_loops;
-    const int64_t after = eval::ComputeMeshStatistics(refined.vertices, refined.faces).boundary_loops;
-    if (before != after)
-      throw std::runtime_error(where + ": the subdivided surface has " + std::to_string(after) +
-                               " boundary loops, the surface it was given " + std::to_string(before));
-  } else {
-    refined.faces = std::move(mesh->faces);
-  }
+  engine::Mesh refined = RefinedMesh(result, *mesh, flags, streamed_, where);
 
   // Remember where each vertex of the engine went; the added ones live for this mesh only. The
   // final mesh's figures: how far from the engine's positions, how many vertices added.
