@@ -88,24 +88,30 @@ EncodedVertexKey EncodeVertexKey(int64_t key) {
   return {static_cast<float>(v >> 24), static_cast<float>(v & 0xFFFFFFu)};
 }
 
-void RewritePly(const fs::path& ply, bool point_ids) {
-  const Bytes in = ReadFile(ply);
-  static const std::string kEnd = "end_header\n";
-  const auto end = std::search(in.begin(), in.end(), kEnd.begin(), kEnd.end());
-  if (end == in.end()) Fail(ply, "no end_header");
-  const std::size_t body = static_cast<std::size_t>(end - in.begin()) + kEnd.size();
+namespace {
 
-  // The vertex record as the header declares it; colours are "uchar" whatever their size.
+// A PLY as assimp writes it: where the body starts, the vertex record as the header declares it
+// (colours are "uchar" whatever their size), the header lines around the vertex properties.
+struct AssimpPly {
   struct Property {
     std::string type, name;
     std::size_t size = 0;  // bytes as declared
     bool color = false;    // red, green, blue, alpha
   };
+  std::size_t body = 0;
   std::vector<Property> properties;
-  std::vector<std::string> before, after;  // header lines around the vertex properties
-  std::istringstream header(std::string(in.begin(), in.begin() + static_cast<std::ptrdiff_t>(body)));
-  std::string line, element;
+  std::vector<std::string> before, after;
   std::size_t vertex_count = 0, face_count = 0;
+};
+
+AssimpPly ReadAssimpPlyHeader(const Bytes& in, const fs::path& ply) {
+  static const std::string kEnd = "end_header\n";
+  const auto end = std::search(in.begin(), in.end(), kEnd.begin(), kEnd.end());
+  if (end == in.end()) Fail(ply, "no end_header");
+  AssimpPly a;
+  a.body = static_cast<std::size_t>(end - in.begin()) + kEnd.size();
+  std::istringstream header(std::string(in.begin(), in.begin() + static_cast<std::ptrdiff_t>(a.body)));
+  std::string line, element;
   bool binary_le = false;
   while (std::getline(header, line)) {
     std::istringstream words(line);
@@ -117,103 +123,121 @@ void RewritePly(const fs::path& ply, bool point_ids) {
       binary_le = fmt == "binary_little_endian";
     } else if (key == "element") {
       words >> element;
-      if (element == "vertex") words >> vertex_count;
-      if (element == "face") words >> face_count;
+      if (element == "vertex") words >> a.vertex_count;
+      if (element == "face") words >> a.face_count;
     } else if (key == "property" && element == "vertex") {
-      Property p;
+      AssimpPly::Property p;
       words >> p.type >> p.name;
       p.size = PlyTypeSize(p.type);
       if (p.size == 0) Fail(ply, "vertex property \"" + line + "\"");
       p.color = p.type == "uchar" && (p.name == "red" || p.name == "green" || p.name == "blue" ||
                                       p.name == "alpha");
-      properties.push_back(p);
+      a.properties.push_back(p);
       continue;
     }
-    (properties.empty() ? before : after).push_back(line);
+    (a.properties.empty() ? a.before : a.after).push_back(line);
   }
   if (!binary_le) Fail(ply, "not binary_little_endian");
+  return a;
+}
 
-  // assimp 5.2's binary writer declares colours "uchar" but writes four floats in [0, 1]: tell
-  // which from the file's size (faces: a uchar count and three ints each).
+// assimp 5.2's binary writer declares colours "uchar" but writes four floats in [0, 1]: tell
+// which from the file's size (faces: a uchar count and three ints each).
+bool FloatColors(const AssimpPly& a, std::size_t file_size, const fs::path& ply) {
   std::size_t declared = 0, colors = 0;
-  for (const Property& p : properties) {
+  for (const AssimpPly::Property& p : a.properties) {
     declared += p.size;
     colors += p.color;
   }
-  const std::size_t faces_bytes = face_count * 13;
+  const std::size_t faces_bytes = a.face_count * 13;
   const std::size_t float_record = declared + 3 * colors;
-  bool float_colors = false;
-  if (in.size() == body + vertex_count * declared + faces_bytes) {
-    float_colors = false;
-  } else if (colors > 0 && in.size() == body + vertex_count * float_record + faces_bytes) {
-    float_colors = true;
-  } else {
-    Fail(ply, "its size fits no vertex layout (" + std::to_string(in.size()) + " bytes)");
-  }
+  if (file_size == a.body + a.vertex_count * declared + faces_bytes) return false;
+  if (colors > 0 && file_size == a.body + a.vertex_count * float_record + faces_bytes) return true;
+  Fail(ply, "its size fits no vertex layout (" + std::to_string(file_size) + " bytes)");
+}
 
-  // Output: the same properties, s t -> int point_id (when asked), colours -> uchar red green
-  // blue (alpha dropped).
-  std::ostringstream out_header;
-  for (const std::string& l : before) {
-    out_header << l << '\n';
-    if (l.rfind("format", 0) == 0 && point_ids)
-      out_header << "comment point_id: id of the vertex's 3D point, -1 for Steiner points\n";
-  }
-  std::size_t record = 0, s_offset = 0, out_record = 0;
-  bool has_s = false, has_t = false;
+// The output's vertex record: its header, and what goes where from the input's record.
+struct VertexRewrite {
   struct Copy {
     std::size_t from, size, to;
     bool float_to_byte;
   };
+  std::string header;
   std::vector<Copy> copies;
-  for (const Property& p : properties) {
+  std::size_t record = 0, out_record = 0, s_offset = 0;
+};
+
+// Output: the same properties, s t -> int point_id (when asked), colours -> uchar red green blue
+// (alpha dropped).
+VertexRewrite PlanRewrite(const AssimpPly& a, bool float_colors, bool point_ids, const fs::path& ply) {
+  VertexRewrite w;
+  std::ostringstream out_header;
+  for (const std::string& l : a.before) {
+    out_header << l << '\n';
+    if (l.rfind("format", 0) == 0 && point_ids)
+      out_header << "comment point_id: id of the vertex's 3D point, -1 for Steiner points\n";
+  }
+  bool has_s = false, has_t = false;
+  for (const AssimpPly::Property& p : a.properties) {
     const std::size_t in_size = p.color && float_colors ? 4 : p.size;
     if (point_ids && p.name == "s" && p.type == "float" && !has_s) {
       has_s = true;
-      s_offset = record;
+      w.s_offset = w.record;
       out_header << "property int point_id\n";
-      copies.push_back({record, 8, out_record, false});  // decoded below
-      out_record += 4;
+      w.copies.push_back({w.record, 8, w.out_record, false});  // decoded in CopyVertices
+      w.out_record += 4;
     } else if (point_ids && p.name == "t" && has_s && !has_t) {
-      if (p.type != "float" || record != s_offset + 4) Fail(ply, "t does not follow s");
+      if (p.type != "float" || w.record != w.s_offset + 4) Fail(ply, "t does not follow s");
       has_t = true;
     } else if (p.color && p.name == "alpha") {
       // dropped
     } else {
       out_header << "property " << p.type << " " << p.name << '\n';
-      copies.push_back({record, in_size, out_record, p.color && float_colors});
-      out_record += p.size;
+      w.copies.push_back({w.record, in_size, w.out_record, p.color && float_colors});
+      w.out_record += p.size;
     }
-    record += in_size;
+    w.record += in_size;
   }
   if (point_ids && (!has_s || !has_t)) Fail(ply, "no s/t vertex properties carrying the point ids");
-  for (const std::string& l : after) out_header << l << '\n';
+  for (const std::string& l : a.after) out_header << l << '\n';
+  w.header = out_header.str();
+  return w;
+}
 
-  const std::string h = out_header.str();
-  Bytes out;
-  out.reserve(h.size() + vertex_count * out_record + faces_bytes);
-  out.insert(out.end(), h.begin(), h.end());
-  const std::size_t vertices_at = out.size();
-  out.resize(vertices_at + vertex_count * out_record);
-  for (std::size_t i = 0; i < vertex_count; ++i) {
-    const uint8_t* src = in.data() + body + i * record;
-    uint8_t* dst = out.data() + vertices_at + i * out_record;
-    for (const Copy& c : copies) {
-      if (point_ids && c.from == s_offset && c.size == 8) {
-        int64_t id = 0;
-        if (!DecodePointId(Load<float>(src + s_offset), Load<float>(src + s_offset + 4), &id))
-          Fail(ply, "vertex " + std::to_string(i) + " does not carry a point id");
-        Store<int32_t>(dst + c.to, static_cast<int32_t>(id));
-      } else if (c.float_to_byte) {
-        // The writer multiplies by 255 and truncates; the exporter stores (b + 0.5) / 255.
-        const float v = Load<float>(src + c.from);
-        dst[c.to] = static_cast<uint8_t>(std::clamp(std::floor(v * 255.0f), 0.0f, 255.0f));
-      } else {
-        std::memcpy(dst + c.to, src + c.from, c.size);
-      }
+// Vertex i's record rewritten from `src` into `dst`.
+void RewriteVertex(const VertexRewrite& w, bool point_ids, std::size_t i, const uint8_t* src,
+                   uint8_t* dst, const fs::path& ply) {
+  for (const VertexRewrite::Copy& c : w.copies) {
+    if (point_ids && c.from == w.s_offset && c.size == 8) {
+      int64_t id = 0;
+      if (!DecodePointId(Load<float>(src + w.s_offset), Load<float>(src + w.s_offset + 4), &id))
+        Fail(ply, "vertex " + std::to_string(i) + " does not carry a point id");
+      Store<int32_t>(dst + c.to, static_cast<int32_t>(id));
+    } else if (c.float_to_byte) {
+      // The writer multiplies by 255 and truncates; the exporter stores (b + 0.5) / 255.
+      const float v = Load<float>(src + c.from);
+      dst[c.to] = static_cast<uint8_t>(std::clamp(std::floor(v * 255.0f), 0.0f, 255.0f));
+    } else {
+      std::memcpy(dst + c.to, src + c.from, c.size);
     }
   }
-  out.insert(out.end(), in.begin() + static_cast<std::ptrdiff_t>(body + vertex_count * record),
+}
+
+}  // namespace
+
+void RewritePly(const fs::path& ply, bool point_ids) {
+  const Bytes in = ReadFile(ply);
+  const AssimpPly a = ReadAssimpPlyHeader(in, ply);
+  const VertexRewrite w = PlanRewrite(a, FloatColors(a, in.size(), ply), point_ids, ply);
+  Bytes out;
+  out.reserve(w.header.size() + a.vertex_count * w.out_record + a.face_count * 13);
+  out.insert(out.end(), w.header.begin(), w.header.end());
+  const std::size_t vertices_at = out.size();
+  out.resize(vertices_at + a.vertex_count * w.out_record);
+  for (std::size_t i = 0; i < a.vertex_count; ++i)
+    RewriteVertex(w, point_ids, i, in.data() + a.body + i * w.record,
+                  out.data() + vertices_at + i * w.out_record, ply);
+  out.insert(out.end(), in.begin() + static_cast<std::ptrdiff_t>(a.body + a.vertex_count * w.record),
              in.end());
   WriteFile(ply, out);
 }
