@@ -283,13 +283,6 @@ std::vector<ModeResult> RunImageSequence(const std::string& name, const std::str
 
 // ---------------------------------------------------------------------------------------------
 
-std::string FindPython() {
-  for (const char* py : {"python3", "/usr/bin/python3"})
-    if (std::system((std::string(py) + " -c 'import matplotlib' >/dev/null 2>&1").c_str()) == 0)
-      return py;
-  return "";
-}
-
 void PrintTable(const std::vector<ModeResult>& rs, double tau) {
   std::printf("\n| sequence | policy | truth→mesh mean / median (m) | mesh→truth mean / median (m) "
               "| completeness / precision (τ = %.2g m) | T_mov / T_nonmov (s) | N_mov | per-move "
@@ -417,12 +410,7 @@ std::string RunImageSequences(const PaperArgs& a, const fs::path& work,
     note += "imr-synth failed; ";
   }
   // The team's data beside the checkout (IMR_SHARED_DIR, else ../shared of this source tree).
-  const std::string kitti =
-      !a.kitti.empty()
-          ? a.kitti
-          : (SharedDir() / "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync")
-                .lexically_normal()
-                .string();
+  const std::string kitti = KittiRawSample(a.kitti);
   if (a.kitti_enabled && fs::is_directory(kitti)) {
     auto rs = RunImageSequence("KITTI raw", "kitti_raw", json{{"camera", 2}}, kitti,
                                "--velodyne-seq " + Quote(kitti) + " --camera 2", work, a);

@@ -103,6 +103,21 @@ Options& Options::List(const std::string& name, std::vector<std::string>* to, ch
   });
 }
 
+Options& Options::IntList(const std::string& name, std::vector<int>* to, int min) {
+  return Add(name, true, [to, min](const std::string& v) {
+    to->clear();
+    std::stringstream ss(v);
+    for (std::string f; std::getline(ss, f, ',');) {
+      char* end = nullptr;
+      const long x = std::strtol(f.c_str(), &end, 10);
+      if (f.empty() || *end || x < min || x > INT32_MAX)
+        return "whole numbers >= " + std::to_string(min) + " apart with commas";
+      to->push_back(static_cast<int>(x));
+    }
+    return std::string();
+  });
+}
+
 Options& Options::Custom(const std::string& name,
                          std::function<std::string(const std::string&)> take) {
   return Add(name, true, std::move(take));
@@ -156,7 +171,14 @@ void WorkFolder::Finish(bool remove) const {
 fs::path SharedDir(const std::string& given) {
   if (!given.empty()) return given;
   const char* env = std::getenv("IMR_SHARED_DIR");
-  return fs::path(env ? env : IMR_SHARED_DIR).lexically_normal();
+  return fs::path(env ? env : IMR_SHARED_DIR);
+}
+
+std::string KittiRawSample(const std::string& given) {
+  if (!given.empty()) return given;
+  return (SharedDir() / "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync")
+      .lexically_normal()
+      .string();
 }
 
 std::string ReadFileBytes(const fs::path& p) {
@@ -167,6 +189,13 @@ std::string ReadFileBytes(const fs::path& p) {
 }
 
 void WriteJson(const fs::path& p, const json& j) { std::ofstream(p) << j.dump(2); }
+
+std::string FindPython() {
+  for (const char* py : {"python3", "/usr/bin/python3"})
+    if (std::system((std::string(py) + " -c 'import matplotlib' >/dev/null 2>&1").c_str()) == 0)
+      return py;
+  return "";
+}
 
 std::string Format(const char* format, ...) {
   va_list a, b;

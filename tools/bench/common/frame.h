@@ -29,6 +29,8 @@ class Options {
   Options& Path(const std::string& name, std::filesystem::path* to);
   // "a,b,c" (or words apart with `separator` ' ') into `to`, replacing what was there.
   Options& List(const std::string& name, std::vector<std::string>* to, char separator = ',');
+  // "1,2,4" into `to`, replacing what was there; each number at least `min`.
+  Options& IntList(const std::string& name, std::vector<int>* to, int min);
   // A flag that does more than set one bool.
   Options& Action(const std::string& name, std::function<void()> act);
   // A value checked by `take`: it returns "" when it took the value, else what was expected.
@@ -71,10 +73,16 @@ class WorkFolder {
 // this source tree.
 std::filesystem::path SharedDir(const std::string& given = "");
 
+// The KITTI raw sample of the shared folder (data/kitti-raw-2011_09_26-traffic), unless `given`.
+std::string KittiRawSample(const std::string& given = "");
+
 // A file's bytes ("" when it cannot be read).
 std::string ReadFileBytes(const std::filesystem::path& p);
 // Writes `j` (indented by 2) to `p`, the way every bench writes its job files.
 void WriteJson(const std::filesystem::path& p, const nlohmann::json& j);
+
+// A python3 that imports matplotlib (for the benches' plots), or "".
+std::string FindPython();
 
 // printf into a string.
 std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
