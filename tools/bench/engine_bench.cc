@@ -19,6 +19,7 @@
 #include "host/engine/engine.h"
 #include "host/engine/testing/run_stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/engine_modes.h"
 #include "tools/bench/common/frame.h"
 
 namespace imr::bench {
@@ -141,14 +142,7 @@ bool ParseEngineArgs(int argc, char** argv, EngineArgs* a, int* status) {
     std::fprintf(stderr, "imr-bench engine: --frames must be >= 10 and --points >= 1\n");
     return false;
   }
-  for (const auto& m : a->modes) {
-    EngineOptions eo;
-    std::unique_ptr<engine::WeightTransferPolicy> p;
-    if (!engine::testing::ConfigureMode(m, &eo, &p)) {
-      std::fprintf(stderr, "imr-bench engine: unknown mode '%s'\n", m.c_str());
-      return false;
-    }
-  }
+  if (!KnownModes(a->modes, "engine")) return false;
   if (a->dense_frames < 0) a->dense_frames = a->so.frames;
   if (a->dense_only) a->modes.clear();
   *status = 0;

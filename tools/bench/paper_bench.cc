@@ -32,6 +32,7 @@
 #include "host/engine/engine.h"
 #include "host/engine/testing/run_stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/engine_modes.h"
 #include "tools/bench/common/frame.h"
 #include "tools/bench/common/subprocess.h"
 
@@ -350,14 +351,9 @@ bool ParsePaperArgs(int argc, char** argv, PaperArgs* a, int* status) {
     a->image_frames = 100;
   });
   if (!o.Parse(argc, argv, status)) return false;
-  for (const auto& m : a->modes) {
-    engine::EngineOptions eo;
-    std::unique_ptr<engine::WeightTransferPolicy> p;
-    if (!engine::testing::ConfigureMode(m, &eo, &p)) {
-      std::fprintf(stderr, "imr-bench paper: unknown mode '%s'\n", m.c_str());
-      *status = 2;
-      return false;
-    }
+  if (!KnownModes(a->modes, "paper")) {
+    *status = 2;
+    return false;
   }
   return true;
 }

@@ -24,6 +24,7 @@
 #include "host/engine/engine.h"
 #include "host/engine/testing/run_stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/engine_modes.h"
 #include "tools/bench/common/frame.h"
 
 namespace imr::bench {
@@ -182,16 +183,8 @@ bool ParseScalingArgs(int argc, char** argv, ScalingArgs* a, int* status) {
   o.Uint64("--seed", &a->seed).String("--out", &a->out);
   o.Action("--quick", [a] { a->frames = {100, 200, 400}; });
   if (!o.Parse(argc, argv, status)) return false;
-  *status = 2;
-  for (const auto& m : a->modes) {
-    engine::EngineOptions eo;
-    std::unique_ptr<engine::WeightTransferPolicy> p;
-    if (!engine::testing::ConfigureMode(m, &eo, &p)) {
-      std::fprintf(stderr, "imr-bench scaling: unknown mode '%s'\n", m.c_str());
-      return false;
-    }
-  }
-  return true;
+  *status = 2;  // when a mode is unknown
+  return KnownModes(a->modes, "scaling");
 }
 
 // Every mode at every length, a row each (a child process per run); the growth exponent of total
