@@ -220,27 +220,23 @@ bool Evaluate(const fs::path& mesh, const eval::EvaluationInputs& completeness,
 // memory.
 bool RunImr(const json& job, const fs::path& work, const std::string& name,
             const std::string& extra_args, Row* row, const std::string& binary = "") {
-  const fs::path job_file = work / (name + ".json");
-  std::ofstream(job_file) << job.dump(2);
-  const std::string imr = binary.empty() ? (ExeDir() / "imr").string() : binary;
-  const TimedRun r = RunTimed(Quote(imr) + " run -q " +
-                                  Quote(job_file.string()) + " " + extra_args,
-                              work / (name + ".log"));
+  ImrJob how;
+  how.job_file = work / (name + ".json");
+  how.imr = binary;
+  how.extra = extra_args;
+  const ImrJobResult r = RunImrJob(job, how);
   row->seconds = r.seconds;
   row->rss_mb = r.peak_rss_mb;
   if (r.status != 0) {
-    row->note = "imr run failed (" + (work / (name + ".log")).string() + ")";
+    row->note = "imr run failed (" + r.log.string() + ")";
     return false;
   }
   // One sequence: its report.json is in the output folder.
-  if (job.contains("output") && job["output"].contains("directory")) {
-    std::ifstream in(fs::path(job["output"]["directory"].get<std::string>()) / "report.json");
-    const json report = json::parse(in, nullptr, /*allow_exceptions=*/false);
-    if (report.is_object() && report.contains("engine") && report["engine"].contains("cameras_in_o"))
-      row->cameras_in_o = report["engine"]["cameras_in_o"].value("share", 0.0);
-    if (report.is_object() && report.contains("mesh") && report["mesh"].contains("back_facing"))
-      row->back_facing = report["mesh"]["back_facing"].value("share", 0.0);
-  }
+  const json& report = r.report;
+  if (report.is_object() && report.contains("engine") && report["engine"].contains("cameras_in_o"))
+    row->cameras_in_o = report["engine"]["cameras_in_o"].value("share", 0.0);
+  if (report.is_object() && report.contains("mesh") && report["mesh"].contains("back_facing"))
+    row->back_facing = report["mesh"]["back_facing"].value("share", 0.0);
   return true;
 }
 
