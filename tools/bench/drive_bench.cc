@@ -19,7 +19,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -32,6 +31,7 @@
 #include "host/eval/mesh_io.h"
 #endif
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/frame.h"
 #include "tools/bench/common/subprocess.h"
 
 namespace imr::bench {
@@ -54,6 +54,19 @@ const char kUsage[] =
     "  --synth-frames N      frames of imr-synth's street for the default job (default 500)\n"
     "  --no-default          skip the default job\n";
 
+struct DriveArgs {
+  int frames = 20000, reference = 2000, keyframe_every = 5, synth_frames = 500;
+  bool long_run = true, street = true, default_job = true;
+  fs::path work;
+  std::string imr;
+};
+
+// The targets, each met or not (true when not measured).
+struct DriveTargets {
+  bool flat = true, peak_ok = true, steady = true, no_slower = true, same_quality = true;
+  bool default_same = true, default_flat = true;
+};
+
 struct Run {
   std::string name;
   bool ok = false;
@@ -62,16 +75,9 @@ struct Run {
   double wall = 0.0;            // the whole imr run
 };
 
-std::string ReadFile(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 // The dense street job (configs/dense-street.json's input), with forgetting and tiles or not.
 json DenseJob(int frames, int keyframe_every, bool forget, bool keep_truth, const fs::path& out) {
-  const json config = json::parse(ReadFile(fs::path(IMR_SOURCE_DIR) / "configs/dense-street.json"));
+  const json config = json::parse(ReadFileBytes(fs::path(IMR_SOURCE_DIR) / "configs/dense-street.json"));
   json job = {{"sequences", {"street"}}, {"input", config.at("input")}};
   job["input"]["options"]["frames"] = frames;
   job["input"]["options"]["keyframe_every"] = keyframe_every;
@@ -102,7 +108,7 @@ Run RunJob(const std::string& name, const json& job, const fs::path& work, const
                  p.error.empty() ? "exit status" : p.error.c_str(), (dir / "log.txt").c_str());
     return r;
   }
-  r.report = json::parse(ReadFile(report));
+  r.report = json::parse(ReadFileBytes(report));
   std::ifstream t(trace);
   for (std::string line; std::getline(t, line);)
     if (!line.empty()) r.trace.push_back(json::parse(line));
@@ -199,59 +205,41 @@ long TrianglesNotShared(const fs::path& a, const fs::path& b) {
 #endif
 }
 
-}  // namespace
 
-int RunDriveBench(int argc, char** argv) {
-  int frames = 20000, reference = 2000, keyframe_every = 5, synth_frames = 500;
-  bool long_run = true, street = true, default_job = true;
-  fs::path work;
-  std::string imr = (ExeDir() / "imr").string();
-  for (int i = 0; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&](const char* what) -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "drive: %s needs %s\n%s", a.c_str(), what, kUsage);
-        std::exit(64);
-      }
-      return argv[++i];
-    };
-    if (a == "--frames") frames = std::atoi(value("a number").c_str());
-    else if (a == "--reference-frames") reference = std::atoi(value("a number").c_str());
-    else if (a == "--keyframe-every") keyframe_every = std::atoi(value("a number").c_str());
-    else if (a == "--work") work = value("a folder");
-    else if (a == "--imr") imr = value("a path");
-    else if (a == "--no-long") long_run = false;
-    else if (a == "--no-street") street = false;
-    else if (a == "--synth-frames") synth_frames = std::atoi(value("a number").c_str());
-    else if (a == "--no-default") default_job = false;
-    else if (a == "--help" || a == "-h") {
-      std::printf("%s", kUsage);
-      return 0;
-    } else {
-      std::fprintf(stderr, "drive: unknown option %s\n%s", a.c_str(), kUsage);
-      return 64;
-    }
-  }
-  if (frames < reference || reference < 100 || keyframe_every < 1 || synth_frames < 20) {
+bool ParseDriveArgs(int argc, char** argv, DriveArgs* a, int* status) {
+  a->imr = (ExeDir() / "imr").string();
+  Options o("drive", kUsage, 64);
+  o.Int("--frames", &a->frames).Int("--reference-frames", &a->reference);
+  o.Int("--keyframe-every", &a->keyframe_every).Int("--synth-frames", &a->synth_frames);
+  o.Path("--work", &a->work).String("--imr", &a->imr);
+  o.Flag("--no-long", &a->long_run, false).Flag("--no-street", &a->street, false);
+  o.Flag("--no-default", &a->default_job, false);
+  if (!o.Parse(argc, argv, status)) return false;
+  if (a->frames < a->reference || a->reference < 100 || a->keyframe_every < 1 ||
+      a->synth_frames < 20) {
     std::fprintf(stderr, "drive: need 100 <= --reference-frames <= --frames, --keyframe-every >= 1, "
                          "--synth-frames >= 20\n");
-    return 64;
+    *status = 64;
+    return false;
   }
-  if (work.empty()) {
+  if (a->work.empty()) {
     char tmpl[] = "/tmp/imr-drive-XXXXXX";
     if (!mkdtemp(tmpl)) {
       std::perror("drive: mkdtemp");
-      return 1;
+      *status = 1;
+      return false;
     }
-    work = tmpl;
+    a->work = tmpl;
   }
-  std::printf("imr-bench drive: %s; %s, load %s; work %s\n", imr.c_str(), MachineLine().c_str(),
-              LoadAverage().c_str(), work.c_str());
+  return true;
+}
 
-  // 1 and 2: the reference stretch, without and with forgetting.
-  const Run off = RunJob("reference_off", DenseJob(reference, keyframe_every, false, true, work / "reference_off/out"), work, imr);
-  const Run on = RunJob("reference_on", DenseJob(reference, keyframe_every, true, true, work / "reference_on/out"), work, imr);
-  if (!off.ok || !on.ok) return 1;
+// 1 and 2: the reference stretch, without and with forgetting. False when a run failed.
+bool ReferenceStretch(const DriveArgs& a, DriveTargets* t, json* out) {
+  const int reference = a.reference;
+  const Run off = RunJob("reference_off", DenseJob(reference, a.keyframe_every, false, true, a.work / "reference_off/out"), a.work, a.imr);
+  const Run on = RunJob("reference_on", DenseJob(reference, a.keyframe_every, true, true, a.work / "reference_on/out"), a.work, a.imr);
+  if (!off.ok || !on.ok) return false;
   auto acc = [](const Run& r, const char* k) { return Get(r.report, {"accuracy", k}); };
   const double c_off = acc(off, "completeness"), p_off = acc(off, "precision");
   const double c_on = acc(on, "completeness"), p_on = acc(on, "precision");
@@ -259,9 +247,9 @@ int RunDriveBench(int argc, char** argv) {
   const double ms_on = 1000.0 * Get(on.report, {"engine", "seconds", "total"}) / reference;
   const bool manifold_on = on.report["mesh"].value("manifold", false);
   std::printf("\nThe first %d frames (keyframe every %d), without and with forgetting:\n", reference,
-              keyframe_every);
-  std::printf("| run | completeness 0.2 m | precision 0.2 m | engine ms/frame | wall s | peak RSS | "
-              "faces | manifold | tiles |\n|---|---|---|---|---|---|---|---|---|\n");
+              a.keyframe_every);
+  MarkdownHeader({"run", "completeness 0.2 m", "precision 0.2 m", "engine ms/frame", "wall s",
+                  "peak RSS", "faces", "manifold", "tiles"});
   for (const Run* r : {&off, &on})
     std::printf("| %s | %.4f | %.4f | %.1f | %.1f | %s | %.0f | %s | %.0f |\n",
                 r == &off ? "forget off" : "forget on", acc(*r, "completeness"),
@@ -270,202 +258,235 @@ int RunDriveBench(int argc, char** argv) {
                 Get(r->report, {"mesh", "faces"}),
                 r->report["mesh"].value("manifold", false) ? "yes" : "no",
                 Get(r->report, {"tiles", "count"}, 0.0));
-  const bool same_quality = c_on >= c_off - 0.01 && p_on >= p_off - 0.01 && manifold_on;
+  t->same_quality = c_on >= c_off - 0.01 && p_on >= p_off - 0.01 && manifold_on;
   // "No slower per frame than today": the whole run's wall time, what a user waits for (the
   // engine alone pays for forgetting what the smaller memory wins back elsewhere); 2 % is noise.
   const double wall_ms_off = 1000.0 * off.wall / reference, wall_ms_on = 1000.0 * on.wall / reference;
-  const bool no_slower = wall_ms_on <= wall_ms_off * 1.02;
+  t->no_slower = wall_ms_on <= wall_ms_off * 1.02;
+  (*out)["reference"] = {{"completeness_off", c_off}, {"precision_off", p_off},
+                         {"completeness_on", c_on}, {"precision_on", p_on},
+                         {"engine_ms_per_frame_off", ms_off},
+                         {"engine_ms_per_frame_on", ms_on},
+                         {"wall_ms_per_frame_off", wall_ms_off},
+                         {"wall_ms_per_frame_on", wall_ms_on}, {"manifold_on", manifold_on}};
+  return true;
+}
 
-  json out = {{"bench", "drive"}, {"frames", frames}, {"reference_frames", reference},
-              {"keyframe_every", keyframe_every}, {"load", LoadAverage()},
-              {"reference", {{"completeness_off", c_off}, {"precision_off", p_off},
-                             {"completeness_on", c_on}, {"precision_on", p_on},
-                             {"engine_ms_per_frame_off", ms_off},
-                             {"engine_ms_per_frame_on", ms_on},
-                             {"wall_ms_per_frame_off", wall_ms_off},
-                             {"wall_ms_per_frame_on", wall_ms_on}, {"manifold_on", manifold_on}}}};
-  bool flat = true, peak_ok = true, steady = true;
-  if (long_run) {
-    const Run lr = RunJob("long", DenseJob(frames, keyframe_every, true, false, work / "long/out"), work, imr);
-    if (!lr.ok) return 1;
-    const Series s = SeriesOf(lr);
-    const double peak = Get(lr.report, {"memory", "peak_rss_bytes"});
-    // The process's peak may come after the drive: the last parts, tiles and the single mesh's
-    // export (in blocks from the spool) and evaluation.
-    double drive_peak = 0.0;
-    for (double r : s.rss) drive_peak = std::max(drive_peak, r);
-    const double at_ref = RssAt(s, reference), at_end = s.rss.empty() ? 0.0 : s.rss.back();
-    const double slope = Slope(s.frame, s.rss, s.frame.size() / 2);  // bytes per frame
-    std::printf("\nA drive of %d frames with forgetting (tiles on, the generator keeping its live "
-                "tracks only):\n", frames);
-    std::printf("| tenth | frames | frames/s (wall) | frames/s (engine) | RSS at its end |\n"
-                "|---|---|---|---|---|\n");
-    std::vector<double> fps;
-    const size_t n = s.frame.size();
-    json tenths = json::array();
-    for (int t = 0; t < 10 && n >= 10; ++t) {
-      const size_t a = t * n / 10, b = (t + 1) * n / 10 - 1;
-      const double f0 = a == 0 ? 0.0 : s.frame[a - 1], f1 = s.frame[b];
-      const double w0 = a == 0 ? 0.0 : s.seconds[a - 1], w1 = s.seconds[b];
-      double e = 0.0;
-      for (size_t i = a; i <= b; ++i) e += s.engine[i];
-      const double wall_fps = (f1 - f0) / std::max(1e-9, w1 - w0), engine_fps = (f1 - f0) / e;
-      fps.push_back(wall_fps);
-      std::printf("| %d | %.0f-%.0f | %.1f | %.1f | %s |\n", t + 1, f0, f1, wall_fps, engine_fps,
-                  Mb(s.rss[b]).c_str());
-      tenths.push_back({{"frames", {f0, f1}}, {"fps_wall", wall_fps}, {"fps_engine", engine_fps},
-                        {"rss_bytes", s.rss[b]}});
-    }
-    const json& fg = lr.report["engine"]["forget"];
-    std::printf("\npeak RSS %s (%s during the drive, at its keyframes; the rest at the end: the "
-                "last tiles, the single mesh written and measured in blocks); RSS %s at frame %d, %s at the end (x%.2f); "
-                "slope over the second half %.1f kB per frame (%.1f MB per 1,000 frames); tiles "
-                "%.0f; mesh %.0f faces, manifold %s; rebuilds %d, vertices forgotten %d, changes "
-                "refused %d\n",
-                Mb(peak).c_str(), Mb(drive_peak).c_str(), Mb(at_ref).c_str(), reference, Mb(at_end).c_str(),
-                at_ref > 0 ? at_end / at_ref : 0.0, slope / 1e3, slope * 1000 / 1e6,
-                Get(lr.report, {"tiles", "count"}, 0.0), Get(lr.report, {"mesh", "faces"}),
-                lr.report["mesh"].value("manifold", false) ? "yes" : "no", fg.value("rebuilds", 0),
-                fg.value("vertices_forgotten", 0), fg.value("changes_refused_final", 0));
-    flat = at_end <= 1.2 * at_ref;
-    peak_ok = peak <= 400e6;
-    steady = fps.size() == 10 && fps.back() >= 0.9 * fps.front();
-    out["long"] = {{"peak_rss_bytes", peak}, {"drive_peak_rss_bytes", drive_peak},
-                   {"rss_at_reference", at_ref}, {"rss_at_end", at_end},
-                   {"rss_slope_bytes_per_frame", slope}, {"tenths", tenths},
-                   {"tiles", Get(lr.report, {"tiles", "count"}, 0.0)},
-                   {"manifold", lr.report["mesh"].value("manifold", false)},
-                   {"wall_seconds", lr.wall}, {"forget", fg}};
-    out["long"]["forget"].erase("live");
+// The long drive's table: frames per second and RSS per tenth of its keyframes.
+json PrintTenths(const Series& s, std::vector<double>* fps) {
+  MarkdownHeader({"tenth", "frames", "frames/s (wall)", "frames/s (engine)", "RSS at its end"});
+  const size_t n = s.frame.size();
+  json tenths = json::array();
+  for (int t = 0; t < 10 && n >= 10; ++t) {
+    const size_t a = t * n / 10, b = (t + 1) * n / 10 - 1;
+    const double f0 = a == 0 ? 0.0 : s.frame[a - 1], f1 = s.frame[b];
+    const double w0 = a == 0 ? 0.0 : s.seconds[a - 1], w1 = s.seconds[b];
+    double e = 0.0;
+    for (size_t i = a; i <= b; ++i) e += s.engine[i];
+    const double wall_fps = (f1 - f0) / std::max(1e-9, w1 - w0), engine_fps = (f1 - f0) / e;
+    fps->push_back(wall_fps);
+    std::printf("| %d | %.0f-%.0f | %.1f | %.1f | %s |\n", t + 1, f0, f1, wall_fps, engine_fps,
+                Mb(s.rss[b]).c_str());
+    tenths.push_back({{"frames", {f0, f1}}, {"fps_wall", wall_fps}, {"fps_engine", engine_fps},
+                      {"rss_bytes", s.rss[b]}});
   }
+  return tenths;
+}
 
-  // The independent street stream, without and with forgetting.
-  const char* shared = std::getenv("IMR_SHARED_DIR");
-  const fs::path stream = fs::path(shared ? shared : (fs::path(IMR_SOURCE_DIR) / "../shared").string()) /
-                          "data/street-stream/slam.json";
-  if (street && fs::exists(stream)) {
-    std::string md5[2];
-    double peak[2] = {0, 0};
-    fs::path mesh[2];
-    for (int f = 0; f < 2; ++f) {
-      const fs::path o = work / (f ? "street_on" : "street_off") / "out";
-      json job = {{"sequences", {stream.string()}},
-                  {"input", {{"format", "slam_json"}, {"options", {{"views_per_keyframe", 1}}}}},
-                  {"engine", {{"forget", f == 1}}},
-                  {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
-                  {"output", {{"directory", o.string()}, {"formats", {"ply"}}}}};
-      const Run r = RunJob(f ? "street_on" : "street_off", job, work, imr);
-      if (!r.ok) return 1;
-      mesh[f] = o / "mesh.ply";
-      md5[f] = Md5(mesh[f]);
-      peak[f] = Get(r.report, {"memory", "peak_rss_bytes"});
-    }
-    // With forgetting the mesh is put together from the parts in the order they became final.
-    const long differ = md5[0] == md5[1] ? 0 : TrianglesNotShared(mesh[0], mesh[1]);
-    const std::string same = md5[0] == md5[1] ? "the same bytes"
-                             : differ == 0    ? "the same triangles in another order"
-                             : differ > 0     ? std::to_string(differ) + " triangles not shared"
-                                              : "other bytes";
-    std::printf("\nStreet stream (%s, every view a keyframe): mesh md5 %s without, %s with "
-                "forgetting (%s); peak RSS %s and %s\n", stream.c_str(), md5[0].c_str(),
-                md5[1].c_str(), same.c_str(), Mb(peak[0]).c_str(), Mb(peak[1]).c_str());
-    out["street_stream"] = {{"same_mesh", md5[0] == md5[1]}, {"triangles_not_shared", differ},
-                            {"md5_off", md5[0]},
-                            {"md5_on", md5[1]}, {"peak_rss_off", peak[0]}, {"peak_rss_on", peak[1]}};
-  } else if (street) {
+// 3: the long drive with forgetting. False when the run failed.
+bool LongDrive(const DriveArgs& a, DriveTargets* t, json* out) {
+  const Run lr = RunJob("long", DenseJob(a.frames, a.keyframe_every, true, false, a.work / "long/out"), a.work, a.imr);
+  if (!lr.ok) return false;
+  const Series s = SeriesOf(lr);
+  const double peak = Get(lr.report, {"memory", "peak_rss_bytes"});
+  // The process's peak may come after the drive: the last parts, tiles and the single mesh's
+  // export (in blocks from the spool) and evaluation.
+  double drive_peak = 0.0;
+  for (double r : s.rss) drive_peak = std::max(drive_peak, r);
+  const double at_ref = RssAt(s, a.reference), at_end = s.rss.empty() ? 0.0 : s.rss.back();
+  const double slope = Slope(s.frame, s.rss, s.frame.size() / 2);  // bytes per frame
+  std::printf("\nA drive of %d frames with forgetting (tiles on, the generator keeping its live "
+              "tracks only):\n", a.frames);
+  std::vector<double> fps;
+  const json tenths = PrintTenths(s, &fps);
+  const json& fg = lr.report["engine"]["forget"];
+  std::printf("\npeak RSS %s (%s during the drive, at its keyframes; the rest at the end: the "
+              "last tiles, the single mesh written and measured in blocks); RSS %s at frame %d, %s at the end (x%.2f); "
+              "slope over the second half %.1f kB per frame (%.1f MB per 1,000 frames); tiles "
+              "%.0f; mesh %.0f faces, manifold %s; rebuilds %d, vertices forgotten %d, changes "
+              "refused %d\n",
+              Mb(peak).c_str(), Mb(drive_peak).c_str(), Mb(at_ref).c_str(), a.reference, Mb(at_end).c_str(),
+              at_ref > 0 ? at_end / at_ref : 0.0, slope / 1e3, slope * 1000 / 1e6,
+              Get(lr.report, {"tiles", "count"}, 0.0), Get(lr.report, {"mesh", "faces"}),
+              lr.report["mesh"].value("manifold", false) ? "yes" : "no", fg.value("rebuilds", 0),
+              fg.value("vertices_forgotten", 0), fg.value("changes_refused_final", 0));
+  t->flat = at_end <= 1.2 * at_ref;
+  t->peak_ok = peak <= 400e6;
+  t->steady = fps.size() == 10 && fps.back() >= 0.9 * fps.front();
+  (*out)["long"] = {{"peak_rss_bytes", peak}, {"drive_peak_rss_bytes", drive_peak},
+                    {"rss_at_reference", at_ref}, {"rss_at_end", at_end},
+                    {"rss_slope_bytes_per_frame", slope}, {"tenths", tenths},
+                    {"tiles", Get(lr.report, {"tiles", "count"}, 0.0)},
+                    {"manifold", lr.report["mesh"].value("manifold", false)},
+                    {"wall_seconds", lr.wall}, {"forget", fg}};
+  (*out)["long"]["forget"].erase("live");
+  return true;
+}
+
+// The independent street stream, without and with forgetting. False when a run failed.
+bool StreetStream(const DriveArgs& a, json* out) {
+  const fs::path stream = SharedDir() / "data/street-stream/slam.json";
+  if (!fs::exists(stream)) {
     std::printf("\nStreet stream: %s not found (set IMR_SHARED_DIR); not measured\n", stream.c_str());
+    return true;
   }
-
-  // The README's default job: the image pipeline (features, refiner, exporter) on imr-synth's
-  // street, without and with forgetting, against the scene's exact surface.
-  bool default_same = true, default_flat = true;
-  if (default_job) {
-    const fs::path seq = work / "synth-street";
-    const std::string synth = (fs::path(imr).parent_path() / "imr-synth").string();
-    if (Sh(Quote(synth) + " --out " + Quote(seq.string()) + " --frames " +
-           std::to_string(synth_frames) + " --color --no-lidar --force -q >" +
-           Quote((work / "synth.log").string()) + " 2>&1") != 0) {
-      std::fprintf(stderr, "drive: imr-synth failed; see %s\n", (work / "synth.log").c_str());
-      return 1;
-    }
-    const json config = json::parse(ReadFile(fs::path(IMR_SOURCE_DIR) / "configs/default.json"));
-    Run runs[2];
-    double c[2] = {NAN, NAN}, p[2] = {NAN, NAN};
-    for (int f = 0; f < 2; ++f) {
-      const std::string name = f ? "default_on" : "default_off";
-      const fs::path o = work / name / "out";
-      json job = config;
-      job.erase("description");
-      job["sequences"] = {seq.string()};
-      job["engine"]["forget"] = f == 1;
-      job["output"] = {{"directory", o.string()}, {"stem", "mesh"}, {"formats", {"ply"}}};
-      if (f) job["output"]["tiles"] = json::object();
-      runs[f] = RunJob(name, job, work, imr);
-      if (!runs[f].ok) return 1;
-      const fs::path eval = work / name / "evaluation.json";
-      if (Sh(Quote(imr) + " evaluate " + Quote((o / "mesh.ply").string()) + " --truth " +
-             Quote((seq / "ground_truth/scene.ply").string()) + " --velodyne-seq " +
-             Quote(seq.string()) + " --tau 0.2 --out " + Quote(eval.string()) + " >" +
-             Quote((work / name / "evaluate.log").string()) + " 2>&1") != 0) {
-        std::fprintf(stderr, "drive: imr evaluate failed; see %s\n",
-                     (work / name / "evaluate.log").c_str());
-        return 1;
-      }
-      const json e = json::parse(ReadFile(eval));
-      c[f] = e["completeness"][0].get<double>();
-      p[f] = e["precision"][0].get<double>();
-    }
-    const Series s = SeriesOf(runs[1]);
-    const double mid = RssAt(s, synth_frames / 2.0), end = s.rss.empty() ? 0.0 : s.rss.back();
-    std::printf("\nThe README's default job (configs/default.json, imr-synth's street of %d frames, "
-                "the image pipeline), without and with forgetting:\n", synth_frames);
-    std::printf("| run | completeness 0.2 m | precision 0.2 m | wall s | peak RSS | RSS at frame %d "
-                "| RSS at the end | faces | manifold |\n|---|---|---|---|---|---|---|---|---|\n",
-                synth_frames / 2);
-    for (int f = 0; f < 2; ++f) {
-      const Series sf = SeriesOf(runs[f]);
-      std::printf("| %s | %.4f | %.4f | %.1f | %s | %s | %s | %.0f | %s |\n",
-                  f ? "forget on" : "forget off", c[f], p[f], runs[f].wall,
-                  Mb(Get(runs[f].report, {"memory", "peak_rss_bytes"})).c_str(),
-                  Mb(RssAt(sf, synth_frames / 2.0)).c_str(),
-                  Mb(sf.rss.empty() ? 0.0 : sf.rss.back()).c_str(),
-                  Get(runs[f].report, {"mesh", "faces"}),
-                  runs[f].report["mesh"].value("manifold", false) ? "yes" : "no");
-    }
-    default_same = c[1] >= c[0] - 0.01 && p[1] >= p[0] - 0.01 &&
-                   runs[1].report["mesh"].value("manifold", false);
-    default_flat = end <= 1.2 * mid;
-    out["default_job"] = {{"synth_frames", synth_frames}, {"completeness_off", c[0]},
-                          {"precision_off", p[0]}, {"completeness_on", c[1]},
-                          {"precision_on", p[1]}, {"wall_off", runs[0].wall},
-                          {"wall_on", runs[1].wall}, {"rss_mid_on", mid}, {"rss_end_on", end},
-                          {"peak_rss_off", Get(runs[0].report, {"memory", "peak_rss_bytes"})},
-                          {"peak_rss_on", Get(runs[1].report, {"memory", "peak_rss_bytes"})}};
+  std::string md5[2];
+  double peak[2] = {0, 0};
+  fs::path mesh[2];
+  for (int f = 0; f < 2; ++f) {
+    const fs::path o = a.work / (f ? "street_on" : "street_off") / "out";
+    json job = {{"sequences", {stream.string()}},
+                {"input", {{"format", "slam_json"}, {"options", {{"views_per_keyframe", 1}}}}},
+                {"engine", {{"forget", f == 1}}},
+                {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+                {"output", {{"directory", o.string()}, {"formats", {"ply"}}}}};
+    const Run r = RunJob(f ? "street_on" : "street_off", job, a.work, a.imr);
+    if (!r.ok) return false;
+    mesh[f] = o / "mesh.ply";
+    md5[f] = Md5(mesh[f]);
+    peak[f] = Get(r.report, {"memory", "peak_rss_bytes"});
   }
+  // With forgetting the mesh is put together from the parts in the order they became final.
+  const long differ = md5[0] == md5[1] ? 0 : TrianglesNotShared(mesh[0], mesh[1]);
+  const std::string same = md5[0] == md5[1] ? "the same bytes"
+                           : differ == 0    ? "the same triangles in another order"
+                           : differ > 0     ? std::to_string(differ) + " triangles not shared"
+                                            : "other bytes";
+  std::printf("\nStreet stream (%s, every view a keyframe): mesh md5 %s without, %s with "
+              "forgetting (%s); peak RSS %s and %s\n", stream.c_str(), md5[0].c_str(),
+              md5[1].c_str(), same.c_str(), Mb(peak[0]).c_str(), Mb(peak[1]).c_str());
+  (*out)["street_stream"] = {{"same_mesh", md5[0] == md5[1]}, {"triangles_not_shared", differ},
+                             {"md5_off", md5[0]},
+                             {"md5_on", md5[1]}, {"peak_rss_off", peak[0]}, {"peak_rss_on", peak[1]}};
+  return true;
+}
 
+// One run of the README's default job on imr-synth's street `seq`, and its completeness and
+// precision at 0.2 m against the scene's exact surface. False when imr run or evaluate failed.
+bool DefaultRun(const DriveArgs& a, const json& config, const fs::path& seq, bool forget, Run* run,
+                double* completeness, double* precision) {
+  const std::string name = forget ? "default_on" : "default_off";
+  const fs::path o = a.work / name / "out";
+  json job = config;
+  job.erase("description");
+  job["sequences"] = {seq.string()};
+  job["engine"]["forget"] = forget;
+  job["output"] = {{"directory", o.string()}, {"stem", "mesh"}, {"formats", {"ply"}}};
+  if (forget) job["output"]["tiles"] = json::object();
+  *run = RunJob(name, job, a.work, a.imr);
+  if (!run->ok) return false;
+  const fs::path eval = a.work / name / "evaluation.json";
+  if (Sh(Quote(a.imr) + " evaluate " + Quote((o / "mesh.ply").string()) + " --truth " +
+         Quote((seq / "ground_truth/scene.ply").string()) + " --velodyne-seq " +
+         Quote(seq.string()) + " --tau 0.2 --out " + Quote(eval.string()) + " >" +
+         Quote((a.work / name / "evaluate.log").string()) + " 2>&1") != 0) {
+    std::fprintf(stderr, "drive: imr evaluate failed; see %s\n",
+                 (a.work / name / "evaluate.log").c_str());
+    return false;
+  }
+  const json e = json::parse(ReadFileBytes(eval));
+  *completeness = e["completeness"][0].get<double>();
+  *precision = e["precision"][0].get<double>();
+  return true;
+}
+
+// The README's default job: the image pipeline (features, refiner, exporter) on imr-synth's
+// street, without and with forgetting, against the scene's exact surface. False on a failure.
+bool DefaultJobs(const DriveArgs& a, DriveTargets* t, json* out) {
+  const fs::path seq = a.work / "synth-street";
+  const std::string synth = (fs::path(a.imr).parent_path() / "imr-synth").string();
+  if (Sh(Quote(synth) + " --out " + Quote(seq.string()) + " --frames " +
+         std::to_string(a.synth_frames) + " --color --no-lidar --force -q >" +
+         Quote((a.work / "synth.log").string()) + " 2>&1") != 0) {
+    std::fprintf(stderr, "drive: imr-synth failed; see %s\n", (a.work / "synth.log").c_str());
+    return false;
+  }
+  const json config = json::parse(ReadFileBytes(fs::path(IMR_SOURCE_DIR) / "configs/default.json"));
+  Run runs[2];
+  double c[2] = {NAN, NAN}, p[2] = {NAN, NAN};
+  for (int f = 0; f < 2; ++f)
+    if (!DefaultRun(a, config, seq, f == 1, &runs[f], &c[f], &p[f])) return false;
+  const int half = a.synth_frames / 2;
+  const Series s = SeriesOf(runs[1]);
+  const double mid = RssAt(s, a.synth_frames / 2.0), end = s.rss.empty() ? 0.0 : s.rss.back();
+  std::printf("\nThe README's default job (configs/default.json, imr-synth's street of %d frames, "
+              "the image pipeline), without and with forgetting:\n", a.synth_frames);
+  MarkdownHeader({"run", "completeness 0.2 m", "precision 0.2 m", "wall s", "peak RSS",
+                  Format("RSS at frame %d", half), "RSS at the end", "faces", "manifold"});
+  for (int f = 0; f < 2; ++f) {
+    const Series sf = SeriesOf(runs[f]);
+    std::printf("| %s | %.4f | %.4f | %.1f | %s | %s | %s | %.0f | %s |\n",
+                f ? "forget on" : "forget off", c[f], p[f], runs[f].wall,
+                Mb(Get(runs[f].report, {"memory", "peak_rss_bytes"})).c_str(),
+                Mb(RssAt(sf, a.synth_frames / 2.0)).c_str(),
+                Mb(sf.rss.empty() ? 0.0 : sf.rss.back()).c_str(),
+                Get(runs[f].report, {"mesh", "faces"}),
+                runs[f].report["mesh"].value("manifold", false) ? "yes" : "no");
+  }
+  t->default_same = c[1] >= c[0] - 0.01 && p[1] >= p[0] - 0.01 &&
+                    runs[1].report["mesh"].value("manifold", false);
+  t->default_flat = end <= 1.2 * mid;
+  (*out)["default_job"] = {{"synth_frames", a.synth_frames}, {"completeness_off", c[0]},
+                           {"precision_off", p[0]}, {"completeness_on", c[1]},
+                           {"precision_on", p[1]}, {"wall_off", runs[0].wall},
+                           {"wall_on", runs[1].wall}, {"rss_mid_on", mid}, {"rss_end_on", end},
+                           {"peak_rss_off", Get(runs[0].report, {"memory", "peak_rss_bytes"})},
+                           {"peak_rss_on", Get(runs[1].report, {"memory", "peak_rss_bytes"})}};
+  return true;
+}
+
+void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
   auto line = [](bool met, const char* what) {
     std::printf("- %s: %s\n", met ? "met" : "NOT MET", what);
   };
   std::printf("\nTargets:\n");
-  if (long_run) {
-    line(flat, "RSS at the end <= 1.2 x RSS at the reference length");
-    line(peak_ok, "peak RSS <= 400 MB (the whole process, the single mesh at the end included)");
-    line(steady, "frames/s over the last tenth >= 0.9 x the first tenth");
+  if (a.long_run) {
+    line(t.flat, "RSS at the end <= 1.2 x RSS at the reference length");
+    line(t.peak_ok, "peak RSS <= 400 MB (the whole process, the single mesh at the end included)");
+    line(t.steady, "frames/s over the last tenth >= 0.9 x the first tenth");
   }
-  line(no_slower, "the whole run's wall time per frame with forgetting no more than 2 % above "
-                  "without");
-  line(same_quality,
+  line(t.no_slower, "the whole run's wall time per frame with forgetting no more than 2 % above "
+                    "without");
+  line(t.same_quality,
        "completeness and precision within 0.01 of the run without forgetting, a manifold");
-  if (default_job) {
-    line(default_same, "the default job: completeness and precision within 0.01 of the run "
-                       "without forgetting, a manifold");
+  if (a.default_job) {
+    line(t.default_same, "the default job: completeness and precision within 0.01 of the run "
+                         "without forgetting, a manifold");
     std::printf("- %s: the default job's RSS at the end <= 1.2 x RSS at its middle (%d frames%s)\n",
-                default_flat ? "met" : "NOT MET", synth_frames,
-                synth_frames < 5000 ? "; the target is for 5,000" : "");
+                t.default_flat ? "met" : "NOT MET", a.synth_frames,
+                a.synth_frames < 5000 ? "; the target is for 5,000" : "");
   }
-  out["targets"] = {{"flat", flat}, {"peak", peak_ok}, {"steady", steady},
-                    {"no_slower", no_slower}, {"same_quality", same_quality},
-                    {"default_same", default_same}, {"default_flat", default_flat}};
+  (*out)["targets"] = {{"flat", t.flat}, {"peak", t.peak_ok}, {"steady", t.steady},
+                       {"no_slower", t.no_slower}, {"same_quality", t.same_quality},
+                       {"default_same", t.default_same}, {"default_flat", t.default_flat}};
+}
+
+}  // namespace
+
+int RunDriveBench(int argc, char** argv) {
+  DriveArgs a;
+  if (int status = 0; !ParseDriveArgs(argc, argv, &a, &status)) return status;
+  std::printf("imr-bench drive: %s; %s, load %s; work %s\n", a.imr.c_str(), MachineLine().c_str(),
+              LoadAverage().c_str(), a.work.c_str());
+  json out = {{"bench", "drive"}, {"frames", a.frames}, {"reference_frames", a.reference},
+              {"keyframe_every", a.keyframe_every}};
+  DriveTargets t;
+  if (!ReferenceStretch(a, &t, &out)) return 1;
+  out["load"] = LoadAverage();  // after the reference stretch, as the figure always was
+  if (a.long_run && !LongDrive(a, &t, &out)) return 1;
+  if (a.street && !StreetStream(a, &out)) return 1;
+  if (a.default_job && !DefaultJobs(a, &t, &out)) return 1;
+  PrintDriveTargets(a, t, &out);
   std::printf("%s\n", out.dump().c_str());
   return 0;
 }

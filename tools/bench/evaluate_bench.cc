@@ -6,6 +6,7 @@
 #include "host/eval/distance.h"
 #include "host/eval/evaluate.h"
 #include "host/eval/parallel.h"
+#include "tools/bench/common/frame.h"
 
 #include <chrono>
 #include <cmath>
@@ -59,24 +60,14 @@ std::vector<Vec3> NoisyPoints(std::size_t count, double size, uint64_t seed) {
 }  // namespace
 
 int RunEvaluateBench(int argc, char** argv) {
-  std::size_t points = 1000000, triangles = 500000;
+  uint64_t points = 1000000, triangles = 500000;
   int threads = 0;
   uint64_t seed = 1;
-  for (int i = 0; i < argc; ++i) {
-    const std::string a = argv[i];
-    const bool has = i + 1 < argc;
-    if (a == "--points" && has) points = std::strtoull(argv[++i], nullptr, 10);
-    else if (a == "--triangles" && has) triangles = std::strtoull(argv[++i], nullptr, 10);
-    else if (a == "--threads" && has) threads = std::atoi(argv[++i]);
-    else if (a == "--seed" && has) seed = std::strtoull(argv[++i], nullptr, 10);
-    else if (a == "--quick") points = 100000, triangles = 50000;
-    else {
-      std::fprintf(stderr, "imr-bench evaluate: unknown option '%s'\n"
-                   "usage: imr-bench evaluate [--points N] [--triangles N] [--threads N] [--seed S] [--quick]\n",
-                   a.c_str());
-      return 2;
-    }
-  }
+  Options args("imr-bench evaluate",
+            "usage: imr-bench evaluate [--points N] [--triangles N] [--threads N] [--seed S] [--quick]\n");
+  args.Uint64("--points", &points).Uint64("--triangles", &triangles).Int("--threads", &threads);
+  args.Uint64("--seed", &seed).Action("--quick", [&] { points = 100000, triangles = 50000; });
+  if (int status = 0; !args.Parse(argc, argv, &status)) return status;
   threads = eval::ResolveThreads(threads);
   const int n = std::max(1, static_cast<int>(std::lround(std::sqrt(triangles / 2.0))));
   const double size = 100.0;

@@ -32,6 +32,8 @@
 #include "host/engine/engine.h"
 #include "host/engine/testing/run_stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/engine_modes.h"
+#include "tools/bench/common/frame.h"
 #include "tools/bench/common/subprocess.h"
 
 namespace imr::bench {
@@ -188,15 +190,15 @@ json ReplayJob(const fs::path& stream, const std::string& mode, const fs::path& 
           {"output", {{"directory", out.string()}, {"formats", {"ply"}}}}};
 }
 
-bool ImrRun(const json& job, const fs::path& job_file, const std::string& extra,
-            json* report, const fs::path& out) {
-  std::ofstream(job_file) << job.dump(2);
-  const fs::path log = fs::path(job_file).replace_extension(".log");
-  const int rc = Sh(Quote((ExeDir() / "imr").string()) + " run -q " + Quote(job_file.string()) +
-                    extra + " >" + Quote(log.string()) + " 2>&1");
-  *report = ReadJson(out / "report.json");
-  if (rc != 0 || report->is_null()) {
-    std::fprintf(stderr, "imr run failed (exit %d): see %s\n", rc, log.c_str());
+// imr run on `job` (its log beside `job_file`); *report is its output folder's report.json.
+bool ImrRun(const json& job, const fs::path& job_file, const std::string& extra, json* report) {
+  ImrJob how;
+  how.job_file = job_file;
+  how.extra = extra;
+  const ImrJobResult r = RunImrJob(job, how);
+  *report = r.report;
+  if (r.status != 0 || report->is_null()) {
+    std::fprintf(stderr, "imr run failed (exit %d): see %s\n", r.status, r.log.c_str());
     return false;
   }
   return true;
@@ -221,11 +223,9 @@ std::vector<ModeResult> RunImageSequence(const std::string& name, const std::str
   json report, front;
   const fs::path mov_stream = dir / "stream-moving.json", frz_stream = dir / "stream-frozen.json";
   if (!ImrRun(FrontEndJob(format, input_options, seq, dir / "front-moving", false),
-              dir / "front-moving.json", " --export-stream " + Quote(mov_stream.string()), &front,
-              dir / "front-moving") ||
+              dir / "front-moving.json", "--export-stream " + Quote(mov_stream.string()), &front) ||
       !ImrRun(FrontEndJob(format, input_options, seq, dir / "front-frozen", true),
-              dir / "front-frozen.json", " --export-stream " + Quote(frz_stream.string()), &report,
-              dir / "front-frozen")) {
+              dir / "front-frozen.json", "--export-stream " + Quote(frz_stream.string()), &report)) {
     ModeResult m;
     m.sequence = name;
     m.mode = "front end";
@@ -241,9 +241,9 @@ std::vector<ModeResult> RunImageSequence(const std::string& name, const std::str
     const fs::path om = dir / ("replay-" + mode), of = dir / ("replay-" + mode + "-frozen");
     std::fprintf(stderr, "[paper] %s %s ...\n", name.c_str(), mode.c_str());
     const bool ok_m = ImrRun(ReplayJob(mov_stream, mode, om), dir / ("replay-" + mode + ".json"),
-                             "", &rm, om);
+                             "", &rm);
     const bool ok_f = ImrRun(ReplayJob(frz_stream, mode, of),
-                             dir / ("replay-" + mode + "-frozen.json"), "", &rf, of);
+                             dir / ("replay-" + mode + "-frozen.json"), "", &rf);
     if (!ok_m || !ok_f) {
       m.error = "imr run (replay) failed";
       out.push_back(m);
@@ -283,13 +283,6 @@ std::vector<ModeResult> RunImageSequence(const std::string& name, const std::str
 }
 
 // ---------------------------------------------------------------------------------------------
-
-std::string FindPython() {
-  for (const char* py : {"python3", "/usr/bin/python3"})
-    if (std::system((std::string(py) + " -c 'import matplotlib' >/dev/null 2>&1").c_str()) == 0)
-      return py;
-  return "";
-}
 
 void PrintTable(const std::vector<ModeResult>& rs, double tau) {
   std::printf("\n| sequence | policy | truth→mesh mean / median (m) | mesh→truth mean / median (m) "
@@ -338,74 +331,40 @@ json ToJson(const ModeResult& m) {
   return j;
 }
 
-}  // namespace
 
-int RunPaperBench(int argc, char** argv) {
-  PaperArgs a;
-  for (int i = 0; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "imr-bench paper: %s needs a value\n", k.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    auto list = [&](std::vector<std::string>* v) {
-      v->clear();
-      std::stringstream ss(value());
-      std::string s;
-      while (std::getline(ss, s, ',')) v->push_back(s);
-    };
-    if (k == "--street-frames") a.street_frames = std::atoi(value().c_str());
-    else if (k == "--room-frames") a.room_frames = std::atoi(value().c_str());
-    else if (k == "--points") a.points = std::atoi(value().c_str());
-    else if (k == "--noise") a.noise = std::atof(value().c_str());
-    else if (k == "--seed") a.seed = std::strtoull(value().c_str(), nullptr, 10);
-    else if (k == "--image-frames") a.image_frames = std::atoi(value().c_str());
-    else if (k == "--no-images") a.images = false;
-    else if (k == "--no-kitti") a.kitti_enabled = false;
-    else if (k == "--no-synth-images") a.synth_images = false;
-    else if (k == "--kitti") a.kitti = value();
-    else if (k == "--out") a.out = value();
-    else if (k == "--work") a.work = value();
-    else if (k == "--tau") a.tau = std::atof(value().c_str());
-    else if (k == "--modes") list(&a.modes);
-    else if (k == "--scenes") list(&a.scenes);
-    else if (k == "--quick") {
-      a.street_frames = 150;
-      a.room_frames = 100;
-      a.image_frames = 100;
-    } else {
-      std::fprintf(stderr,
-                   "usage: imr-bench paper [--street-frames N] [--room-frames N] [--points P]\n"
-                   "         [--noise S] [--seed S] [--modes nearest,mean,weighted_mean,rays5,rays1]\n"
-                   "         [--scenes street,room] [--image-frames N] [--no-images]\n"
-                   "         [--no-synth-images] [--no-kitti]\n"
-                   "         [--kitti DRIVE_DIR] [--out DIR] [--work DIR] [--tau T] [--quick]\n");
-      return 2;
-    }
+bool ParsePaperArgs(int argc, char** argv, PaperArgs* a, int* status) {
+  Options o("imr-bench paper",
+            "usage: imr-bench paper [--street-frames N] [--room-frames N] [--points P]\n"
+            "         [--noise S] [--seed S] [--modes nearest,mean,weighted_mean,rays5,rays1]\n"
+            "         [--scenes street,room] [--image-frames N] [--no-images]\n"
+            "         [--no-synth-images] [--no-kitti]\n"
+            "         [--kitti DRIVE_DIR] [--out DIR] [--work DIR] [--tau T] [--quick]\n");
+  o.Int("--street-frames", &a->street_frames).Int("--room-frames", &a->room_frames);
+  o.Int("--points", &a->points).Double("--noise", &a->noise).Uint64("--seed", &a->seed);
+  o.Int("--image-frames", &a->image_frames).Flag("--no-images", &a->images, false);
+  o.Flag("--no-kitti", &a->kitti_enabled, false).Flag("--no-synth-images", &a->synth_images, false);
+  o.String("--kitti", &a->kitti).String("--out", &a->out).String("--work", &a->work);
+  o.Double("--tau", &a->tau).List("--modes", &a->modes).List("--scenes", &a->scenes);
+  o.Action("--quick", [a] {
+    a->street_frames = 150;
+    a->room_frames = 100;
+    a->image_frames = 100;
+  });
+  if (!o.Parse(argc, argv, status)) return false;
+  if (!KnownModes(a->modes, "paper")) {
+    *status = 2;
+    return false;
   }
-  for (const auto& m : a.modes) {
-    engine::EngineOptions eo;
-    std::unique_ptr<engine::WeightTransferPolicy> p;
-    if (!engine::testing::ConfigureMode(m, &eo, &p)) {
-      std::fprintf(stderr, "imr-bench paper: unknown mode '%s'\n", m.c_str());
-      return 2;
-    }
-  }
-  const std::string load_start = LoadAverage();
-  const auto wall0 = std::chrono::steady_clock::now();
-  std::printf("imr-bench paper: %s; load average at start %s\n", MachineLine().c_str(),
-              load_start.c_str());
-  std::vector<ModeResult> all;
+  return true;
+}
 
-  // 1. Synthetic streams.
+// 1. Synthetic streams, every mode on each scene. False on an unknown scene.
+bool RunSyntheticScenes(const PaperArgs& a, std::vector<ModeResult>* all) {
   for (const std::string& scene : a.scenes) {
     synthetic::StreamOptions so;
     if (!synthetic::FromString(scene, &so.scene)) {
       std::fprintf(stderr, "imr-bench paper: unknown scene '%s'\n", scene.c_str());
-      return 2;
+      return false;
     }
     so.frames = scene == "room" ? a.room_frames : a.street_frames;
     so.points_per_keyframe = a.points;
@@ -418,69 +377,64 @@ int RunPaperBench(int argc, char** argv) {
                 scene.c_str(), so.frames, so.points_per_keyframe, so.noise_at_10m, truth.size());
     std::fflush(stdout);
     for (const std::string& mode : a.modes)
-      all.push_back(RunSyntheticMode("synthetic " + scene, so, mode, truth, a.tau));
+      all->push_back(RunSyntheticMode("synthetic " + scene, so, mode, truth, a.tau));
   }
+  return true;
+}
 
-  // 2-3. Image sequences through imr run.
-  const bool have_imr = fs::exists(ExeDir() / "imr") && fs::exists(ExeDir() / "imr-synth");
-  std::string image_note;
-  const fs::path work = a.work.empty() ? fs::temp_directory_path() /
-                                             ("imr-bench-paper-" + std::to_string(getpid()))
-                                       : fs::path(a.work);
-  if (a.images && have_imr) {
-    fs::create_directories(work);
-    const fs::path synth = work / "imr-synth-street";
-    if (!a.synth_images) {
-      // Skipped on request.
-    } else if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(synth.string()) +
-           " --frames " + std::to_string(a.image_frames) + " --no-lidar --force -q") == 0) {
-      auto rs = RunImageSequence(
-          "images street", "kitti_odometry", json::object(), synth.string(),
-          "--truth " + Quote((synth / "ground_truth/scene.ply").string()) + " --velodyne-seq " +
-              Quote(synth.string()),
-          work, a);
-      all.insert(all.end(), rs.begin(), rs.end());
-    } else {
-      image_note += "imr-synth failed; ";
-    }
-    std::string kitti = a.kitti;
-    if (kitti.empty()) {
-      // The team's data beside the checkout (IMR_SHARED_DIR, else ../shared of this source tree).
-      const char* shared = std::getenv("IMR_SHARED_DIR");
-      const fs::path base =
-          shared ? fs::path(shared) : fs::path(__FILE__).parent_path() / "../../../shared";
-      kitti = (base / "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync")
-                  .lexically_normal()
-                  .string();
-    }
-    if (a.kitti_enabled && fs::is_directory(kitti)) {
-      auto rs = RunImageSequence("KITTI raw", "kitti_raw", json{{"camera", 2}}, kitti,
-                                 "--velodyne-seq " + Quote(kitti) + " --camera 2", work, a);
-      all.insert(all.end(), rs.begin(), rs.end());
-    } else if (a.kitti_enabled) {
-      image_note += "no KITTI raw sample at " + kitti + "; ";
-    }
-  } else if (a.images) {
-    image_note = "imr or imr-synth not built (IMR_ENGINE_ONLY?): image sequences skipped";
+// 2-3. Image sequences through imr run: imr-synth's street and the KITTI raw sample. What was
+// skipped, as the note under the tables says it.
+std::string RunImageSequences(const PaperArgs& a, const fs::path& work,
+                              std::vector<ModeResult>* all) {
+  if (!a.images) return "";
+  if (!fs::exists(ExeDir() / "imr") || !fs::exists(ExeDir() / "imr-synth"))
+    return "imr or imr-synth not built (IMR_ENGINE_ONLY?): image sequences skipped";
+  std::string note;
+  fs::create_directories(work);
+  const fs::path synth = work / "imr-synth-street";
+  if (!a.synth_images) {
+    // Skipped on request.
+  } else if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(synth.string()) +
+                " --frames " + std::to_string(a.image_frames) + " --no-lidar --force -q") == 0) {
+    auto rs = RunImageSequence(
+        "images street", "kitti_odometry", json::object(), synth.string(),
+        "--truth " + Quote((synth / "ground_truth/scene.ply").string()) + " --velodyne-seq " +
+            Quote(synth.string()),
+        work, a);
+    all->insert(all->end(), rs.begin(), rs.end());
+  } else {
+    note += "imr-synth failed; ";
   }
+  // The team's data beside the checkout (IMR_SHARED_DIR, else ../shared of this source tree).
+  const std::string kitti = KittiRawSample(a.kitti);
+  if (a.kitti_enabled && fs::is_directory(kitti)) {
+    auto rs = RunImageSequence("KITTI raw", "kitti_raw", json{{"camera", 2}}, kitti,
+                               "--velodyne-seq " + Quote(kitti) + " --camera 2", work, a);
+    all->insert(all->end(), rs.begin(), rs.end());
+  } else if (a.kitti_enabled) {
+    note += "no KITTI raw sample at " + kitti + "; ";
+  }
+  return note;
+}
 
-  // Tables.
-  std::printf("\nAccuracy against ground truth (exported mesh, any_steiner rule as the default job;"
-              " truth->mesh is the paper's figure), per-move overhead (T_mov - T_nonmov) / N_mov "
-              "with engine time only:\n");
-  PrintTable(all, a.tau);
-  // Ratios per sequence.
+// The results by sequence (in the order they ran) and mode.
+struct BySequence {
   std::map<std::string, std::map<std::string, const ModeResult*>> by_seq;
-  std::vector<std::string> seq_order;
+  std::vector<std::string> order;
+};
+
+// Ratios per sequence: nearest against rays5.
+json PrintRatios(const std::vector<ModeResult>& all, BySequence* b) {
   for (const ModeResult& m : all) {
-    if (!by_seq.count(m.sequence)) seq_order.push_back(m.sequence);
-    by_seq[m.sequence][m.mode] = &m;
+    if (!b->by_seq.count(m.sequence)) b->order.push_back(m.sequence);
+    b->by_seq[m.sequence][m.mode] = &m;
   }
   json ratios = json::object();
-  std::printf("\n| sequence | overhead rays5 / nearest (target ≥ 10) | truth→mesh mean nearest / "
-              "rays5 (target ≤ 1.10) | mesh→truth mean nearest / rays5 |\n|---|---|---|---|\n");
-  for (const std::string& s : seq_order) {
-    auto& mm = by_seq[s];
+  std::printf("\n");
+  MarkdownHeader({"sequence", "overhead rays5 / nearest (target ≥ 10)",
+                  "truth→mesh mean nearest / rays5 (target ≤ 1.10)", "mesh→truth mean nearest / rays5"});
+  for (const std::string& s : b->order) {
+    auto& mm = b->by_seq[s];
     const ModeResult* n = mm.count("nearest") ? mm["nearest"] : nullptr;
     const ModeResult* r = mm.count("rays5") ? mm["rays5"] : nullptr;
     if (!n || !r || !n->ok || !r->ok) continue;
@@ -492,8 +446,11 @@ int RunPaperBench(int argc, char** argv) {
                  {"truth_to_mesh_nearest_vs_rays5", acc},
                  {"mesh_to_truth_nearest_vs_rays5", prec}};
   }
-  if (!image_note.empty()) std::printf("\nnote: %s\n", image_note.c_str());
+  return ratios;
+}
 
+json PaperJson(const PaperArgs& a, const BySequence& b, const json& ratios,
+               const std::string& load_start) {
   json result = {{"bench", "paper"},
                  {"machine", MachineLine()},
                  {"load_average_start", load_start},
@@ -508,34 +465,65 @@ int RunPaperBench(int argc, char** argv) {
                  {"image_frames", a.image_frames},
                  {"modes", a.modes},
                  {"sequences", json::object()},
-                 {"sequence_order", seq_order},
+                 {"sequence_order", b.order},
                  {"ratios", ratios}};
-  for (const std::string& s : seq_order) {
+  for (const std::string& s : b.order) {
     json js = json::object();
+    const auto& modes = b.by_seq.at(s);
     for (const std::string& mode : a.modes)
-      if (by_seq[s].count(mode)) js[mode] = ToJson(*by_seq[s][mode]);
+      if (modes.count(mode)) js[mode] = ToJson(*modes.at(mode));
     result["sequences"][s] = js;
   }
-  result["wall_s"] =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return result;
+}
 
-  // Figures.
+// The paper's two figures from the data file, when python3 with matplotlib is there.
+void Figures(const PaperArgs& a, json* result) {
   fs::create_directories(a.out);
   const fs::path data = fs::path(a.out) / "paper.json";
-  std::ofstream(data) << result.dump(2) << "\n";
+  std::ofstream(data) << result->dump(2) << "\n";
   const fs::path script = fs::path(__FILE__).parent_path() / "paper_plots.py";
   const std::string py = FindPython();
   if (py.empty() || !fs::exists(script)) {
     std::printf("\nfigures: skipped (%s)\n",
                 py.empty() ? "no python3 with matplotlib" : "paper_plots.py not found");
-    result["figures"] = json::array();
+    (*result)["figures"] = json::array();
   } else if (Sh(py + " " + Quote(script.string()) + " " + Quote(data.string()) + " " +
                 Quote(a.out)) == 0) {
     const fs::path f1 = fs::path(a.out) / "paper_accuracy.png";
     const fs::path f2 = fs::path(a.out) / "paper_overhead.png";
     std::printf("\nfigures: %s, %s (data: %s)\n", f1.c_str(), f2.c_str(), data.c_str());
-    result["figures"] = {f1.string(), f2.string()};
+    (*result)["figures"] = {f1.string(), f2.string()};
   }
+}
+
+}  // namespace
+
+int RunPaperBench(int argc, char** argv) {
+  PaperArgs a;
+  if (int status = 0; !ParsePaperArgs(argc, argv, &a, &status)) return status;
+  const std::string load_start = LoadAverage();
+  const auto wall0 = std::chrono::steady_clock::now();
+  std::printf("imr-bench paper: %s; load average at start %s\n", MachineLine().c_str(),
+              load_start.c_str());
+  std::vector<ModeResult> all;
+  if (!RunSyntheticScenes(a, &all)) return 2;
+  const fs::path work = a.work.empty() ? fs::temp_directory_path() /
+                                             ("imr-bench-paper-" + std::to_string(getpid()))
+                                       : fs::path(a.work);
+  const std::string image_note = RunImageSequences(a, work, &all);
+
+  std::printf("\nAccuracy against ground truth (exported mesh, any_steiner rule as the default job;"
+              " truth->mesh is the paper's figure), per-move overhead (T_mov - T_nonmov) / N_mov "
+              "with engine time only:\n");
+  PrintTable(all, a.tau);
+  BySequence b;
+  const json ratios = PrintRatios(all, &b);
+  if (!image_note.empty()) std::printf("\nnote: %s\n", image_note.c_str());
+  json result = PaperJson(a, b, ratios, load_start);
+  result["wall_s"] =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  Figures(a, &result);
   std::printf("load average at end %s\n", LoadAverage().c_str());
   bool ok = true;
   for (const ModeResult& m : all) ok = ok && m.ok;

@@ -23,6 +23,7 @@
 #include "host/eval/mesh_io.h"
 #include "host/eval/mesh_stats.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/frame.h"
 #include "tools/bench/common/subprocess.h"
 #include "tools/bench/peers/colmap.h"
 
@@ -65,28 +66,121 @@ bool Evaluate(const fs::path& mesh, const std::string& truth_args, const fs::pat
   return true;
 }
 
+
+json ImrJobOn(const std::string& description, const fs::path& sequence, const std::string& format,
+              const std::string& steiner_export, json pipeline, const fs::path& out) {
+  return {{"description", description},
+          {"sequences", {sequence.string()}},
+          {"input", {{"format", format}, {"options", json::object()}}},
+          {"engine", {{"window", 15}, {"steiner_export", steiner_export}}},
+          {"pipeline", std::move(pipeline)},
+          {"output", {{"directory", out.string()}, {"formats", {"ply"}}}}};
+}
+
+// imr's whole pipeline (the default job's settings) on imr-synth's street: its mesh, its model
+// for COLMAP (work/colmap-model) and its engine input (work/stream.json). Null on a failure.
+json RunImrPipeline(const fs::path& work, const fs::path& seq, int frames) {
+  if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(seq.string()) +
+         " --frames " + std::to_string(frames) + " --no-lidar --force -q") != 0) {
+    std::fprintf(stderr, "imr-bench peers: imr-synth failed\n");
+    return nullptr;
+  }
+  const json pipeline = {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
+                         {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
+                          {"params", {{"max_distance", 30.0}}}},
+                         {{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
+                         {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}};
+  ImrJob how;
+  how.job_file = work / "job.json";
+  how.log = work / "imr.log";
+  how.extra = "--export-colmap " + Quote((work / "colmap-model").string()) + " --export-stream " +
+              Quote((work / "stream.json").string());
+  const ImrJobResult r = RunImrJob(
+      ImrJobOn("imr-bench peers", seq, "kitti_odometry", "any_steiner", pipeline, work / "imr"), how);
+  if (r.status != 0) {
+    std::fprintf(stderr, "imr-bench peers: imr run failed (%s)\n", r.log.c_str());
+    return nullptr;
+  }
+  return r.report.is_null() ? json::object() : r.report;
+}
+
+// The same engine input replayed with the all_steiner export rule (the engine's default: only
+// triangles of three Steiner points left out), closer to COLMAP's complete surface.
+MesherResult ReplayAllSteiner(const fs::path& work, const std::string& truth_args) {
+  MesherResult r;
+  r.name = "imr, all_steiner export";
+  const fs::path out = work / "imr-all-steiner";
+  const json pipeline = {{{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
+                         {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}};
+  ImrJob how;
+  how.job_file = work / "replay.json";
+  const ImrJobResult run = RunImrJob(ImrJobOn("imr-bench peers: replay", work / "stream.json",
+                                              "slam_json", "all_steiner", pipeline, out),
+                                     how);
+  if (run.status != 0) {
+    r.error = "imr run (replay) failed";
+    return r;
+  }
+  r.seconds = run.report["engine"]["seconds"].value("total", 0.0);
+  r.ok = Evaluate(out / "mesh.ply", truth_args, work / "evaluate-imr-all.json", &r);
+  return r;
+}
+
+// COLMAP's Delaunay mesher on imr's model, one batch run (wall time, process included).
+MesherResult RunColmap(const std::string& colmap, const fs::path& work,
+                       const std::string& truth_args) {
+  MesherResult r;
+  r.name = "COLMAP delaunay_mesher (batch)";
+  const fs::path mesh = work / "colmap-mesh.ply";
+  const auto t0 = std::chrono::steady_clock::now();
+  const int rc = Sh(Quote(colmap) + " delaunay_mesher --input_path " +
+                    Quote((work / "colmap-model").string()) + " --input_type sparse --output_path " +
+                    Quote(mesh.string()) + " >" + Quote((work / "colmap.log").string()) + " 2>&1");
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (rc != 0 || !fs::exists(mesh))
+    r.error = "colmap delaunay_mesher failed (" + (work / "colmap.log").string() + ")";
+  else
+    r.ok = Evaluate(mesh, truth_args, work / "evaluate-colmap.json", &r);
+  return r;
+}
+
+// One mesher's row and its JSON object.
+json PrintMesher(const MesherResult& m) {
+  if (!m.ok) {
+    std::printf("| %s | failed: %s | | | | | |\n", m.name.c_str(), m.error.c_str());
+    return {{"ok", false}, {"error", m.error}};
+  }
+  const json& a = m.accuracy;
+  std::printf("| %s | %.2f | %.3f / %.3f | %.3f / %.3f | %.2f / %.2f | %lld | %s (%lld / "
+              "%lld) |\n",
+              m.name.c_str(), m.seconds, a["truth_to_mesh"].value("mean", 0.0),
+              a["truth_to_mesh"].value("median", 0.0), a["mesh_to_truth"].value("mean", 0.0),
+              a["mesh_to_truth"].value("median", 0.0), a["completeness"][0].get<double>(),
+              a["precision"][0].get<double>(), static_cast<long long>(m.stats.faces),
+              m.stats.manifold ? "yes" : "no", static_cast<long long>(m.stats.nonmanifold_edges),
+              static_cast<long long>(m.stats.nonmanifold_vertices));
+  return {{"ok", true},
+          {"seconds", m.seconds},
+          {"truth_to_mesh_mean_m", a["truth_to_mesh"].value("mean", 0.0)},
+          {"truth_to_mesh_median_m", a["truth_to_mesh"].value("median", 0.0)},
+          {"mesh_to_truth_mean_m", a["mesh_to_truth"].value("mean", 0.0)},
+          {"mesh_to_truth_median_m", a["mesh_to_truth"].value("median", 0.0)},
+          {"completeness", a["completeness"][0]},
+          {"precision", a["precision"][0]},
+          {"triangles", m.stats.faces},
+          {"manifold", m.stats.manifold},
+          {"nonmanifold_edges", m.stats.nonmanifold_edges},
+          {"nonmanifold_vertices", m.stats.nonmanifold_vertices}};
+}
+
 }  // namespace
 
 int RunPeersBench(int argc, char** argv) {
   int frames = 300;
   std::string colmap_arg, work_arg;
-  for (int i = 0; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "imr-bench peers: %s needs a value\n", k.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (k == "--frames") frames = std::atoi(value().c_str());
-    else if (k == "--colmap") colmap_arg = value();
-    else if (k == "--work") work_arg = value();
-    else {
-      std::fprintf(stderr, "usage: imr-bench peers [--frames N] [--colmap PATH] [--work DIR]\n");
-      return 2;
-    }
-  }
+  Options o("imr-bench peers", "usage: imr-bench peers [--frames N] [--colmap PATH] [--work DIR]\n");
+  o.Int("--frames", &frames).String("--colmap", &colmap_arg).String("--work", &work_arg);
+  if (int status = 0; !o.Parse(argc, argv, &status)) return status;
   const std::string load_start = LoadAverage();
   std::printf("imr-bench peers: imr vs COLMAP delaunay_mesher on identical input; %s; load "
               "average at start %s\n",
@@ -99,128 +193,32 @@ int RunPeersBench(int argc, char** argv) {
     std::printf("%s\n", json{{"bench", "peers"}, {"skipped", "no COLMAP with CGAL"}}.dump().c_str());
     return 1;
   }
-  const fs::path work = work_arg.empty() ? fs::temp_directory_path() /
-                                               ("imr-bench-peers-" + std::to_string(getpid()))
-                                         : fs::path(work_arg);
-  fs::create_directories(work);
-  // Input: imr-synth's street, through imr's whole pipeline (the default job's settings).
-  const fs::path seq = work / "street";
-  if (Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " + Quote(seq.string()) +
-         " --frames " + std::to_string(frames) + " --no-lidar --force -q") != 0) {
-    std::fprintf(stderr, "imr-bench peers: imr-synth failed\n");
-    return 1;
-  }
-  const fs::path out = work / "imr", model = work / "colmap-model";
-  const json job = {
-      {"description", "imr-bench peers"},
-      {"sequences", {seq.string()}},
-      {"input", {{"format", "kitti_odometry"}, {"options", json::object()}}},
-      {"engine", {{"window", 15}, {"steiner_export", "any_steiner"}}},
-      {"pipeline",
-       {{{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}},
-        {{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"},
-         {"params", {{"max_distance", 30.0}}}},
-        {{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
-        {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
-      {"output", {{"directory", out.string()}, {"formats", {"ply"}}}}};
-  std::ofstream(work / "job.json") << job.dump(2);
-  if (Sh(Quote((ExeDir() / "imr").string()) + " run -q " + Quote((work / "job.json").string()) +
-         " --export-colmap " + Quote(model.string()) + " --export-stream " +
-         Quote((work / "stream.json").string()) + " >" +
-         Quote((work / "imr.log").string()) + " 2>&1") != 0) {
-    std::fprintf(stderr, "imr-bench peers: imr run failed (%s)\n", (work / "imr.log").c_str());
-    return 1;
-  }
-  const json report = ReadJson(out / "report.json");
+  const WorkFolder work(work_arg, "peers");
+  const fs::path seq = work.path() / "street";
+  json report = RunImrPipeline(work.path(), seq, frames);  // not const: a missing key reads as null
+  if (report.is_null()) return 1;
   const std::string truth_args = "--truth " + Quote((seq / "ground_truth/scene.ply").string()) +
                                  " --velodyne-seq " + Quote(seq.string());
   MesherResult imr;
   imr.name = "imr (nearest, incremental)";
   imr.seconds = report["engine"]["seconds"].value("total", 0.0);
-  imr.ok = Evaluate(out / "mesh.ply", truth_args, work / "evaluate-imr.json", &imr);
-
-  // The same engine input replayed with the all_steiner export rule (the engine's default:
-  // only triangles of three Steiner points left out), closer to COLMAP's complete surface.
-  MesherResult imr_all;
-  imr_all.name = "imr, all_steiner export";
-  {
-    const fs::path out2 = work / "imr-all-steiner";
-    const json replay = {
-        {"description", "imr-bench peers: replay"},
-        {"sequences", {(work / "stream.json").string()}},
-        {"input", {{"format", "slam_json"}, {"options", json::object()}}},
-        {"engine", {{"window", 15}, {"steiner_export", "all_steiner"}}},
-        {"pipeline",
-         {{{"kind", "weight_policy"}, {"plugin", "org.imr.policy.nearest"}},
-          {{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
-        {"output", {{"directory", out2.string()}, {"formats", {"ply"}}}}};
-    std::ofstream(work / "replay.json") << replay.dump(2);
-    if (Sh(Quote((ExeDir() / "imr").string()) + " run -q " +
-           Quote((work / "replay.json").string()) + " >" +
-           Quote((work / "replay.log").string()) + " 2>&1") == 0) {
-      imr_all.seconds = ReadJson(out2 / "report.json")["engine"]["seconds"].value("total", 0.0);
-      imr_all.ok = Evaluate(out2 / "mesh.ply", truth_args, work / "evaluate-imr-all.json", &imr_all);
-    } else {
-      imr_all.error = "imr run (replay) failed";
-    }
-  }
-
-  MesherResult col;
-  col.name = "COLMAP delaunay_mesher (batch)";
-  const fs::path col_mesh = work / "colmap-mesh.ply";
-  const auto t0 = std::chrono::steady_clock::now();
-  const int rc = Sh(Quote(colmap) + " delaunay_mesher --input_path " + Quote(model.string()) +
-                    " --input_type sparse --output_path " + Quote(col_mesh.string()) + " >" +
-                    Quote((work / "colmap.log").string()) + " 2>&1");
-  col.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (rc != 0 || !fs::exists(col_mesh)) {
-    col.error = "colmap delaunay_mesher failed (" + (work / "colmap.log").string() + ")";
-  } else {
-    col.ok = Evaluate(col_mesh, truth_args, work / "evaluate-colmap.json", &col);
-  }
+  imr.ok = Evaluate(work.path() / "imr/mesh.ply", truth_args, work.path() / "evaluate-imr.json", &imr);
+  const MesherResult imr_all = ReplayAllSteiner(work.path(), truth_args);
+  const MesherResult col = RunColmap(colmap, work.path(), truth_args);
 
   std::printf("\ninput: imr-synth street, %d frames; %s points in the model\n", frames,
               report["engine"].contains("points_inserted")
                   ? std::to_string(report["engine"]["points_inserted"].get<int64_t>()).c_str()
                   : "?");
-  std::printf("\n| mesher | time (s) | truth→mesh mean / median (m) | mesh→truth mean / median (m) "
-              "| completeness / precision (τ = 0.2 m) | triangles | manifold (non-manifold edges "
-              "/ vertices) |\n|---|---|---|---|---|---|---|\n");
+  std::printf("\n");
+  MarkdownHeader({"mesher", "time (s)", "truth→mesh mean / median (m)",
+                  "mesh→truth mean / median (m)", "completeness / precision (τ = 0.2 m)",
+                  "triangles", "manifold (non-manifold edges / vertices)"});
   json result = {{"bench", "peers"}, {"machine", MachineLine()}, {"frames", frames},
                  {"load_average_start", load_start}};
-  auto key = [&](const MesherResult* m) {
-    return m == &imr ? "imr" : m == &imr_all ? "imr_all_steiner" : "colmap";
-  };
-  for (const MesherResult* m : {&imr, &imr_all, &col}) {
-    if (!m->ok) {
-      std::printf("| %s | failed: %s | | | | | |\n", m->name.c_str(), m->error.c_str());
-      result[key(m)] = {{"ok", false}, {"error", m->error}};
-      continue;
-    }
-    const json& a = m->accuracy;
-    std::printf("| %s | %.2f | %.3f / %.3f | %.3f / %.3f | %.2f / %.2f | %lld | %s (%lld / "
-                "%lld) |\n",
-                m->name.c_str(), m->seconds, a["truth_to_mesh"].value("mean", 0.0),
-                a["truth_to_mesh"].value("median", 0.0), a["mesh_to_truth"].value("mean", 0.0),
-                a["mesh_to_truth"].value("median", 0.0), a["completeness"][0].get<double>(),
-                a["precision"][0].get<double>(), static_cast<long long>(m->stats.faces),
-                m->stats.manifold ? "yes" : "no",
-                static_cast<long long>(m->stats.nonmanifold_edges),
-                static_cast<long long>(m->stats.nonmanifold_vertices));
-    result[key(m)] = {
-        {"ok", true},
-        {"seconds", m->seconds},
-        {"truth_to_mesh_mean_m", a["truth_to_mesh"].value("mean", 0.0)},
-        {"truth_to_mesh_median_m", a["truth_to_mesh"].value("median", 0.0)},
-        {"mesh_to_truth_mean_m", a["mesh_to_truth"].value("mean", 0.0)},
-        {"mesh_to_truth_median_m", a["mesh_to_truth"].value("median", 0.0)},
-        {"completeness", a["completeness"][0]},
-        {"precision", a["precision"][0]},
-        {"triangles", m->stats.faces},
-        {"manifold", m->stats.manifold},
-        {"nonmanifold_edges", m->stats.nonmanifold_edges},
-        {"nonmanifold_vertices", m->stats.nonmanifold_vertices}};
-  }
+  result["imr"] = PrintMesher(imr);
+  result["imr_all_steiner"] = PrintMesher(imr_all);
+  result["colmap"] = PrintMesher(col);
   std::printf("\nimr's time is its engine's total over all keyframes (incremental, points "
               "moving); COLMAP's is one batch run on the final points (wall, process included).\n"
               "imr's first row is the default job's export (any_steiner: no triangle touching a "
@@ -228,7 +226,7 @@ int RunPeersBench(int argc, char** argv) {
               LoadAverage().c_str());
   result["load_average_end"] = LoadAverage();
   result["colmap"]["binary"] = colmap;
-  if (imr.ok && imr_all.ok && col.ok && work_arg.empty()) fs::remove_all(work);
+  work.Finish(imr.ok && imr_all.ok && col.ok);
   std::printf("%s\n", result.dump().c_str());
   return imr.ok && imr_all.ok && col.ok ? 0 : 1;
 }

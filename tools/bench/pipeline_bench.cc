@@ -22,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "tools/bench/common/frame.h"
 #include "tools/bench/common/subprocess.h"
 #include "host/util/clock.h"
 
@@ -155,110 +156,64 @@ void PinToCores(const cpu_set_t& allowed, int cores) {
   if (sched_setaffinity(0, sizeof(set), &set) != 0) std::perror("sched_setaffinity");
 }
 
-int RunPipelineBench(int argc, char** argv) {
-  PipelineArgs a;
-  bool bad = false;
-  for (int i = 0; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "imr-bench pipeline: %s needs a value\n", k.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (k == "--frames") a.frames = std::atoi(value().c_str());
-    else if (k == "--width") a.width = std::atoi(value().c_str());
-    else if (k == "--height") a.height = std::atoi(value().c_str());
-    else if (k == "--cores") {
-      a.cores.clear();
-      std::stringstream list(value());
-      for (std::string c; std::getline(list, c, ',');) {
-        a.cores.push_back(std::atoi(c.c_str()));
-        bad = bad || a.cores.back() < 1;
-      }
-    } else if (k == "--no-overlap") a.no_overlap = true;
-    else if (k == "--work") a.work = value();
-    else if (k == "--kitti") a.kitti = value();
-    else if (k == "--keep") a.keep = true;
-    else {
-      std::fprintf(stderr,
-                   "usage: imr-bench pipeline [--frames N] [--width W --height H] [--cores C[,C...]]\n"
-                   "                          [--no-overlap] [--kitti DRIVE_DIR] [--work DIR] [--keep]\n");
-      return 2;
-    }
-  }
-  if (a.frames < 10 || a.width < 64 || a.height < 32 || a.cores.empty() || bad) {
+namespace {
+
+bool ParsePipelineArgs(int argc, char** argv, PipelineArgs* a, int* status) {
+  Options o("imr-bench pipeline",
+            "usage: imr-bench pipeline [--frames N] [--width W --height H] [--cores C[,C...]]\n"
+            "                          [--no-overlap] [--kitti DRIVE_DIR] [--work DIR] [--keep]\n");
+  o.Int("--frames", &a->frames).Int("--width", &a->width).Int("--height", &a->height);
+  o.IntList("--cores", &a->cores, 1);
+  o.Flag("--no-overlap", &a->no_overlap).String("--work", &a->work);
+  o.String("--kitti", &a->kitti).Flag("--keep", &a->keep);
+  if (!o.Parse(argc, argv, status)) return false;
+  if (a->frames < 10 || a->width < 64 || a->height < 32 || a->cores.empty()) {
     std::fprintf(stderr, "imr-bench pipeline: need frames >= 10, size >= 64x32, cores >= 1\n");
-    return 2;
+    *status = 2;
+    return false;
   }
-  // Each run pinned to its cores: the affinity is inherited by imr-synth and imr and every thread
-  // of theirs (OpenCV, Ceres, the engine), so "one core" holds for everything the pipeline runs.
-  cpu_set_t allowed;
-  sched_getaffinity(0, sizeof(allowed), &allowed);
+  return true;
+}
 
-  const fs::path work = a.work.empty()
-                            ? fs::temp_directory_path() / ("imr-bench-pipeline-" + std::to_string(getpid()))
-                            : fs::path(a.work);
-  fs::create_directories(work);
-
-  // Synthetic: generated once (on the first core count), then run on each.
-  PinToCores(allowed, a.cores.front());
-  const fs::path synth = work / "synthetic-street";
+// imr-synth's street at the bench's size, its wall time; < 0 when it failed.
+double Generate(const PipelineArgs& a, const fs::path& synth) {
   const auto gen_start = std::chrono::steady_clock::now();
   const int gen_rc = Sh(Quote((ExeDir() / "imr-synth").string()) + " --out " +
-                         Quote(synth.string()) + " --frames " + std::to_string(a.frames) +
-                         " --width " + std::to_string(a.width) + " --height " +
-                         std::to_string(a.height) + " --no-lidar --force >/dev/null");
+                        Quote(synth.string()) + " --frames " + std::to_string(a.frames) +
+                        " --width " + std::to_string(a.width) + " --height " +
+                        std::to_string(a.height) + " --no-lidar --force >/dev/null");
   const double gen_seconds = SecondsSince(gen_start);
   if (gen_rc != 0) {
     std::fprintf(stderr, "imr-bench pipeline: imr-synth failed (exit %d)\n", gen_rc);
-    return 1;
+    return -1.0;
   }
+  return gen_seconds;
+}
 
-  // Real: the KITTI raw sample, when the team's data is beside the checkout.
-  std::string kitti = a.kitti;
-  if (kitti.empty()) {
-    const char* shared = std::getenv("IMR_SHARED_DIR");
-    const fs::path base = shared ? fs::path(shared) : ExeDir() / "../../../shared";
-    kitti = (base / "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync")
-                .lexically_normal()
-                .string();
-  }
-  const bool kitti_ran = fs::is_directory(kitti);
-  if (!kitti_ran)
-    std::fprintf(stderr, "imr-bench pipeline: no KITTI raw sample at %s; skipped\n", kitti.c_str());
-
-  std::vector<std::vector<Measured>> runs;  // per core count
-  for (int cores : a.cores) {
-    PinToCores(allowed, cores);
-    runs.emplace_back();
-    runs.back().push_back(RunImr("synthetic", "kitti_odometry", synth.string(), work, cores, a.no_overlap));
-    if (kitti_ran)
-      runs.back().push_back(RunImr("kitti_raw", "kitti_raw", kitti, work, cores, a.no_overlap));
-  }
-
-  json result = {{"bench", "pipeline"},
-                 {"overlap", !a.no_overlap},
-                 {"generator_frames_per_second", a.frames / gen_seconds}};
+// One core count's table; its figures into `result`. False when a run failed.
+bool PrintCores(const PipelineArgs& a, std::size_t c, const std::vector<Measured>& runs,
+                bool kitti_ran, const std::string& kitti, json* result) {
+  std::printf("\nimr-bench pipeline: %d core(s)%s; frames per second of each stage and of the "
+              "whole\npipeline (imr run, one sequence; target >= 10 fps at 1242x375 on one core)\n\n",
+              a.cores[c], a.no_overlap ? ", --no-overlap" : "");
+  std::printf("%-10s %5s %9s %8s %8s %8s %8s %8s | whole\n", "input", "frames", "size",
+              "read", "features", "refiner", "engine", "export");
+  json by = {{"cores", a.cores[c]}};
   bool ok = true;
-  for (std::size_t c = 0; c < a.cores.size(); ++c) {
-    std::printf("\nimr-bench pipeline: %d core(s)%s; frames per second of each stage and of the "
-                "whole\npipeline (imr run, one sequence; target >= 10 fps at 1242x375 on one core)\n\n",
-                a.cores[c], a.no_overlap ? ", --no-overlap" : "");
-    std::printf("%-10s %5s %9s %8s %8s %8s %8s %8s | whole\n", "input", "frames", "size",
-                "read", "features", "refiner", "engine", "export");
-    json by = {{"cores", a.cores[c]}};
-    for (const Measured& m : runs[c]) {
-      PrintRow(m);
-      by[m.name] = Figures(m);
-      ok = ok && m.ok;
-    }
-    if (!kitti_ran) by["kitti_raw"] = {{"skipped", "no sample at " + kitti}};
-    if (a.cores.size() == 1) result.update(by);
-    else result["runs"].push_back(by);
+  for (const Measured& m : runs) {
+    PrintRow(m);
+    by[m.name] = Figures(m);
+    ok = ok && m.ok;
   }
-  // The whole pipeline's rate on each core count against the first (issue 18: 2 cores >= 1.6x 1).
+  if (!kitti_ran) by["kitti_raw"] = {{"skipped", "no sample at " + kitti}};
+  if (a.cores.size() == 1) result->update(by);
+  else (*result)["runs"].push_back(by);
+  return ok;
+}
+
+// The whole pipeline's rate on each core count against the first (issue 18: 2 cores >= 1.6x 1).
+void PrintSpeedups(const PipelineArgs& a, const std::vector<std::vector<Measured>>& runs,
+                   json* result) {
   for (std::size_t c = 1; c < a.cores.size(); ++c) {
     std::printf("\n%d cores / %d core(s), whole pipeline:", a.cores[c], a.cores[0]);
     for (std::size_t i = 0; i < runs[c].size(); ++i) {
@@ -267,13 +222,54 @@ int RunPipelineBench(int argc, char** argv) {
       if (!m.ok || !base.ok) continue;
       const double ratio = base.sequence_seconds / m.sequence_seconds;
       std::printf("  %s %.2fx", m.name.c_str(), ratio);
-      result["speedup"][std::to_string(a.cores[c]) + "/" + std::to_string(a.cores[0])][m.name] = ratio;
+      (*result)["speedup"][std::to_string(a.cores[c]) + "/" + std::to_string(a.cores[0])][m.name] = ratio;
     }
     std::printf("   (target for 2/1: >= 1.6x)\n");
   }
+}
+
+}  // namespace
+
+int RunPipelineBench(int argc, char** argv) {
+  PipelineArgs a;
+  if (int status = 0; !ParsePipelineArgs(argc, argv, &a, &status)) return status;
+  // Each run pinned to its cores: the affinity is inherited by imr-synth and imr and every thread
+  // of theirs (OpenCV, Ceres, the engine), so "one core" holds for everything the pipeline runs.
+  cpu_set_t allowed;
+  sched_getaffinity(0, sizeof(allowed), &allowed);
+  const WorkFolder work(a.work, "pipeline");
+
+  // Synthetic: generated once (on the first core count), then run on each.
+  PinToCores(allowed, a.cores.front());
+  const fs::path synth = work.path() / "synthetic-street";
+  const double gen_seconds = Generate(a, synth);
+  if (gen_seconds < 0.0) return 1;
+
+  // Real: the KITTI raw sample, when the team's data is beside the checkout.
+  const std::string kitti = KittiRawSample(a.kitti);
+  const bool kitti_ran = fs::is_directory(kitti);
+  if (!kitti_ran)
+    std::fprintf(stderr, "imr-bench pipeline: no KITTI raw sample at %s; skipped\n", kitti.c_str());
+
+  std::vector<std::vector<Measured>> runs;  // per core count
+  for (int cores : a.cores) {
+    PinToCores(allowed, cores);
+    runs.emplace_back();
+    runs.back().push_back(RunImr("synthetic", "kitti_odometry", synth.string(), work.path(), cores, a.no_overlap));
+    if (kitti_ran)
+      runs.back().push_back(RunImr("kitti_raw", "kitti_raw", kitti, work.path(), cores, a.no_overlap));
+  }
+
+  json result = {{"bench", "pipeline"},
+                 {"overlap", !a.no_overlap},
+                 {"generator_frames_per_second", a.frames / gen_seconds}};
+  bool ok = true;
+  for (std::size_t c = 0; c < a.cores.size(); ++c)
+    ok = PrintCores(a, c, runs[c], kitti_ran, kitti, &result) && ok;
+  PrintSpeedups(a, runs, &result);
   std::printf("\nsynthetic generation (imr-synth, %d frames, no lidar, %d core(s)): %.1f s, %.1f frames/s\n",
               a.frames, a.cores.front(), gen_seconds, a.frames / gen_seconds);
-  if (!a.keep && ok) fs::remove_all(work);
+  if (!a.keep && ok) fs::remove_all(work.path());  // a given --work too, as ever: --keep keeps it
   std::printf("%s\n", result.dump().c_str());
   return ok ? 0 : 1;
 }

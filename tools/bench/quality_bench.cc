@@ -64,6 +64,7 @@
 #include "host/io/colmap_model.h"
 #include "host/synthetic/stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/frame.h"
 #include "tools/bench/common/surface_figures.h"
 #include "tools/bench/common/subprocess.h"
 #include "tools/bench/peers/colmap.h"
@@ -219,27 +220,23 @@ bool Evaluate(const fs::path& mesh, const eval::EvaluationInputs& completeness,
 // memory.
 bool RunImr(const json& job, const fs::path& work, const std::string& name,
             const std::string& extra_args, Row* row, const std::string& binary = "") {
-  const fs::path job_file = work / (name + ".json");
-  std::ofstream(job_file) << job.dump(2);
-  const std::string imr = binary.empty() ? (ExeDir() / "imr").string() : binary;
-  const TimedRun r = RunTimed(Quote(imr) + " run -q " +
-                                  Quote(job_file.string()) + " " + extra_args,
-                              work / (name + ".log"));
+  ImrJob how;
+  how.job_file = work / (name + ".json");
+  how.imr = binary;
+  how.extra = extra_args;
+  const ImrJobResult r = RunImrJob(job, how);
   row->seconds = r.seconds;
   row->rss_mb = r.peak_rss_mb;
   if (r.status != 0) {
-    row->note = "imr run failed (" + (work / (name + ".log")).string() + ")";
+    row->note = "imr run failed (" + r.log.string() + ")";
     return false;
   }
   // One sequence: its report.json is in the output folder.
-  if (job.contains("output") && job["output"].contains("directory")) {
-    std::ifstream in(fs::path(job["output"]["directory"].get<std::string>()) / "report.json");
-    const json report = json::parse(in, nullptr, /*allow_exceptions=*/false);
-    if (report.is_object() && report.contains("engine") && report["engine"].contains("cameras_in_o"))
-      row->cameras_in_o = report["engine"]["cameras_in_o"].value("share", 0.0);
-    if (report.is_object() && report.contains("mesh") && report["mesh"].contains("back_facing"))
-      row->back_facing = report["mesh"]["back_facing"].value("share", 0.0);
-  }
+  const json& report = r.report;
+  if (report.is_object() && report.contains("engine") && report["engine"].contains("cameras_in_o"))
+    row->cameras_in_o = report["engine"]["cameras_in_o"].value("share", 0.0);
+  if (report.is_object() && report.contains("mesh") && report["mesh"].contains("back_facing"))
+    row->back_facing = report["mesh"]["back_facing"].value("share", 0.0);
   return true;
 }
 
@@ -359,57 +356,70 @@ std::vector<Target> Issue45Targets(const std::vector<Row>& rows, bool f_twice) {
   return t;
 }
 
-void Print(const std::string& title, const std::vector<Row>& rows,
-           std::vector<Target> targets, json* out, const std::vector<Target>& more = {}) {
-  std::printf("\n### %s\n\n", title.c_str());
+// A row's figures in the JSON line.
+json RowJson(const Row& r) {
+  json j = {{"mesher", r.mesher}, {"ok", r.ok}, {"note", r.note}};
+  if (!r.ok) return j;
+  j.update({{"seconds", r.seconds},
+            {"rss_mb", r.rss_mb},
+            {"completeness", {r.c2, r.c5}},
+            {"precision", {r.p2, r.p5}},
+            {"f", {F(r.c2, r.p2), F(r.c5, r.p5)}},
+            {"truth_to_mesh_mean", r.t2m_mean},
+            {"truth_to_mesh_median", r.t2m_median},
+            {"mesh_to_truth_mean", r.m2t_mean},
+            {"manifold", r.stats.manifold},
+            {"closed", r.stats.closed},
+            {"boundary_loops", r.stats.boundary_loops},
+            {"faces", r.stats.faces},
+            {"roughness_deg", r.roughness}});
+  if (r.road) j["road_completeness"] = *r.road;
+  if (r.cameras_in_o) j["cameras_in_o"] = *r.cameras_in_o;
+  if (r.back_facing) j["back_facing"] = *r.back_facing;
+  if (r.plane_roughness)
+    j["roughness_on_planes"] = {{"deg", r.plane_roughness->degrees}, {"edges", r.plane_roughness->edges},
+                                {"face_share", r.plane_roughness->face_share}};
+  if (r.behind) j["seen_from_behind_every_10th_keyframe"] = *r.behind;
+  j["components"] = r.small.components;
+  j["small_components"] = {{"count", r.small.small}, {"area_share", r.small.area_share}};
+  return j;
+}
+
+// A row's wall time and memory as the tables show them: blank for a row computed here rather
+// than run (the vertex-move limits have no time of their own).
+void WallAndRss(const Row& r, char (&wall)[32], char (&rss)[32]) {
+  if (r.seconds > 0.0 || r.rss_mb > 0.0)
+    std::snprintf(wall, sizeof(wall), "%.1f", r.seconds), std::snprintf(rss, sizeof(rss), "%.0f", r.rss_mb);
+}
+
+// The accuracy table; each row's JSON object.
+json PrintAccuracy(const std::vector<Row>& rows) {
+  const bool road = rows.size() && rows[0].road;
   std::printf("| mesher | wall s | RSS MB | compl. 0.2 | prec. 0.2 | F 0.2 | F 0.5 | truth→mesh "
               "mean / median (m) | mesh→truth mean (m) | manifold | roughness ° |%s\n",
-              rows.size() && rows[0].road ? " road compl. 0.2 |" : "");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|%s\n",
-              rows.size() && rows[0].road ? "---|" : "");
+              road ? " road compl. 0.2 |" : "");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|%s\n", road ? "---|" : "");
   json list = json::array();
   for (const Row& r : rows) {
-    json j = {{"mesher", r.mesher}, {"ok", r.ok}, {"note", r.note}};
+    list.push_back(RowJson(r));
     if (!r.ok) {
       std::printf("| %s | %s | | | | | | | | | |\n", r.mesher.c_str(),
                   (r.note.empty() ? std::string("failed") : r.note).c_str());
-      list.push_back(j);
       continue;
     }
-    // A row computed here rather than run (the vertex-move limits) has no time of its own.
-    const bool ran = r.seconds > 0.0 || r.rss_mb > 0.0;
     char wall[32] = "", rss[32] = "";
-    if (ran) std::snprintf(wall, sizeof(wall), "%.1f", r.seconds), std::snprintf(rss, sizeof(rss), "%.0f", r.rss_mb);
+    WallAndRss(r, wall, rss);
     std::printf("| %s | %s | %s | %.3f | %.3f | %.3f | %.3f | %.3f / %.3f | %.3f | %s | %.1f |",
                 r.mesher.c_str(), wall, rss, r.c2, r.p2, F(r.c2, r.p2), F(r.c5, r.p5),
                 r.t2m_mean, r.t2m_median, r.m2t_mean, ManifoldText(r.stats).c_str(), r.roughness);
     if (r.road) std::printf(" %.3f |", *r.road);
     std::printf("\n");
-    j.update({{"seconds", r.seconds},
-              {"rss_mb", r.rss_mb},
-              {"completeness", {r.c2, r.c5}},
-              {"precision", {r.p2, r.p5}},
-              {"f", {F(r.c2, r.p2), F(r.c5, r.p5)}},
-              {"truth_to_mesh_mean", r.t2m_mean},
-              {"truth_to_mesh_median", r.t2m_median},
-              {"mesh_to_truth_mean", r.m2t_mean},
-              {"manifold", r.stats.manifold},
-              {"closed", r.stats.closed},
-              {"boundary_loops", r.stats.boundary_loops},
-              {"faces", r.stats.faces},
-              {"roughness_deg", r.roughness}});
-    if (r.road) j["road_completeness"] = *r.road;
-    if (r.cameras_in_o) j["cameras_in_o"] = *r.cameras_in_o;
-    if (r.back_facing) j["back_facing"] = *r.back_facing;
-    if (r.plane_roughness)
-      j["roughness_on_planes"] = {{"deg", r.plane_roughness->degrees}, {"edges", r.plane_roughness->edges},
-                                  {"face_share", r.plane_roughness->face_share}};
-    if (r.behind) j["seen_from_behind_every_10th_keyframe"] = *r.behind;
-    j["components"] = r.small.components;
-    j["small_components"] = {{"count", r.small.small}, {"area_share", r.small.area_share}};
-    list.push_back(j);
   }
-  // Issue 45's figures of the surface a user sees, the same code on every mesh.
+  return list;
+}
+
+// Issue 45's figures of the surface a user sees, the same code on every mesh.
+void PrintSurface(const std::vector<Row>& rows) {
   bool planes = false;
   for (const Row& r : rows) planes |= r.ok && r.plane_roughness.has_value();
   std::printf("\n| mesher | faces | roughness, all edges ° | roughness on the true planes ° (faces "
@@ -423,8 +433,7 @@ void Print(const std::string& title, const std::vector<Row>& rows,
       std::snprintf(plane, sizeof(plane), "%.1f (%.0f %%)", r.plane_roughness->degrees,
                     100.0 * r.plane_roughness->face_share);
     if (r.behind) std::snprintf(behind, sizeof(behind), "%.2f %%", 100.0 * *r.behind);
-    if (r.seconds > 0.0 || r.rss_mb > 0.0)
-      std::snprintf(wall, sizeof(wall), "%.1f", r.seconds), std::snprintf(rss, sizeof(rss), "%.0f", r.rss_mb);
+    WallAndRss(r, wall, rss);
     std::printf("| %s | %lld | %.1f | %s | %s | %lld, %.2f %% | %lld | %s | %s |\n", r.mesher.c_str(),
                 static_cast<long long>(r.stats.faces), r.roughness, plane, behind,
                 static_cast<long long>(r.small.small), 100.0 * r.small.area_share,
@@ -438,31 +447,42 @@ void Print(const std::string& title, const std::vector<Row>& rows,
   else
     std::printf("(no planar truth here: roughness over all edges; seen from behind: report.json's "
                 "measure over every 10th keyframe's camera, at a quarter of its size)\n");
-  // The camera path (issue 34): cameras in free space, and no surface seen from behind.
+}
+
+// The camera path (issue 34): cameras in free space, and no surface seen from behind, with its
+// targets; each row's note; imr against each peer.
+void PrintNotes(const std::vector<Row>& rows, std::vector<Target>* targets) {
   for (const Row& r : rows)
     if (r.ok && r.cameras_in_o && r.back_facing)
       std::printf("%s: keyframe camera centres in O %.1f %%, visible area seen from behind "
                   "%.2f %% (keyframe views)\n",
                   r.mesher.c_str(), 100.0 * *r.cameras_in_o, 100.0 * *r.back_facing);
   if (!rows.empty() && rows[0].ok && rows[0].cameras_in_o && rows[0].back_facing) {
-    targets.push_back({"keyframe camera centres in O", 1.0, true, *rows[0].cameras_in_o});
-    targets.push_back({"visible area seen from behind", 0.01, false, *rows[0].back_facing});
+    targets->push_back({"keyframe camera centres in O", 1.0, true, *rows[0].cameras_in_o});
+    targets->push_back({"visible area seen from behind", 0.01, false, *rows[0].back_facing});
   }
   for (const Row& r : rows)
     if (!r.ok || r.note.empty()) continue;
     else std::printf("%s: %s\n", r.mesher.c_str(), r.note.c_str());
-  // imr against each peer: ratios.
-  if (!rows.empty() && rows[0].ok)
-    for (size_t i = 1; i < rows.size(); ++i) {
-      const Row& p = rows[i];
-      if (!p.ok || p.mesher.rfind("limit", 0) == 0) continue;
-      std::printf("imr / %s: completeness ×%.2f, precision ×%.2f, truth→mesh mean ×%.2f, time "
-                  "×%.2f, memory ×%.2f\n",
-                  p.mesher.c_str(), rows[0].c2 / std::max(p.c2, 1e-9),
-                  rows[0].p2 / std::max(p.p2, 1e-9), rows[0].t2m_mean / std::max(p.t2m_mean, 1e-9),
-                  rows[0].seconds / std::max(p.seconds, 1e-9),
-                  rows[0].rss_mb / std::max(p.rss_mb, 1e-9));
-    }
+  if (rows.empty() || !rows[0].ok) return;
+  for (size_t i = 1; i < rows.size(); ++i) {
+    const Row& p = rows[i];
+    if (!p.ok || p.mesher.rfind("limit", 0) == 0) continue;
+    std::printf("imr / %s: completeness ×%.2f, precision ×%.2f, truth→mesh mean ×%.2f, time "
+                "×%.2f, memory ×%.2f\n",
+                p.mesher.c_str(), rows[0].c2 / std::max(p.c2, 1e-9),
+                rows[0].p2 / std::max(p.p2, 1e-9), rows[0].t2m_mean / std::max(p.t2m_mean, 1e-9),
+                rows[0].seconds / std::max(p.seconds, 1e-9),
+                rows[0].rss_mb / std::max(p.rss_mb, 1e-9));
+  }
+}
+
+void Print(const std::string& title, const std::vector<Row>& rows,
+           std::vector<Target> targets, json* out, const std::vector<Target>& more = {}) {
+  std::printf("\n### %s\n\n", title.c_str());
+  (*out)["rows"] = PrintAccuracy(rows);
+  PrintSurface(rows);
+  PrintNotes(rows, &targets);
   targets.insert(targets.end(), more.begin(), more.end());
   json tj = json::array();
   for (const Target& t : targets) {
@@ -471,7 +491,6 @@ void Print(const std::string& title, const std::vector<Row>& rows,
                 t.at_least ? ">=" : "<=", t.value, t.reached, met ? "met" : "NOT met");
     tj.push_back({{"what", t.what}, {"target", t.value}, {"reached", t.reached}, {"met", met}});
   }
-  (*out)["rows"] = list;
   (*out)["targets"] = tj;
 }
 
@@ -1092,122 +1111,100 @@ json Stream(const QualityArgs& args, const fs::path& work) {
   return out;
 }
 
+// Words of `v` appended to `list` (the OpenMVS arguments add up over repeated options).
+std::function<std::string(const std::string&)> AppendWords(std::vector<std::string>* list) {
+  return [list](const std::string& v) {
+    std::stringstream ss(v);
+    for (std::string s; ss >> s;) list->push_back(s);
+    return std::string();
+  };
+}
+
+const char kQualityUsage[] =
+    "usage: imr-bench quality [--inputs street,synth,kitti,stream,middlebury] [--frames N]\n"
+    "       [--work DIR] [--shared DIR] [--piazza PATH] [--colmap PATH] "
+    "[--no-peers]\n"
+    "       [--before IMR --before-label LABEL]   an earlier build's imr, same "
+    "input\n"
+    "       [--openmvs BIN_DIR [--openmvs-args 'ARGS'] [--openmvs-all-images]]\n"
+    "           OpenMVS RefineMesh on the unrefined mesh and the keyframes' images "
+    "(synth, kitti)\n"
+    "         [--openmvs-rows refine,pipeline] [--openmvs-resolution-level N (1)]\n"
+    "         [--openmvs-min-resolution PX (320)] [--openmvs-densify-args 'ARGS']\n"
+    "         [--openmvs-reconstruct-args 'ARGS'] [--openmvs-refine-args 'ARGS']\n"
+    "           and its whole pipeline on the same keyframes and images, its own row\n"
+    "       [--config-set KEY=VALUE]... [--variant-job synth=FILE|kitti=FILE]...\n"
+    "           one more imr row per image input: the job with imr run --set KEY=VALUE\n"
+    "       [--renders DIR [--render-frames N,M]]   every mesher's mesh drawn by imr\n"
+    "           render into the same frames (synth 200, kitti 40)\n";
+
+// The options whose values are checked or go to more than one place.
+void AddCheckedOptions(QualityArgs* args, Options* o) {
+  o->Custom("--frames", [args](const std::string& v) {
+    char* end = nullptr;
+    const long n = std::strtol(v.c_str(), &end, 10);
+    if (v.empty() || *end) return std::string("a whole number");
+    args->synth_frames = args->stream_frames = static_cast<int>(n);
+    return std::string();
+  });
+  o->Custom("--openmvs-rows", [args](const std::string& v) {
+    args->openmvs_refine = v.find("refine") != std::string::npos;
+    args->openmvs_pipeline = v.find("pipeline") != std::string::npos;
+    return args->openmvs_refine || args->openmvs_pipeline ? std::string()
+                                                           : "refine, pipeline or refine,pipeline";
+  });
+  o->Custom("--config-set", [args](const std::string& v) {
+    if (v.find('=') == std::string::npos || v.front() == '=') return std::string("KEY=VALUE");
+    args->config_sets.push_back(v);
+    return std::string();
+  });
+  o->Custom("--variant-job", [args](const std::string& v) {
+    const std::size_t eq = v.find('=');
+    if (eq == std::string::npos || (v.substr(0, eq) != "synth" && v.substr(0, eq) != "kitti"))
+      return std::string("synth=FILE or kitti=FILE");
+    if (!fs::is_regular_file(v.substr(eq + 1))) return "a file (" + v.substr(eq + 1) + " is not one)";
+    args->variant_jobs[v.substr(0, eq)] = fs::absolute(v.substr(eq + 1)).string();
+    return std::string();
+  });
+  o->Custom("--renders", [args](const std::string& v) {
+    args->renders = fs::absolute(v).string();
+    return std::string();
+  });
+  o->IntList("--render-frames", &args->render_frames, 0);
+}
+
+bool ParseQualityArgs(int argc, char** argv, QualityArgs* args, int* status) {
+  Options o("imr-bench quality", kQualityUsage);
+  OpenMvsPipelineOptions& mvs = args->openmvs_pipeline_options;
+  o.List("--inputs", &args->inputs).String("--work", &args->work).String("--shared", &args->shared);
+  o.String("--piazza", &args->piazza).String("--colmap", &args->colmap);
+  o.Flag("--no-peers", &args->peers, false).String("--before", &args->before);
+  o.String("--before-label", &args->before_label).String("--openmvs", &args->openmvs);
+  o.Flag("--openmvs-all-images", &args->openmvs_all_images);
+  o.Custom("--openmvs-args", AppendWords(&args->openmvs_args));
+  o.Int("--openmvs-resolution-level", &mvs.resolution_level);
+  o.Int("--openmvs-min-resolution", &mvs.min_resolution);
+  o.Custom("--openmvs-densify-args", AppendWords(&mvs.densify_args));
+  o.Custom("--openmvs-reconstruct-args", AppendWords(&mvs.reconstruct_args));
+  o.Custom("--openmvs-refine-args", AppendWords(&mvs.refine_args));
+  AddCheckedOptions(args, &o);
+  if (!o.Parse(argc, argv, status)) return false;
+  if (const std::string e = mvs.Check(); !e.empty()) {
+    std::fprintf(stderr, "imr-bench quality: the OpenMVS pipeline's options: %s\n", e.c_str());
+    *status = 2;
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 int RunQualityBench(int argc, char** argv) {
   QualityArgs args;
-  for (int i = 0; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "imr-bench quality: %s needs a value\n", k.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (k == "--inputs") {
-      args.inputs.clear();
-      std::stringstream ss(value());
-      for (std::string s; std::getline(ss, s, ',');) args.inputs.push_back(s);
-    } else if (k == "--frames") {
-      args.synth_frames = args.stream_frames = std::atoi(value().c_str());
-    } else if (k == "--work") {
-      args.work = value();
-    } else if (k == "--shared") {
-      args.shared = value();
-    } else if (k == "--piazza") {
-      args.piazza = value();
-    } else if (k == "--colmap") {
-      args.colmap = value();
-    } else if (k == "--no-peers") {
-      args.peers = false;
-    } else if (k == "--before") {
-      args.before = value();
-    } else if (k == "--before-label") {
-      args.before_label = value();
-    } else if (k == "--openmvs") {
-      args.openmvs = value();
-    } else if (k == "--openmvs-all-images") {
-      args.openmvs_all_images = true;
-    } else if (k == "--openmvs-args") {
-      std::stringstream ss(value());
-      for (std::string s; ss >> s;) args.openmvs_args.push_back(s);
-    } else if (k == "--openmvs-rows") {
-      const std::string v = value();
-      args.openmvs_refine = v.find("refine") != std::string::npos;
-      args.openmvs_pipeline = v.find("pipeline") != std::string::npos;
-      if (!args.openmvs_refine && !args.openmvs_pipeline) {
-        std::fprintf(stderr, "imr-bench quality: --openmvs-rows: expected refine, pipeline or "
-                             "refine,pipeline, got '%s'\n", v.c_str());
-        return 2;
-      }
-    } else if (k == "--openmvs-resolution-level") {
-      args.openmvs_pipeline_options.resolution_level = std::atoi(value().c_str());
-    } else if (k == "--openmvs-min-resolution") {
-      args.openmvs_pipeline_options.min_resolution = std::atoi(value().c_str());
-    } else if (k == "--openmvs-densify-args" || k == "--openmvs-reconstruct-args" ||
-               k == "--openmvs-refine-args") {
-      std::vector<std::string>& list = k == "--openmvs-densify-args" ? args.openmvs_pipeline_options.densify_args
-                                       : k == "--openmvs-reconstruct-args" ? args.openmvs_pipeline_options.reconstruct_args
-                                                                           : args.openmvs_pipeline_options.refine_args;
-      std::stringstream ss(value());
-      for (std::string s; ss >> s;) list.push_back(s);
-    } else if (k == "--config-set") {
-      const std::string v = value();
-      if (v.find('=') == std::string::npos || v.front() == '=') {
-        std::fprintf(stderr, "imr-bench quality: --config-set: expected KEY=VALUE, got '%s'\n", v.c_str());
-        return 2;
-      }
-      args.config_sets.push_back(v);
-    } else if (k == "--variant-job") {
-      const std::string v = value();
-      const std::size_t eq = v.find('=');
-      if (eq == std::string::npos || (v.substr(0, eq) != "synth" && v.substr(0, eq) != "kitti")) {
-        std::fprintf(stderr, "imr-bench quality: --variant-job: expected synth=FILE or kitti=FILE, "
-                             "got '%s'\n", v.c_str());
-        return 2;
-      }
-      if (!fs::is_regular_file(v.substr(eq + 1))) {
-        std::fprintf(stderr, "imr-bench quality: --variant-job: %s is not a file\n", v.substr(eq + 1).c_str());
-        return 2;
-      }
-      args.variant_jobs[v.substr(0, eq)] = fs::absolute(v.substr(eq + 1)).string();
-    } else if (k == "--renders") {
-      args.renders = fs::absolute(value()).string();
-    } else if (k == "--render-frames") {
-      std::stringstream ss(value());
-      for (std::string f; std::getline(ss, f, ',');) args.render_frames.push_back(std::atoi(f.c_str()));
-    } else {
-      std::fprintf(stderr,
-                   "usage: imr-bench quality [--inputs street,synth,kitti,stream,middlebury] [--frames N]\n"
-                   "       [--work DIR] [--shared DIR] [--piazza PATH] [--colmap PATH] "
-                   "[--no-peers]\n"
-                   "       [--before IMR --before-label LABEL]   an earlier build's imr, same "
-                   "input\n"
-                   "       [--openmvs BIN_DIR [--openmvs-args 'ARGS'] [--openmvs-all-images]]\n"
-                   "           OpenMVS RefineMesh on the unrefined mesh and the keyframes' images "
-                   "(synth, kitti)\n"
-                   "         [--openmvs-rows refine,pipeline] [--openmvs-resolution-level N (1)]\n"
-                   "         [--openmvs-min-resolution PX (320)] [--openmvs-densify-args 'ARGS']\n"
-                   "         [--openmvs-reconstruct-args 'ARGS'] [--openmvs-refine-args 'ARGS']\n"
-                   "           and its whole pipeline on the same keyframes and images, its own row\n"
-                   "       [--config-set KEY=VALUE]... [--variant-job synth=FILE|kitti=FILE]...\n"
-                   "           one more imr row per image input: the job with imr run --set KEY=VALUE\n"
-                   "       [--renders DIR [--render-frames N,M]]   every mesher's mesh drawn by imr\n"
-                   "           render into the same frames (synth 200, kitti 40)\n");
-      return 2;
-    }
-  }
-  if (const std::string e = args.openmvs_pipeline_options.Check(); !e.empty()) {
-    std::fprintf(stderr, "imr-bench quality: the OpenMVS pipeline's options: %s\n", e.c_str());
-    return 2;
-  }
-  if (args.shared.empty())
-    args.shared = std::getenv("IMR_SHARED_DIR") ? std::getenv("IMR_SHARED_DIR") : IMR_SHARED_DIR;
-  const fs::path work = args.work.empty() ? fs::temp_directory_path() /
-                                                ("imr-bench-quality-" + std::to_string(getpid()))
-                                          : fs::path(args.work);
-  fs::create_directories(work);
+  if (int status = 0; !ParseQualityArgs(argc, argv, &args, &status)) return status;
+  args.shared = SharedDir(args.shared).string();
+  const WorkFolder work_folder(args.work, "quality");
+  const fs::path& work = work_folder.path();
   std::printf("imr-bench quality: %s; load average at start %s; work folder %s\n",
               MachineLine().c_str(), LoadAverage().c_str(), work.c_str());
   json result = {{"bench", "quality"}, {"machine", MachineLine()},
@@ -1227,7 +1224,7 @@ int RunQualityBench(int argc, char** argv) {
   }
   result["load_average_end"] = LoadAverage();
   std::printf("\nload average at end %s\n", LoadAverage().c_str());
-  if (args.work.empty()) fs::remove_all(work);
+  work_folder.Finish();
   std::printf("%s\n", result.dump().c_str());
   return 0;
 }

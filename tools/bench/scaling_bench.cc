@@ -24,6 +24,8 @@
 #include "host/engine/engine.h"
 #include "host/engine/testing/run_stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/engine_modes.h"
+#include "tools/bench/common/frame.h"
 
 namespace imr::bench {
 namespace {
@@ -172,69 +174,31 @@ double FitExponent(const std::vector<double>& x, const std::vector<double>& y) {
   return d != 0 ? (n * sxy - sx * sy) / d : 0.0;
 }
 
-}  // namespace
+bool ParseScalingArgs(int argc, char** argv, ScalingArgs* a, int* status) {
+  Options o("imr-bench scaling",
+            "usage: imr-bench scaling [--frames 250,500,1000,2000] [--modes nearest,...]\n"
+            "         [--points P] [--noise S] [--seed S] [--out DIR] [--quick]\n");
+  o.IntList("--frames", &a->frames, 10);
+  o.List("--modes", &a->modes).Int("--points", &a->points).Double("--noise", &a->noise);
+  o.Uint64("--seed", &a->seed).String("--out", &a->out);
+  o.Action("--quick", [a] { a->frames = {100, 200, 400}; });
+  if (!o.Parse(argc, argv, status)) return false;
+  *status = 2;  // when a mode is unknown
+  return KnownModes(a->modes, "scaling");
+}
 
-int RunScalingBench(int argc, char** argv) {
-  ScalingArgs a;
-  for (int i = 0; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "imr-bench scaling: %s needs a value\n", k.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (k == "--frames") {
-      a.frames.clear();
-      std::stringstream ss(value());
-      std::string f;
-      while (std::getline(ss, f, ',')) a.frames.push_back(std::atoi(f.c_str()));
-    } else if (k == "--modes") {
-      a.modes.clear();
-      std::stringstream ss(value());
-      std::string m;
-      while (std::getline(ss, m, ',')) a.modes.push_back(m);
-    } else if (k == "--points") a.points = std::atoi(value().c_str());
-    else if (k == "--noise") a.noise = std::atof(value().c_str());
-    else if (k == "--seed") a.seed = std::strtoull(value().c_str(), nullptr, 10);
-    else if (k == "--out") a.out = value();
-    else if (k == "--quick") a.frames = {100, 200, 400};
-    else {
-      std::fprintf(stderr,
-                   "usage: imr-bench scaling [--frames 250,500,1000,2000] [--modes nearest,...]\n"
-                   "         [--points P] [--noise S] [--seed S] [--out DIR] [--quick]\n");
-      return 2;
-    }
-  }
-  for (int f : a.frames)
-    if (f < 10) {
-      std::fprintf(stderr, "imr-bench scaling: frames must be >= 10\n");
-      return 2;
-    }
-  for (const auto& m : a.modes) {
-    engine::EngineOptions eo;
-    std::unique_ptr<engine::WeightTransferPolicy> p;
-    if (!engine::testing::ConfigureMode(m, &eo, &p)) {
-      std::fprintf(stderr, "imr-bench scaling: unknown mode '%s'\n", m.c_str());
-      return 2;
-    }
-  }
-  const std::string load_start = LoadAverage();
-  std::printf("imr-bench scaling: synthetic street, %d new points per keyframe, noise %.2f m at "
-              "10 m, points moving; %s; load average at start %s\n",
-              a.points, a.noise, MachineLine().c_str(), load_start.c_str());
-  json runs = json::array();
-  json exponents = json::object();
-  std::printf("\n| mode | frames | obs/frame | keyframe median / p90 / max (ms) | late/early | "
-              "total wall / CPU (s) | frames/s | peak RSS (MB) | bytes/vertex | vertices |\n"
-              "|---|---|---|---|---|---|---|---|---|---|\n");
+// Every mode at every length, a row each (a child process per run); the growth exponent of total
+// time in frames per mode. False when a run failed.
+bool RunAll(const ScalingArgs& a, json* runs, json* exponents) {
+  std::printf("\n");
+  MarkdownHeader({"mode", "frames", "obs/frame", "keyframe median / p90 / max (ms)", "late/early",
+                  "total wall / CPU (s)", "frames/s", "peak RSS (MB)", "bytes/vertex", "vertices"});
   bool ok = true;
   for (const std::string& mode : a.modes) {
     std::vector<double> xs, ys;
     for (int f : a.frames) {
       json r = RunInChild(mode, f, a);
-      runs.push_back(r);
+      runs->push_back(r);
       if (!r.value("ok", false)) {
         ok = false;
         std::printf("| %s | %d | failed: %s | | | | | | | |\n", mode.c_str(), f,
@@ -254,8 +218,39 @@ int RunScalingBench(int argc, char** argv) {
                   static_cast<long long>(r["vertices"].get<int64_t>()));
       std::fflush(stdout);
     }
-    exponents[mode] = FitExponent(xs, ys);
+    (*exponents)[mode] = FitExponent(xs, ys);
   }
+  return ok;
+}
+
+// The figure from the data file, when python3 with matplotlib is there.
+void Figure(const ScalingArgs& a, const json& result) {
+  fs::create_directories(a.out);
+  const fs::path data = fs::path(a.out) / "scaling.json";
+  std::ofstream(data) << result.dump() << "\n";
+  const fs::path script = fs::path(__FILE__).parent_path() / "scaling_plot.py";
+  const std::string py = FindPython();
+  if (!py.empty() && fs::exists(script) &&
+      std::system((py + " '" + script.string() + "' '" + data.string() + "' '" + a.out + "'")
+                      .c_str()) == 0)
+    std::printf("figure: %s (data: %s)\n", (fs::path(a.out) / "scaling.png").c_str(),
+                data.c_str());
+  else
+    std::printf("figure: skipped (no python3 with matplotlib, or the script failed)\n");
+}
+
+}  // namespace
+
+int RunScalingBench(int argc, char** argv) {
+  ScalingArgs a;
+  if (int status = 0; !ParseScalingArgs(argc, argv, &a, &status)) return status;
+  const std::string load_start = LoadAverage();
+  std::printf("imr-bench scaling: synthetic street, %d new points per keyframe, noise %.2f m at "
+              "10 m, points moving; %s; load average at start %s\n",
+              a.points, a.noise, MachineLine().c_str(), load_start.c_str());
+  json runs = json::array();
+  json exponents = json::object();
+  const bool ok = RunAll(a, &runs, &exponents);
   std::printf("\n");
   for (const auto& [mode, b] : exponents.items())
     std::printf("growth exponent of total time in frames (%s): %.3f (target <= 1.1)\n",
@@ -270,22 +265,7 @@ int RunScalingBench(int argc, char** argv) {
                  {"seed", a.seed},
                  {"growth_exponent", exponents},
                  {"runs", runs}};
-  fs::create_directories(a.out);
-  const fs::path data = fs::path(a.out) / "scaling.json";
-  std::ofstream(data) << result.dump() << "\n";
-  const fs::path script = fs::path(__FILE__).parent_path() / "scaling_plot.py";
-  std::string py;
-  for (const char* c : {"python3", "/usr/bin/python3"})
-    if (py.empty() &&
-        std::system((std::string(c) + " -c 'import matplotlib' >/dev/null 2>&1").c_str()) == 0)
-      py = c;
-  if (!py.empty() && fs::exists(script) &&
-      std::system((py + " '" + script.string() + "' '" + data.string() + "' '" + a.out + "'")
-                      .c_str()) == 0)
-    std::printf("figure: %s (data: %s)\n", (fs::path(a.out) / "scaling.png").c_str(),
-                data.c_str());
-  else
-    std::printf("figure: skipped (no python3 with matplotlib, or the script failed)\n");
+  Figure(a, result);
   std::printf("load average at end %s\n", load_end.c_str());
   // Last line: the summary without the per-keyframe series (those are in scaling.json).
   for (auto& r : result["runs"]) {

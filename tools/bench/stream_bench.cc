@@ -8,7 +8,6 @@
 
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
 #include <random>
 #include <string>
@@ -18,6 +17,7 @@
 
 #include "host/synthetic/stream.h"
 #include "tools/bench/common/bench_util.h"
+#include "tools/bench/common/frame.h"
 
 namespace imr::bench {
 namespace {
@@ -70,49 +70,118 @@ struct Args {
   double max_range = 40.0;
 };
 
+
+bool ParseStreamArgs(int argc, char** argv, Args* a, synthetic::StreamOptions* o, int* status) {
+  Options opts("imr-bench stream",
+               "usage: imr-bench stream [--frames 20000] [--keyframe-every 5] [--seed 1]\n"
+               "         [--keep-truth] [--track-frames 17] [--track-density 2.1]\n"
+               "         [--max-range 40]\n");
+  opts.Int("--frames", &a->frames).Int("--keyframe-every", &a->keyframe_every);
+  opts.Uint64("--seed", &a->seed).Flag("--keep-truth", &a->keep_truth);
+  opts.Int("--track-frames", &a->track_frames).Double("--track-density", &a->track_density);
+  opts.Double("--max-range", &a->max_range);
+  if (!opts.Parse(argc, argv, status)) return false;
+  o->frames = a->frames;  // configs/dense-street.json's input options
+  o->keyframe_every = a->keyframe_every;
+  o->seed = a->seed;
+  o->keep_truth = a->keep_truth;
+  o->track_frames = a->track_frames;
+  o->track_density = a->track_density;
+  o->max_range = a->max_range;
+  o->noise_at_10m = 0.2;
+  if (const std::string problem = o->Check(); !problem.empty() || a->frames < 100) {
+    std::fprintf(stderr, "imr-bench stream: %s\n",
+                 problem.empty() ? "--frames: expected >= 100" : problem.c_str());
+    *status = 2;
+    return false;
+  }
+  return true;
+}
+
+// What the drive measured per tenth and over the whole.
+struct Drive {
+  nlohmann::json tenths = nlohmann::json::array();
+  double ms_first = 0.0, ms_last = 0.0, wall = 0.0;
+  long rss_peak = 0;
+};
+
+// The generator over the whole drive, a row per tenth of its frames.
+Drive RunTenths(synthetic::SyntheticStream& stream, int frames_total) {
+  Drive d;
+  synthetic::StreamKeyframe kf;
+  const synthetic::StreamStats& st = stream.stats();
+  int tenth = 0;
+  int64_t f0 = 0, obs0 = 0, new0 = 0, mov0 = 0;
+  size_t live_max = 0;
+  double sec0 = 0.0;
+  const auto t0 = Clock::now();
+  while (stream.Next(&kf)) {
+    live_max = std::max(live_max, st.active_tracks);
+    const bool last = st.keyframes == stream.keyframe_count();
+    if (st.frames * 10 < static_cast<int64_t>(tenth + 1) * frames_total && !last) continue;
+    const double frames = static_cast<double>(st.frames - f0);
+    const double ms = 1e3 * (st.seconds - sec0) / frames;
+    const long rss = RssBytes();
+    d.rss_peak = std::max(d.rss_peak, rss);
+    if (tenth == 0) d.ms_first = ms;
+    d.ms_last = ms;
+    std::printf("| %d | %lld-%lld | %.2f | %.0f | %.1f | %.0f | %zu | %zu | %.1f |\n", tenth + 1,
+                static_cast<long long>(f0), static_cast<long long>(st.frames - 1), ms,
+                (st.observations - obs0) / frames, (st.new_points - new0) / frames,
+                (st.moved_points - mov0) / frames, live_max, st.kept_truths, rss / 1e6);
+    d.tenths.push_back({{"frames", frames}, {"ms_per_frame", ms},
+                        {"observations_per_frame", (st.observations - obs0) / frames},
+                        {"live_tracks_max", live_max}, {"rss_bytes", rss}});
+    f0 = st.frames, obs0 = st.observations, new0 = st.new_points, mov0 = st.moved_points;
+    sec0 = st.seconds;
+    live_max = 0;
+    ++tenth;
+  }
+  d.wall = Seconds(t0, Clock::now());
+  return d;
+}
+
+// Mean track length in observations: of every track that ended, and of those reported (>= 2).
+void TrackLengths(const synthetic::StreamStats& st, double* mean, double* reported_mean) {
+  int64_t ended = 0, sum = 0, reported = 0, reported_sum = 0;
+  for (size_t n = 1; n < st.track_lengths.size(); ++n) {
+    ended += st.track_lengths[n];
+    sum += static_cast<int64_t>(n) * st.track_lengths[n];
+    if (n >= 2) {
+      reported += st.track_lengths[n];
+      reported_sum += static_cast<int64_t>(n) * st.track_lengths[n];
+    }
+  }
+  *mean = ended ? static_cast<double>(sum) / ended : 0.0;
+  *reported_mean = reported ? static_cast<double>(reported_sum) / reported : 0.0;
+}
+
+void PrintTotals(const Args& a, const synthetic::StreamStats& st, const Drive& d) {
+  double mean = 0.0, reported_mean = 0.0;
+  TrackLengths(st, &mean, &reported_mean);
+  const double frames = static_cast<double>(st.frames);
+  std::printf("\ntotal: %.1f s (%.2f ms per frame, generator only); %.0f observations per frame "
+              "(%.0f from the 2nd observation on, as a SLAM JSON view lists them), %.1f new points "
+              "and %.0f moves per frame; tracks %lld started, %lld lost before %d observations, "
+              "mean length %.2f observations (%.2f of those reported); live tracks at most %zu; "
+              "peak RSS %.1f MB (VmHWM %.1f MB); ms per frame last tenth / first tenth %.2f\n",
+              d.wall, 1e3 * d.wall / frames, st.observations / frames,
+              (st.observations - st.new_points) / frames, st.new_points / frames,
+              st.moved_points / frames, static_cast<long long>(st.tracks_started),
+              static_cast<long long>(st.tracks_lost), a.track_frames, mean, reported_mean,
+              st.max_active_tracks, d.rss_peak / 1e6, PeakRssKb() / 1e3, d.ms_last / d.ms_first);
+  std::printf("track lengths (observations: tracks):");
+  for (size_t n = 1; n < st.track_lengths.size(); ++n)
+    std::printf(" %zu: %lld", n, static_cast<long long>(st.track_lengths[n]));
+  std::printf("\n");
+}
+
 }  // namespace
 
 int RunStreamBench(int argc, char** argv) {
   Args a;
-  for (int i = 0; i < argc; ++i) {
-    const std::string k = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "imr-bench stream: %s needs a value\n", k.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (k == "--frames") a.frames = std::atoi(value().c_str());
-    else if (k == "--keyframe-every") a.keyframe_every = std::atoi(value().c_str());
-    else if (k == "--seed") a.seed = std::strtoull(value().c_str(), nullptr, 10);
-    else if (k == "--keep-truth") a.keep_truth = true;
-    else if (k == "--track-frames") a.track_frames = std::atoi(value().c_str());
-    else if (k == "--track-density") a.track_density = std::atof(value().c_str());
-    else if (k == "--max-range") a.max_range = std::atof(value().c_str());
-    else {
-      std::fprintf(stderr,
-                   "usage: imr-bench stream [--frames 20000] [--keyframe-every 5] [--seed 1]\n"
-                   "         [--keep-truth] [--track-frames 17] [--track-density 2.1]\n"
-                   "         [--max-range 40]\n");
-      return 2;
-    }
-  }
-  synthetic::StreamOptions o;  // configs/dense-street.json's input options
-  o.frames = a.frames;
-  o.keyframe_every = a.keyframe_every;
-  o.seed = a.seed;
-  o.keep_truth = a.keep_truth;
-  o.track_frames = a.track_frames;
-  o.track_density = a.track_density;
-  o.max_range = a.max_range;
-  o.noise_at_10m = 0.2;
-  if (const std::string problem = o.Check(); !problem.empty() || a.frames < 100) {
-    std::fprintf(stderr, "imr-bench stream: %s\n",
-                 problem.empty() ? "--frames: expected >= 100" : problem.c_str());
-    return 2;
-  }
-
+  synthetic::StreamOptions o;
+  if (int status = 0; !ParseStreamArgs(argc, argv, &a, &o, &status)) return status;
   const long rss_start = RssBytes();
   const auto t_build = Clock::now();
   synthetic::SyntheticStream stream(o);
@@ -131,69 +200,14 @@ int RunStreamBench(int argc, char** argv) {
               "%.2f us at frame 10, %.2f us at frame %d\n\n",
               stream.scene().rects().size(), 1e3 * build_seconds, scene_bytes / 1e6, sees_start,
               sees_end, a.frames - 10);
-  std::printf("| tenth | frames | ms per frame | observations per frame | new per frame | moves "
-              "per frame | live tracks (max) | true points kept | RSS MB |\n"
-              "|---|---|---|---|---|---|---|---|---|\n");
-
-  synthetic::StreamKeyframe kf;
+  MarkdownHeader({"tenth", "frames", "ms per frame", "observations per frame", "new per frame",
+                  "moves per frame", "live tracks (max)", "true points kept", "RSS MB"});
+  const Drive d = RunTenths(stream, a.frames);
   const synthetic::StreamStats& st = stream.stats();
-  nlohmann::json tenths = nlohmann::json::array();
-  int tenth = 0;
-  int64_t f0 = 0, obs0 = 0, new0 = 0, mov0 = 0;
-  size_t live_max = 0;
-  double sec0 = 0.0, ms_first = 0.0, ms_last = 0.0;
-  long rss_peak = 0;
-  const auto t0 = Clock::now();
-  while (stream.Next(&kf)) {
-    live_max = std::max(live_max, st.active_tracks);
-    const bool last = st.keyframes == stream.keyframe_count();
-    if (st.frames * 10 < static_cast<int64_t>(tenth + 1) * a.frames && !last) continue;
-    const double frames = static_cast<double>(st.frames - f0);
-    const double ms = 1e3 * (st.seconds - sec0) / frames;
-    const long rss = RssBytes();
-    rss_peak = std::max(rss_peak, rss);
-    if (tenth == 0) ms_first = ms;
-    ms_last = ms;
-    std::printf("| %d | %lld-%lld | %.2f | %.0f | %.1f | %.0f | %zu | %zu | %.1f |\n", tenth + 1,
-                static_cast<long long>(f0), static_cast<long long>(st.frames - 1), ms,
-                (st.observations - obs0) / frames, (st.new_points - new0) / frames,
-                (st.moved_points - mov0) / frames, live_max, st.kept_truths, rss / 1e6);
-    tenths.push_back({{"frames", frames}, {"ms_per_frame", ms},
-                      {"observations_per_frame", (st.observations - obs0) / frames},
-                      {"live_tracks_max", live_max}, {"rss_bytes", rss}});
-    f0 = st.frames, obs0 = st.observations, new0 = st.new_points, mov0 = st.moved_points;
-    sec0 = st.seconds;
-    live_max = 0;
-    ++tenth;
-  }
-  const double wall = Seconds(t0, Clock::now());
-
-  int64_t ended = 0, sum = 0, reported = 0, reported_sum = 0;
-  for (size_t n = 1; n < st.track_lengths.size(); ++n) {
-    ended += st.track_lengths[n];
-    sum += static_cast<int64_t>(n) * st.track_lengths[n];
-    if (n >= 2) {
-      reported += st.track_lengths[n];
-      reported_sum += static_cast<int64_t>(n) * st.track_lengths[n];
-    }
-  }
+  double track_mean = 0.0, reported_mean = 0.0;
+  TrackLengths(st, &track_mean, &reported_mean);
+  PrintTotals(a, st, d);
   const double frames = static_cast<double>(st.frames);
-  std::printf("\ntotal: %.1f s (%.2f ms per frame, generator only); %.0f observations per frame "
-              "(%.0f from the 2nd observation on, as a SLAM JSON view lists them), %.1f new points "
-              "and %.0f moves per frame; tracks %lld started, %lld lost before %d observations, "
-              "mean length %.2f observations (%.2f of those reported); live tracks at most %zu; "
-              "peak RSS %.1f MB (VmHWM %.1f MB); ms per frame last tenth / first tenth %.2f\n",
-              wall, 1e3 * wall / frames, st.observations / frames,
-              (st.observations - st.new_points) / frames, st.new_points / frames,
-              st.moved_points / frames, static_cast<long long>(st.tracks_started),
-              static_cast<long long>(st.tracks_lost), a.track_frames,
-              ended ? static_cast<double>(sum) / ended : 0.0,
-              reported ? static_cast<double>(reported_sum) / reported : 0.0, st.max_active_tracks,
-              rss_peak / 1e6, PeakRssKb() / 1e3, ms_last / ms_first);
-  std::printf("track lengths (observations: tracks):");
-  for (size_t n = 1; n < st.track_lengths.size(); ++n)
-    std::printf(" %zu: %lld", n, static_cast<long long>(st.track_lengths[n]));
-  std::printf("\n");
   const nlohmann::json j = {
       {"bench", "stream"},
       {"frames", a.frames},
@@ -203,16 +217,16 @@ int RunStreamBench(int argc, char** argv) {
       {"scene_build_seconds", build_seconds},
       {"sees_us_start", sees_start},
       {"sees_us_end", sees_end},
-      {"seconds", wall},
-      {"ms_per_frame", 1e3 * wall / frames},
-      {"ms_per_frame_last_over_first_tenth", ms_last / ms_first},
+      {"seconds", d.wall},
+      {"ms_per_frame", 1e3 * d.wall / frames},
+      {"ms_per_frame_last_over_first_tenth", d.ms_last / d.ms_first},
       {"observations_per_frame", st.observations / frames},
       {"new_points_per_frame", st.new_points / frames},
       {"moves_per_frame", st.moved_points / frames},
-      {"track_mean_length", ended ? static_cast<double>(sum) / ended : 0.0},
+      {"track_mean_length", track_mean},
       {"live_tracks_max", st.max_active_tracks},
       {"peak_rss_bytes", PeakRssKb() * 1024},
-      {"tenths", tenths}};
+      {"tenths", d.tenths}};
   std::printf("%s\n", j.dump().c_str());
   return 0;
 }

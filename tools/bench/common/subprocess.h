@@ -53,6 +53,65 @@ struct ProcessResult {
   bool ok() const { return started && !timed_out && exit_status == 0; }
 };
 
+namespace detail {
+
+// The child's side of RunProcess: into `work_dir`, stdout and stderr to `log`, then exec; on a
+// failure it writes {step, errno} to `fail_fd` (1 chdir, 2 open the log, 3 exec) and exits 127.
+[[noreturn]] inline void ExecChild(char* const* args, const std::filesystem::path& work_dir,
+                                   const std::filesystem::path& log, int fail_fd) {
+  int step = 0;
+  if (!work_dir.empty() && chdir(work_dir.c_str()) != 0) step = 1;
+  if (step == 0 && !log.empty()) {
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    if (fd < 0 || dup2(fd, 1) < 0 || dup2(fd, 2) < 0) step = 2;
+    if (fd > 2) close(fd);
+  }
+  if (step == 0) {
+    execv(args[0], args);
+    step = 3;
+  }
+  const int report[2] = {step, errno};
+  (void)!write(fail_fd, report, sizeof report);
+  _exit(127);
+}
+
+// Waits for `pid`, killing it (SIGKILL) after `timeout_seconds` (<= 0: no limit); its status and
+// rusage. False when wait4 failed (r->error says why).
+inline bool WaitWithLimit(pid_t pid, std::chrono::steady_clock::time_point t0,
+                          double timeout_seconds, int* status, rusage* u, ProcessResult* r) {
+  for (;;) {
+    const pid_t w = wait4(pid, status, timeout_seconds > 0 ? WNOHANG : 0, u);
+    if (w == pid) return true;
+    if (w < 0 && errno != EINTR) {
+      r->error = std::string("wait4 failed: ") + std::strerror(errno);
+      return false;
+    }
+    if (w == 0) {  // still running
+      const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      if (t > timeout_seconds && !r->timed_out) {
+        kill(pid, SIGKILL);
+        r->timed_out = true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+}
+
+// How the process ended, in words ("" when it exited 0).
+inline void DescribeEnd(int status, double timeout_seconds, ProcessResult* r) {
+  if (WIFEXITED(status)) r->exit_status = WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) r->signal = WTERMSIG(status);
+  if (r->timed_out)
+    r->error = "killed after the time limit of " +
+               std::to_string(static_cast<long>(timeout_seconds)) + " s";
+  else if (r->signal)
+    r->error = "killed by signal " + std::to_string(r->signal) + " (" + strsignal(r->signal) + ")";
+  else if (r->exit_status != 0)
+    r->error = "exited with status " + std::to_string(r->exit_status);
+}
+
+}  // namespace detail
+
 // Runs argv[0] (a path, no shell) with the other arguments in `work_dir` (unless empty), stdout
 // and stderr appended to `log` (unless empty), killed after `timeout_seconds` (<= 0: no limit).
 // Unlike Sh, the peak RSS is this process's own: getrusage(RUSAGE_CHILDREN) would give the
@@ -89,20 +148,7 @@ inline ProcessResult RunProcess(const std::vector<std::string>& argv,
   }
   if (pid == 0) {
     close(fail_pipe[0]);
-    int step = 0;  // 1 chdir, 2 open log, 3 exec
-    if (!work_dir.empty() && chdir(work_dir.c_str()) != 0) step = 1;
-    if (step == 0 && !log.empty()) {
-      const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      if (fd < 0 || dup2(fd, 1) < 0 || dup2(fd, 2) < 0) step = 2;
-      if (fd > 2) close(fd);
-    }
-    if (step == 0) {
-      execv(args[0], args.data());
-      step = 3;
-    }
-    const int report[2] = {step, errno};
-    (void)!write(fail_pipe[1], report, sizeof report);
-    _exit(127);
+    detail::ExecChild(args.data(), work_dir, log, fail_pipe[1]);
   }
   close(fail_pipe[1]);
   int report[2] = {0, 0};
@@ -110,22 +156,7 @@ inline ProcessResult RunProcess(const std::vector<std::string>& argv,
   close(fail_pipe[0]);
   int status = 0;
   rusage u{};
-  for (;;) {
-    const pid_t w = wait4(pid, &status, timeout_seconds > 0 ? WNOHANG : 0, &u);
-    if (w == pid) break;
-    if (w < 0 && errno != EINTR) {
-      r.error = std::string("wait4 failed: ") + std::strerror(errno);
-      return r;
-    }
-    if (w == 0) {  // still running
-      const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      if (t > timeout_seconds && !r.timed_out) {
-        kill(pid, SIGKILL);
-        r.timed_out = true;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-  }
+  if (!detail::WaitWithLimit(pid, t0, timeout_seconds, &status, &u, &r)) return r;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   r.peak_rss_kb = u.ru_maxrss;
   if (n == static_cast<ssize_t>(sizeof report)) {
@@ -138,15 +169,7 @@ inline ProcessResult RunProcess(const std::vector<std::string>& argv,
     return r;
   }
   r.started = true;
-  if (WIFEXITED(status)) r.exit_status = WEXITSTATUS(status);
-  if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
-  if (r.timed_out)
-    r.error = "killed after the time limit of " +
-              std::to_string(static_cast<long>(timeout_seconds)) + " s";
-  else if (r.signal)
-    r.error = "killed by signal " + std::to_string(r.signal) + " (" + strsignal(r.signal) + ")";
-  else if (r.exit_status != 0)
-    r.error = "exited with status " + std::to_string(r.exit_status);
+  detail::DescribeEnd(status, timeout_seconds, &r);
   return r;
 }
 
