@@ -1475,11 +1475,14 @@ void Engine::Impl::CastUpdated(const KeyframeUpdate& u) {
   for (uint32_t pt : entered_)
     for (size_t k = 0; k < s.points[pt].cameras.size(); ++k)
       rays.push_back({pt, static_cast<uint32_t>(k)});
-  caster.CastBatch(rays);
+  caster.CastBatch(rays, /*weights_only=*/u.last);
 }
 
 Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   if (!init.ok()) return init;
+  if (s.sealed)
+    return Status::Error("an update after the last one (KeyframeUpdate::last): its rays were cast "
+                         "as weights only, and a change of the cells would lose them");
   const Status valid = Validate(update);
   if (!valid.ok()) return valid;
   const std::unique_ptr<KeyframeUpdate> filtered = WithoutRetired(update);
@@ -1545,6 +1548,7 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
     for (const NewPoint& p : u.new_points) InsertNewPoint(p);
   });
   if (exact) timed_batch([&] { CastUpdated(u); });
+  if (u.last) s.sealed = true;  // before the checks below: weights without entries
   const auto tg = Clock::now();
   if (s.opt.regrow_radius > 0.0) {
     std::vector<Vertex_handle> changed;
@@ -1678,6 +1682,7 @@ std::unique_ptr<KeyframeUpdate> Engine::Impl::WithoutRetired(const KeyframeUpdat
     if (!retired(m.id)) out->moved_points.push_back(m);
   for (uint64_t id : u.removed_points)
     if (!retired(id)) out->removed_points.push_back(id);
+  out->last = u.last;
   return out;
 }
 

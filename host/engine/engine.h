@@ -204,6 +204,11 @@ struct KeyframeUpdate {
   std::vector<NewPoint> new_points;
   std::vector<MovedPoint> moved_points;
   std::vector<uint64_t> removed_points;
+  // No update follows (a source that knows its end says so: an SfM model, a SLAM file). No cell
+  // is destroyed after it, so kExact casts its rays as weights only, without listing them in
+  // the cells they cross (the same weights and surface; a model's one batch of long rays took
+  // 8 bytes per cell crossed, 300 MB). ApplyUpdate refuses any update after it.
+  bool last = false;
 };
 
 struct Mesh {

@@ -3,7 +3,7 @@
 #include "host/engine/engine_parts.h"
 
 #include <sstream>
-#include <tuple>
+#include <cstdint>
 
 namespace imr::engine {
 namespace detail {
@@ -28,55 +28,68 @@ std::string InvariantChecker::DescribeCell(Cell_handle c) const {
   return s + "}";
 }
 
-// kExact: each listed ray (EngineState::list_cells) names exactly the cells that hold it. Empty
-// when so, else the first ray that does not. Handles are compared, never followed: a list that
-// kept a destroyed cell shows as a cell no live cell matches.
+namespace {
+
+// Every ray of every point numbered: ray k of point pt is first[pt] + k.
+std::vector<std::size_t> RayNumbers(const EngineState& s) {
+  std::vector<std::size_t> first(s.points.size() + 1, 0);
+  for (std::size_t pt = 0; pt < s.points.size(); ++pt)
+    first[pt + 1] = first[pt] + s.points[pt].ray_state.size();
+  return first;
+}
+
+// A cell handle's value scrambled (splitmix64's finaliser): sums of these over two lists agree
+// when the lists hold the same cells, and differ with probability 1 - 2^-64 otherwise.
+uint64_t Scramble(const void* p) {
+  uint64_t x = static_cast<uint64_t>(reinterpret_cast<std::uintptr_t>(p));
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+}  // namespace
+
+// kExact: each listed ray (EngineState::list_cells) names exactly the cells that hold it, each
+// once. Empty when so, else the first ray that does not. Handles are compared, never followed:
+// a list that kept a destroyed cell shows as a cell no live cell matches. One pass over the
+// lists and one over the cells, each ray's cells summed as scrambled handles on both sides:
+// linear time and 16 bytes per ray (sorting the holders, 16 bytes per entry, took 60 % of a
+// far-ahead model's run and 140 MB at its end: 33 M entries).
 std::string InvariantChecker::CheckRayLists() const {
-  // Every listed ray's cells against the cells that hold it, a range of points at a time: the
-  // holders of all points at once took 16 bytes per live entry (12 MB at the end of a
-  // 20,000-frame drive, the process's peak); a range holds about kBudget of them.
-  constexpr uint32_t kBlock = 1024;
-  constexpr std::size_t kBudget = std::size_t{1} << 16;
-  const auto for_each_holder = [&](auto&& fn) {
-    for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c)
-      for (const RayEntry& e : c->info().rays)
-        if (s_.Live(e) && s_.points[e.point].Listed(e.camera)) fn(e.point, e.camera, c);
+  const std::vector<std::size_t> first = RayNumbers(s_);
+  struct Tally {
+    uint32_t listed = 0, held = 0;
+    uint64_t sum = 0;  // the listed cells' scrambled handles minus the holders' (mod 2^64)
   };
-  const auto points = static_cast<uint32_t>(s_.points.size());
-  std::vector<std::size_t> per_block((points + kBlock - 1) / kBlock, 0);
-  for_each_holder([&](uint32_t pt, uint32_t, Cell_handle) { ++per_block[pt / kBlock]; });
-  std::vector<std::tuple<uint32_t, uint32_t, Cell_handle>> holders;  // (point, ray, cell)
-  std::vector<Cell_handle> listed, held;
-  for (std::size_t block = 0; block < per_block.size();) {
-    const uint32_t lo = static_cast<uint32_t>(block * kBlock);
-    std::size_t count = per_block[block++];
-    while (block < per_block.size() && count + per_block[block] <= kBudget) count += per_block[block++];
-    const uint32_t hi = static_cast<uint32_t>(std::min<std::size_t>(points, block * kBlock));
-    holders.clear();
-    for_each_holder([&](uint32_t pt, uint32_t k, Cell_handle c) {
-      if (pt >= lo && pt < hi) holders.push_back({pt, k, c});
-    });
-    std::sort(holders.begin(), holders.end());
-    auto next = holders.begin();
-    for (uint32_t pt = lo; pt < hi; ++pt) {
-      const PointRecord& rec = s_.points[pt];
-      for (uint32_t k = 0; k < rec.ray_state.size(); ++k) {
-        if (!rec.Listed(k)) continue;
-        listed.clear();
-        s_.ForEachListed(pt, k, [&](Cell_handle c) {
-          if (!c->info().final) listed.push_back(c);  // a cast skips final cells (forget)
-        });
-        std::sort(listed.begin(), listed.end());
-        listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
-        held.clear();  // holders are sorted by (point, ray) as this loop visits them
-        for (; next != holders.end() && std::get<0>(*next) == pt && std::get<1>(*next) == k; ++next)
-          held.push_back(std::get<2>(*next));
-        if (listed != held)
-          return "the ray of point " + std::to_string(rec.id) + " from camera " +
-                 std::to_string(s_.camera_ids[rec.cameras[k]]) + " lists " +
-                 std::to_string(listed.size()) + " cells but " + std::to_string(held.size()) +
-                 " cells hold it";
+  std::vector<Tally> tally(first.back());
+  for (uint32_t pt = 0; pt < s_.points.size(); ++pt) {
+    const PointRecord& rec = s_.points[pt];
+    for (uint32_t k = 0; k < rec.ray_state.size(); ++k) {
+      if (!rec.Listed(k)) continue;
+      Tally& t = tally[first[pt] + k];
+      s_.ForEachListed(pt, k, [&](Cell_handle c) {
+        if (c->info().final) return;  // a cast skips final cells (forget)
+        ++t.listed;
+        t.sum += Scramble(c.operator->());
+      });
+    }
+  }
+  for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c)
+    for (const RayEntry& e : c->info().rays)
+      if (s_.Live(e) && s_.points[e.point].Listed(e.camera)) {
+        Tally& t = tally[first[e.point] + e.camera];
+        ++t.held;
+        t.sum -= Scramble(static_cast<Cell_handle>(c).operator->());
       }
+  for (uint32_t pt = 0; pt < s_.points.size(); ++pt) {
+    const PointRecord& rec = s_.points[pt];
+    for (uint32_t k = 0; k < rec.ray_state.size(); ++k) {
+      const Tally& t = tally[first[pt] + k];
+      if (!rec.Listed(k) || (t.listed == t.held && t.sum == 0)) continue;
+      return "the ray of point " + std::to_string(rec.id) + " from camera " +
+             std::to_string(s_.camera_ids[rec.cameras[k]]) + " lists " +
+             std::to_string(t.listed) + " cells but " + std::to_string(t.held) +
+             " cells hold it" + (t.listed == t.held ? " (not the same cells)" : "");
     }
   }
   return {};
@@ -87,6 +100,12 @@ std::string InvariantChecker::CheckRayLists() const {
 // them), and the cells' sum equal to the ledger kept by every change.
 void InvariantChecker::CheckWeights(const std::function<void(const std::string&)>& fail) const {
   const bool rays_mode = s_.opt.visibility_mode == VisibilityMode::kRays;
+  const bool exact = s_.opt.visibility_mode == VisibilityMode::kExact;
+  // kExact: the last cell (numbered from 1) that held each ray, so that a ray held twice by one
+  // cell shows without sorting the cell's entries.
+  const std::vector<std::size_t> first = exact ? RayNumbers(s_) : std::vector<std::size_t>{};
+  std::vector<uint64_t> last_holder(exact ? first.back() : 0, 0);
+  uint64_t cell_number = 0;
   uint64_t sum = 0;
   for (auto c = s_.dt.all_cells_begin(); c != s_.dt.all_cells_end(); ++c) {
     const CellInfo& info = c->info();
@@ -97,17 +116,23 @@ void InvariantChecker::CheckWeights(const std::function<void(const std::string&)
            "negative weight?)");
     }
     // A final cell (forget) kept its weight and let its ray list go.
-    if (s_.opt.visibility_mode == VisibilityMode::kExact && !s_.dt.is_infinite(c) && !info.final) {
+    if (exact && !s_.dt.is_infinite(c) && !info.final) {
       // The count is the number of live entries, each ray at most once.
-      std::vector<std::pair<uint32_t, uint32_t>> live;
-      for (const RayEntry& e : info.rays)
-        if (s_.Live(e)) live.push_back({e.point, e.camera});
-      std::sort(live.begin(), live.end());
-      if (std::adjacent_find(live.begin(), live.end()) != live.end())
-        fail(DescribeCell(c) + " holds a ray twice");
-      if (info.weight != s_.unit[0] * static_cast<int64_t>(live.size()))
+      ++cell_number;
+      int64_t live = 0;
+      bool twice = false;
+      for (const RayEntry& e : info.rays) {
+        if (!s_.Live(e)) continue;
+        ++live;
+        uint64_t& last = last_holder[first[e.point] + e.camera];
+        twice = twice || last == cell_number;
+        last = cell_number;
+      }
+      if (twice) fail(DescribeCell(c) + " holds a ray twice");
+      // The last update's rays (EngineState::sealed) left their units without entries.
+      if (s_.sealed ? info.weight < s_.unit[0] * live : info.weight != s_.unit[0] * live)
         fail(DescribeCell(c) + " has weight " + std::to_string(s_.FromUnits(info.weight)) +
-             " but holds " + std::to_string(live.size()) + " rays");
+             " but holds " + std::to_string(live) + " rays");
     }
     if (rays_mode) {
       int64_t stored = 0;
@@ -360,6 +385,11 @@ int64_t EngineInternals::ManifoldTestMismatches(const Engine& e) {
 }
 
 void EngineInternals::ExactFillOnly(Engine& e, bool on) { H(e.impl_->s).exact_fill_only = on; }
+
+void EngineInternals::SetBatchBounds(Engine& e, size_t group_rays, size_t listed_cells) {
+  H(e.impl_->s).group_rays = group_rays;
+  H(e.impl_->s).listed_cells = listed_cells;
+}
 
 std::array<int64_t, 2> EngineInternals::FillCounts(const Engine& e) {
   const Hooks* h = e.impl_->s.hooks.get();

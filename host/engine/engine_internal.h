@@ -73,6 +73,12 @@ class EngineInternals {
   // Fills made so far: {floating-point fills that passed the check, exact fills}.
   static std::array<int64_t, 2> FillCounts(const Engine& e);
 
+  // --- Batches of rays (kExact). ---
+  // A cast or un-cast batch is walked `group_rays` rays at a time, and a cast batch keeps its
+  // walks as lists while they hold at most `listed_cells` cells (tests: the bounds' paths on
+  // small inputs). 0 keeps the engine's own bound.
+  static void SetBatchBounds(Engine& e, size_t group_rays, size_t listed_cells);
+
   // --- Growing. ---
   // Takes out of O (keeping dO manifold) the cells with a vertex within `radius` of `centre`;
   // they and their neighbours become seeds of the next grow. Returns the cells taken out.

@@ -215,6 +215,8 @@ struct Hooks {
   // apexes; the counters (bumped on the planning threads) say how fills were made.
   bool exact_fill_only = false;
   std::atomic<int64_t> fills_fast{0}, fills_exact{0};
+  // RayCaster's batch bounds when not 0 (EngineInternals::SetBatchBounds).
+  size_t group_rays = 0, listed_cells = 0;
 };
 
 // What the parts share: the triangulation with its cells' weights and O, the points and cameras,
@@ -275,6 +277,9 @@ struct EngineState {
   // cells: CheckInvariants compares it with the cells' own sum, so a weight changed or a cell made
   // or destroyed outside casting and transfer shows. Modulo 2^64 (unsigned wrap is exact).
   uint64_t weight_ledger = 0;
+  // The last update (KeyframeUpdate::last) was applied: no update may follow; kExact cast its
+  // rays as weights only, so a cell's weight may exceed its entries' units.
+  bool sealed = false;
   EngineStats stats;
   std::unique_ptr<Hooks> hooks;  // null unless a benchmark or a test asked for them
   // The engine's threads (num_threads; kExact: the batches of rays and the moves' plans).
@@ -555,7 +560,9 @@ class RayCaster {
   // ray lists and free cells for any number of threads.
   // A cast batch lists each ray's cells (EngineState::list_cells) and the next un-cast batch
   // takes the listed rays out of those cells without walking; DropLists forgets the lists.
-  void CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
+  // weights_only: the last update's batch (KeyframeUpdate::last): each cell crossed gains the
+  // ray's unit, no entry and no list (EngineState::sealed).
+  void CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo, bool weights_only);
   void UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo);
   void DropLists();
   // forget: the triangulation was rebuilt (Forgetting): the cells and points remembered for
@@ -709,7 +716,18 @@ class RayCaster {
   // scans all the batch's cells: worth it when applying costs more than scanning, as a cast's
   // list entries do; an un-cast's weight decrement does not).
   template <class Apply>
-  std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, bool split_apply, Apply&& apply);
+  std::vector<BatchPart> RunBatch(std::vector<BatchRay>& rays, bool split_apply, bool append,
+                                  Apply&& apply);
+  // A batch is walked kGroupRays rays at a time (a group's walks: ~20 MB at 128 cells a ray);
+  // a cast batch keeps its walks as lists while they hold at most kListedCells cells (32 MB).
+  static constexpr size_t kGroupRays = 1 << 14;
+  static constexpr size_t kListedCells = size_t{1} << 22;
+  size_t GroupRays() const {
+    return s_.hooks && s_.hooks->group_rays ? s_.hooks->group_rays : kGroupRays;
+  }
+  size_t ListedCells() const {
+    return s_.hooks && s_.hooks->listed_cells ? s_.hooks->listed_cells : kListedCells;
+  }
   void MergeParts(const std::vector<BatchPart>& parts);
 
   EngineState& s_;
@@ -727,6 +745,7 @@ class RayCaster {
   std::vector<std::pair<uint32_t, uint32_t>> listed_;  // rays listed by the last cast batch
   std::vector<std::pair<uint32_t, uint32_t>> uncast_listed_;  // UncastBatch's scratch
   std::vector<BatchRay> batch_rays_;                          // a batch's rays
+  std::vector<BatchRay> group_rays_;                          // the group being walked
 };
 
 // -------------------------------------------------------------------------------------------------

@@ -294,6 +294,93 @@ TEST(RayListsTest, UncastFromListsEqualsUncastByWalking) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// A batch is walked in groups of rays, and a cast batch whose walks exceed the list bound lists
+// nothing (its rays are walked when un-cast): the same weights and surface as one walk of each
+// batch, the lists checked before each un-cast batch. Bounds small enough for a 60-frame stream:
+// groups of 7 rays, lists of at most 60,000 cells (some batches listed, some not: 2,072 and
+// 10,430 rays un-cast from lists instead of 24,179 and 21,635).
+TEST(RayListsTest, GroupsAndTheListBoundKeepTheSurface) {
+  for (SceneKind scene : {SceneKind::kStreet, SceneKind::kRoom}) {
+    synthetic::StreamOptions so = SmallStream(scene, 3);
+    so.frames = 60;
+    Mesh meshes[2];
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[2];
+    EngineStats stats[2];
+    for (int bounded : {0, 1}) {
+      synthetic::SyntheticStream stream(so);
+      EngineOptions eo;
+      eo.check_invariants = true;
+      Engine engine(eo, nullptr);
+      if (bounded) internal::EngineInternals::SetBatchBounds(engine, 7, 60000);
+      const Status st = testing::RunStream(&stream, &engine, [](const auto&) { return true; });
+      ASSERT_TRUE(st.ok()) << st.message();
+      meshes[bounded] = engine.ExtractMesh();
+      weights[bounded] = engine.CellWeights();
+      stats[bounded] = engine.Stats();
+      EXPECT_EQ(internal::EngineInternals::CheckRaySets(engine), "");
+    }
+    const std::string what = synthetic::ToString(scene);
+    ASSERT_FALSE(meshes[0].faces.empty()) << what;
+    EXPECT_EQ(meshes[0].vertices, meshes[1].vertices) << what;
+    EXPECT_EQ(meshes[0].faces, meshes[1].faces) << what;
+    EXPECT_EQ(weights[0], weights[1]) << what;
+    EXPECT_EQ(stats[0].cells_traversed, stats[1].cells_traversed) << what;
+    // Both paths taken: some un-casts from lists, fewer than without the bound.
+    EXPECT_GT(stats[1].rays_uncast_listed, 0) << what;
+    EXPECT_LT(stats[1].rays_uncast_listed, stats[0].rays_uncast_listed) << what;
+  }
+}
+
+// The last update (KeyframeUpdate::last) casts its rays as weights only: the same weights and
+// surface as casting them into the cells' lists, the invariants hold, the cells' ray entries
+// are those of the earlier updates only, and an update after it is refused.
+TEST(RayListsTest, TheLastUpdateCastsWeightsOnly) {
+  for (int keyframes : {1, 8}) {  // a model's one batch; the last of a stream
+    synthetic::StreamOptions so = SmallStream(SceneKind::kStreet, 11);
+    so.frames = keyframes == 1 ? 5 : 40;
+    Mesh meshes[2];
+    std::vector<std::pair<std::array<int64_t, 4>, int64_t>> weights[2];
+    EngineMemory memory[2];
+    for (int last : {0, 1}) {
+      synthetic::SyntheticStream stream(so);
+      EngineOptions eo;
+      eo.check_invariants = true;
+      Engine engine(eo, nullptr);
+      std::vector<KeyframeUpdate> updates;
+      synthetic::StreamKeyframe kf;
+      while (stream.Next(&kf)) updates.push_back(testing::ToUpdate(kf));
+      ASSERT_EQ(static_cast<int>(updates.size()), keyframes);
+      updates.back().last = last == 1;
+      for (const KeyframeUpdate& u : updates) {
+        const Status st = engine.ApplyUpdate(u);
+        ASSERT_TRUE(st.ok()) << st.message();
+      }
+      const ManifoldCheckResult r = engine.CheckInvariants();
+      EXPECT_TRUE(r.ok) << r.message;
+      meshes[last] = engine.ExtractMesh();
+      weights[last] = engine.CellWeights();
+      memory[last] = engine.Memory();
+      if (last) {
+        const Status again = engine.ApplyUpdate(KeyframeUpdate{});
+        EXPECT_FALSE(again.ok());
+        EXPECT_NE(again.message().find("after the last one"), std::string::npos)
+            << again.message();
+      }
+    }
+    ASSERT_FALSE(meshes[0].faces.empty());
+    EXPECT_EQ(meshes[0].vertices, meshes[1].vertices) << keyframes;
+    EXPECT_EQ(meshes[0].faces, meshes[1].faces) << keyframes;
+    EXPECT_EQ(weights[0], weights[1]) << keyframes;
+    EXPECT_LT(memory[1].ray_entries_used, memory[0].ray_entries_used) << keyframes;
+    EXPECT_LE(memory[1].ray_batch_lists, 64) << keyframes;  // an empty map's bucket
+    EXPECT_GT(memory[0].ray_batch_lists, 1000) << keyframes;
+    if (keyframes == 1) {
+      EXPECT_EQ(memory[1].ray_entries_used, 0);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Casting rays forward and then backward restores every cell weight bit for bit, including with
 // weights that are not multiples of one another.
 TEST(CastingTest, ForwardThenBackwardRestoresWeightsExactly) {

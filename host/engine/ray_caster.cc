@@ -423,14 +423,17 @@ RayCaster::Walked RayCaster::FilteredTrace(const Point& a, const Point& b, Verte
 
 // Walks every ray of the batch (in parallel), then calls apply(ray, cell, part) for each cell
 // each ray crosses, once per ray and cell, in batch order per cell; returns the parts.
+// append: the walks go after those already in walk_cells_ (a cast batch's groups, listed).
 template <class Apply>
 std::vector<RayCaster::BatchPart> RayCaster::RunBatch(std::vector<BatchRay>& rays,
-                                                      bool split_apply, Apply&& apply) {
+                                                      bool split_apply, bool append,
+                                                      Apply&& apply) {
   util::ThreadPool& tp = s_.Pool();
   const size_t workers = static_cast<size_t>(tp.size());
   LocateEnds(rays);
   walk_cells_.resize(workers);
-  for (auto& w : walk_cells_) w.clear();
+  if (!append)
+    for (auto& w : walk_cells_) w.clear();
   constexpr size_t kChunk = 32;
   const size_t chunks = (rays.size() + kChunk - 1) / kChunk;
   tp.Run(chunks, [&](size_t chunk, int worker) {
@@ -524,8 +527,15 @@ void RayCaster::MergeParts(const std::vector<BatchPart>& parts) {
   }
 }
 
-// Casts the rays (point, k) that are not cast yet, from their points' current positions.
-void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo) {
+// Casts the rays (point, k) that are not cast yet, from their points' current positions, in
+// groups of kGroupRays rays (walked, then applied, in the batch's order: the same entries in
+// each cell, in the same order, as one walk of the whole batch). The walks are kept as the
+// rays' lists while they hold at most kListedCells cells; past that the batch lists nothing
+// (its rays are walked if they are ever un-cast), so that a batch of long rays crossing many
+// cells (a model seen from 100 units away, all in one keyframe: 33 M cells) does not hold
+// every walk at once (8 bytes a cell: 400 MB).
+void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo,
+                          bool weights_only) {
   if (s_.dt.dimension() != 3) return;
   DropLists();  // the walks below become the lists
   std::vector<BatchRay>& rays = batch_rays_;  // kept: a batch's worth of memory, touched once
@@ -537,24 +547,58 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     Point a;
     if (!RaySegment(rec.vertex->point(), b, &a)) continue;
     ++s_.stats.rays_cast;
+    rec.ray_end[k].end = a;
+    rays.push_back({pt, k, rec.Gen(k), a, b, rec.vertex->cell(), rec.vertex});
+    if (weights_only) {
+      rec.SetFlags(k, PointRecord::kCast);
+      continue;
+    }
     // Its walk is its list (each thread writes the list places of its own rays).
     rec.SetFlags(k, PointRecord::kCast | PointRecord::kListed);
-    rec.ray_end[k].end = a;
     listed_.push_back({pt, k});
-    rays.push_back({pt, k, rec.Gen(k), a, b, rec.vertex->cell(), rec.vertex});
     rays.back().list_to = true;
   }
-  const std::vector<BatchPart> parts =
-      RunBatch(rays, /*split_apply=*/true, [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
-        if (c->info().final) return;  // forget: nothing changes a final cell
-        if (PushRay(&c->info(), {r.k, r.point, r.gen})) p.became_free.push_back(c);
-        p.ledger += static_cast<uint64_t>(s_.unit[0]);
-        ++p.cells;
-      });
-  MergeParts(parts);
-  for (const BatchPart& p : parts)
-    s_.stats.cells_traversed += p.cells, s_.stats.cells_weighted += p.cells;
-  std::swap(s_.list_cells, walk_cells_);  // the walks are the lists now
+  for (auto& w : walk_cells_) w.clear();  // DropLists left the old lists' storage there
+  const auto apply = [&](const BatchRay& r, Cell_handle c, BatchPart& p) {
+    if (c->info().final) return;  // forget: nothing changes a final cell
+    CellInfo& info = c->info();
+    if (weights_only) {
+      const bool was_free = info.weight > s_.threshold;
+      info.weight += s_.unit[0];
+      if (!was_free && info.weight > s_.threshold) p.became_free.push_back(c);
+    } else if (PushRay(&info, {r.k, r.point, r.gen})) {
+      p.became_free.push_back(c);
+    }
+    p.ledger += static_cast<uint64_t>(s_.unit[0]);
+    ++p.cells;
+  };
+  bool listing = !weights_only;
+  std::vector<BatchRay>& group = group_rays_;
+  const size_t group_size = GroupRays();
+  for (size_t begin = 0; begin < rays.size(); begin += group_size) {
+    const size_t end = std::min(rays.size(), begin + group_size);
+    group.assign(rays.begin() + static_cast<std::ptrdiff_t>(begin),
+                 rays.begin() + static_cast<std::ptrdiff_t>(end));
+    if (!listing)
+      for (BatchRay& r : group) r.list_to = false;
+    const std::vector<BatchPart> parts =
+        RunBatch(group, /*split_apply=*/true, /*append=*/listing, apply);
+    MergeParts(parts);
+    for (const BatchPart& p : parts)
+      s_.stats.cells_traversed += p.cells, s_.stats.cells_weighted += p.cells;
+    size_t walked = 0;
+    for (const auto& w : walk_cells_) walked += w.size();
+    if (listing && walked > ListedCells()) {  // too many to keep: this batch lists no ray
+      listing = false;
+      for (const auto& [pt, k] : listed_) s_.points[pt].ray_state[k] &= ~uint32_t{PointRecord::kListed};
+      listed_.clear();
+    }
+  }
+  if (listing) {
+    std::swap(s_.list_cells, walk_cells_);  // the walks are the lists now
+  } else {  // a rare batch, or the last: its storage goes
+    for (auto& w : walk_cells_) std::vector<Cell_handle>().swap(w);
+  }
 }
 
 // Takes the rays (point, k) that are cast out of their cells (as ExactUncast does, together).
@@ -598,7 +642,15 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     info.weight -= s_.unit[0];
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
   };
-  if (!rays.empty()) MergeParts(RunBatch(rays, /*split_apply=*/false, take_out));
+  // In groups, as a cast batch (their walks are not kept).
+  std::vector<BatchRay>& group = group_rays_;
+  const size_t group_size = GroupRays();
+  for (size_t begin = 0; begin < rays.size(); begin += group_size) {
+    const size_t end = std::min(rays.size(), begin + group_size);
+    group.assign(rays.begin() + static_cast<std::ptrdiff_t>(begin),
+                 rays.begin() + static_cast<std::ptrdiff_t>(end));
+    MergeParts(RunBatch(group, /*split_apply=*/false, /*append=*/false, take_out));
+  }
 }
 
 TetPlanes PlanesOf(const Point& c0, const Point& c1, const Point& c2, const Point& c3) {

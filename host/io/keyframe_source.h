@@ -76,7 +76,8 @@ class KeyframeSource {
 };
 
 // A source whose updates are all built up front (SfM exports, SLAM JSON files): subclasses fill
-// updates_ and frames_ (one frame number per update); Next hands them out in order.
+// updates_ and frames_ (one frame number per update); Next hands them out in order, the last
+// marked as such (engine::KeyframeUpdate::last: no ray lists are kept for it).
 class PrecomputedKeyframeSource : public KeyframeSource {
  public:
   bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
@@ -84,6 +85,7 @@ class PrecomputedKeyframeSource : public KeyframeSource {
     *u = std::move(updates_[next_]);
     *info = {static_cast<int>(next_), frames_[next_]};
     ++next_;
+    u->last = next_ == updates_.size();
     return true;
   }
   int KeyframeCount() const override { return static_cast<int>(updates_.size()); }
