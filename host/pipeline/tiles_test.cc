@@ -13,8 +13,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <fstream>
+#include <numbers>
 #include <iterator>
 #include <set>
 
@@ -221,6 +223,111 @@ TEST(TileWriterTest, TheTilesetsRewriteCostIsBoundedPerTile) {
   EXPECT_LE(writer.stats().tileset_bytes, static_cast<int64_t>(8 * last));
   EXPECT_EQ(TileContentUris(json::parse(std::ifstream(dir / "tileset.json"))["root"]).size(),
             static_cast<std::size_t>(kTiles));
+}
+
+// Issue 46 item 3: the geo-referenced root transform, ECEF <- ENU <- heading <- local, at points
+// whose axes are known. At (0, 0, 0) east is ECEF +y, north +z, up +x.
+std::array<double, 3> Apply(const std::array<double, 16>& m, const std::array<double, 3>& v, double w = 1.0) {
+  return {m[0] * v[0] + m[4] * v[1] + m[8] * v[2] + w * m[12], m[1] * v[0] + m[5] * v[1] + m[9] * v[2] + w * m[13],
+          m[2] * v[0] + m[6] * v[1] + m[10] * v[2] + w * m[14]};
+}
+void ExpectNear3(const std::array<double, 3>& got, const std::array<double, 3>& want, double tol) {
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(got[k], want[k], tol) << "component " << k;
+}
+
+TEST(TileWriterTest, GeoreferencedFramePutsTheLocalFrameInEcef) {
+  const std::array<double, 16> identity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  TilesOrigin o;
+  o.given = true;
+  std::array<double, 16> m = GeoreferencedFrame(o, identity);
+  ExpectNear3(Apply(m, {0, 0, 0}), {6378137.0, 0, 0}, 1e-6);
+  ExpectNear3(Apply(m, {0, 1, 0}, 0.0), {0, 0, 1}, 1e-15);  // heading 0: +Y north
+  ExpectNear3(Apply(m, {1, 0, 0}, 0.0), {0, 1, 0}, 1e-15);  // +X east
+  ExpectNear3(Apply(m, {0, 0, 1}, 0.0), {1, 0, 0}, 1e-15);  // +Z up
+  o.heading = 90;  // +Y east, +X south
+  m = GeoreferencedFrame(o, identity);
+  ExpectNear3(Apply(m, {0, 1, 0}, 0.0), {0, 1, 0}, 1e-15);
+  ExpectNear3(Apply(m, {1, 0, 0}, 0.0), {0, 0, -1}, 1e-15);
+  // 100 m along +Y at heading 90 from (0, 0): 100 m east on the equator, 1 m up stays 1 m up.
+  const geo::Geodetic g = geo::GeodeticFromEcef(Apply(m, {0, 100, 1}));
+  EXPECT_NEAR(g.latitude, 0.0, 1e-12);
+  EXPECT_NEAR(g.longitude * 6378137.0 * std::numbers::pi / 180.0, 100.0, 1e-3);
+  EXPECT_NEAR(g.height, 1.0 + 100.0 * 100.0 / (2 * 6378137.0), 1e-4);  // the plane leaves the sphere
+  // With the local frame of a KITTI camera (x right, y down, z forward): driving forward (world
+  // +z) at heading 30 goes 30 degrees east of north; the camera's up (-y) is up.
+  o = {true, 49.0, 8.4, 110.0, 30.0, "test"};
+  m = GeoreferencedFrame(o, TilesetFrame({{1, 0, 0, 0, 1, 0, 0, 0, 1}}));
+  const std::array<double, 9> enu = geo::EnuAxes(49.0, 8.4);
+  const std::array<double, 3> forward = Apply(m, {0, 0, 1}, 0.0), up = Apply(m, {0, -1, 0}, 0.0);
+  auto dot = [](const double* a, const std::array<double, 3>& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  EXPECT_NEAR(dot(&enu[0], forward), std::sin(std::numbers::pi / 6), 1e-12);  // east
+  EXPECT_NEAR(dot(&enu[3], forward), std::cos(std::numbers::pi / 6), 1e-12);  // north
+  EXPECT_NEAR(dot(&enu[6], up), 1.0, 1e-12);
+  ExpectNear3(Apply(m, {0, 0, 0}), geo::EcefFromGeodetic({49.0, 8.4, 110.0}), 1e-6);
+}
+
+// The origin an input's anchor gives: the heading of the local +Y as the anchor turns it, the
+// local up's tilt from the vertical.
+TEST(TileWriterTest, OriginFromAnchorTakesTheHeadingOfTheLocalForward) {
+  const std::array<double, 16> local = TilesetFrame({{1, 0, 0, 0, 1, 0, 0, 0, 1}});  // +Y = world +z
+  geo::GeoAnchor a;
+  a.origin = {49.0, 8.4, 110.0};
+  a.source = "oxts";
+  // World (a camera: x right, y down, z forward) facing east: z -> east, x -> south, y -> down.
+  a.enu_from_world = {0, 0, 1, -1, 0, 0, 0, -1, 0};
+  double tilt = -1;
+  TilesOrigin o = OriginFromAnchor(a, local, &tilt);
+  EXPECT_TRUE(o.given);
+  EXPECT_NEAR(o.heading, 90.0, 1e-12);
+  EXPECT_NEAR(tilt, 0.0, 1e-6);
+  EXPECT_EQ(o.latitude, 49.0);
+  EXPECT_EQ(o.height, 110.0);
+  EXPECT_EQ(o.source, "oxts");
+  // Facing south-west (z -> (-1, -1, 0)/sqrt2), pitched 5 degrees down: heading -135, tilt 5.
+  const double c = std::cos(5 * std::numbers::pi / 180), s = std::sin(5 * std::numbers::pi / 180);
+  const double h = std::sqrt(0.5);
+  // Columns: world x (right: north-west), y (down, tilted back), z (forward, tilted down).
+  const std::array<double, 3> x = {-h, h, 0}, z = {-h * c, -h * c, -s}, y = {h * s, h * s, -c};
+  for (int r = 0; r < 3; ++r) {
+    a.enu_from_world[3 * r + 0] = x[r];
+    a.enu_from_world[3 * r + 1] = y[r];
+    a.enu_from_world[3 * r + 2] = z[r];
+  }
+  o = OriginFromAnchor(a, local, &tilt);
+  EXPECT_NEAR(o.heading, -135.0, 1e-9);
+  EXPECT_NEAR(tilt, 5.0, 1e-9);
+  // The transform it makes sends the world's forward to the south-west, level.
+  const std::array<double, 9> enu = geo::EnuAxes(49.0, 8.4);
+  const std::array<double, 3> f = Apply(GeoreferencedFrame(o, local), {0, 0, 1}, 0.0);
+  EXPECT_NEAR(enu[0] * f[0] + enu[1] * f[1] + enu[2] * f[2], -h, 1e-9);
+  EXPECT_NEAR(enu[3] * f[0] + enu[4] * f[1] + enu[5] * f[2], -h, 1e-9);
+}
+
+TEST(TileWriterTest, AnOriginOffTheEarthIsRefused) {
+  TilesOrigin o{true, 49.0, 8.4, 110.0, 0.0, "output.tiles.origin"};
+  EXPECT_EQ(o.Check(), "");
+  o.latitude = 91;
+  EXPECT_EQ(o.Check(), "origin.latitude: expected degrees in [-90, 90], got 91");
+  o.latitude = -90;
+  o.longitude = 180.5;
+  EXPECT_EQ(o.Check(), "origin.longitude: expected degrees in [-180, 180], got 180.5");
+  o.longitude = -180;
+  o.height = 6378137;  // a geocentric radius, not a height
+  EXPECT_EQ(o.Check(), "origin.height: expected metres above the WGS84 ellipsoid in [-11000, 100000], "
+                       "got 6.37814e+06");
+  o.height = 0;
+  o.heading = std::nan("");
+  EXPECT_EQ(o.Check(), "origin.heading: expected degrees clockwise from north, got nan");
+  // Through the options, named as a key of output.tiles.
+  TilesOptions t;
+  t.origin = o;
+  EXPECT_EQ(t.Check(), "origin.heading: expected degrees clockwise from north, got nan");
+  // From the job's JSON.
+  t = TilesOptionsFromJson({{"origin", {{"latitude", 1.5}, {"longitude", -2}, {"height", 3}, {"heading", 4}}}});
+  EXPECT_TRUE(t.origin.given);
+  EXPECT_EQ(t.origin.ToJson(), (json{{"latitude", 1.5}, {"longitude", -2.0}, {"height", 3.0}, {"heading", 4.0},
+                                     {"source", "output.tiles.origin"}}));
+  EXPECT_FALSE(TilesOptionsFromJson(json::object()).origin.given);
 }
 
 // Issue 44, finding 10: options that make a tile of a triangle are refused, in the validation's
