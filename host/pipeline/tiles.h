@@ -16,7 +16,8 @@
 // Tiles reads the sequence's own coordinates back; tiles have no transform of their own and their
 // bounding boxes are in the sequence's frame. The root's transform is the local frame: the
 // sequence's frame turned so that the cameras' mean up is +Z (their mean viewing direction +Y),
-// as viewers of 3D Tiles expect the ground. Vertices carry their keys (`_VERTEX_KEY`): tiles share
+// as viewers of 3D Tiles expect the ground; with an origin (TilesOrigin: the job's, or the
+// input's place on the Earth) that frame placed in ECEF (GeoreferencedFrame). Vertices carry their keys (`_VERTEX_KEY`): tiles share
 // their seam vertices and merge without duplicates (MergeTiles).
 #pragma once
 
