@@ -436,10 +436,10 @@ void SequenceRun::StartStreamedSurface() {
       say(o.origin, "");
     } else if (geo_anchor_) {
       origin_for = [say, anchor = *geo_anchor_](const std::array<double, 16>& local) {
-        double tilt = 0.0;
-        const TilesOrigin g = OriginFromAnchor(anchor, local, &tilt);
-        char extra[96];
-        std::snprintf(extra, sizeof(extra), "; the cameras' mean up is %.2f deg from the vertical", tilt);
+        const TilesOrigin g = OriginFromAnchor(anchor, local);
+        char extra[128];
+        std::snprintf(extra, sizeof(extra), ", the input's attitude (the cameras' mean up %.2f deg from "
+                      "the vertical)", g.tilt);
         say(g, extra);
         return g;
       };

@@ -143,8 +143,10 @@ std::string TilesOrigin::Check() const {
 }
 
 json TilesOrigin::ToJson() const {
-  return {{"latitude", latitude}, {"longitude", longitude}, {"height", height}, {"heading", heading},
-          {"source", JsonText(source)}};
+  json j = {{"latitude", latitude}, {"longitude", longitude}, {"height", height}, {"heading", heading},
+            {"source", JsonText(source)}};
+  if (enu_from_local) j["tilt"] = tilt;  // the input's attitude, not levelled
+  return j;
 }
 
 const json& TilesOriginSchema() {
@@ -515,22 +517,25 @@ std::array<double, 16> GeoreferencedFrame(const TilesOrigin& origin, const std::
   // ENU <- local: +Y at `heading` clockwise from north, +X to its right, +Z up (column-major).
   const double h = origin.heading * std::numbers::pi / 180.0;
   const double c = std::cos(h), s = std::sin(h);
-  const std::array<double, 16> turn = {c, -s, 0, 0, s, c, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  std::array<double, 16> turn = {c, -s, 0, 0, s, c, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  if (origin.enu_from_local)
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) turn[4 * k + r] = (*origin.enu_from_local)[3 * r + k];
   const std::array<double, 16> enu =
       geo::EcefFromEnu({origin.latitude, origin.longitude, origin.height});
   return Multiply(enu, Multiply(turn, local_frame));
 }
 
-TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<double, 16>& local_frame,
-                             double* tilt) {
-  // The local axes in the sequence's frame (rows of local <- sequence), then in ENU.
-  std::array<double, 3> forward{}, up{};
-  for (int k = 0; k < 3; ++k) {
-    for (int j = 0; j < 3; ++j) {
-      forward[k] += anchor.enu_from_world[3 * k + j] * local_frame[4 * j + 1];
-      up[k] += anchor.enu_from_world[3 * k + j] * local_frame[4 * j + 2];
-    }
-  }
+TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<double, 16>& local_frame) {
+  // The local axes in the sequence's frame (rows of local <- sequence), then in ENU: the columns
+  // of ENU <- local.
+  std::array<double, 9> enu_from_local{};
+  for (int r = 0; r < 3; ++r)
+    for (int axis = 0; axis < 3; ++axis)
+      for (int j = 0; j < 3; ++j)
+        enu_from_local[3 * r + axis] += anchor.enu_from_world[3 * r + j] * local_frame[4 * j + axis];
+  const std::array<double, 3> forward = {enu_from_local[1], enu_from_local[4], enu_from_local[7]};
+  const std::array<double, 3> up = {enu_from_local[2], enu_from_local[5], enu_from_local[8]};
   TilesOrigin o;
   o.given = true;
   o.latitude = anchor.origin.latitude;
@@ -539,9 +544,8 @@ TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<doub
   // atan2(east, north): clockwise from north, in (-180, 180].
   o.heading = std::atan2(forward[0], forward[1]) * 180.0 / std::numbers::pi;
   o.source = anchor.source;
-  if (tilt != nullptr)
-    *tilt = std::acos(std::clamp(up[2] / std::hypot(up[0], up[1], up[2]), -1.0, 1.0)) * 180.0 /
-            std::numbers::pi;
+  o.enu_from_local = enu_from_local;
+  o.tilt = std::acos(std::clamp(up[2] / std::hypot(up[0], up[1], up[2]), -1.0, 1.0)) * 180.0 / std::numbers::pi;
   return o;
 }
 

@@ -34,6 +34,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -51,6 +52,11 @@ struct TilesOrigin {
   double height = 0.0;     // metres above the WGS84 ellipsoid, [kMinOriginHeight, kMaxOriginHeight]
   double heading = 0.0;    // degrees clockwise from north of the local frame's +Y
   std::string source;      // for the log and the tileset: "output.tiles.origin" or the input's file
+  // An input that knows its frame's attitude (KITTI raw's oxts) gives ENU <- local whole,
+  // row-major: used instead of the heading's level turn (the cameras' mean up is not quite the
+  // vertical: a degree is 9 m in height 500 m on), with `tilt`, its +Z's angle from up (degrees).
+  std::optional<std::array<double, 9>> enu_from_local;
+  double tilt = 0.0;
   // Empty when usable, else which key and why.
   std::string Check() const;
   nlohmann::json ToJson() const;
@@ -207,16 +213,16 @@ RunTiles ListRunTiles(const std::filesystem::path& run_folder, const nlohmann::j
 std::array<double, 16> TilesetFrame(const std::vector<std::array<double, 9>>& rotations);
 
 // ECEF <- the local frame's coordinates at `origin`, column-major: ECEF <- ENU at the origin
-// (WGS84), ENU <- local (the heading's turn about up), then `local_frame` (local <- sequence).
+// (WGS84), ENU <- local (the heading's turn about up, or the origin's enu_from_local), then
+// `local_frame` (local <- sequence).
 std::array<double, 16> GeoreferencedFrame(const TilesOrigin& origin,
                                           const std::array<double, 16>& local_frame);
 
 // The origin of a local frame (TilesetFrame's, of a sequence whose frame stands at `anchor`):
-// the anchor's position, the heading of the local +Y as the anchor turns it into ENU. `tilt`
-// (when given): degrees between the local +Z (the cameras' mean up) and the anchor's up, which
-// the origin's level frame leaves out.
-TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<double, 16>& local_frame,
-                             double* tilt = nullptr);
+// the anchor's position, the heading of the local +Y as the anchor turns it into ENU (for the
+// log and the tileset), and the anchor's whole attitude (enu_from_local, tilt: the local +Z's
+// angle from the anchor's up).
+TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<double, 16>& local_frame);
 
 // z-up to glTF's y-up, row-major: a tile's root rotation (see the file comment).
 std::array<double, 9> TileGltfRotation();
