@@ -271,5 +271,71 @@ TEST(TilesBrowser, ViewerPageShowsATiledRun) {
   }
 }
 
+// A geo-referenced run (output.tiles.origin) on the batch viewer page: its tiles view shows the
+// tileset in its local frame (asset.extras.imr.local_transform), ground down, as the same run
+// without an origin: every tile loaded, and the two views the same picture (not the street seen
+// from the side, as the ECEF frame's up would give).
+TEST(TilesBrowser, ViewerPageShowsAGeoReferencedRunAsWithout) {
+  if (const std::string m = Missing(); !m.empty()) GTEST_SKIP() << m;
+  if (!fs::exists(IMR_TILES_VIEWER_SCRIPT))
+    GTEST_SKIP() << IMR_TILES_VIEWER_SCRIPT << " was not built (node and tools/node's esbuild: tools/setup.sh)";
+  ScratchDir dir("tiles-page-geo");
+  struct Shown {
+    json result;
+    io::Image view;
+  };
+  auto show = [&](const std::string& name, const json& tiles) {
+    const json job = {
+        {"sequences", {"street"}},
+        {"input", {{"format", "synthetic"}, {"options", {{"frames", 60}, {"seed", 3}}}}},
+        {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+        {"output", {{"directory", name + "/{sequence}"}, {"formats", json::array()}, {"tiles", tiles}}}};
+    WriteText(dir / (name + ".json"), job.dump(2));
+    const auto run = RunShell(std::string(IMR_EXE) + " run -q --no-viewer " + Quote((dir / (name + ".json")).string()));
+    EXPECT_EQ(run.status, 0) << run.err;
+    const fs::path out = dir / name / "street";
+    const json report = json::parse(ReadText(out / "report.json"));
+    const json summary = {{"title", "tiles page test"},
+                          {"sequences", {{{"name", "street"}, {"ok", true}, {"error", ""},
+                                          {"output_directory", out.string()}, {"report", report}}}}};
+    report::ViewerPageOptions options;
+    options.model_viewer_script = IMR_MODEL_VIEWER_SOURCE;
+    options.tiles_viewer_script = IMR_TILES_VIEWER_SCRIPT;
+    const report::ViewerPageResult page = report::WriteBatchPage(dir / name, summary, options);
+    const fs::path shot = dir / (name + ".png");
+    Shown s{Browser("--page " + Quote(page.page.string()) + " --screenshot " + Quote(shot.string())), {}};
+    s.view = io::ReadImage(shot.string());
+    if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
+      fs::create_directories(keep);
+      fs::copy_file(shot, fs::path(keep) / ("page-" + name + ".png"), fs::copy_options::overwrite_existing);
+    }
+    return s;
+  };
+  const Shown plain = show("plain", {{"size", 20}});
+  const Shown geo = show("geo", {{"size", 20}, {"origin", {{"latitude", -33.8568}, {"longitude", 151.2153},
+                                                           {"height", 20.0}, {"heading", -120.0}}}});
+  for (const Shown* s : {&plain, &geo}) {
+    EXPECT_TRUE(s->result.value("tileset_loaded", false)) << s->result.dump(2);
+    EXPECT_EQ(s->result["load_errors"], json::array()) << s->result.dump(2);
+    EXPECT_EQ(s->result["console_errors"], json::array()) << s->result.dump(2);
+  }
+  EXPECT_EQ(geo.result["models_loaded"], plain.result["models_loaded"]);
+  EXPECT_FALSE(plain.result.value("local", true));
+  EXPECT_TRUE(geo.result.value("local", false));
+  ASSERT_EQ(geo.view.width, plain.view.width);
+  ASSERT_EQ(geo.view.height, plain.view.height);
+  ASSERT_EQ(geo.view.channels, plain.view.channels);
+  int64_t differ = 0;
+  for (int y = 0; y < plain.view.height; ++y)
+    for (int x = 0; x < plain.view.width * plain.view.channels; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * plain.view.stride_bytes + x;
+      differ += std::abs(int(plain.view.pixels[i]) - int(geo.view.pixels[i])) > 24;
+    }
+  const int64_t values = int64_t{plain.view.width} * plain.view.height * plain.view.channels;
+  std::printf("geo-referenced against plain page view: %lld of %lld values differ by more than 24\n",
+              static_cast<long long>(differ), static_cast<long long>(values));
+  EXPECT_LT(differ, values / 100);
+}
+
 }  // namespace
 }  // namespace imr
