@@ -702,6 +702,14 @@ TEST(Tiles, GeoReferencedByTheOriginAndMergedAsWithout) {
        "output.tiles.origin.heading: missing: expected number (degrees; required with an origin)"},
       {{{"lat", 0}, {"longitude", 0}, {"height", 0}, {"heading", 0}},
        "output.tiles.origin.lat: unknown key (expected "}};
+  {
+    WriteText(dir / "bad.json", Job({"street"}, {"ply"}, {{"orign", origin}}).dump(2));
+    const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "bad.json").string()));
+    EXPECT_EQ(v.status, 64);
+    EXPECT_NE((v.out + v.err).find("output.tiles.orign: unknown key (expected idle_parts, max_triangles, "
+                                   "origin or size)"),
+              std::string::npos) << v.out << v.err;
+  }
   for (const auto& [bad, message] : cases) {
     WriteText(dir / "bad.json", Job({"street"}, {"ply"}, {{"origin", bad}}).dump(2));
     const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "bad.json").string()));

@@ -399,7 +399,10 @@ ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry
     // "origin" is an object of its own (TilesOriginSchema): checked apart, kept in v.tiles.
     json flat = given;
     flat.erase("origin");
-    io::ValidateAgainstSchema(TilesSchema(), flat, "output.tiles", &v.problems);
+    // Named among the keys an unknown one is told (never checked here: erased above).
+    json keys = TilesSchema();
+    keys["origin"] = {{"type", "string"}};
+    io::ValidateAgainstSchema(keys, flat, "output.tiles", &v.problems);
     if (const auto origin = given.find("origin"); origin != given.end()) {
       if (!origin->is_object()) {
         v.problems.push_back({"output.tiles.origin", "expected an object {\"latitude\": degrees, "
