@@ -2,7 +2,8 @@
 // of a synthetic street; headless Chromium (Debian's, driven by playwright-core from tools/node)
 // loads tileset.json with 3d-tiles-renderer on three.js (npm, tools/node) from a local HTTP
 // server (tests/tiles_browser.cjs): every tile the tileset names is requested and parsed, no
-// load error, no console error, no request elsewhere, and the view shows the street. Skips,
+// load error, no console error, no request elsewhere, and the view shows the street; a
+// geo-referenced run in CesiumJS (tests/cesium_browser.cjs) stands where its origin says. Skips,
 // saying what is missing, without Chromium, node or the npm packages (tools/setup.sh installs
 // them). IMR_VIEWER_TEST_OUT=DIR keeps the screenshot.
 #include "host/io/image_io.h"
