@@ -156,6 +156,7 @@ async function viewerPage(a) {
     result.tileset_loaded = s.tilesetLoaded;
     result.models_loaded = s.models;
     result.tiles_shown = s.shown;
+    result.local = Boolean(s.local);
     result.load_errors = s.errors.concat(timeout ? [timeout] : []);
     const canvas = page.locator('#tiles-viewer canvas');
     await canvas.scrollIntoViewIfNeeded();

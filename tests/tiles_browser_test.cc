@@ -2,18 +2,23 @@
 // of a synthetic street; headless Chromium (Debian's, driven by playwright-core from tools/node)
 // loads tileset.json with 3d-tiles-renderer on three.js (npm, tools/node) from a local HTTP
 // server (tests/tiles_browser.cjs): every tile the tileset names is requested and parsed, no
-// load error, no console error, no request elsewhere, and the view shows the street. Skips,
+// load error, no console error, no request elsewhere, and the view shows the street; a
+// geo-referenced run in CesiumJS (tests/cesium_browser.cjs) stands where its origin says. Skips,
 // saying what is missing, without Chromium, node or the npm packages (tools/setup.sh installs
 // them). IMR_VIEWER_TEST_OUT=DIR keeps the screenshot.
 #include "host/io/image_io.h"
 #include "host/report/viewer_page.h"
 #include "host/pipeline/tiles.h"
+#include "host/util/geodesy.h"
 #include "test_util.h"
 
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
 
+#include <array>
+#include <cmath>
+#include <cstdio>
 #include <set>
 #include <string>
 
@@ -118,6 +123,103 @@ TEST(TilesBrowser, EveryTileLoadsIn3dTilesRenderer) {
   }
 }
 
+// Issue 46 item 3: a geo-referenced run (output.tiles.origin) in CesiumJS (npm `cesium`):
+// Cesium3DTileset.fromUrl puts the tileset's bounding sphere, as a cartographic, within 1 m
+// horizontally and 1 m in height of where Cesium's own maths (headingPitchRollToFixedFrame at the
+// origin, the heading as Cesium's) puts the centre of the root box of the local frame, and the
+// local frame's origin within 1 cm of Cesium's Cartesian3.fromDegrees of the origin; and that
+// centre at the distance and bearing from the origin the local frame and the heading give. Then
+// drawn (SwiftShader's
+// WebGL): every tile loads, none fails, nothing is asked of the network.
+TEST(TilesBrowser, CesiumPutsAGeoReferencedTilesetAtItsOrigin) {
+  if (const std::string m = Missing(); !m.empty()) GTEST_SKIP() << m;
+  if (!fs::exists(kNodeModules / "cesium"))
+    GTEST_SKIP() << "cesium is missing from " << kNodeModules.string() << ": run tools/setup.sh (npm ci --prefix tools/node)";
+  ScratchDir dir("tiles-cesium");
+  const json origin = {{"latitude", 49.01126}, {"longitude", 8.41674}, {"height", 115.5}, {"heading", 63.0}};
+  const json job = {
+      {"sequences", {"street"}},
+      {"input", {{"format", "synthetic"}, {"options", {{"frames", 60}, {"seed", 3}}}}},
+      {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+      {"output", {{"directory", "runs/{sequence}"}, {"formats", json::array()},
+                  {"tiles", {{"size", 20}, {"origin", origin}}}}}};
+  WriteText(dir / "job.json", job.dump(2));
+  const auto run = RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / "job.json").string()));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const fs::path out = dir / "runs" / "street";
+  const json tileset = json::parse(ReadText(out / "tileset.json"));
+  ASSERT_TRUE(tileset["asset"]["extras"]["imr"].contains("origin")) << tileset["asset"].dump();
+  const std::size_t tiles = pipeline::TileContentUris(tileset["root"]).size();
+
+  const auto b = RunShell(Quote(IMR_NODE_EXE) + " " + Quote(std::string(IMR_SOURCE_DIR) + "/tests/cesium_browser.cjs") +
+                          " --run " + Quote(out.string()) + " --node-modules " + Quote(kNodeModules.string()) +
+                          " --chromium " + Quote(Chromium()) + " --screenshot " +
+                          Quote((dir / "cesium.png").string()) + " --timeout-ms 120000");
+  json r;
+  try {
+    r = json::parse(b.out);
+  } catch (const std::exception&) {
+    FAIL() << "no result from the browser (exit " << b.status << "): " << b.out << "\n" << b.err;
+  }
+  std::printf("CesiumJS: bounding sphere centre %s, expected %s: %.2e m horizontally, %.2e m in "
+              "height; origin %.2e m from fromDegrees; radius %.1f m; %d tiles loaded\n",
+              r["center"].dump().c_str(), r["expected"].dump().c_str(), r.value("horizontal_m", -1.0),
+              r.value("height_m", -1.0), r.value("origin_ecef_m", -1.0), r.value("radius", -1.0),
+              r.value("tiles_loaded", -1));
+  EXPECT_EQ(b.status, 0) << r.dump(2) << "\n" << b.err;
+  ASSERT_TRUE(r["loaded"].get<bool>()) << r.dump(2);
+  ASSERT_TRUE(r["horizontal_m"].is_number()) << r.dump(2);
+  EXPECT_LE(r["horizontal_m"].get<double>(), 1.0) << r.dump(2);
+  EXPECT_LE(std::abs(r["height_m"].get<double>()), 1.0) << r.dump(2);
+  EXPECT_LE(r["origin_ecef_m"].get<double>(), 0.01) << r.dump(2);
+  // Where that is from the origin, without Cesium's frames: the root box's centre in the local
+  // frame (lx, ly) lies hypot(lx, ly) away at the bearing heading + atan2(lx, ly), clockwise from
+  // north; Cesium's centre, in the origin's east-north plane, within 0.1 m of it.
+  const auto local = tileset["asset"]["extras"]["imr"]["local_transform"].get<std::array<double, 16>>();
+  const json& box = tileset["root"]["boundingVolume"]["box"];
+  double l[3];
+  for (int k = 0; k < 3; ++k)
+    l[k] = local[k] * box[0].get<double>() + local[4 + k] * box[1].get<double>() + local[8 + k] * box[2].get<double>() +
+           local[12 + k];
+  const double bearing = (63.0 * M_PI / 180.0) + std::atan2(l[0], l[1]), distance = std::hypot(l[0], l[1]);
+  const std::array<double, 3> o = geo::EcefFromGeodetic({49.01126, 8.41674, 115.5});
+  const std::array<double, 3> c = geo::EcefFromGeodetic(
+      {r["center"]["latitude"].get<double>(), r["center"]["longitude"].get<double>(), r["center"]["height"].get<double>()});
+  const std::array<double, 9> enu = geo::EnuAxes(49.01126, 8.41674);
+  double en[2] = {0, 0};
+  for (int a = 0; a < 2; ++a)
+    for (int k = 0; k < 3; ++k) en[a] += enu[3 * a + k] * (c[k] - o[k]);
+  std::printf("the centre %.3f m east, %.3f m north of the origin; expected %.3f, %.3f (local %.3f, %.3f)\n",
+              en[0], en[1], distance * std::sin(bearing), distance * std::cos(bearing), l[0], l[1]);
+  EXPECT_GT(distance, 1.0);  // the scene's centre is not at its origin: the test can see a turn
+  EXPECT_NEAR(en[0], distance * std::sin(bearing), 0.1);
+  EXPECT_NEAR(en[1], distance * std::cos(bearing), 0.1);
+  EXPECT_EQ(r["origin"]["heading"], 63.0);
+  // Drawn with every tile.
+  EXPECT_TRUE(r["webgl"].get<bool>()) << r.dump(2);
+  EXPECT_EQ(r["tiles_loaded"].get<std::size_t>(), tiles) << r.dump(2);
+  EXPECT_EQ(r["tiles_failed"], json::array()) << r.dump(2);
+  EXPECT_EQ(r["requests_refused"], json::array()) << r.dump(2);
+  EXPECT_EQ(r["http_errors"], json::array()) << r.dump(2);
+  // The street fills a good part of the view, shaded.
+  const io::Image view = io::ReadImage((dir / "cesium.png").string());
+  std::set<uint32_t> colors;
+  int64_t background = 0;
+  for (int y = 0; y < view.height; ++y)
+    for (int x = 0; x < view.width; ++x) {
+      const uint8_t* p = view.pixels.data() + y * view.stride_bytes + view.channels * x;
+      const uint32_t rgb = uint32_t(p[0]) << 16 | uint32_t(p[1]) << 8 | p[2];
+      colors.insert(rgb);
+      background += rgb == 0xf0f0f0;
+    }
+  EXPECT_GT(colors.size(), 20u);
+  EXPECT_LT(background, int64_t{view.width} * view.height * 95 / 100);
+  if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
+    fs::create_directories(keep);
+    fs::copy_file(dir / "cesium.png", fs::path(keep) / "cesium.png", fs::copy_options::overwrite_existing);
+  }
+}
+
 // The batch viewer page shows a tiled run (tiles only: no single mesh), opened from disk: its
 // tiles view loads the tileset and every tile in view from the page's own scripts, with nothing
 // fetched from the network.
@@ -168,6 +270,72 @@ TEST(TilesBrowser, ViewerPageShowsATiledRun) {
     fs::create_directories(keep);
     fs::copy_file(shot, fs::path(keep) / "page-tiles.png", fs::copy_options::overwrite_existing);
   }
+}
+
+// A geo-referenced run (output.tiles.origin) on the batch viewer page: its tiles view shows the
+// tileset in its local frame (asset.extras.imr.local_transform), ground down, as the same run
+// without an origin: every tile loaded, and the two views the same picture (not the street seen
+// from the side, as the ECEF frame's up would give).
+TEST(TilesBrowser, ViewerPageShowsAGeoReferencedRunAsWithout) {
+  if (const std::string m = Missing(); !m.empty()) GTEST_SKIP() << m;
+  if (!fs::exists(IMR_TILES_VIEWER_SCRIPT))
+    GTEST_SKIP() << IMR_TILES_VIEWER_SCRIPT << " was not built (node and tools/node's esbuild: tools/setup.sh)";
+  ScratchDir dir("tiles-page-geo");
+  struct Shown {
+    json result;
+    io::Image view;
+  };
+  auto show = [&](const std::string& name, const json& tiles) {
+    const json job = {
+        {"sequences", {"street"}},
+        {"input", {{"format", "synthetic"}, {"options", {{"frames", 60}, {"seed", 3}}}}},
+        {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+        {"output", {{"directory", name + "/{sequence}"}, {"formats", json::array()}, {"tiles", tiles}}}};
+    WriteText(dir / (name + ".json"), job.dump(2));
+    const auto run = RunShell(std::string(IMR_EXE) + " run -q --no-viewer " + Quote((dir / (name + ".json")).string()));
+    EXPECT_EQ(run.status, 0) << run.err;
+    const fs::path out = dir / name / "street";
+    const json report = json::parse(ReadText(out / "report.json"));
+    const json summary = {{"title", "tiles page test"},
+                          {"sequences", {{{"name", "street"}, {"ok", true}, {"error", ""},
+                                          {"output_directory", out.string()}, {"report", report}}}}};
+    report::ViewerPageOptions options;
+    options.model_viewer_script = IMR_MODEL_VIEWER_SOURCE;
+    options.tiles_viewer_script = IMR_TILES_VIEWER_SCRIPT;
+    const report::ViewerPageResult page = report::WriteBatchPage(dir / name, summary, options);
+    const fs::path shot = dir / (name + ".png");
+    Shown s{Browser("--page " + Quote(page.page.string()) + " --screenshot " + Quote(shot.string())), {}};
+    s.view = io::ReadImage(shot.string());
+    if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
+      fs::create_directories(keep);
+      fs::copy_file(shot, fs::path(keep) / ("page-" + name + ".png"), fs::copy_options::overwrite_existing);
+    }
+    return s;
+  };
+  const Shown plain = show("plain", {{"size", 20}});
+  const Shown geo = show("geo", {{"size", 20}, {"origin", {{"latitude", -33.8568}, {"longitude", 151.2153},
+                                                           {"height", 20.0}, {"heading", -120.0}}}});
+  for (const Shown* s : {&plain, &geo}) {
+    EXPECT_TRUE(s->result.value("tileset_loaded", false)) << s->result.dump(2);
+    EXPECT_EQ(s->result["load_errors"], json::array()) << s->result.dump(2);
+    EXPECT_EQ(s->result["console_errors"], json::array()) << s->result.dump(2);
+  }
+  EXPECT_EQ(geo.result["models_loaded"], plain.result["models_loaded"]);
+  EXPECT_FALSE(plain.result.value("local", true));
+  EXPECT_TRUE(geo.result.value("local", false));
+  ASSERT_EQ(geo.view.width, plain.view.width);
+  ASSERT_EQ(geo.view.height, plain.view.height);
+  ASSERT_EQ(geo.view.channels, plain.view.channels);
+  int64_t differ = 0;
+  for (int y = 0; y < plain.view.height; ++y)
+    for (int x = 0; x < plain.view.width * plain.view.channels; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * plain.view.stride_bytes + x;
+      differ += std::abs(int(plain.view.pixels[i]) - int(geo.view.pixels[i])) > 24;
+    }
+  const int64_t values = int64_t{plain.view.width} * plain.view.height * plain.view.channels;
+  std::printf("geo-referenced against plain page view: %lld of %lld values differ by more than 24\n",
+              static_cast<long long>(differ), static_cast<long long>(values));
+  EXPECT_LT(differ, values / 100);
 }
 
 }  // namespace

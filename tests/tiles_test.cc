@@ -9,6 +9,7 @@
 #include "host/engine/engine.h"
 #include "host/eval/mesh_io.h"
 #include "host/pipeline/tiles.h"
+#include "host/util/geodesy.h"
 #include "host/util/write_rule.h"
 #include "test_util.h"
 
@@ -625,6 +626,96 @@ TEST(Tiles, OptionsThatMakeTilesOfATriangleAreRefused) {
   // The least size and max_triangles allowed run.
   const auto run = RunJob(dir.path(), "least", Job({"street"}, json::array(), {{"size", 5}, {"max_triangles", 100}}));
   EXPECT_EQ(run.status, 0) << run.err;
+}
+
+// Issue 46 item 3: output.tiles.origin puts the tileset in ECEF and changes nothing else: the
+// root's transform is ECEF <- ENU at the origin, turned by the heading, after the local frame the
+// run without an origin writes (kept in asset.extras.imr.local_transform); the tiles are the same
+// bytes, and `imr tiles merge`, which reads tiles in the sequence's frame, gives the same mesh.
+// The report and the log say which origin. Wrong origins are refused by `imr validate` naming
+// the key.
+TEST(Tiles, GeoReferencedByTheOriginAndMergedAsWithout) {
+  ScratchDir dir("tiles-geo");
+  const json origin = {{"latitude", -33.8568}, {"longitude", 151.2153}, {"height", 20.0}, {"heading", -120.0}};
+  ASSERT_EQ(RunJob(dir.path(), "plain", Job({"street"}, json::array(), {{"size", 20}})).status, 0);
+  fs::rename(dir / "runs", dir / "plain");
+  WriteText(dir / "geo.json", Job({"street"}, json::array(), {{"size", 20}, {"origin", origin}}).dump(2));
+  // Not quiet: the origin used is said.
+  const auto run = RunShell(std::string(IMR_EXE) + " run " + Quote((dir / "geo.json").string()));
+  ASSERT_EQ(run.status, 0) << run.err;
+  EXPECT_NE((run.out + run.err).find("tiles geo-referenced: origin latitude -33.85680000, longitude "
+                                     "151.21530000, height 20.000 m, heading -120.000 deg (from "
+                                     "output.tiles.origin)"),
+            std::string::npos) << run.out << run.err;
+  const fs::path out = dir / "runs" / "street", plain = dir / "plain" / "street";
+  const json geo_tileset = json::parse(ReadText(out / "tileset.json"));
+  const json plain_tileset = json::parse(ReadText(plain / "tileset.json"));
+  const json& imr = geo_tileset["asset"]["extras"]["imr"];
+  EXPECT_EQ(imr["origin"]["latitude"], -33.8568);
+  EXPECT_EQ(imr["origin"]["heading"], -120.0);
+  EXPECT_EQ(imr["origin"]["source"], "output.tiles.origin");
+  EXPECT_EQ(imr["local_transform"], plain_tileset["root"]["transform"]);
+  EXPECT_FALSE(plain_tileset["asset"]["extras"]["imr"].contains("origin"));
+  pipeline::TilesOrigin o;
+  o.given = true;
+  o.latitude = -33.8568;
+  o.longitude = 151.2153;
+  o.height = 20.0;
+  o.heading = -120.0;
+  const auto want = pipeline::GeoreferencedFrame(o, plain_tileset["root"]["transform"].get<std::array<double, 16>>());
+  const auto got = geo_tileset["root"]["transform"].get<std::array<double, 16>>();
+  for (int k = 0; k < 16; ++k) EXPECT_NEAR(got[k], want[k], 1e-9) << k;
+  // The local origin in ECEF is the origin's position: 20 m above the ellipsoid there.
+  const geo::Geodetic at = geo::GeodeticFromEcef({got[12], got[13], got[14]});
+  EXPECT_NEAR(at.latitude, -33.8568, 1e-9);
+  EXPECT_NEAR(at.longitude, 151.2153, 1e-9);
+  EXPECT_NEAR(at.height, 20.0, 1e-6);
+  // Everything but the root's transform and the extras as without the origin.
+  EXPECT_EQ(geo_tileset["root"]["children"], plain_tileset["root"]["children"]);
+  EXPECT_EQ(geo_tileset["root"]["boundingVolume"], plain_tileset["root"]["boundingVolume"]);
+  const std::vector<std::string> uris = pipeline::TileContentUris(geo_tileset["root"]);
+  ASSERT_GE(uris.size(), 2u);
+  for (const std::string& u : uris) EXPECT_EQ(ReadText(out / u), ReadText(plain / u)) << u;
+  const json report = json::parse(ReadText(out / "report.json"));
+  EXPECT_EQ(report["tiles"]["origin"], imr["origin"]);
+  EXPECT_FALSE(json::parse(ReadText(plain / "report.json"))["tiles"].contains("origin"));
+  auto merge = [&](const fs::path& folder, const fs::path& to) {
+    return RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(folder.string()) + " --out " + Quote(to.string()));
+  };
+  ASSERT_EQ(merge(out, dir / "geo.ply").status, 0);
+  ASSERT_EQ(merge(plain, dir / "plain.ply").status, 0);
+  EXPECT_EQ(ReadText(dir / "geo.ply"), ReadText(dir / "plain.ply"));
+
+  // Refused by the validation, naming the key and what it expects.
+  const std::vector<std::pair<json, std::string>> cases = {
+      {json(5), "output.tiles.origin: expected an object {\"latitude\": degrees, \"longitude\": degrees, "
+                "\"height\": metres, \"heading\": degrees}, got 5"},
+      {{{"latitude", 91}, {"longitude", 0}, {"height", 0}, {"heading", 0}},
+       "output.tiles.origin.latitude: expected number in [-90.0, 90.0], got 91"},
+      {{{"latitude", 0}, {"longitude", -181}, {"height", 0}, {"heading", 0}},
+       "output.tiles.origin.longitude: expected number in [-180.0, 180.0], got -181"},
+      {{{"latitude", 0}, {"longitude", 0}, {"height", 6378137}, {"heading", 0}},
+       "output.tiles.origin.height: expected number in [-11000.0, 100000.0], got 6378137"},
+      {{{"latitude", 0}, {"longitude", 0}, {"height", 0}, {"heading", "north"}},
+       "output.tiles.origin.heading: expected number, got \"north\""},
+      {{{"latitude", 0}, {"longitude", 0}, {"height", 0}},
+       "output.tiles.origin.heading: missing: expected number (degrees; required with an origin)"},
+      {{{"lat", 0}, {"longitude", 0}, {"height", 0}, {"heading", 0}},
+       "output.tiles.origin.lat: unknown key (expected "}};
+  {
+    WriteText(dir / "bad.json", Job({"street"}, {"ply"}, {{"orign", origin}}).dump(2));
+    const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "bad.json").string()));
+    EXPECT_EQ(v.status, 64);
+    EXPECT_NE((v.out + v.err).find("output.tiles.orign: unknown key (expected idle_parts, max_triangles, "
+                                   "origin or size)"),
+              std::string::npos) << v.out << v.err;
+  }
+  for (const auto& [bad, message] : cases) {
+    WriteText(dir / "bad.json", Job({"street"}, {"ply"}, {{"origin", bad}}).dump(2));
+    const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "bad.json").string()));
+    EXPECT_EQ(v.status, 64) << bad.dump();
+    EXPECT_NE((v.out + v.err).find(message), std::string::npos) << v.out << v.err;
+  }
 }
 
 // Issue 44, finding 13 and the minor ones of imr tiles merge: a tileset.json past the bounds, a

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs everything imr needs to build and test, from Debian's packages (apt-get) and npm's
-# registry (the Khronos glTF validator, <model-viewer>, playwright-core, 3d-tiles-renderer and
-# esbuild: pinned in tools/node/package-lock.json). Idempotent and quick when all is there: apt
+# registry (the Khronos glTF validator, <model-viewer>, playwright-core, 3d-tiles-renderer,
+# CesiumJS and esbuild: pinned in tools/node/package-lock.json). Idempotent and quick when all is there: apt
 # runs only for missing packages. Uses sudo when not root.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -133,6 +133,8 @@ int CmdOptions(const std::vector<std::string>& args) {
     section("input", "input format " + f.name, f.description, f.options_schema);
   section("evaluation", "evaluation", "", pipeline::EvaluationSchema());
   section("tiles", "tiles", "output.tiles: the surface as OGC 3D Tiles (docs/tiles.md)", pipeline::TilesSchema());
+  section("tiles", "tiles.origin", "output.tiles.origin: where the tiles stand on the Earth (docs/tiles.md, "
+          "Geo-referenced tiles)", pipeline::TilesOriginSchema());
   if (only.empty() || only == "plugins") {
     plugin::PluginRegistry registry;
     ScanPlugins(vm, &registry);

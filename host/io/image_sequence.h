@@ -19,10 +19,12 @@
 
 #include "host/io/camera_model.h"
 #include "host/io/image_io.h"
+#include "host/util/geodesy.h"
 
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -59,6 +61,9 @@ struct ImageSequence {
   // What every frame's image must be (checked from its header before decoding): the size of
   // frame 0, within the options' max_image_megapixels.
   ImageLimits image_limits;
+  // Where the sequence's frame stands on the Earth, when the input says (KITTI raw with poses
+  // from oxts: the GNSS/IMU of source frame 0); geo-references the tiles without an origin.
+  std::optional<geo::GeoAnchor> geo;
 };
 
 // Options every layout takes (job "input.options"); checked against ImageSequenceOptionsSchema.

@@ -553,6 +553,42 @@ TEST(KittiRaw, OxtsPosesAsTheDevkitConvertsThem) {
   // No timestamps.txt, no times.txt: 10 Hz.
   EXPECT_DOUBLE_EQ(s.frames[2].timestamp, 0.2);
 
+  // Where the world stands on the Earth (issue 46, geo-referenced tiles): camera 0 of frame 0,
+  // 1 m ahead of the IMU along the yaw of 30 deg (counter-clockwise from east), its axes to ENU:
+  // forward (world +z) to (cos 30, sin 30, 0), up (world -y) to up.
+  ASSERT_TRUE(s.geo.has_value());
+  const double pi = std::numbers::pi;
+  auto ahead = [](double lat, double lon, double alt, double yaw, double metres) {
+    std::array<double, 3> x = geo::EcefFromGeodetic({lat, lon, alt});
+    const std::array<double, 9> enu = geo::EnuAxes(lat, lon);
+    for (int k = 0; k < 3; ++k) x[k] += metres * (std::cos(yaw) * enu[k] + std::sin(yaw) * enu[3 + k]);
+    return x;
+  };
+  const std::array<double, 3> at = geo::EcefFromGeodetic(s.geo->origin);
+  const std::array<double, 3> want = ahead(49.0, 8.4, 110.0, pi / 6, 1.0);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(at[k], want[k], 1e-6);
+  const std::array<double, 9>& r = s.geo->enu_from_world;
+  ExpectVec({r[2], r[5], r[8]}, {std::cos(pi / 6), std::sin(pi / 6), 0}, 1e-12);
+  ExpectVec({-r[1], -r[4], -r[7]}, {0, 0, 1}, 1e-12);
+  EXPECT_NE(s.geo->source.find("0000000000.txt"), std::string::npos);
+  EXPECT_EQ(s.summary["geo_anchor"]["latitude"], s.geo->origin.latitude);
+  // Frame 1's camera, put on the Earth through the anchor, is where its own oxts record and the
+  // calibration say: 1 m ahead of that record's position along its yaw (120 deg). The poses are
+  // the devkit's Mercator: within a few centimetres of the ellipsoid over these 10 m.
+  {
+    const Vec3 c = s.frames[1].camera.center;
+    std::array<double, 3> ecef = at;
+    const std::array<double, 9> enu = geo::EnuAxes(s.geo->origin.latitude, s.geo->origin.longitude);
+    for (int k = 0; k < 3; ++k)
+      for (int j = 0; j < 3; ++j) ecef[k] += enu[3 * j + k] * (r[3 * j] * c[0] + r[3 * j + 1] * c[1] + r[3 * j + 2] * c[2]);
+    const double s0 = std::cos(49.0 * pi / 180.0), er = 6378137.0;
+    const double north0 = s0 * er * std::log(std::tan((90.0 + 49.0) * pi / 360.0));
+    const double lon1 = 8.4 + 10.0 * std::cos(pi / 6) * 180.0 / (s0 * pi * er);
+    const double lat1 = std::atan(std::exp((north0 + 10.0 * std::sin(pi / 6)) / (s0 * er))) * 360.0 / pi - 90.0;
+    const std::array<double, 3> want1 = ahead(lat1, lon1, 110.0, 2 * pi / 3, 1.0);
+    EXPECT_LT(std::hypot(ecef[0] - want1[0], ecef[1] - want1[1], ecef[2] - want1[2]), 0.05);
+  }
+
   // Camera 2 (x_cam2 = x_cam0 + b2, world = camera 2 at frame 0): the same rotations;
   // C = C_0 - R^T b2 + b2. Frame 1: R^T b2 = (-0.125, 0.25, 0.5), C = (-0.375, 0, 8.625).
   const ImageSequence s2 = ReadKittiRaw(d.drive.string(), Camera(2));
@@ -574,6 +610,7 @@ TEST(KittiRaw, PosesFileTimestampsAndVelodyne) {
   EXPECT_EQ(s.summary["poses"]["camera"], 0);
   EXPECT_EQ(s.summary["poses"]["camera_from"], "the file name");
   EXPECT_EQ(s.summary["poses"]["chosen_by"], "the only poses*.txt in the drive folder");
+  EXPECT_FALSE(s.geo.has_value());  // a poses file's frame is not placed on the Earth
   ExpectVec(s.frames[0].camera.translation, kB[2]);  // camera-0 poses, camera 2 images
   ExpectVec(s.frames[1].camera.center, {0.875, 1.75, 3.5});
   EXPECT_DOUBLE_EQ(s.frames[0].timestamp, 0.0);

@@ -4,6 +4,7 @@
 // (x_cam_k = x_rect + b_k), and a pose given for camera p serves camera k shifted by b_k - b_p.
 #include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
+#include "host/util/geodesy.h"
 
 #include <algorithm>
 #include <cmath>
@@ -653,6 +654,27 @@ std::vector<Rigid> OxtsPoses(const fs::path& root, const std::string& root_arg, 
                            {"camera", seq->camera},
                            {"camera_from", "computed for the chosen camera through the calibration"},
                            {"mercator_scale", scale}};
+  // Where the world (camera k at source frame 0) stands on the Earth. The Mercator frame's
+  // axes at the first record are east, north, up at unit scale (the scale is its latitude's),
+  // so the camera's offset from the IMU there is an ENU offset from the IMU's position.
+  const Rigid merc_from_imu0 = OxtsToImuPose(first, scale);
+  const Rigid merc_from_world = Compose(merc_from_imu0, imu_from_cam);
+  const Vec3 offset_enu = Sub(merc_from_world.t, merc_from_imu0.t);
+  const std::array<double, 3> imu_ecef = geo::EcefFromGeodetic({first.lat, first.lon, first.alt});
+  const std::array<double, 9> enu = geo::EnuAxes(first.lat, first.lon);
+  std::array<double, 3> camera_ecef = imu_ecef;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int j = 0; j < 3; ++j) camera_ecef[axis] += enu[3 * j + axis] * offset_enu[j];
+  geo::GeoAnchor anchor;
+  anchor.origin = geo::GeodeticFromEcef(camera_ecef);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) anchor.enu_from_world[3 * r + c] = merc_from_world.r[r][c];
+  anchor.source = (oxts / Numbered(0, 10, ".txt")).string() + " (GNSS/IMU of source frame 0)";
+  seq->summary["geo_anchor"] = {{"latitude", anchor.origin.latitude},
+                                {"longitude", anchor.origin.longitude},
+                                {"height", anchor.origin.height},
+                                {"source", anchor.source}};
+  seq->geo = anchor;
   return camera_to_world;
 }
 

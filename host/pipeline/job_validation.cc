@@ -9,6 +9,8 @@
 #include "host/util/json_text.h"
 #include "host/util/log.h"
 
+#include "imr/sdk/params_schema.hpp"
+
 #include <glob.h>
 
 #include <algorithm>
@@ -394,7 +396,27 @@ ValidatedJob ValidateParsedJob(io::JobParseResult parsed, plugin::PluginRegistry
   const json& tiles = v.job.output.tiles;
   if (tiles.is_object() || tiles == json(true)) {
     const json given = tiles.is_object() ? tiles : json::object();
-    io::ValidateAgainstSchema(TilesSchema(), given, "output.tiles", &v.problems);
+    // "origin" is an object of its own (TilesOriginSchema): checked apart, kept in v.tiles.
+    json flat = given;
+    flat.erase("origin");
+    // Named among the keys an unknown one is told (never checked here: erased above).
+    json keys = TilesSchema();
+    keys["origin"] = {{"type", "string"}};
+    io::ValidateAgainstSchema(keys, flat, "output.tiles", &v.problems);
+    if (const auto origin = given.find("origin"); origin != given.end()) {
+      if (!origin->is_object()) {
+        v.problems.push_back({"output.tiles.origin", "expected an object {\"latitude\": degrees, "
+                                                     "\"longitude\": degrees, \"height\": metres, "
+                                                     "\"heading\": degrees}, got " + io::Describe(*origin)});
+      } else {
+        io::ValidateAgainstSchema(TilesOriginSchema(), *origin, "output.tiles.origin", &v.problems);
+        for (const auto& [key, spec] : TilesOriginSchema().items())
+          if (!origin->contains(key))
+            v.problems.push_back({"output.tiles.origin." + key,
+                                  "missing: expected " + imr::sdk::ExpectedValue(spec) + " (" +
+                                      spec["unit"].get<std::string>() + "; required with an origin)"});
+      }
+    }
     v.tiles = io::WithDefaults(TilesSchema(), given);
     // The cells against the Steiner spacing, when the job fixes it (else the run checks).
     TilesOptions o;

@@ -351,6 +351,7 @@ json TilesJson(const ReportInputs& in) {
           {"open_tiles_peak", t.open_tiles_peak},
           {"seconds", t.seconds},
           {"keyframes_given", in.tile_images.keyframes}};
+  if (!t.origin.is_null()) tiles["origin"] = t.origin;
   const ExportImageStats& ti = in.tile_images;
   if (ti.store.requests > 0)
     tiles["image_service"] = {{"requests", ti.store.requests},

@@ -170,6 +170,7 @@ class SequenceRun {
   // streamed_surface.h), its tiles, and the spool the single mesh is read back from (in a
   // staging folder of the output folder: removed on every path).
   std::optional<TileWriter> tiles_;
+  std::optional<geo::GeoAnchor> geo_anchor_;  // the input's place on the Earth (KITTI raw oxts)
   std::optional<StagingDirectory> spool_dir_;
   std::optional<StreamedSurface> streamed_;
   ExportImageStats tile_images_;          // summed over the tiles' exports
@@ -327,6 +328,7 @@ void SequenceRun::OpenSource() {
     fo.keyframe_every = io::ImageSequenceOptionsFromJson(v_.input_options).keyframe_every;
     fo.track_ahead = overlap_;
     io::ImageSequence images = format_->open_images(seq_.source, v_.input_options);
+    geo_anchor_ = images.geo;
     // A trimmed sequence (the first lines of longer times/poses files used): said now, and a
     // warning in report.json.
     if (const auto t = images.summary.find("trimmed"); t != images.summary.end())
@@ -421,11 +423,33 @@ void SequenceRun::StartStreamedSurface() {
       }
       return TilesetFrame(rotations);
     };
+    // Geo-referenced: the job's origin, else the input's place (its GNSS), said once in the log.
+    auto say = [this](const TilesOrigin& g, const std::string& extra) {
+      char line[320];
+      std::snprintf(line, sizeof(line), "tiles geo-referenced: origin latitude %.8f, longitude %.8f, "
+                    "height %.3f m, heading %.3f deg%s (from %s)", g.latitude, g.longitude, g.height,
+                    g.heading, extra.c_str(), g.source.c_str());
+      Note(line);
+    };
+    TileWriter::OriginFor origin_for;
+    if (o.origin.given) {
+      say(o.origin, "");
+    } else if (geo_anchor_) {
+      origin_for = [say, anchor = *geo_anchor_](const std::array<double, 16>& local) {
+        const TilesOrigin g = OriginFromAnchor(anchor, local);
+        char extra[128];
+        std::snprintf(extra, sizeof(extra), ", the input's attitude (the cameras' mean up %.2f deg from "
+                      "the vertical)", g.tilt);
+        say(g, extra);
+        return g;
+      };
+    }
     try {
       tiles_.emplace(o, out, json{{"job", JsonText(job)}, {"sequence", JsonText(seq_.name)}}, frame,
                      [this](const TileMesh& t, const fs::path& dir, const std::string& stem) {
                        WriteTile(t, dir, stem);
-                     });
+                     },
+                     origin_for);
     } catch (const std::exception& e) {
       throw std::runtime_error(std::string("tiles: ") + e.what());
     }

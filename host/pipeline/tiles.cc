@@ -17,6 +17,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <numbers>
 #include <regex>
 #include <set>
 #include <stdexcept>
@@ -117,7 +118,53 @@ json BoxJson(const std::array<double, 6>& b) {
   return {{"box", box}};
 }
 
+// Column-major 4x4 product a * b.
+std::array<double, 16> Multiply(const std::array<double, 16>& a, const std::array<double, 16>& b) {
+  std::array<double, 16> m{};
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r)
+      for (int k = 0; k < 4; ++k) m[4 * c + r] += a[4 * k + r] * b[4 * c + k];
+  return m;
+}
+
 }  // namespace
+
+std::string TilesOrigin::Check() const {
+  const auto within = [](double x, double lo, double hi) { return std::isfinite(x) && x >= lo && x <= hi; };
+  if (!within(latitude, -90.0, 90.0))
+    return "origin.latitude: expected degrees in [-90, 90], got " + Number(latitude);
+  if (!within(longitude, -180.0, 180.0))
+    return "origin.longitude: expected degrees in [-180, 180], got " + Number(longitude);
+  if (!within(height, kMinOriginHeight, kMaxOriginHeight))
+    return "origin.height: expected metres above the WGS84 ellipsoid in [" + Number(kMinOriginHeight) +
+           ", " + Number(kMaxOriginHeight) + "], got " + Number(height);
+  if (!std::isfinite(heading)) return "origin.heading: expected degrees clockwise from north, got " + Number(heading);
+  return "";
+}
+
+json TilesOrigin::ToJson() const {
+  json j = {{"latitude", latitude}, {"longitude", longitude}, {"height", height}, {"heading", heading},
+            {"source", JsonText(source)}};
+  if (enu_from_local) j["tilt"] = tilt;  // the input's attitude, not levelled
+  return j;
+}
+
+const json& TilesOriginSchema() {
+  static const json schema = {
+      {"latitude", {{"type", "number"}, {"minimum", -90.0}, {"maximum", 90.0}, {"unit", "degrees"},
+                    {"description", "WGS84 latitude of the local frame's origin (the sequence's "
+                                    "0, 0, 0), north positive; required"}}},
+      {"longitude", {{"type", "number"}, {"minimum", -180.0}, {"maximum", 180.0}, {"unit", "degrees"},
+                     {"description", "WGS84 longitude of that origin, east positive; required"}}},
+      {"height", {{"type", "number"}, {"minimum", kMinOriginHeight}, {"maximum", kMaxOriginHeight},
+                  {"unit", "metres"},
+                  {"description", "height of that origin above the WGS84 ellipsoid (not above sea "
+                                  "level); required"}}},
+      {"heading", {{"type", "number"}, {"unit", "degrees"},
+                   {"description", "direction of the local frame's +Y (the cameras' mean viewing "
+                                   "direction, level) clockwise from north; required"}}}};
+  return schema;
+}
 
 std::string TilesOptions::Check() const {
   if (!std::isfinite(size) || size < 0.0) return "size: expected a length >= 0 (0: 10 x steiner_spacing)";
@@ -125,6 +172,7 @@ std::string TilesOptions::Check() const {
     return "max_triangles: expected >= " + std::to_string(kMinTileTriangles) + ", got " +
            std::to_string(max_triangles);
   if (idle_parts < 1) return "idle_parts: expected >= 1";
+  if (origin.given) return origin.Check();
   return "";
 }
 
@@ -160,6 +208,14 @@ TilesOptions TilesOptionsFromJson(const json& tiles) {
   o.size = tiles.value("size", o.size);
   o.max_triangles = tiles.value("max_triangles", o.max_triangles);
   o.idle_parts = tiles.value("idle_parts", o.idle_parts);
+  if (const auto g = tiles.find("origin"); g != tiles.end() && g->is_object()) {
+    o.origin.given = true;
+    o.origin.latitude = g->value("latitude", 0.0);
+    o.origin.longitude = g->value("longitude", 0.0);
+    o.origin.height = g->value("height", 0.0);
+    o.origin.heading = g->value("heading", 0.0);
+    o.origin.source = "output.tiles.origin";
+  }
   return o;
 }
 
@@ -200,10 +256,11 @@ std::string ForeignTiles(const fs::path& output_dir, const std::string& job, con
 // ---- TileWriter ---------------------------------------------------------------------------------
 
 TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json identity,
-                       std::function<std::array<double, 16>()> root_transform, WriteTileGlb write)
+                       std::function<std::array<double, 16>()> local_frame, WriteTileGlb write,
+                       OriginFor origin_for)
     : options_(options), output_dir_(std::move(output_dir)), tiles_dir_(output_dir_ / "tiles"),
-      identity_(std::move(identity)), root_transform_fn_(std::move(root_transform)),
-      write_(std::move(write)) {
+      identity_(std::move(identity)), root_transform_fn_(std::move(local_frame)),
+      origin_for_(std::move(origin_for)), write_(std::move(write)) {
   if (const std::string e = options_.Check(); !e.empty()) throw std::invalid_argument("output.tiles." + e);
   if (!(options_.size > 0.0)) throw std::invalid_argument("output.tiles.size: 0 must be resolved first");
   EnsureWritableDirectory(tiles_dir_);
@@ -238,6 +295,7 @@ TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json id
     }
   }
   root_transform_ = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  local_frame_ = root_transform_;
   WriteTileset("running");
 }
 
@@ -296,8 +354,20 @@ void TileWriter::MarkFailed(const std::string& error) noexcept {
 
 void TileWriter::Write(const Cell& cell, OpenTile& t) {
   const auto start = std::chrono::steady_clock::now();
-  if (!have_root_transform_ && root_transform_fn_) root_transform_ = root_transform_fn_();
-  have_root_transform_ = true;
+  if (!have_root_transform_) {
+    if (root_transform_fn_) local_frame_ = root_transform_fn_();
+    TilesOrigin origin = options_.origin;
+    if (!origin.given && origin_for_) origin = origin_for_(local_frame_);
+    if (origin.given) {
+      if (const std::string e = origin.Check(); !e.empty())
+        throw std::runtime_error(origin.source + ": " + e);
+      stats_.origin = origin.ToJson();
+      root_transform_ = GeoreferencedFrame(origin, local_frame_);
+    } else {
+      root_transform_ = local_frame_;
+    }
+    have_root_transform_ = true;
+  }
   if (static_cast<int64_t>(written_.size()) >= kMaxTiles)
     throw std::runtime_error("output.tiles: more than " + std::to_string(kMaxTiles) + " tiles, more "
                              "than imr tiles merge reads: choose a larger size or max_triangles");
@@ -385,6 +455,11 @@ void TileWriter::WriteTileset(const std::string& state, const std::string& error
   int64_t triangles = 0;
   for (const Written& w : written_) triangles += w.triangles;
   imr["triangles"] = triangles;
+  // Geo-referenced: where, and the frame before it (what the transform is without an origin).
+  if (!stats_.origin.is_null()) {
+    imr["origin"] = stats_.origin;
+    imr["local_transform"] = local_frame_;
+  }
   const json tileset = {
       {"asset", {{"version", "1.1"}, {"generator", std::string("imr ") + Version()}, {"extras", {{"imr", imr}}}}},
       {"geometricError", Diagonal(box)},
@@ -436,6 +511,42 @@ std::array<double, 16> TilesetFrame(const std::vector<std::array<double, 9>>& ro
     m[4 * col + 2] = up[col] + 0.0;
   }
   return m;
+}
+
+std::array<double, 16> GeoreferencedFrame(const TilesOrigin& origin, const std::array<double, 16>& local_frame) {
+  // ENU <- local: +Y at `heading` clockwise from north, +X to its right, +Z up (column-major).
+  const double h = origin.heading * std::numbers::pi / 180.0;
+  const double c = std::cos(h), s = std::sin(h);
+  std::array<double, 16> turn = {c, -s, 0, 0, s, c, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  if (origin.enu_from_local)
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) turn[4 * k + r] = (*origin.enu_from_local)[3 * r + k];
+  const std::array<double, 16> enu =
+      geo::EcefFromEnu({origin.latitude, origin.longitude, origin.height});
+  return Multiply(enu, Multiply(turn, local_frame));
+}
+
+TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<double, 16>& local_frame) {
+  // The local axes in the sequence's frame (rows of local <- sequence), then in ENU: the columns
+  // of ENU <- local.
+  std::array<double, 9> enu_from_local{};
+  for (int r = 0; r < 3; ++r)
+    for (int axis = 0; axis < 3; ++axis)
+      for (int j = 0; j < 3; ++j)
+        enu_from_local[3 * r + axis] += anchor.enu_from_world[3 * r + j] * local_frame[4 * j + axis];
+  const std::array<double, 3> forward = {enu_from_local[1], enu_from_local[4], enu_from_local[7]};
+  const std::array<double, 3> up = {enu_from_local[2], enu_from_local[5], enu_from_local[8]};
+  TilesOrigin o;
+  o.given = true;
+  o.latitude = anchor.origin.latitude;
+  o.longitude = anchor.origin.longitude;
+  o.height = anchor.origin.height;
+  // atan2(east, north): clockwise from north, in (-180, 180].
+  o.heading = std::atan2(forward[0], forward[1]) * 180.0 / std::numbers::pi;
+  o.source = anchor.source;
+  o.enu_from_local = enu_from_local;
+  o.tilt = std::acos(std::clamp(up[2] / std::hypot(up[0], up[1], up[2]), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+  return o;
 }
 
 std::array<double, 9> TileGltfRotation() { return {1, 0, 0, 0, 0, 1, 0, -1, 0}; }

@@ -16,13 +16,15 @@
 // Tiles reads the sequence's own coordinates back; tiles have no transform of their own and their
 // bounding boxes are in the sequence's frame. The root's transform is the local frame: the
 // sequence's frame turned so that the cameras' mean up is +Z (their mean viewing direction +Y),
-// as viewers of 3D Tiles expect the ground. Vertices carry their keys (`_VERTEX_KEY`): tiles share
+// as viewers of 3D Tiles expect the ground; with an origin (TilesOrigin: the job's, or the
+// input's place on the Earth) that frame placed in ECEF (GeoreferencedFrame). Vertices carry their keys (`_VERTEX_KEY`): tiles share
 // their seam vertices and merge without duplicates (MergeTiles).
 #pragma once
 
 #include "host/util/input_file.h"
 
 #include "host/engine/engine.h"
+#include "host/util/geodesy.h"
 
 #include <nlohmann/json.hpp>
 
@@ -32,11 +34,40 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
 
 namespace imr::pipeline {
+
+// Where the tileset's local frame (TilesetFrame) stands on the Earth (issue 46): its origin, the
+// sequence's (0, 0, 0), at WGS84 latitude/longitude/ellipsoidal height, its +Y (the cameras' mean
+// viewing direction, level) `heading` degrees clockwise from north, its +Z up. The job's
+// "output.tiles.origin", or one an input gives (KITTI raw's oxts: OriginFromAnchor).
+struct TilesOrigin {
+  bool given = false;
+  double latitude = 0.0;   // degrees, [-90, 90]
+  double longitude = 0.0;  // degrees, [-180, 180]
+  double height = 0.0;     // metres above the WGS84 ellipsoid, [kMinOriginHeight, kMaxOriginHeight]
+  double heading = 0.0;    // degrees clockwise from north of the local frame's +Y
+  std::string source;      // for the log and the tileset: "output.tiles.origin" or the input's file
+  // An input that knows its frame's attitude (KITTI raw's oxts) gives ENU <- local whole,
+  // row-major: used instead of the heading's level turn (the cameras' mean up is not quite the
+  // vertical: a degree is 9 m in height 500 m on), with `tilt`, its +Z's angle from up (degrees).
+  std::optional<std::array<double, 9>> enu_from_local;
+  double tilt = 0.0;
+  // Empty when usable, else which key and why.
+  std::string Check() const;
+  nlohmann::json ToJson() const;
+};
+// The deepest trench to the edge of space: a height outside is a mistake (feet, or a geocentric
+// radius).
+inline constexpr double kMinOriginHeight = -11000.0;
+inline constexpr double kMaxOriginHeight = 100000.0;
+// The JSON schema of "output.tiles.origin" (latitude, longitude and height have no default: the
+// validation asks for them).
+const nlohmann::json& TilesOriginSchema();
 
 // The job's "output": {"tiles": {...}} (job_validation.cc reads it; REPORT.md, docs/tiles.md).
 struct TilesOptions {
@@ -46,6 +77,7 @@ struct TilesOptions {
   int64_t max_triangles = 200000;  // a cell's tile is written when it holds this many
   int idle_parts = 2;          // ... or when this many released parts in a row added nothing
                                // to it (the surface has moved on)
+  TilesOrigin origin;          // "origin" given: the tileset in ECEF
   // Empty when usable, else which key and why.
   std::string Check() const;
   // `size` against the Steiner spacing the run uses (a cell smaller than the surface's coarsest
@@ -60,7 +92,8 @@ inline constexpr int64_t kMinTileTriangles = 100;
 inline constexpr int64_t kMaxTiles = 100000;
 inline constexpr std::uintmax_t kMaxTilesetBytes = 64u << 20;
 TilesOptions TilesOptionsFromJson(const nlohmann::json& tiles);  // after validation
-// The JSON schema of "output.tiles" (for validation and `imr options`).
+// The JSON schema of "output.tiles" (for validation and `imr options`) but its "origin", an object
+// of its own (TilesOriginSchema; job_validation.cc checks it apart).
 const nlohmann::json& TilesSchema();
 
 // One tile as the exporter gets it.
@@ -85,6 +118,7 @@ struct TilesStats {
   double seconds = 0.0;      // writing tiles and the tileset (exporter included)
   int64_t tileset_writes = 0;  // tileset.json versions written
   int64_t tileset_bytes = 0;   // summed over them
+  nlohmann::json origin;       // TilesOrigin::ToJson of the one used; null: not geo-referenced
 };
 
 // <output>/tileset.json and <output>/tiles/ are imr's (a tileset written for this sequence of
@@ -96,11 +130,15 @@ class TileWriter {
  public:
   // Replaces an earlier run's tiles (after ForeignTiles said they are this job's), creates
   // <output>/tiles/ and writes an empty tileset.json (marking the folder as imr's at once).
-  // `identity` goes into the tileset's asset.extras.imr (job, sequence). `root_transform` is
-  // asked once, at the first tile (the keyframes so far give the local frame). Throws naming the
-  // path when the folder cannot be written.
+  // `identity` goes into the tileset's asset.extras.imr (job, sequence). `local_frame` is asked
+  // once, at the first tile (the keyframes so far give the local frame, TilesetFrame). The root's
+  // transform is that frame, or with options.origin (else what `origin_for` makes of the local
+  // frame, when it gives one) GeoreferencedFrame of it. Throws naming the path when the folder
+  // cannot be written.
+  using OriginFor = std::function<TilesOrigin(const std::array<double, 16>& local_frame)>;
   TileWriter(const TilesOptions& options, std::filesystem::path output_dir, nlohmann::json identity,
-             std::function<std::array<double, 16>()> root_transform, WriteTileGlb write);
+             std::function<std::array<double, 16>()> local_frame, WriteTileGlb write,
+             OriginFor origin_for = nullptr);
   // One part released by the surface stream (keys are the stream's).
   void Add(const engine::SurfacePart& released);
   // Writes every open tile and the final tileset.json (asset.extras.imr.complete: true).
@@ -136,7 +174,9 @@ class TileWriter {
   std::filesystem::path output_dir_, tiles_dir_;
   nlohmann::json identity_;
   std::function<std::array<double, 16>()> root_transform_fn_;
+  OriginFor origin_for_;
   std::array<double, 16> root_transform_{};
+  std::array<double, 16> local_frame_{};
   bool have_root_transform_ = false;
   WriteTileGlb write_;
   std::map<Cell, OpenTile> open_;
@@ -171,6 +211,18 @@ RunTiles ListRunTiles(const std::filesystem::path& run_folder, const nlohmann::j
 // row-major): the cameras' mean up (-y axis) becomes +Z, their mean viewing direction +Y;
 // column-major 4x4. Identity when the rotations give no up.
 std::array<double, 16> TilesetFrame(const std::vector<std::array<double, 9>>& rotations);
+
+// ECEF <- the local frame's coordinates at `origin`, column-major: ECEF <- ENU at the origin
+// (WGS84), ENU <- local (the heading's turn about up, or the origin's enu_from_local), then
+// `local_frame` (local <- sequence).
+std::array<double, 16> GeoreferencedFrame(const TilesOrigin& origin,
+                                          const std::array<double, 16>& local_frame);
+
+// The origin of a local frame (TilesetFrame's, of a sequence whose frame stands at `anchor`):
+// the anchor's position, the heading of the local +Y as the anchor turns it into ENU (for the
+// log and the tileset), and the anchor's whole attitude (enu_from_local, tilt: the local +Z's
+// angle from the anchor's up).
+TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<double, 16>& local_frame);
 
 // z-up to glTF's y-up, row-major: a tile's root rotation (see the file comment).
 std::array<double, 9> TileGltfRotation();

@@ -83,7 +83,7 @@ const BASE = 'https://imr-tiles.invalid/';
     const run = runs[n];
     if (!run) return;
     if (tiles) { scene.remove(tiles.group); tiles.dispose(); }
-    Object.assign(state, { shown: n, tilesetLoaded: false, models: 0, done: false });
+    Object.assign(state, { shown: n, tilesetLoaded: false, models: 0, done: false, local: false });
     quiet = 0;
     document.querySelectorAll('button[data-tiles]').forEach((b) => { b.disabled = Number(b.dataset.tiles) === n; });
     say('Loading the tiles of ' + run.name + ' ...');
@@ -93,8 +93,20 @@ const BASE = 'https://imr-tiles.invalid/';
     scene.add(tiles.group);
     tiles.setCamera(camera);
     resize();
-    tiles.addEventListener('load-root-tileset', () => {
+    tiles.addEventListener('load-root-tileset', (e) => {
       state.tilesetLoaded = true;
+      // A geo-referenced run (output.tiles.origin) stands in ECEF, up along the Earth's normal
+      // there: shown in its local frame (asset.extras.imr.local_transform), ground down, as
+      // without an origin.
+      const ts = e.tileset || {};
+      const imr = ts.asset && ts.asset.extras && ts.asset.extras.imr;
+      if (imr && Array.isArray(imr.local_transform) && ts.root && Array.isArray(ts.root.transform)) {
+        const back = new THREE.Matrix4().fromArray(imr.local_transform)
+          .multiply(new THREE.Matrix4().fromArray(ts.root.transform).invert());
+        tiles.group.matrixAutoUpdate = false;
+        tiles.group.matrix.makeRotationX(-Math.PI / 2).multiply(back);
+        state.local = true;
+      }
       tiles.group.updateMatrixWorld(true);
       const sphere = new THREE.Sphere();
       tiles.getBoundingSphere(sphere);
