@@ -1,13 +1,15 @@
 // The engine's named parts over one Delaunay triangulation (paper sections 2-3). Private to
-// host/engine: it includes CGAL, and only the engine's CGAL translation units include it
-// (engine.cc, ray_caster.cc, move_planner.cc, engine_checks.cc). Engine::Impl conducts a
-// keyframe through them; each part is a class over the shared EngineState:
+// host/engine: it includes CGAL, and only the engine's CGAL translation units include it (the
+// CMake list names them). Engine::Impl conducts a keyframe through them (engine.cc); each part is
+// a class over the shared EngineState:
 //   RayCaster         viewing rays (paper §2.1): T, N1 and N2 weighted by one ray (weights and
 //                     rays modes); the exact mode's ray sets, cast in batches on the thread pool,
 //                     and the holes a change of the triangulation opens in them (ray_caster.cc)
 //   WeightTransfer    the weights of the cells a change makes, from those it destroys (§3.2)
+//                     (point_updates.cc)
 //   Carving           O, the outside cells: the manifold test, shrink, peel and grow (§2.2)
-//   SteinerGrid       the Steiner points along the rays
+//                     (carving.cc; the camera path's forced joins: camera_path.cc)
+//   SteinerGrid       the Steiner points along the rays (steiner_grid.cc)
 //   MovePlanner       exact mode's moves planned on the thread pool and made in order
 //                     (move_planner.cc)
 //   Forgetting        long drives (EngineOptions::forget): what no live change can reach is
@@ -1095,8 +1097,12 @@ class InvariantChecker {
 
 namespace imr::engine {
 
-// The conductor of a keyframe (ApplyUpdate): validate, cameras and their Steiner points,
-// removals, moves, insertions, the exact mode's batches, peel and grow.
+// The conductor of a keyframe (ApplyUpdate, engine.cc): validate, cameras and their Steiner
+// points, removals, moves, insertions, the exact mode's batches, peel and grow. Its steps are
+// defined in the files named for them: point_updates.cc (Validate, AddCameras, insertion and
+// removal), steiner_grid.cc (PlaceSteinerPoints), moves.cc (the moves and the exact mode's
+// batches around them), forget.cc (WithoutRetired, Forget), camera_path.cc, surface_export.cc
+// (ToMesh, MakePart, LiveBoundary).
 struct Engine::Impl {
   using Point = detail::Point;
   using Cell_handle = detail::Cell_handle;

@@ -1,6 +1,7 @@
 // Long drives (EngineOptions::forget, DESIGN.md section 10): what no live change can reach is
 // final; its part of dO is handed out, its rays freed at once, and its vertices leave the
-// triangulation when enough of them have gathered (engine_parts.h, Forgetting).
+// triangulation when enough of them have gathered (engine_parts.h, Forgetting); and its entry in
+// the keyframe (Engine::Impl::WithoutRetired, Forget).
 #include "host/engine/engine_parts.h"
 
 #include <unordered_map>
@@ -446,3 +447,53 @@ void Forgetting::Rebuild(const std::vector<Vertex_handle>& gone) {
 }
 
 }  // namespace imr::engine::detail
+
+namespace imr::engine {
+
+using detail::Clock;
+using detail::Triangle;
+
+// Forgetting's entry in the keyframe: the update without what it says of retired points, and a
+// step (what became final handed out as a part, then maybe a rebuild).
+std::unique_ptr<KeyframeUpdate> Engine::Impl::WithoutRetired(const KeyframeUpdate& u) {
+  if (!s.opt.forget || forgetting.retired().runs() == 0) return nullptr;
+  auto retired = [&](uint64_t id) { return !s.point_index.count(id); };  // Validate: retired
+  const int64_t moves = std::count_if(u.moved_points.begin(), u.moved_points.end(),
+                                      [&](const MovedPoint& m) { return retired(m.id); });
+  const int64_t removals = std::count_if(u.removed_points.begin(), u.removed_points.end(), retired);
+  if (moves + removals == 0) return nullptr;
+  s.stats.updates_of_forgotten_points += moves + removals;
+  auto out = std::make_unique<KeyframeUpdate>();
+  out->cameras = u.cameras;
+  out->new_points = u.new_points;
+  for (const MovedPoint& m : u.moved_points)
+    if (!retired(m.id)) out->moved_points.push_back(m);
+  for (uint64_t id : u.removed_points)
+    if (!retired(id)) out->removed_points.push_back(id);
+  return out;
+}
+
+// What became final since the last step, handed out; its vertices that nothing can change any
+// more are completed.
+void Engine::Impl::Forget() {
+  const auto t0 = Clock::now();
+  std::vector<Triangle> facets;
+  std::vector<Vertex_handle> deep;
+  forgetting.Freeze(&facets, &deep);
+  SurfacePart part = MakePart(std::move(facets));
+  for (Vertex_handle v : deep)
+    if (v->info().key >= 0) part.completed.push_back(v->info().key);
+  std::sort(part.completed.begin(), part.completed.end());
+  if (!part.faces.empty() || !part.completed.empty()) {
+    ++s.stats.parts;
+    s.stats.part_triangles += static_cast<int64_t>(part.faces.size() / 3);
+    final_parts_.push_back(std::move(part));
+  }
+  forgetting.MaybeRebuild();
+  s.stats.live_samples.push_back(
+      {s.stats.updates, static_cast<int64_t>(s.dt.number_of_cells()) - s.stats.cells_final,
+       static_cast<int64_t>(s.points.size()), static_cast<int64_t>(s.dt.number_of_vertices())});
+  s.stats.time.forget += SecondsSince(t0);
+}
+
+}  // namespace imr::engine
