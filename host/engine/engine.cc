@@ -77,14 +77,7 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   const std::unique_ptr<KeyframeUpdate> filtered = WithoutRetired(update);
   const KeyframeUpdate& u = filtered ? *filtered : update;
   const auto t0 = Clock::now();
-  std::vector<Point> centres;
-  for (const Camera& c : u.cameras) {
-    if (s.camera_index.count(c.id)) continue;
-    s.camera_index[c.id] = static_cast<uint32_t>(s.cameras.size());
-    s.cameras.push_back(ToPoint(c.center));
-    s.camera_ids.push_back(c.id);
-    centres.push_back(s.cameras.back());
-  }
+  const std::vector<Point> centres = AddNewCameras(u);
   {
     const auto ts = Clock::now();
     PlaceSteinerPoints(u, s.cameras.size() - centres.size());
@@ -138,52 +131,81 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   });
   if (exact) timed_batch([&] { CastUpdated(u); });
   const auto tg = Clock::now();
-  if (s.opt.regrow_radius > 0.0) {
-    std::vector<Vertex_handle> changed;
-    for (size_t i = 0; i < u.moved_points.size(); ++i) {
-      const PointRecord& rec = s.points[s.point_index.at(u.moved_points[i].id)];
-      if (rec.in_triangulation && !short_move_[i]) changed.push_back(rec.vertex);
-    }
-    for (const NewPoint& p : u.new_points) {
-      const PointRecord& rec = s.points[s.point_index.at(p.id)];
-      if (rec.in_triangulation) changed.push_back(rec.vertex);
-    }
-    carving.PeelAround(changed, s.opt.regrow_radius);
-  }
-  // The camera path (camera_path) is free space: its cells join O before grow, so that O grows
-  // on from them; after it, again, and a camera whose cell is still outside O has O peeled around
-  // it and grown again from its cell (OpenCameraPath).
-  const bool open_path = s.opt.camera_path > 0 && s.dt.dimension() == 3;
-  const std::vector<Cell_handle> path = open_path ? CameraPathCells() : std::vector<Cell_handle>();
-  if (open_path && s.cells_in_o > 0) carving.OpenPath(path);
-  carving.Grow(s.opt.forget ? CameraCell() : Cell_handle());
-  if (open_path && s.cells_in_o > 0) OpenCameraPath(path);
+  PeelChanged(u);
+  Grow();
   s.stats.time.grow += SecondsSince(tg);
-  const double dt_s = SecondsSince(t0);
-  s.stats.time.total += dt_s;
-  s.stats.keyframe_seconds.push_back(dt_s);
-  ++s.stats.updates;
-  s.stats.vertices = static_cast<int64_t>(s.dt.number_of_vertices());
-  s.stats.cells = static_cast<int64_t>(s.dt.tds().number_of_cells());
-  s.stats.cells_in_o = s.cells_in_o;
-  // Where the new cameras are now: in O (free space), or inside matter. Not in the keyframe's time.
-  // Before O exists there is nothing to be in or outside of: such cameras (the first keyframe's)
-  // are checked at the first update that has an O, the camera path having been opened for them.
-  s.unchecked_centres.insert(s.unchecked_centres.end(), centres.begin(), centres.end());
-  if (s.dt.dimension() == 3 && s.cells_in_o > 0) {
-    for (const Point& c : s.unchecked_centres) {
-      ++s.stats.cameras_checked;
-      // From the newest point's cell: the cameras are near what they just saw.
-      const Cell_handle cell = s.dt.locate(c, s.WalkHint());
-      if (!s.dt.is_infinite(cell) && cell->info().in_o) ++s.stats.cameras_in_o;
-    }
-    s.unchecked_centres.clear();
-  }
+  EndKeyframe(SecondsSince(t0));
+  CheckCameras(centres);  // not in the keyframe's time
   if (s.opt.check_invariants) {
     ManifoldCheckResult r = detail::InvariantChecker(s).Check();
     if (!r.ok) return Status::Error("invariant broken after update: " + r.message);
   }
   return Status::Ok();
+}
+
+// The update's cameras not seen before, indexed in arrival order; their centres.
+std::vector<Engine::Impl::Point> Engine::Impl::AddNewCameras(const KeyframeUpdate& u) {
+  std::vector<Point> centres;
+  for (const Camera& c : u.cameras) {
+    if (s.camera_index.count(c.id)) continue;
+    s.camera_index[c.id] = static_cast<uint32_t>(s.cameras.size());
+    s.cameras.push_back(ToPoint(c.center));
+    s.camera_ids.push_back(c.id);
+    centres.push_back(s.cameras.back());
+  }
+  return centres;
+}
+
+// regrow_radius: O peeled around the points that moved or entered, so that grow labels their
+// region again in weight order.
+void Engine::Impl::PeelChanged(const KeyframeUpdate& u) {
+  if (s.opt.regrow_radius <= 0.0) return;
+  std::vector<Vertex_handle> changed;
+  for (size_t i = 0; i < u.moved_points.size(); ++i) {
+    const PointRecord& rec = s.points[s.point_index.at(u.moved_points[i].id)];
+    if (rec.in_triangulation && !short_move_[i]) changed.push_back(rec.vertex);
+  }
+  for (const NewPoint& p : u.new_points) {
+    const PointRecord& rec = s.points[s.point_index.at(p.id)];
+    if (rec.in_triangulation) changed.push_back(rec.vertex);
+  }
+  carving.PeelAround(changed, s.opt.regrow_radius);
+}
+
+// grow (paper section 2.2). The camera path (camera_path) is free space: its cells join O before
+// grow, so that O grows on from them; after it, again, and a camera whose cell is still outside O
+// has O peeled around it and grown again from its cell (OpenCameraPath).
+void Engine::Impl::Grow() {
+  const bool open_path = s.opt.camera_path > 0 && s.dt.dimension() == 3;
+  const std::vector<Cell_handle> path = open_path ? CameraPathCells() : std::vector<Cell_handle>();
+  if (open_path && s.cells_in_o > 0) carving.OpenPath(path);
+  carving.Grow(s.opt.forget ? CameraCell() : Cell_handle());
+  if (open_path && s.cells_in_o > 0) OpenCameraPath(path);
+}
+
+// The keyframe counted: its time and the triangulation's size.
+void Engine::Impl::EndKeyframe(double seconds) {
+  s.stats.time.total += seconds;
+  s.stats.keyframe_seconds.push_back(seconds);
+  ++s.stats.updates;
+  s.stats.vertices = static_cast<int64_t>(s.dt.number_of_vertices());
+  s.stats.cells = static_cast<int64_t>(s.dt.tds().number_of_cells());
+  s.stats.cells_in_o = s.cells_in_o;
+}
+
+// Where the new cameras are now: in O (free space), or inside matter. Before O exists there is
+// nothing to be in or outside of: such cameras (the first keyframe's) are checked at the first
+// update that has an O, the camera path having been opened for them.
+void Engine::Impl::CheckCameras(const std::vector<Point>& centres) {
+  s.unchecked_centres.insert(s.unchecked_centres.end(), centres.begin(), centres.end());
+  if (s.dt.dimension() != 3 || s.cells_in_o == 0) return;
+  for (const Point& c : s.unchecked_centres) {
+    ++s.stats.cameras_checked;
+    // From the newest point's cell: the cameras are near what they just saw.
+    const Cell_handle cell = s.dt.locate(c, s.WalkHint());
+    if (!s.dt.is_infinite(cell) && cell->info().in_o) ++s.stats.cameras_in_o;
+  }
+  s.unchecked_centres.clear();
 }
 
 // -------------------------------------------------------------------------------------------------

@@ -1132,6 +1132,14 @@ struct Engine::Impl {
   std::function<bool()> stop_requested;  // Engine::SetStopCheck
 
  private:
+  // ApplyUpdate's own steps (engine.cc): the new cameras indexed (their centres), O peeled
+  // around the points that moved or entered (regrow_radius), grow with the camera path, the
+  // keyframe counted, and where the new cameras are (in O or not).
+  std::vector<Point> AddNewCameras(const KeyframeUpdate& u);
+  void PeelChanged(const KeyframeUpdate& u);
+  void Grow();
+  void EndKeyframe(double seconds);
+  void CheckCameras(const std::vector<Point>& centres);
   Status Validate(const KeyframeUpdate& u) const;
   void AddCameras(detail::PointRecord& rec, const std::vector<uint64_t>& ids,
                   std::vector<uint32_t>* added);
