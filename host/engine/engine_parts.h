@@ -1053,6 +1053,13 @@ class MovePlanner {
 
  private:
   struct Scratch;
+  // Plan's steps, in order (each says when the plan ends there).
+  static void Reset(uint32_t pt, const Point& p_new, MovePlan* plan);
+  bool FindRegion(MovePlan* plan, Scratch& sc) const;
+  void IndexRegion(MovePlan* plan, Scratch& sc) const;
+  void CollectHoleRays(MovePlan* plan, Scratch& sc) const;
+  bool PlanCells(MovePlan* plan, Scratch& sc) const;
+  void PlanEnclosingSet(MovePlan* plan, Scratch& sc) const;
   // fast: each open facet's apex is the point whose sphere's centre lies nearest the facet on
   // its open side, in floating point (a few flops a point instead of an exact in-sphere test);
   // the result is then only a candidate for FillIsDelaunay.
