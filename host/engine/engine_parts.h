@@ -948,6 +948,16 @@ class Forgetting {
   bool BecomesFinal(Cell_handle c) const;
   bool FarBehind(const Point& p, double radius) const;
   void Rebuild(const std::vector<Vertex_handle>& gone);
+  // Rebuild's steps, in order (forget.cc).
+  struct Renumbering;
+  Renumbering Renumber(const std::vector<Vertex_handle>& gone) const;
+  bool TriangulateKept(const Renumbering& r, Dt* dt) const;
+  bool MatchCells(const Renumbering& r, const Dt& dt,
+                  std::vector<std::pair<Cell_handle, Cell_handle>>* matched) const;
+  static void MoveCellInfos(const Renumbering& r, Dt* dt,
+                            std::vector<std::pair<Cell_handle, Cell_handle>>* matched);
+  void KeepRecords(const Renumbering& r, int64_t* retired_now, int64_t* freed);
+  void Install(Dt* dt);
 
   EngineState& s_;
   RayCaster& caster_;
