@@ -1,13 +1,15 @@
 // The engine's named parts over one Delaunay triangulation (paper sections 2-3). Private to
-// host/engine: it includes CGAL, and only the engine's CGAL translation units include it
-// (engine.cc, ray_caster.cc, move_planner.cc, engine_checks.cc). Engine::Impl conducts a
-// keyframe through them; each part is a class over the shared EngineState:
+// host/engine: it includes CGAL, and only the engine's CGAL translation units include it (the
+// CMake list names them). Engine::Impl conducts a keyframe through them (engine.cc); each part is
+// a class over the shared EngineState:
 //   RayCaster         viewing rays (paper §2.1): T, N1 and N2 weighted by one ray (weights and
 //                     rays modes); the exact mode's ray sets, cast in batches on the thread pool,
 //                     and the holes a change of the triangulation opens in them (ray_caster.cc)
 //   WeightTransfer    the weights of the cells a change makes, from those it destroys (§3.2)
+//                     (point_updates.cc)
 //   Carving           O, the outside cells: the manifold test, shrink, peel and grow (§2.2)
-//   SteinerGrid       the Steiner points along the rays
+//                     (carving.cc; the camera path's forced joins: camera_path.cc)
+//   SteinerGrid       the Steiner points along the rays (steiner_grid.cc)
 //   MovePlanner       exact mode's moves planned on the thread pool and made in order
 //                     (move_planner.cc)
 //   Forgetting        long drives (EngineOptions::forget): what no live change can reach is
@@ -965,6 +967,16 @@ class Forgetting {
   bool BecomesFinal(Cell_handle c) const;
   bool FarBehind(const Point& p, double radius) const;
   void Rebuild(const std::vector<Vertex_handle>& gone);
+  // Rebuild's steps, in order (forget.cc).
+  struct Renumbering;
+  Renumbering Renumber(const std::vector<Vertex_handle>& gone) const;
+  bool TriangulateKept(const Renumbering& r, Dt* dt) const;
+  bool MatchCells(const Renumbering& r, const Dt& dt,
+                  std::vector<std::pair<Cell_handle, Cell_handle>>* matched) const;
+  static void MoveCellInfos(const Renumbering& r, Dt* dt,
+                            std::vector<std::pair<Cell_handle, Cell_handle>>* matched);
+  void KeepRecords(const Renumbering& r, int64_t* retired_now, int64_t* freed);
+  void Install(Dt* dt);
 
   EngineState& s_;
   RayCaster& caster_;
@@ -1070,6 +1082,13 @@ class MovePlanner {
 
  private:
   struct Scratch;
+  // Plan's steps, in order (each says when the plan ends there).
+  static void Reset(uint32_t pt, const Point& p_new, MovePlan* plan);
+  bool FindRegion(MovePlan* plan, Scratch& sc) const;
+  void IndexRegion(MovePlan* plan, Scratch& sc) const;
+  void CollectHoleRays(MovePlan* plan, Scratch& sc) const;
+  bool PlanCells(MovePlan* plan, Scratch& sc) const;
+  void PlanEnclosingSet(MovePlan* plan, Scratch& sc) const;
   // fast: each open facet's apex is the point whose sphere's centre lies nearest the facet on
   // its open side, in floating point (a few flops a point instead of an exact in-sphere test);
   // the result is then only a candidate for FillIsDelaunay.
@@ -1114,8 +1133,12 @@ class InvariantChecker {
 
 namespace imr::engine {
 
-// The conductor of a keyframe (ApplyUpdate): validate, cameras and their Steiner points,
-// removals, moves, insertions, the exact mode's batches, peel and grow.
+// The conductor of a keyframe (ApplyUpdate, engine.cc): validate, cameras and their Steiner
+// points, removals, moves, insertions, the exact mode's batches, peel and grow. Its steps are
+// defined in the files named for them: point_updates.cc (Validate, AddCameras, insertion and
+// removal), steiner_grid.cc (PlaceSteinerPoints), moves.cc (the moves and the exact mode's
+// batches around them), forget.cc (WithoutRetired, Forget), camera_path.cc, surface_export.cc
+// (ToMesh, MakePart, LiveBoundary).
 struct Engine::Impl {
   using Point = detail::Point;
   using Cell_handle = detail::Cell_handle;
@@ -1145,6 +1168,14 @@ struct Engine::Impl {
   std::function<bool()> stop_requested;  // Engine::SetStopCheck
 
  private:
+  // ApplyUpdate's own steps (engine.cc): the new cameras indexed (their centres), O peeled
+  // around the points that moved or entered (regrow_radius), grow with the camera path, the
+  // keyframe counted, and where the new cameras are (in O or not).
+  std::vector<Point> AddNewCameras(const KeyframeUpdate& u);
+  void PeelChanged(const KeyframeUpdate& u);
+  void Grow();
+  void EndKeyframe(double seconds);
+  void CheckCameras(const std::vector<Point>& centres);
   Status Validate(const KeyframeUpdate& u) const;
   void AddCameras(detail::PointRecord& rec, const std::vector<uint64_t>& ids,
                   std::vector<uint32_t>* added);

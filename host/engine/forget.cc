@@ -1,6 +1,7 @@
 // Long drives (EngineOptions::forget, DESIGN.md section 10): what no live change can reach is
 // final; its part of dO is handed out, its rays freed at once, and its vertices leave the
-// triangulation when enough of them have gathered (engine_parts.h, Forgetting).
+// triangulation when enough of them have gathered (engine_parts.h, Forgetting); and its entry in
+// the keyframe (Engine::Impl::WithoutRetired, Forget).
 #include "host/engine/engine_parts.h"
 
 #include <unordered_map>
@@ -263,66 +264,103 @@ struct KeyHash {
 
 }  // namespace
 
+// Rebuild's plan: which vertices go, which points retire, and the points' new numbers.
+struct Forgetting::Renumbering {
+  static constexpr uint32_t kFreed = ~0u;
+  std::vector<Vertex_handle> gone;  // sorted
+  std::vector<uint8_t> retire;      // per point: retired now or before
+  std::vector<uint32_t> number;     // per point: its new number, or kFreed (its record goes)
+  uint32_t kept = 0;                // records that stay
+
+  bool Goes(Vertex_handle v) const { return std::binary_search(gone.begin(), gone.end(), v); }
+  // A vertex's id in the new triangulation (a point's new number; the infinite vertex lowest).
+  int64_t NewId(const Dt& dt, Vertex_handle v) const {
+    if (dt.is_infinite(v)) return std::numeric_limits<int64_t>::min();
+    const int64_t id = v->info().id;
+    return id < 0 ? id : static_cast<int64_t>(number[static_cast<size_t>(id)]);
+  }
+};
+
 // The triangulation of every vertex but `gone`; cells whose vertices all stay keep their infos,
 // the rest are final and forgotten. Points whose vertex goes are retired (and those never in
 // the triangulation that lie far behind); their records are freed unless a live cell still
 // holds one of their rays, and the records that stay are numbered again, in the same order (the
 // canonical orders of growing and peeling read the numbers: they see the same order as before).
 void Forgetting::Rebuild(const std::vector<Vertex_handle>& gone) {
-  std::vector<Vertex_handle> gone_sorted = gone;
-  std::sort(gone_sorted.begin(), gone_sorted.end());
-  auto goes = [&](Vertex_handle v) {
-    return std::binary_search(gone_sorted.begin(), gone_sorted.end(), v);
-  };
+  const Renumbering r = Renumber(gone);
+  Dt dt;
+  std::vector<std::pair<Cell_handle, Cell_handle>> matched;  // (new, old)
+  if (!TriangulateKept(r, &dt) || !MatchCells(r, dt, &matched)) {
+    ++s_.stats.rebuilds_abandoned;
+    return;
+  }
+  MoveCellInfos(r, &dt, &matched);
+  int64_t retired_now = 0, freed = 0;
+  KeepRecords(r, &retired_now, &freed);
+  Install(&dt);
+  // The Steiner grid forgets the nodes that no camera to come can place again: beyond a
+  // camera's reach (its cube's corner) behind the final region.
+  const double corner = std::sqrt(3.0) * (s_.opt.max_ray_length + s_.opt.steiner_margin);
+  steiner_.Forget([&](const Point& node) { return FarBehind(node, corner); });
 
-  // Which points retire, which records go, and the new numbers.
+  ++s_.stats.rebuilds;
+  s_.stats.vertices_forgotten += static_cast<int64_t>(gone.size());
+  s_.stats.points_forgotten += retired_now;
+  s_.stats.point_records_freed += freed;
+}
+
+// Which points retire, which records go (retired, and no live cell holds a current ray of
+// theirs), and the new numbers of the rest.
+Forgetting::Renumbering Forgetting::Renumber(const std::vector<Vertex_handle>& gone) const {
+  Renumbering r;
+  r.gone = gone;
+  std::sort(r.gone.begin(), r.gone.end());
   const size_t n_points = s_.points.size();
-  std::vector<uint8_t> retire(n_points, 0), held(n_points, 0);
+  r.retire.assign(n_points, 0);
+  std::vector<uint8_t> held(n_points, 0);
   for (size_t pt = 0; pt < n_points; ++pt) {
     const PointRecord& rec = s_.points[pt];
     if (rec.retired) {
-      retire[pt] = 1;
+      r.retire[pt] = 1;
     } else if (rec.in_triangulation) {
-      retire[pt] = goes(rec.vertex) ? 1 : 0;
+      r.retire[pt] = r.Goes(rec.vertex) ? 1 : 0;
     } else {
-      retire[pt] = !Live(rec) &&
-                   FarBehind(ToPoint(rec.position), 0.0);
+      r.retire[pt] = !Live(rec) &&
+                     FarBehind(ToPoint(rec.position), 0.0);
     }
   }
   if (s_.opt.visibility_mode == VisibilityMode::kExact)
     for (auto c = s_.dt.finite_cells_begin(); c != s_.dt.finite_cells_end(); ++c)
       if (!c->info().final)
         for (const RayEntry& e : c->info().rays)
-          if (retire[e.point] && s_.Live(e)) held[e.point] = 1;
-  constexpr uint32_t kFreed = ~0u;
-  std::vector<uint32_t> number(n_points, kFreed);
-  uint32_t next = 0;
+          if (r.retire[e.point] && s_.Live(e)) held[e.point] = 1;
+  r.number.assign(n_points, Renumbering::kFreed);
   for (size_t pt = 0; pt < n_points; ++pt)
-    if (!retire[pt] || held[pt]) number[pt] = next++;
-  auto new_id = [&](Vertex_handle v) -> int64_t {
-    if (s_.dt.is_infinite(v)) return std::numeric_limits<int64_t>::min();
-    const int64_t id = v->info().id;
-    return id < 0 ? id : static_cast<int64_t>(number[static_cast<size_t>(id)]);
-  };
+    if (!r.retire[pt] || held[pt]) r.number[pt] = r.kept++;
+  return r;
+}
 
-  // The new triangulation.
+// The new triangulation: the vertices that stay, with their infos and new ids. False when it
+// does not hold them all in 3D.
+bool Forgetting::TriangulateKept(const Renumbering& r, Dt* dt) const {
   std::vector<std::pair<Point, VertexInfo>> kept;
-  kept.reserve(s_.dt.number_of_vertices() - gone.size());
+  kept.reserve(s_.dt.number_of_vertices() - r.gone.size());
   for (auto v = s_.dt.finite_vertices_begin(); v != s_.dt.finite_vertices_end(); ++v) {
-    if (goes(v)) continue;
+    if (r.Goes(v)) continue;
     VertexInfo info = v->info();
-    info.id = new_id(v);
-    info.o_cells = 0;  // counted again below
+    info.id = r.NewId(s_.dt, v);
+    info.o_cells = 0;  // counted again by Install
     kept.emplace_back(v->point(), info);
   }
-  Dt dt;
-  dt.insert(kept.begin(), kept.end());
-  if (dt.number_of_vertices() != kept.size() || dt.dimension() != 3) {
-    ++s_.stats.rebuilds_abandoned;
-    return;
-  }
+  dt->insert(kept.begin(), kept.end());
+  return dt->number_of_vertices() == kept.size() && dt->dimension() == 3;
+}
 
-  // Old cells whose vertices all stay, by their vertices' new ids; each new cell finds its own.
+// Old cells whose vertices all stay, by their vertices' new ids; each new cell finds its own.
+// Every live cell must be found, and every new cell touch deep vertices only (what the choice of
+// `gone` promises); else false, and the old triangulation stays (counted: not expected).
+bool Forgetting::MatchCells(const Renumbering& r, const Dt& dt,
+                            std::vector<std::pair<Cell_handle, Cell_handle>>* matched) const {
   using Key = std::array<int64_t, 4>;
   auto key_of = [](auto ids) {
     std::sort(ids.begin(), ids.end());
@@ -335,17 +373,14 @@ void Forgetting::Rebuild(const std::vector<Vertex_handle>& gone) {
     bool stays = true;
     Key k;
     for (int i = 0; i < 4; ++i) {
-      stays = stays && !goes(c->vertex(i));
-      k[i] = new_id(c->vertex(i));
+      stays = stays && !r.Goes(c->vertex(i));
+      k[i] = r.NewId(s_.dt, c->vertex(i));
     }
     if (!stays) continue;
     old_cells.emplace(key_of(k), c);
     live_kept += c->info().final ? 0 : 1;
   }
-  // Every live cell must be found, and every new cell touch deep vertices only (what the
-  // choice of `gone` promises); else the old triangulation stays (counted: not expected).
-  std::vector<std::pair<Cell_handle, Cell_handle>> matched;  // (new, old)
-  matched.reserve(old_cells.size());
+  matched->reserve(old_cells.size());
   int64_t live_found = 0;
   bool new_cells_deep = true;
   for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
@@ -356,61 +391,66 @@ void Forgetting::Rebuild(const std::vector<Vertex_handle>& gone) {
     const auto it = old_cells.find(key_of(k));
     if (it == old_cells.end()) {
       for (int i = 0; i < 4; ++i)
-        new_cells_deep = new_cells_deep && (dt.is_infinite(c->vertex(i)) || c->vertex(i)->info().deep);
+        new_cells_deep =
+            new_cells_deep && (dt.is_infinite(c->vertex(i)) || c->vertex(i)->info().deep);
       continue;
     }
-    matched.push_back({c, it->second});
+    matched->push_back({c, it->second});
     live_found += it->second->info().final ? 0 : 1;
   }
-  if (live_found != live_kept || !new_cells_deep) {
-    ++s_.stats.rebuilds_abandoned;
-    return;
-  }
-  old_cells = {};
+  return live_found == live_kept && new_cells_deep;
+}
 
-  // Cell infos move over; the new cells where the forgotten vertices were are final.
-  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
+// Cell infos move over, their rays renumbered (entries of freed records dropped); the new cells
+// where the forgotten vertices were are final.
+void Forgetting::MoveCellInfos(const Renumbering& r, Dt* dt,
+                               std::vector<std::pair<Cell_handle, Cell_handle>>* matched) {
+  for (auto c = dt->all_cells_begin(); c != dt->all_cells_end(); ++c) {
     CellInfo& info = c->info();
     info.final = info.forgotten = true;
   }
-  for (auto& [c, old] : matched) {
+  for (auto& [c, old] : *matched) {
     c->info() = std::move(old->info());
     std::vector<RayEntry>& rays = c->info().rays;
     if (rays.empty()) continue;
     // Entries of freed records are stale (a live cell held none of their current rays).
     rays.erase(std::remove_if(rays.begin(), rays.end(),
-                              [&](const RayEntry& e) { return number[e.point] == kFreed; }),
+                              [&](const RayEntry& e) {
+                                return r.number[e.point] == Renumbering::kFreed;
+                              }),
                rays.end());
-    for (RayEntry& e : rays) e.point = number[e.point];
+    for (RayEntry& e : rays) e.point = r.number[e.point];
   }
-  matched = {};
+  *matched = {};
+}
 
-  // The points: retired ids out of the index, records freed or numbered again.
-  int64_t retired_now = 0, freed = 0;
+// The points: retired ids out of the index, records freed or numbered again.
+void Forgetting::KeepRecords(const Renumbering& r, int64_t* retired_now, int64_t* freed) {
   std::vector<PointRecord> points;
-  points.reserve(next);
-  for (size_t pt = 0; pt < n_points; ++pt) {
+  points.reserve(r.kept);
+  for (size_t pt = 0; pt < s_.points.size(); ++pt) {
     PointRecord& rec = s_.points[pt];
-    if (retire[pt] && !rec.retired) {
+    if (r.retire[pt] && !rec.retired) {
       rec.retired = true;
-      ++retired_now;
+      ++*retired_now;
       retired_.Add(rec.id);
       s_.point_index.erase(rec.id);
     }
-    if (number[pt] == kFreed) {
-      ++freed;
+    if (r.number[pt] == Renumbering::kFreed) {
+      ++*freed;
       continue;
     }
     if (rec.retired) rec.in_triangulation = false, rec.vertex = Vertex_handle();
-    if (!rec.retired) s_.point_index[rec.id] = number[pt];
+    if (!rec.retired) s_.point_index[rec.id] = r.number[pt];
     points.push_back(std::move(rec));
   }
   s_.points.swap(points);
-  points = {};
+}
 
-  // The new triangulation in place (the old one is freed on leaving), and what pointed into
-  // the old one.
-  s_.dt.swap(dt);
+// The new triangulation in place (the old one is freed with *dt), and what pointed into the old
+// one: O's counters, the ledger, the dirty cells, the points' vertices, the ray lists.
+void Forgetting::Install(Dt* dt) {
+  s_.dt.swap(*dt);
   s_.last_vertex = Vertex_handle();
   s_.cells_in_o = 0;
   s_.stats.cells_final = 0;
@@ -434,15 +474,57 @@ void Forgetting::Rebuild(const std::vector<Vertex_handle>& gone) {
   }
   caster_.ForgetCells();
   if (s_.hooks) s_.hooks->probe_cells.clear();
-  // The Steiner grid forgets the nodes that no camera to come can place again: beyond a
-  // camera's reach (its cube's corner) behind the final region.
-  const double corner = std::sqrt(3.0) * (s_.opt.max_ray_length + s_.opt.steiner_margin);
-  steiner_.Forget([&](const Point& node) { return FarBehind(node, corner); });
-
-  ++s_.stats.rebuilds;
-  s_.stats.vertices_forgotten += static_cast<int64_t>(gone.size());
-  s_.stats.points_forgotten += retired_now;
-  s_.stats.point_records_freed += freed;
 }
 
 }  // namespace imr::engine::detail
+
+namespace imr::engine {
+
+using detail::Clock;
+using detail::Triangle;
+
+// Forgetting's entry in the keyframe: the update without what it says of retired points, and a
+// step (what became final handed out as a part, then maybe a rebuild).
+std::unique_ptr<KeyframeUpdate> Engine::Impl::WithoutRetired(const KeyframeUpdate& u) {
+  if (!s.opt.forget || forgetting.retired().runs() == 0) return nullptr;
+  auto retired = [&](uint64_t id) { return !s.point_index.count(id); };  // Validate: retired
+  const int64_t moves = std::count_if(u.moved_points.begin(), u.moved_points.end(),
+                                      [&](const MovedPoint& m) { return retired(m.id); });
+  const int64_t removals = std::count_if(u.removed_points.begin(), u.removed_points.end(), retired);
+  if (moves + removals == 0) return nullptr;
+  s.stats.updates_of_forgotten_points += moves + removals;
+  auto out = std::make_unique<KeyframeUpdate>();
+  out->cameras = u.cameras;
+  out->new_points = u.new_points;
+  for (const MovedPoint& m : u.moved_points)
+    if (!retired(m.id)) out->moved_points.push_back(m);
+  for (uint64_t id : u.removed_points)
+    if (!retired(id)) out->removed_points.push_back(id);
+  out->last = u.last;
+  return out;
+}
+
+// What became final since the last step, handed out; its vertices that nothing can change any
+// more are completed.
+void Engine::Impl::Forget() {
+  const auto t0 = Clock::now();
+  std::vector<Triangle> facets;
+  std::vector<Vertex_handle> deep;
+  forgetting.Freeze(&facets, &deep);
+  SurfacePart part = MakePart(std::move(facets));
+  for (Vertex_handle v : deep)
+    if (v->info().key >= 0) part.completed.push_back(v->info().key);
+  std::sort(part.completed.begin(), part.completed.end());
+  if (!part.faces.empty() || !part.completed.empty()) {
+    ++s.stats.parts;
+    s.stats.part_triangles += static_cast<int64_t>(part.faces.size() / 3);
+    final_parts_.push_back(std::move(part));
+  }
+  forgetting.MaybeRebuild();
+  s.stats.live_samples.push_back(
+      {s.stats.updates, static_cast<int64_t>(s.dt.number_of_cells()) - s.stats.cells_final,
+       static_cast<int64_t>(s.points.size()), static_cast<int64_t>(s.dt.number_of_vertices())});
+  s.stats.time.forget += SecondsSince(t0);
+}
+
+}  // namespace imr::engine

@@ -99,6 +99,27 @@ bool MovePlanner::StarStaysDelaunay(const Dt& dt, Vertex_handle v, const Point& 
 void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* plan) const {
   Scratch& sc = *scratch_[static_cast<size_t>(worker)];
   MovePlan& m = *plan;
+  Reset(pt, p_new, &m);
+  const PointRecord& rec = s_.points[pt];
+  if (!rec.in_triangulation || s_.dt.dimension() != 3) return;
+  m.v = rec.vertex;
+  m.p_old = m.v->point();
+  if (p_new == m.p_old) {
+    m.kind = MovePlan::Kind::kKeep;
+    return;
+  }
+  if (!FindRegion(&m, sc)) return;
+  IndexRegion(&m, sc);
+  CollectHoleRays(&m, sc);
+  if (!PlanCells(&m, sc)) return;
+  WalkRays(&m, sc);
+  PlanEnclosingSet(&m, sc);
+}
+
+// A plan for moving pt to p_new before anything is known: left to CGAL (kSerial), its lists
+// emptied (their capacity kept for the next plan on this worker).
+void MovePlanner::Reset(uint32_t pt, const Point& p_new, MovePlan* plan) {
+  MovePlan& m = *plan;
   m.kind = MovePlan::Kind::kSerial;
   m.pt = pt;
   m.p_new = p_new;
@@ -109,17 +130,15 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
   m.e.clear(), m.e_serials.clear();
   m.rays_rewalked = 0;
   m.e_planned = false;
-  const PointRecord& rec = s_.points[pt];
-  if (!rec.in_triangulation || s_.dt.dimension() != 3) return;
-  const Vertex_handle v = rec.vertex;
-  m.v = v;
-  m.p_old = v->point();
-  if (p_new == m.p_old) {
-    m.kind = MovePlan::Kind::kKeep;
-    return;
-  }
+}
 
-  // D: the star, reshaped in place when it can be; else the star and p_new's conflict zone.
+// D: the star, reshaped in place when it can be (kInPlace); else the star and p_new's conflict
+// zone (kHole). False when the plan ends here: a vertex at p_new already (kDuplicate), or the move
+// left to CGAL (kSerial: on the hull, or D holds a final cell).
+bool MovePlanner::FindRegion(MovePlan* plan, Scratch& sc) const {
+  MovePlan& m = *plan;
+  const Vertex_handle v = m.v;
+  const Point& p_new = m.p_new;
   StarOf(v, &sc.star_seen, &sc.star);
   bool hull = false;
   for (Cell_handle c : sc.star) hull = hull || s_.dt.is_infinite(c);
@@ -133,11 +152,11 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
     const Cell_handle loc = s_.dt.locate(p_new, lt, li, lj, v->cell());
     if (lt == Dt::VERTEX) {
       m.kind = MovePlan::Kind::kDuplicate;
-      return;
+      return false;
     }
     if (hull || s_.dt.is_infinite(loc) ||
         s_.dt.side_of_sphere(loc, p_new, true) != CGAL::ON_BOUNDED_SIDE)
-      return;  // left to CGAL (kSerial)
+      return false;  // left to CGAL (kSerial)
     // The conflict zone, as CGAL's find_conflicts finds it (a cell whose perturbed sphere holds
     // p_new), walked from the cell holding p_new; D is the star and it.
     sc.tested.Clear();
@@ -146,7 +165,7 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
     while (!sc.stack.empty()) {
       const Cell_handle c = sc.stack.back();
       sc.stack.pop_back();
-      if (s_.dt.is_infinite(c)) return;  // p_new outside the hull: left to CGAL
+      if (s_.dt.is_infinite(c)) return false;  // p_new outside the hull: left to CGAL
       if (sc.star_seen.Insert(ScratchMap<uint8_t>::Key(&*c), 1).second) d.push_back(c);
       for (int i = 0; i < 4; ++i) {
         const Cell_handle n = c->neighbor(i);
@@ -159,10 +178,17 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
   for (Cell_handle c : d)
     if (c->info().final) {
       m.kind = MovePlan::Kind::kSerial;  // forget: made at its turn, which refuses it
-      return;
+      return false;
     }
+  return true;
+}
 
-  // D in CellKey order, its boundary facets, and the serials of both.
+// D in CellKey order, its boundary facets, and the serials of both; the vertices of D but v, by
+// id (their indices in sc.vert_index).
+void MovePlanner::IndexRegion(MovePlan* plan, Scratch& sc) const {
+  MovePlan& m = *plan;
+  std::vector<Cell_handle>& d = m.d;
+  const Vertex_handle v = m.v;
   sc.keyed.clear();
   for (Cell_handle c : d) sc.keyed.push_back({s_.CellKey(c), c});
   std::sort(sc.keyed.begin(), sc.keyed.end(),
@@ -184,8 +210,6 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
   }
   for (Cell_handle c : d) m.serials.push_back(c->info().serial);
   for (const Facet& f : m.outer) m.serials.push_back(f.first->info().serial);
-
-  // The vertices of D but v, by id.
   sc.vert_index.Clear();
   for (Cell_handle c : d)
     for (int k = 0; k < 4; ++k) {
@@ -198,9 +222,13 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
   });
   for (size_t i = 0; i < m.verts.size(); ++i)
     *sc.vert_index.Find(ScratchMap<int32_t>::Key(&*m.verts[i])) = static_cast<int32_t>(i);
+}
 
-  // The rays D's cells hold, each with the part of it in D (CollectHole's merge: the hull of
-  // its parts, entered at the first).
+// The rays D's cells hold, each with the part of it in D (CollectHole's merge: the hull of its
+// parts, entered at the first), and where each enters D from outside.
+void MovePlanner::CollectHoleRays(MovePlan* plan, Scratch& sc) const {
+  MovePlan& m = *plan;
+  const std::vector<Cell_handle>& d = m.d;
   sc.hole.clear();
   sc.entries.clear();
   sc.hole_index.Clear();
@@ -241,8 +269,14 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
       }
     }
   }
+}
 
-  // The cells after the move: D's, reshaped, or those that fill it.
+// The cells after the move: D's, reshaped, or those that fill it. False when no fill was found
+// (the move is then left to CGAL: kSerial).
+bool MovePlanner::PlanCells(MovePlan* plan, Scratch& sc) const {
+  MovePlan& m = *plan;
+  const std::vector<Cell_handle>& d = m.d;
+  const Vertex_handle v = m.v;
   sc.outer_cell.assign(m.outer.size(), -1);
   if (m.kind == MovePlan::Kind::kInPlace) {
     for (size_t i = 0; i < d.size(); ++i) {
@@ -271,12 +305,16 @@ void MovePlanner::Plan(uint32_t pt, const Point& p_new, int worker, MovePlan* pl
       if (hooks) ++hooks->fills_exact;
     } else {
       m.kind = MovePlan::Kind::kSerial;  // CGAL's removal and insertion decide (never seen)
-      return;
+      return false;
     }
   }
-  WalkRays(&m, sc);
+  return true;
+}
 
-  // E for shrink, when D meets O now (it is checked again at commit).
+// E for shrink, when D meets O now (it is checked again at commit).
+void MovePlanner::PlanEnclosingSet(MovePlan* plan, Scratch& sc) const {
+  MovePlan& m = *plan;
+  const std::vector<Cell_handle>& d = m.d;
   bool meets_o = false;
   for (Cell_handle c : d) meets_o = meets_o || c->info().in_o;
   if (meets_o) {
