@@ -730,6 +730,17 @@ class RayCaster {
   size_t ListedCells() const {
     return s_.hooks && s_.hooks->listed_cells ? s_.hooks->listed_cells : kListedCells;
   }
+  // fn(group) for the batch's rays GroupRays() at a time, in order (group_rays_ holds a copy).
+  template <class Fn>
+  void InGroups(const std::vector<BatchRay>& rays, Fn&& fn) {
+    const size_t n = GroupRays();
+    for (size_t begin = 0; begin < rays.size(); begin += n) {
+      const auto first = rays.begin() + static_cast<std::ptrdiff_t>(begin);
+      const auto count = static_cast<std::ptrdiff_t>(std::min(n, rays.size() - begin));
+      group_rays_.assign(first, first + count);
+      fn(group_rays_);
+    }
+  }
   void MergeParts(const std::vector<BatchPart>& parts);
 
   EngineState& s_;

@@ -573,12 +573,7 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     ++p.cells;
   };
   bool listing = !weights_only;
-  std::vector<BatchRay>& group = group_rays_;
-  const size_t group_size = GroupRays();
-  for (size_t begin = 0; begin < rays.size(); begin += group_size) {
-    const size_t end = std::min(rays.size(), begin + group_size);
-    group.assign(rays.begin() + static_cast<std::ptrdiff_t>(begin),
-                 rays.begin() + static_cast<std::ptrdiff_t>(end));
+  InGroups(rays, [&](std::vector<BatchRay>& group) {
     if (!listing)
       for (BatchRay& r : group) r.list_to = false;
     const std::vector<BatchPart> parts =
@@ -590,10 +585,11 @@ void RayCaster::CastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& todo
     for (const auto& w : walk_cells_) walked += w.size();
     if (listing && walked > ListedCells()) {  // too many to keep: this batch lists no ray
       listing = false;
-      for (const auto& [pt, k] : listed_) s_.points[pt].ray_state[k] &= ~uint32_t{PointRecord::kListed};
+      for (const auto& [pt, k] : listed_)
+        s_.points[pt].ray_state[k] &= ~uint32_t{PointRecord::kListed};
       listed_.clear();
     }
-  }
+  });
   if (listing) {
     std::swap(s_.list_cells, walk_cells_);  // the walks are the lists now
   } else {  // a rare batch, or the last: its storage goes
@@ -643,14 +639,9 @@ void RayCaster::UncastBatch(const std::vector<std::pair<uint32_t, uint32_t>>& to
     p.ledger -= static_cast<uint64_t>(s_.unit[0]);
   };
   // In groups, as a cast batch (their walks are not kept).
-  std::vector<BatchRay>& group = group_rays_;
-  const size_t group_size = GroupRays();
-  for (size_t begin = 0; begin < rays.size(); begin += group_size) {
-    const size_t end = std::min(rays.size(), begin + group_size);
-    group.assign(rays.begin() + static_cast<std::ptrdiff_t>(begin),
-                 rays.begin() + static_cast<std::ptrdiff_t>(end));
+  InGroups(rays, [&](std::vector<BatchRay>& group) {
     MergeParts(RunBatch(group, /*split_apply=*/false, /*append=*/false, take_out));
-  }
+  });
 }
 
 TetPlanes PlanesOf(const Point& c0, const Point& c1, const Point& c2, const Point& c3) {
