@@ -212,6 +212,9 @@ void Session::Start() {
 void Session::Apply(Keyframe k) {
   if (k.source) in_front_.Add(k.update, *k.source);
   canonical_.Apply(&k.update);
+  // A reader's last keyframe is not the engine's: the module's user may add keyframes after it
+  // (another reader's, their own), so its rays are kept as every other keyframe's.
+  k.update.last = false;
   const engine::Status st = engine_->ApplyUpdate(k.update);
   if (!st.ok())
     throw std::runtime_error("keyframe " + std::to_string(k.info.index) + " (frame " +
