@@ -336,17 +336,24 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                                             : out->faces;
     std::vector<std::array<uint32_t, 3>> faces(flat.size() / 3);
     for (std::size_t f = 0; f < faces.size(); ++f) faces[f] = {flat[3 * f], flat[3 * f + 1], flat[3 * f + 2]};
+    const double edge = MedianEdge(r.mesh);
     imr::photometric::RemeshOptions o = remesh_options_;
-    o.max_edge = remesh_split_ * MedianEdge(r.mesh);
+    o.max_edge = remesh_split_ * edge;
     std::vector<uint8_t> locked;  // none: no vertex is FIXED here
-    const imr::photometric::RemeshStats s = imr::photometric::Remesh(o, &p, &faces, &locked);
+    // The keyframes, each as far as it refines (DepthLimit): a face they saw from the front stays so.
+    std::vector<imr::photometric::Viewpoint> viewpoints;
+    for (const imr_camera& c : r.keyframes)
+      if (HasIntrinsics(c)) viewpoints.push_back({Center(c), DepthLimit(c, edge, max_depth_, min_edge_pixels_)});
+    const imr::photometric::RemeshStats s = imr::photometric::Remesh(o, viewpoints, &p, &faces, &locked);
     host_.CheckCancelled();
     char line[320];
     std::snprintf(line, sizeof(line),
                   "%s: remesh: %lld edges flipped, %lld split, %lld flips kept off creases, %lld "
-                  "refused (fold or sliver); mean dihedral %.2f -> %.2f degrees",
+                  "refused (fold or sliver), %lld (a face turned from a keyframe); mean dihedral "
+                  "%.2f -> %.2f degrees",
                   kId, static_cast<long long>(s.edges_flipped), static_cast<long long>(s.edges_split),
                   static_cast<long long>(s.creases_kept), static_cast<long long>(s.flips_refused),
+                  static_cast<long long>(s.flips_facing_away),
                   s.total_dihedral_before / static_cast<double>(std::max<int64_t>(1, s.interior_edges_before)),
                   s.total_dihedral_after / static_cast<double>(std::max<int64_t>(1, s.interior_edges_after)));
     host_.Info(line);

@@ -39,9 +39,9 @@ double Quality(const Vec3& a, const Vec3& b, const Vec3& c) {
 // edge, and cheap to keep current through a flip or a split.
 class Remesher {
  public:
-  Remesher(const RemeshOptions& o, std::vector<Vec3>* p, std::vector<Face>* faces,
-           std::vector<std::array<uint32_t, 2>>* parents)
-      : o_(o), p_(*p), f_(*faces), parents_(parents), cos_turn_(std::cos(o.max_turn_deg * kDeg)),
+  Remesher(const RemeshOptions& o, const std::vector<Viewpoint>& viewpoints, std::vector<Vec3>* p,
+           std::vector<Face>* faces, std::vector<std::array<uint32_t, 2>>* parents)
+      : o_(o), viewpoints_(viewpoints), p_(*p), f_(*faces), parents_(parents), cos_turn_(std::cos(o.max_turn_deg * kDeg)),
         corner_(o.corner_deg * kDeg), gain_(o.min_gain_deg * kDeg) {
     he_.reserve(3 * f_.size());
   }
@@ -157,6 +157,20 @@ class Remesher {
     return len > 0.0 && UnitNormal(x, y, z).dot(around) >= cos_turn_ * len;
   }
 
+  // Whether a viewpoint in range saw both old faces (a,b,c), (b,a,d) from the front and would see
+  // a new one (a,d,c), (d,b,c) from behind.
+  bool TurnsAway(const Vec3& A, const Vec3& B, const Vec3& C, const Vec3& D, const Vec3& n1,
+                 const Vec3& n2, const Vec3& m1, const Vec3& m2) const {
+    const Vec3 c1 = (A + B + C) / 3.0, c2 = (B + A + D) / 3.0, k1 = (A + D + C) / 3.0, k2 = (D + B + C) / 3.0;
+    for (const Viewpoint& v : viewpoints_) {
+      if ((v.centre - c1).squaredNorm() > v.range * v.range) continue;
+      if ((v.centre - c1).dot(n1) > 0.0 && (v.centre - c2).dot(n2) > 0.0 &&
+          ((v.centre - k1).dot(m1) <= 0.0 || (v.centre - k2).dot(m2) <= 0.0))
+        return true;
+    }
+    return false;
+  }
+
   // The normal of the face across directed edge (u, v) of a face, or none (a boundary edge).
   bool Across(uint32_t u, uint32_t v, Vec3* n) const {
     const auto it = he_.find(Key(v, u));
@@ -213,6 +227,10 @@ class Remesher {
       ++stats->flips_refused;
       return false;
     }
+    if (TurnsAway(A, B, C, D, n1, n2, m1, m2)) {
+      ++stats->flips_facing_away;
+      return false;
+    }
     // (a,b,c) -> (a,d,c); (b,a,d) -> (d,b,c).
     f_[f1] = {a, d, c};
     f_[f2] = {d, b, c};
@@ -226,6 +244,7 @@ class Remesher {
   }
 
   const RemeshOptions& o_;
+  const std::vector<Viewpoint>& viewpoints_;
   std::vector<Vec3>& p_;
   std::vector<Face>& f_;
   std::vector<std::array<uint32_t, 2>>* parents_;
@@ -254,7 +273,8 @@ bool RemeshOptions::Check(std::string* error) const {
   return true;
 }
 
-RemeshStats Remesh(const RemeshOptions& options, std::vector<Eigen::Vector3d>* vertices,
+RemeshStats Remesh(const RemeshOptions& options, const std::vector<Viewpoint>& viewpoints,
+                   std::vector<Eigen::Vector3d>* vertices,
                    std::vector<std::array<uint32_t, 3>>* faces, std::vector<uint8_t>* locked,
                    std::vector<std::array<uint32_t, 2>>* parents) {
   RemeshStats stats;
@@ -263,7 +283,7 @@ RemeshStats Remesh(const RemeshOptions& options, std::vector<Eigen::Vector3d>* v
     for (uint32_t v : F)
       if (v >= n) return stats;  // not a mesh of these vertices: left as it is
   stats.total_dihedral_before = TotalDihedralDeg(*vertices, *faces, &stats.interior_edges_before);
-  Remesher r(options, vertices, faces, parents);
+  Remesher r(options, viewpoints, vertices, faces, parents);
   std::vector<uint8_t> lock = locked && !locked->empty() ? *locked : std::vector<uint8_t>(n, 0);
   r.Build(std::move(lock));
   r.Split(&stats);

@@ -10,7 +10,8 @@
 // vertex's faces (a FIXED vertex, or one whose fan the caller does not hold), a crease (an edge
 // whose faces meet at more than corner_deg stays, and no flip brings a crease beside it below
 // that). A flip never folds (each new face within max_turn_deg of both faces it replaces),
-// never makes a degenerate face or an edge that exists already.
+// never makes a degenerate face or an edge that exists already, and never turns a face away from
+// a camera that saw both faces it replaces from the front (no surface seen from behind).
 #pragma once
 
 #include <Eigen/Core>
@@ -35,11 +36,18 @@ struct RemeshOptions {
   bool Check(std::string* error) const;  // false and a message naming the field when invalid
 };
 
+// A camera centre, and how far from it the surface counts as seen by it (infinity: everywhere).
+struct Viewpoint {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double range = 0.0;
+};
+
 struct RemeshStats {
   int64_t edges_split = 0;
   int64_t edges_flipped = 0;
   int64_t creases_kept = 0;      // flips refused because the edge or one beside it is a crease
   int64_t flips_refused = 0;     // flips that would lower the dihedral but fold or degenerate
+  int64_t flips_facing_away = 0;  // ... or turn a face's back to a viewpoint that saw its front
   double total_dihedral_before = 0.0;  // sum over interior edges of the dihedral angle, degrees
   double total_dihedral_after = 0.0;
   int64_t interior_edges_before = 0;   // the edges those sums run over
@@ -48,11 +56,12 @@ struct RemeshStats {
 };
 
 // Remeshes `faces` (counter-clockwise seen from free space, a 2-manifold with boundary; indices
-// into `vertices`) in place. `locked[v]` non-zero: no face of v changes (empty: none locked).
+// into `vertices`) in place. `viewpoints`: the cameras whose view of front sides is kept. `locked[v]` non-zero: no face of v changes (empty: none locked).
 // New vertices (midpoints) are appended to `vertices`, to `locked` (unlocked) when it is not
 // empty, and their parent edge's ends to `parents` when given. An edge in more than two faces or
 // a repeated directed edge (not a manifold) locks its ends rather than failing.
-RemeshStats Remesh(const RemeshOptions& options, std::vector<Eigen::Vector3d>* vertices,
+RemeshStats Remesh(const RemeshOptions& options, const std::vector<Viewpoint>& viewpoints,
+                   std::vector<Eigen::Vector3d>* vertices,
                    std::vector<std::array<uint32_t, 3>>* faces, std::vector<uint8_t>* locked,
                    std::vector<std::array<uint32_t, 2>>* parents = nullptr);
 

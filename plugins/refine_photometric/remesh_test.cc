@@ -141,7 +141,7 @@ TEST(Remesh, KeepsManifoldBoundaryAndFixedVerticesOnAThousandRandomMeshes) {
     const std::vector<uint8_t> locked0 = locked;
     Faces faces = before;
     std::vector<std::array<uint32_t, 2>> parents;
-    const RemeshStats s = Remesh(o, &p, &faces, &locked, &parents);
+    const RemeshStats s = Remesh(o, {}, &p, &faces, &locked, &parents);
     flips += s.edges_flipped, splits += s.edges_split, creases += s.creases_kept, refused += s.flips_refused;
 
     ASSERT_EQ(ManifoldError(p.size(), faces), "");
@@ -184,7 +184,8 @@ TEST(Remesh, KeepsManifoldBoundaryAndFixedVerticesOnAThousandRandomMeshes) {
 }
 
 // A roof whose ridge runs along x = y, every cell cut across it: the flips put the ridge back,
-// and every face then lies on the roof.
+// and every face then lies on the roof, unless a camera that saw the cut faces' front would see
+// a new face's back.
 TEST(Remesh, FlipsTriangulationBackOntoARidge) {
   const int n = 8;
   std::vector<Vec3> p;
@@ -207,8 +208,19 @@ TEST(Remesh, FlipsTriangulationBackOntoARidge) {
     return worst;
   };
   ASSERT_GT(off_roof(faces), 0.05);
+  // A camera low over the ridge's side, (-1, 1, 0.2) from it: it sees both faces of each ridge
+  // cell from the front, and one of the roof's planes from behind. Its view is kept.
+  const Faces across = faces;
   std::vector<uint8_t> locked;
-  const RemeshStats s = Remesh(RemeshOptions{}, &p, &faces, &locked);
+  const Vec3 centre(n / 2.0, n / 2.0, 0.0);
+  const std::vector<Viewpoint> grazing = {{centre + 100 * Vec3(-1, 1, 0.2), 1e9}};
+  const RemeshStats kept = Remesh(RemeshOptions{}, grazing, &p, &faces, &locked);
+  EXPECT_EQ(kept.edges_flipped, 0);
+  EXPECT_EQ(kept.flips_facing_away, n);
+  EXPECT_EQ(faces, across);
+  // Out of its range (or from above), the flips happen.
+  const std::vector<Viewpoint> far = {{centre + 100 * Vec3(-1, 1, 0.2), 50.0}, {centre + Vec3(0, 0, 10), 1e9}};
+  const RemeshStats s = Remesh(RemeshOptions{}, far, &p, &faces, &locked);
   EXPECT_EQ(s.edges_flipped, n);
   EXPECT_LT(off_roof(faces), 1e-12);
   EXPECT_LT(s.total_dihedral_after, 0.5 * s.total_dihedral_before);
@@ -236,7 +248,7 @@ TEST(Remesh, KeepsTheCornersOfANoisyStep) {
     RemeshOptions o;
     o.max_edge = 0.0;
     std::vector<uint8_t> locked;
-    const RemeshStats s = Remesh(o, &p, &faces, &locked);
+    const RemeshStats s = Remesh(o, {}, &p, &faces, &locked);
     flips += s.edges_flipped;
     ASSERT_EQ(ManifoldError(p.size(), faces), "");
     for (int j = 0; j + 1 < rows; ++j)
