@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -340,22 +341,25 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     imr::photometric::RemeshOptions o = remesh_options_;
     o.max_edge = remesh_split_ * edge;
     std::vector<uint8_t> locked;  // none: no vertex is FIXED here
-    // The keyframes, each as far as it refines (DepthLimit): a face they saw from the front stays so.
+    // The keyframes, each as far as it refines (DepthLimit): none sees more back sides after it.
     std::vector<imr::photometric::Viewpoint> viewpoints;
     for (const imr_camera& c : r.keyframes)
       if (HasIntrinsics(c)) viewpoints.push_back({Center(c), DepthLimit(c, edge, max_depth_, min_edge_pixels_)});
+    const auto start = std::chrono::steady_clock::now();
     const imr::photometric::RemeshStats s = imr::photometric::Remesh(o, viewpoints, &p, &faces, &locked);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     host_.CheckCancelled();
     char line[320];
     std::snprintf(line, sizeof(line),
                   "%s: remesh: %lld edges flipped, %lld split, %lld flips kept off creases, %lld "
-                  "refused (fold or sliver), %lld (a face turned from a keyframe); mean dihedral "
-                  "%.2f -> %.2f degrees",
+                  "refused (fold or sliver), %lld (a back side shown to a keyframe); mean dihedral "
+                  "%.2f -> %.2f degrees, %.2f s",
                   kId, static_cast<long long>(s.edges_flipped), static_cast<long long>(s.edges_split),
                   static_cast<long long>(s.creases_kept), static_cast<long long>(s.flips_refused),
                   static_cast<long long>(s.flips_facing_away),
                   s.total_dihedral_before / static_cast<double>(std::max<int64_t>(1, s.interior_edges_before)),
-                  s.total_dihedral_after / static_cast<double>(std::max<int64_t>(1, s.interior_edges_after)));
+                  s.total_dihedral_after / static_cast<double>(std::max<int64_t>(1, s.interior_edges_after)),
+                  seconds);
     host_.Info(line);
     if (!s.changed()) return;
     out->vertices.resize(3 * p.size());

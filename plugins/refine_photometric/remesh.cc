@@ -157,16 +157,16 @@ class Remesher {
     return len > 0.0 && UnitNormal(x, y, z).dot(around) >= cos_turn_ * len;
   }
 
-  // Whether a viewpoint in range saw both old faces (a,b,c), (b,a,d) from the front and would see
-  // a new one (a,d,c), (d,b,c) from behind.
+  // Whether a viewpoint in range would see more of the new faces (a,d,c), (d,b,c) from behind
+  // than of the old ones (a,b,c), (b,a,d).
   bool TurnsAway(const Vec3& A, const Vec3& B, const Vec3& C, const Vec3& D, const Vec3& n1,
                  const Vec3& n2, const Vec3& m1, const Vec3& m2) const {
     const Vec3 c1 = (A + B + C) / 3.0, c2 = (B + A + D) / 3.0, k1 = (A + D + C) / 3.0, k2 = (D + B + C) / 3.0;
     for (const Viewpoint& v : viewpoints_) {
       if ((v.centre - c1).squaredNorm() > v.range * v.range) continue;
-      if ((v.centre - c1).dot(n1) > 0.0 && (v.centre - c2).dot(n2) > 0.0 &&
-          ((v.centre - k1).dot(m1) <= 0.0 || (v.centre - k2).dot(m2) <= 0.0))
-        return true;
+      const int old_back = ((v.centre - c1).dot(n1) <= 0.0) + ((v.centre - c2).dot(n2) <= 0.0);
+      const int new_back = ((v.centre - k1).dot(m1) <= 0.0) + ((v.centre - k2).dot(m2) <= 0.0);
+      if (new_back > old_back) return true;
     }
     return false;
   }

@@ -10,8 +10,8 @@
 // vertex's faces (a FIXED vertex, or one whose fan the caller does not hold), a crease (an edge
 // whose faces meet at more than corner_deg stays, and no flip brings a crease beside it below
 // that). A flip never folds (each new face within max_turn_deg of both faces it replaces),
-// never makes a degenerate face or an edge that exists already, and never turns a face away from
-// a camera that saw both faces it replaces from the front (no surface seen from behind).
+// never makes a degenerate face or an edge that exists already, and never shows a camera more
+// back sides than the faces it replaces did (no more surface seen from behind).
 #pragma once
 
 #include <Eigen/Core>
@@ -47,7 +47,7 @@ struct RemeshStats {
   int64_t edges_flipped = 0;
   int64_t creases_kept = 0;      // flips refused because the edge or one beside it is a crease
   int64_t flips_refused = 0;     // flips that would lower the dihedral but fold or degenerate
-  int64_t flips_facing_away = 0;  // ... or turn a face's back to a viewpoint that saw its front
+  int64_t flips_facing_away = 0;  // ... or show a viewpoint more back sides than before
   double total_dihedral_before = 0.0;  // sum over interior edges of the dihedral angle, degrees
   double total_dihedral_after = 0.0;
   int64_t interior_edges_before = 0;   // the edges those sums run over
@@ -56,7 +56,7 @@ struct RemeshStats {
 };
 
 // Remeshes `faces` (counter-clockwise seen from free space, a 2-manifold with boundary; indices
-// into `vertices`) in place. `viewpoints`: the cameras whose view of front sides is kept. `locked[v]` non-zero: no face of v changes (empty: none locked).
+// into `vertices`) in place. `viewpoints`: the cameras that see no more back sides after it. `locked[v]` non-zero: no face of v changes (empty: none locked).
 // New vertices (midpoints) are appended to `vertices`, to `locked` (unlocked) when it is not
 // empty, and their parent edge's ends to `parents` when given. An edge in more than two faces or
 // a repeated directed edge (not a manifold) locks its ends rather than failing.
