@@ -341,10 +341,11 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     imr::photometric::RemeshOptions o = remesh_options_;
     o.max_edge = remesh_split_ * edge;
     std::vector<uint8_t> locked;  // none: no vertex is FIXED here
-    // The keyframes, each as far as it refines (DepthLimit): none sees more back sides after it.
+    // The keyframes, at any distance (within their depth limit only, 0.44 % of the default job's
+    // surface was seen from behind, 0.31 % without the remesh): none sees more back sides after it.
     std::vector<imr::photometric::Viewpoint> viewpoints;
     for (const imr_camera& c : r.keyframes)
-      if (HasIntrinsics(c)) viewpoints.push_back({Center(c), DepthLimit(c, edge, max_depth_, min_edge_pixels_)});
+      if (HasIntrinsics(c)) viewpoints.push_back({Center(c), std::numeric_limits<double>::infinity()});
     const auto start = std::chrono::steady_clock::now();
     const imr::photometric::RemeshStats s = imr::photometric::Remesh(o, viewpoints, &p, &faces, &locked);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
