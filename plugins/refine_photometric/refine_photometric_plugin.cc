@@ -186,7 +186,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     "subdivide": {"type": "number", "default": 0, "minimum": 0, "maximum": 100,
                   "description": "split edges longer than this many median edge lengths before refining (0: none)"},
     "remesh": {"type": "boolean", "default": false,
-               "description": "at the final call, after the photometric passes, change triangles: split long edges (remesh_split) and flip edges where that lowers the dihedral angles, never across a crease (remesh_corner_deg), a boundary edge or a FIXED vertex's faces; a run that writes its surface in parts (engine.forget, output.tiles) cannot take it"},
+               "description": "at the final call, after the photometric passes, change triangles: split long edges (remesh_split) and flip edges where that lowers the dihedral angles, never across a crease (remesh_corner_deg), a boundary edge or a FIXED vertex's faces, never showing a keyframe more back sides; no vertex moves; a run that writes its surface in parts (engine.forget, output.tiles) cannot take it"},
     "remesh_split": {"type": "number", "default": 0, "minimum": 0, "maximum": 100,
                      "description": "with remesh: split interior edges longer than this many median edge lengths at their midpoints, longest first (0: no splits)"},
     "remesh_corner_deg": {"type": "number", "default": 60, "minimum": 1, "maximum": 180,
