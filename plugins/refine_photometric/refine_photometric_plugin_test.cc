@@ -1,11 +1,13 @@
 // org.imr.refine.photometric through its shared object, as the host drives it: a keyframe image
 // the host cannot give fails the call naming it, or is left out with a warning (missing_image
 // "skip"); the answer keeps the request's vertices; an input without images is refused; how deep a
-// keyframe refines follows the pixels an edge spans there, not the edges between.
+// keyframe refines follows the pixels an edge spans there, not the edges between; remesh changes
+// triangles at the final call only, and never in a run that writes its surface in parts.
 #include "plugins/testing/plugin_fixture.h"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <random>
 #include <string>
@@ -213,6 +215,82 @@ TEST_F(PhotometricPlugin, SettingsThatExcludeEveryVertexAreSaid) {
   ASSERT_EQ(strict.warnings.size(), 1u);
   EXPECT_NE(strict.warnings[0].find("no vertex found a match"), std::string::npos) << strict.warnings[0];
   EXPECT_NE(strict.warnings[0].find("min_zncc 1"), std::string::npos) << strict.warnings[0];
+}
+
+// A 6 x 6 grid of a roof whose ridge runs along x = y, every cell cut across it (the diagonal
+// b-c), refined with the vertices held within a millimetre (max_move): which faces come back.
+struct RoofAnswer {
+  bool faces_returned = false;
+  double off_roof = 0.0;  // the largest distance of a face's centroid from the roof, metres
+  std::vector<std::string> warnings;
+};
+
+RoofAnswer RefineRoof(const imr_plugin_descriptor* descriptor, const std::string& params, bool final_call,
+                      bool first_fixed) {
+  FakeHost host;
+  imr::sdk::Instance inst(descriptor, params, &host.services);
+  constexpr int kSide = 6;
+  auto roof = [](double x, double y) { return -0.25 * std::abs(x - y); };
+  std::vector<double> v;
+  std::vector<uint32_t> f;
+  std::vector<int64_t> ids;
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x) {
+      const double X = -0.5 + x / (kSide - 1.0), Y = -0.5 + y / (kSide - 1.0);
+      v.insert(v.end(), {X, Y, roof(X, Y)});
+      ids.push_back(static_cast<int64_t>(ids.size()) + 1);
+    }
+  for (uint32_t y = 0; y + 1 < kSide; ++y)
+    for (uint32_t x = 0; x + 1 < kSide; ++x) {
+      const uint32_t a = y * kSide + x, b = a + 1, c = a + kSide, d = c + 1;
+      f.insert(f.end(), {a, c, b, b, c, d});  // normals toward -z, the cameras
+    }
+  std::vector<uint8_t> flags(ids.size(), IMR_REFINE_VERTEX_CHANGED);
+  if (first_fixed) flags[0] = IMR_REFINE_VERTEX_FIXED;
+  const imr_camera cams[3] = {Camera(-0.5), Camera(0.0), Camera(0.5)};
+  imr_mesh_view mesh{};
+  mesh.struct_size = sizeof(mesh);
+  mesh.vertices = v.data(), mesh.vertex_count = ids.size(), mesh.faces = f.data();
+  mesh.face_count = f.size() / 3, mesh.point_ids = ids.data();
+  imr_refine_request r{};
+  r.mesh = &mesh, r.vertex_flags = flags.data(), r.keyframes = cams, r.keyframe_count = 3;
+  r.keyframe_images = 1, r.final_call = final_call ? 1 : 0;
+  imr_refine_result out{};
+  inst.Refine(&r, &out);
+  RoofAnswer answer;
+  answer.warnings = host.warnings;
+  answer.faces_returned = out.faces != nullptr;
+  const uint32_t* faces = out.faces != nullptr ? out.faces : f.data();
+  const uint64_t count = out.faces != nullptr ? out.face_count : f.size() / 3;
+  EXPECT_EQ(out.vertex_count, ids.size());  // flips only: no vertex added
+  for (uint64_t i = 0; i < count; ++i) {
+    double c[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k)
+      for (int j = 0; j < 3; ++j) c[j] += out.vertices[3 * faces[3 * i + k] + j] / 3.0;
+    answer.off_roof = std::max(answer.off_roof, std::abs(c[2] - roof(c[0], c[1])));
+  }
+  return answer;
+}
+
+TEST_F(PhotometricPlugin, RemeshFlipsTheTrianglesBackOntoTheRoofAtTheFinalCall) {
+  const std::string held = R"({"max_move": 0.001, "patch_size": 3, "patch_pixels": 1)";
+  const RoofAnswer off = RefineRoof(d_, held + "}", true, false);
+  EXPECT_FALSE(off.faces_returned);  // the default: the request's faces, the same bytes
+  EXPECT_GT(off.off_roof, 0.02);
+  const RoofAnswer on = RefineRoof(d_, held + R"(, "remesh": true})", true, false);
+  EXPECT_TRUE(on.faces_returned);
+  EXPECT_LT(on.off_roof, 0.002);  // the vertices moved at most 0.2 mm
+  // During the run the host rebuilds the faces from the engine at the next call: none changed.
+  const RoofAnswer during = RefineRoof(d_, held + R"(, "remesh": true})", false, false);
+  EXPECT_FALSE(during.faces_returned);
+  // A FIXED vertex: a run writing its surface in parts, whose faces are written already.
+  const RoofAnswer parts = RefineRoof(d_, held + R"(, "remesh": true})", true, true);
+  EXPECT_FALSE(parts.faces_returned);
+  ASSERT_FALSE(parts.warnings.empty());
+  EXPECT_NE(parts.warnings.back().find("remesh skipped"), std::string::npos) << parts.warnings.back();
+  std::string message;
+  EXPECT_EQ(CreateStatus(R"({"remesh_corner_deg": 0})", &message), IMR_INVALID_ARGUMENT);
+  EXPECT_NE(message.find("remesh_corner_deg"), std::string::npos) << message;
 }
 
 TEST_F(PhotometricPlugin, AnInputWithoutImagesIsRefused) {
