@@ -70,6 +70,10 @@ class KeyframeSource {
     (void)camera_id, (void)point_id, (void)xy;
     return false;
   }
+  // Bytes the source holds for the keyframes it has not handed out yet (input read ahead,
+  // per-point state), so that a drive's memory beyond the engine can be told apart; -1 when it
+  // does not count them.
+  virtual int64_t PendingBytes() const { return -1; }
   // Figures about the input for the report (views, points, observations, what was skipped and
   // why), as a JSON object; null when there is nothing to say.
   virtual nlohmann::json Summary() const { return nullptr; }

@@ -75,7 +75,7 @@ class InvariantCheck : public KeyframeObserver {
 class TraceWriter : public KeyframeObserver {
  public:
   // Keyframes apart of the lines that carry engine_bytes (the engine's Memory().Total()).
-  static constexpr int kEngineBytesEvery = 20;
+  static constexpr int kEngineBytesEvery = 10;
   TraceWriter(std::filesystem::path path, const engine::Engine& engine);
   ~TraceWriter() override { Finish(); }
   void OnKeyframe(KeyframeEvent& event) override;
