@@ -79,7 +79,7 @@ class KeyframeSource {
   virtual nlohmann::json Summary() const { return nullptr; }
 };
 
-// A source whose updates are all built up front (SfM exports, SLAM JSON files): subclasses fill
+// A source whose updates are all built up front (SfM exports): subclasses fill
 // updates_ and frames_ (one frame number per update); Next hands them out in order, the last
 // marked as such (engine::KeyframeUpdate::last: no ray lists are kept for it).
 class PrecomputedKeyframeSource : public KeyframeSource {
