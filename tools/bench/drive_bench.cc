@@ -465,12 +465,11 @@ bool DefaultJobs(const DriveArgs& a, DriveTargets* t, json* out) {
   return true;
 }
 
-// The engine's bytes at the last keyframe at or before `i` that the trace measured them, NAN
-// when none did.
-double EngineBytesAt(const Series& s, size_t i) {
+// The last keyframe at or before `i` whose engine bytes the trace measured (i itself when none).
+size_t MeasuredAt(const Series& s, size_t i) {
   for (size_t j = std::min(i + 1, s.engine_bytes.size()); j-- > 0;)
-    if (!std::isnan(s.engine_bytes[j])) return s.engine_bytes[j];
-  return NAN;
+    if (!std::isnan(s.engine_bytes[j])) return j;
+  return i;
 }
 
 // One drive read from a SLAM JSON file: the dense street of `frames` frames written by imr run
@@ -499,13 +498,13 @@ bool SlamDrive(const DriveArgs& a, int frames, json* out) {
   const double file_mb = static_cast<double>(fs::file_size(file)) / 1e6;
   std::printf("\nA drive of %d frames read from a SLAM JSON file (%.0f MB; imr's dense street "
               "written by --export-stream), forgetting and tiles on:\n", frames, file_mb);
-  MarkdownHeader({"tenth", "frames", "RSS at its end", "engine bytes", "RSS - engine"});
+  MarkdownHeader({"tenth", "frame", "RSS", "engine bytes", "RSS - engine"});
   const size_t n = s.frame.size();
   json tenths = json::array();
   double host_first = NAN, host_last = NAN;
   for (int t = 0; t < 10 && n >= 10; ++t) {
-    const size_t b = (t + 1) * n / 10 - 1;
-    const double e = EngineBytesAt(s, b), host = s.rss[b] - e;
+    const size_t b = MeasuredAt(s, (t + 1) * n / 10 - 1);  // RSS and engine bytes together
+    const double e = s.engine_bytes[b], host = s.rss[b] - e;
     if (t == 0) host_first = host;
     host_last = host;
     std::printf("| %d | %.0f | %s | %s | %s |\n", t + 1, s.frame[b], Mb(s.rss[b]).c_str(),
