@@ -70,12 +70,16 @@ class KeyframeSource {
     (void)camera_id, (void)point_id, (void)xy;
     return false;
   }
+  // Bytes the source holds for the keyframes it has not handed out yet (input read ahead,
+  // per-point state), so that a drive's memory beyond the engine can be told apart; -1 when it
+  // does not count them.
+  virtual int64_t PendingBytes() const { return -1; }
   // Figures about the input for the report (views, points, observations, what was skipped and
   // why), as a JSON object; null when there is nothing to say.
   virtual nlohmann::json Summary() const { return nullptr; }
 };
 
-// A source whose updates are all built up front (SfM exports, SLAM JSON files): subclasses fill
+// A source whose updates are all built up front (SfM exports): subclasses fill
 // updates_ and frames_ (one frame number per update); Next hands them out in order, the last
 // marked as such (engine::KeyframeUpdate::last: no ray lists are kept for it).
 class PrecomputedKeyframeSource : public KeyframeSource {

@@ -10,7 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -426,6 +428,62 @@ TEST(RoundTrip, AnExportedStreamReplaysToTheSameUpdates) {
   EXPECT_EQ(m.images.size(), 3u);
   WriteColmapText(m, dir / "colmap");
   EXPECT_NO_THROW(ReadColmapModel(dir / "colmap"));
+}
+
+// A SLAM JSON drive of `views` views 1 m apart, every view one keyframe: at each view 12 new
+// points, each seen by it and the 7 views after it, its estimate moving at every one.
+std::string SlamDrive(int views) {
+  std::string s = R"({"slam_data_version": "0.3", "views": [)";
+  for (int v = 0; v < views; ++v) {
+    s += v ? ",\n" : "\n";
+    s += R"({"viewId": )" + std::to_string(v) + R"(, "extrinsic": {"rotation": [[1,0,0],[0,1,0],[0,0,1]], "center": [)" +
+         std::to_string(v) + R"(, 0, 0]}, "observations": [)";
+    bool first = true;
+    for (int start = std::max(0, v - 7); start <= v; ++start)
+      for (int j = 0; j < 12; ++j) {
+        s += first ? "" : ", ";
+        first = false;
+        s += R"({"pointId": )" + std::to_string(start * 12 + j) + R"(, "X": [)" +
+             std::to_string(start + 0.1 * j) + ", " + std::to_string(1.0 + 0.01 * (v - start)) + ", 10]}";
+      }
+    s += "]}";
+  }
+  return s + "]}\n";
+}
+
+TEST(Memory, TheSlamJsonReaderLetsGoOfEveryKeyframeItHandsOut) {
+  TempDir dir;
+  SlamJsonOptions o;
+  o.views_per_keyframe = 1;
+  // What the reader holds 50 keyframes before the end of a drive of 300 views and of one of 600
+  // (the same 50 views left): a record of 8 bytes kept per keyframe handed out would put 2,400
+  // bytes between them.
+  int64_t before_end[2] = {0, 0};
+  for (int run = 0; run < 2; ++run) {
+    const int views = run ? 600 : 300;
+    const fs::path file = dir / ("drive" + std::to_string(views) + ".json");
+    Write(file, SlamDrive(views));
+    auto source = OpenSlamJson(file, o);
+    ASSERT_EQ(source->KeyframeCount(), views);
+    const int64_t at_open = source->PendingBytes();
+    // Every observation read is held at first (96 per view but the first 7).
+    EXPECT_GE(at_open, int64_t{48} * 96 * (views - 7));
+    engine::KeyframeUpdate u;
+    KeyframeInfo info;
+    for (int k = 0; k < views - 50; ++k) ASSERT_TRUE(source->Next(&u, &info));
+    before_end[run] = source->PendingBytes();
+    EXPECT_LT(before_end[run], at_open / 4) << views << " views";
+    int handed = views - 50;
+    while (source->Next(&u, &info)) ++handed;
+    EXPECT_EQ(handed, views);
+    EXPECT_TRUE(u.last);
+    EXPECT_EQ(source->PendingBytes(), 0) << views << " views";
+    // The report's figures are the whole file's.
+    EXPECT_EQ(source->Summary()["points"], 12 * views);
+  }
+  EXPECT_LE(std::abs(before_end[1] - before_end[0]), 800)
+      << before_end[0] << " bytes held 50 keyframes before the end of 300, " << before_end[1]
+      << " of 600";
 }
 
 // --- Bad files -----------------------------------------------------------------------------------

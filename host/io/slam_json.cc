@@ -44,13 +44,25 @@ namespace {
 
 constexpr int64_t kNone = std::numeric_limits<int64_t>::min();
 
+// Frees a container's memory: `v = {}` picks the initializer_list assignment, which empties a
+// vector but keeps its capacity.
+template <class T>
+void Release(T* v) {
+  T().swap(*v);
+}
+
 std::string Coordinates(const Vec3& x) {
   char b[96];
   std::snprintf(b, sizeof(b), "%.9g, %.9g, %.9g", x[0], x[1], x[2]);
   return b;
 }
 
-class SlamJsonSource : public PrecomputedKeyframeSource {
+// Reads the file once (the compact observations, about 48 bytes each, and the views), checks
+// every keyframe's update at open (a dry run: bad input fails before the run), then builds each
+// update only when it is asked for, and lets go of its observations and of the points nothing
+// later in the file touches: what it holds shrinks as the drive goes instead of holding every
+// update from the start (issue 46).
+class SlamJsonSource : public KeyframeSource {
  public:
   SlamJsonSource(const std::filesystem::path& file, const SlamJsonOptions& o)
       : f_(file.string()), opt_(o) {
@@ -64,6 +76,42 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
     if (!keys.count("views")) f_.Fail("(top level)", "missing field \"views\"");
     if (!keys.count("slam_data_version")) f_.Fail("(top level)", "missing field \"slam_data_version\"");
     Build();
+  }
+
+  bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
+    if (next_ >= list_.numbers.size()) return false;
+    *u = engine::KeyframeUpdate{};
+    DeliverKeyframe(next_, &live_, &live_points_, u);
+    // The points whose last use this was, and the keyframe's own lists.
+    for (uint64_t id : erase_at_[next_]) live_points_.erase(id);
+    Release(&erase_at_[next_]);
+    Release(&list_.removed[next_]);
+    *info = {static_cast<int>(next_), list_.frames[next_]};
+    ++next_;
+    u->last = next_ == list_.numbers.size();
+    if (u->last) {
+      Release(&chunks_);
+      Release(&late_);
+      Release(&live_points_);
+    }
+    return true;
+  }
+  int KeyframeCount() const override { return static_cast<int>(list_.numbers.size()); }
+
+  // What the reader still holds for the keyframes not handed out yet: the observations not
+  // delivered, the points' states, their release schedule and the keyframes' removals (not the
+  // views' geometry, kept for Camera()). Blocks are full but the last (shrunk at Build), and
+  // freed once delivered.
+  int64_t PendingBytes() const override {
+    int64_t b = 0;
+    for (std::size_t c = live_.chunk; c < chunks_.size(); ++c)
+      b += static_cast<int64_t>((chunks_[c].size() - (c == live_.chunk ? live_.pos : 0)) * sizeof(Obs));
+    b += static_cast<int64_t>(late_.capacity() * sizeof(Obs));
+    for (const auto& [id, p] : live_points_)
+      b += static_cast<int64_t>(sizeof(id) + sizeof(p) + p.cameras.capacity() * sizeof(uint64_t));
+    for (std::size_t k = 0; k < erase_at_.size(); ++k)
+      b += static_cast<int64_t>((erase_at_[k].capacity() + list_.removed[k].capacity()) * sizeof(uint64_t));
+    return b;
   }
 
   const CameraGeometry* Camera(uint64_t id) const override {
@@ -147,6 +195,7 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
     // with the later estimate): the same pointId twice at one keyframe with two positions is a
     // contradiction (the same position twice is read as once).
     std::map<std::pair<uint64_t, int64_t>, std::size_t> seen;
+    std::vector<Obs> here;
     for (std::size_t j = 0; j < obs.size(); ++j) {
       const std::string op = path + ".observations[" + std::to_string(j) + "]";
       Obs o;
@@ -154,20 +203,35 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
       o.x = f_.Vector3(f_.Member(obs[j], "X", op), op + ".X");
       o.keyframe = kNone;
       if (const json* k = f_.Optional(obs[j], "keyframe", op)) o.keyframe = f_.Integer(*k, op + ".keyframe");
-      if (const auto [it, first] = seen.try_emplace({o.point, o.keyframe}, obs_.size()); !first) {
-        const Vec3& before = obs_[it->second].x;
+      if (const auto [it, first] = seen.try_emplace({o.point, o.keyframe}, here.size()); !first) {
+        const Vec3& before = here[it->second].x;
         if (before != o.x)
           f_.Fail(op + ".pointId",
                   "point " + std::to_string(o.point) + " is listed twice in view " +
                       std::to_string(g.id) + " with two positions (observations[" +
-                      std::to_string(obs_[it->second].index) + "].X [" + Coordinates(before) +
+                      std::to_string(here[it->second].index) + "].X [" + Coordinates(before) +
                       "], here [" + Coordinates(o.x) +
                       "]): a view sees a point once (at a keyframe)");
         continue;
       }
       o.view = static_cast<uint32_t>(views_.size());
       o.index = static_cast<uint32_t>(j);
-      obs_.push_back(o);
+      here.push_back(o);
+    }
+    // Delivered with the view's keyframe (in file order, in blocks), or later (an explicit
+    // later keyframe: kept apart, put in keyframe order at Build).
+    const int64_t vk = r.keyframe != kNone ? r.keyframe : static_cast<int64_t>(i) / std::max(1, opt_.views_per_keyframe);
+    for (Obs& o : here) {
+      if (o.keyframe != kNone && o.keyframe != vk) {
+        late_.push_back(o);
+        continue;
+      }
+      o.keyframe = kNone;
+      if (chunks_.empty() || chunks_.back().size() == kChunk) {
+        chunks_.emplace_back();
+        chunks_.back().reserve(kChunk);
+      }
+      chunks_.back().push_back(o);
     }
     views_.push_back(std::move(r));
   }
@@ -179,25 +243,35 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
   void Build() {
     ResolveIntrinsics();
     NumberViewKeyframes();
-    KeyframeList list = ListKeyframes();
-    OrderObservations(list);
+    list_ = ListKeyframes();
+    const bool has_imr_stream = !imr_stream_.is_null();
+    imr_stream_ = nullptr;  // its keyframes are in list_ now
+    OrderObservations();
+    if (!chunks_.empty()) chunks_.back().shrink_to_fit();
+    // The dry run: every update built and dropped, so that bad input fails here; it notes the
+    // last keyframe each point is used at, when the live run lets go of its state.
     std::unordered_map<uint64_t, PointState> points;
-    updates_.resize(list.numbers.size());
-    frames_ = list.frames;
     Delivery d;
-    for (std::size_t k = 0; k < list.numbers.size(); ++k) DeliverKeyframe(list, k, &points, &d);
+    engine::KeyframeUpdate scratch;
+    for (std::size_t k = 0; k < list_.numbers.size(); ++k) {
+      scratch = engine::KeyframeUpdate{};
+      DeliverKeyframe(k, &d, &points, &scratch);
+    }
     int64_t pending = 0;
-    for (const auto& [id, s] : points) pending += s.entered ? 0 : 1;
+    erase_at_.assign(list_.numbers.size(), {});
+    for (const auto& [id, s] : points) {
+      pending += s.entered ? 0 : 1;
+      erase_at_[s.last_use].push_back(id);
+    }
     summary_ = {{"file", f_.file()},
                 {"views", views_.size()},
                 {"observations", d.observations},
                 {"points", points.size()},
                 {"points_never_entered", pending},
                 {"moves", d.moves},
-                {"min_views", list.min_views},
-                {"keyframes", updates_.size()},
-                {"imr_stream", !imr_stream_.is_null()}};
-    obs_ = {};
+                {"min_views", list_.min_views},
+                {"keyframes", list_.numbers.size()},
+                {"imr_stream", has_imr_stream}};
   }
 
   // The keyframes: numbers, the frame each ends at, the points each removes.
@@ -213,12 +287,15 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
     bool entered = false, removed = false;
     Vec3 position{};
     std::vector<uint64_t> cameras;
+    std::size_t last_use = 0;  // the last keyframe (index) that observed or removed it so far
   };
 
-  // Where the delivery of the keyframes stands: the next view and observation, the counts.
+  // Where the delivery of the keyframes stands: the next view, observation block and place in
+  // it, later observation, the counts. `release`: blocks are freed once delivered (the live run).
   struct Delivery {
-    std::size_t vi = 0, oi = 0;
+    std::size_t vi = 0, chunk = 0, pos = 0, li = 0;
     int64_t moves = 0, observations = 0;
+    bool release = false;
   };
 
   // Intrinsics of the views.
@@ -290,30 +367,34 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
 
   // Every view and observation in a listed keyframe; the observations in delivery order:
   // (keyframe, view order, order in the view).
-  void OrderObservations(const KeyframeList& list) {
+  void OrderObservations() {
+    const KeyframeList& list = list_;
     std::unordered_map<int64_t, std::size_t> slot;
     for (std::size_t i = 0; i < list.numbers.size(); ++i) slot[list.numbers[i]] = i;
     for (const ViewRec& v : views_)
       if (!slot.count(v.keyframe))
         f_.Fail(v.path + ".keyframe", "keyframe " + std::to_string(v.keyframe) + " is not in imr_stream.keyframes");
-    for (Obs& o : obs_) {
+    // The blocks' observations are at their view's keyframe, which is listed (above).
+    for (Obs& o : late_) {
       const int64_t vk = views_[o.view].keyframe;
-      if (o.keyframe == kNone) o.keyframe = vk;
       if (o.keyframe < vk)
         f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) +
                                               " is before its view's keyframe " + std::to_string(vk));
       if (!slot.count(o.keyframe))
         f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) + " is not in imr_stream.keyframes");
     }
-    std::stable_sort(obs_.begin(), obs_.end(), [](const Obs& a, const Obs& b) { return a.keyframe < b.keyframe; });
+    std::stable_sort(late_.begin(), late_.end(), [](const Obs& a, const Obs& b) { return a.keyframe < b.keyframe; });
   }
 
   // Keyframe k's update: its cameras, its removals, and its observations as new points (seen by
   // min_views cameras) and moved ones.
-  void DeliverKeyframe(const KeyframeList& list, std::size_t k,
-                       std::unordered_map<uint64_t, PointState>* points_in, Delivery* d) {
+  // Its observations in the file's order: the later ones of earlier views first (their views
+  // come before this keyframe's), then those of its own views.
+  void DeliverKeyframe(std::size_t k, Delivery* d,
+                       std::unordered_map<uint64_t, PointState>* points_in, engine::KeyframeUpdate* out) {
+    const KeyframeList& list = list_;
     std::unordered_map<uint64_t, PointState>& points = *points_in;
-    engine::KeyframeUpdate& u = updates_[k];
+    engine::KeyframeUpdate& u = *out;
     for (; d->vi < views_.size() && views_[d->vi].keyframe == list.numbers[k]; ++d->vi)
       u.cameras.push_back({views_[d->vi].geometry.id, views_[d->vi].geometry.center});
     for (uint64_t id : list.removed[k]) {
@@ -322,6 +403,7 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
         f_.Fail("imr_stream.keyframes[" + std::to_string(k) + "].removed_points",
                 PointNotInStream(id, list.numbers[k]));
       it->second.removed = true;
+      it->second.last_use = k;
     }
     u.removed_points = list.removed[k];
     std::vector<uint64_t> touched;
@@ -330,10 +412,23 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
       Vec3 before;  // the estimate the engine has
     };
     std::unordered_map<uint64_t, Move> moved;
-    for (; d->oi < obs_.size() && obs_[d->oi].keyframe == list.numbers[k]; ++d->oi) {
-      const Obs& o = obs_[d->oi];
+    const int64_t number = list.numbers[k];
+    // The next observation of keyframe k, or null.
+    auto next = [&]() -> const Obs* {
+      if (d->li < late_.size() && late_[d->li].keyframe == number) return &late_[d->li++];
+      while (d->chunk < chunks_.size() && d->pos == chunks_[d->chunk].size()) {
+        if (d->release) Release(&chunks_[d->chunk]);
+        ++d->chunk, d->pos = 0;
+      }
+      if (d->chunk < chunks_.size() && views_[chunks_[d->chunk][d->pos].view].keyframe == number)
+        return &chunks_[d->chunk][d->pos++];
+      return nullptr;
+    };
+    for (const Obs* op = next(); op != nullptr; op = next()) {
+      const Obs& o = *op;
       ++d->observations;
       PointState& s = points[o.point];
+      s.last_use = k;
       if (s.removed)
         f_.Fail(ObsPath(o), ObservedAfterRemoval(o.point));
       const uint64_t cam = views_[o.view].geometry.id;
@@ -371,11 +466,19 @@ class SlamJsonSource : public PrecomputedKeyframeSource {
 
   JsonFields f_;
   SlamJsonOptions opt_;
+  static constexpr std::size_t kChunk = 1 << 14;  // observations per block (768 kB)
+
   json imr_stream_;
   std::map<uint64_t, Intrinsics> intrinsics_;
   std::vector<ViewRec> views_;
   std::unordered_map<uint64_t, std::size_t> view_by_id_;
-  std::vector<Obs> obs_;
+  std::vector<std::vector<Obs>> chunks_;  // observations at their view's keyframe, file order
+  std::vector<Obs> late_;                 // those delivered later, in keyframe order
+  KeyframeList list_;
+  std::vector<std::vector<uint64_t>> erase_at_;  // per keyframe: points last used there
+  std::unordered_map<uint64_t, PointState> live_points_;
+  Delivery live_{0, 0, 0, 0, 0, 0, true};
+  std::size_t next_ = 0;
   json summary_;
 };
 

@@ -22,8 +22,10 @@
 //   - top-level "imr_stream": {"min_views": 1, "keyframes": [{"keyframe", "frame",
 //     "removed_points": [ids]}]}  - every update, even an empty one, and removals.
 //
-// Memory: one SAX pass (json_stream.h), views converted one at a time; the peak is the compact
-// observation list (about 56 bytes per observation) plus the updates built from it.
+// Memory: one SAX pass (json_stream.h), views converted one at a time into a compact
+// observation list (48 bytes per observation); every update is checked at open, then built only
+// when asked for, and the observations and point states it was the last to need are freed: what
+// the reader holds shrinks over the drive (PendingBytes) but starts at the whole file's list.
 #pragma once
 
 #include "host/io/colmap_model.h"

@@ -48,6 +48,10 @@ void TraceWriter::OnKeyframe(KeyframeEvent& e) {
                {"rss_bytes", ResidentBytes()},   {"engine_seconds", e.engine_seconds},
                {"seconds", SecondsSince(start_)}};
   if (e.check_seconds >= 0.0) line["check_seconds"] = e.check_seconds;
+  // The engine's bytes beside the RSS show what the host holds beyond the engine; Memory() walks
+  // every cell (milliseconds), so only every kEngineBytesEvery-th keyframe and the first.
+  if (e.keyframes == 1 || e.keyframes % kEngineBytesEvery == 0)
+    line["engine_bytes"] = engine_.Memory().Total();
   out_ << DumpJson(line) << '\n';
   out_.flush();
   if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");

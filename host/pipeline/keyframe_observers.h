@@ -74,6 +74,8 @@ class InvariantCheck : public KeyframeObserver {
 // <path>.partial until Finish renames it: a killed run never leaves a trace that looks complete.
 class TraceWriter : public KeyframeObserver {
  public:
+  // Keyframes apart of the lines that carry engine_bytes (the engine's Memory().Total()).
+  static constexpr int kEngineBytesEvery = 10;
   TraceWriter(std::filesystem::path path, const engine::Engine& engine);
   ~TraceWriter() override { Finish(); }
   void OnKeyframe(KeyframeEvent& event) override;

@@ -58,7 +58,8 @@ struct RunOptions {
   int check_invariants_every = 0;
   // --trace: a JSON-lines file (same template as export_stream), one object per keyframe:
   // keyframe, frame, points, vertices, cells, cells_in_o, rss_bytes, engine_seconds and, where
-  // the check ran, check_seconds. Written as <path>.partial and renamed when the sequence ends
+  // the check ran, check_seconds; the first and every 10th keyframe also engine_bytes (the
+  // engine's Memory().Total(): RSS minus it is what the host holds). Written as <path>.partial and renamed when the sequence ends
   // (also when it fails: every line is whole), so a killed run leaves only the .partial.
   std::string trace;
   // --stage-timeout: seconds a call into a plugin may take when its stage sets no

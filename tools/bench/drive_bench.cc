@@ -12,7 +12,10 @@
 // (the same mesh bytes, or the figures of both); and the README's default job (configs/default.json:
 // imr-synth's street through the image pipeline, --synth-frames long) with and without forgetting,
 // both against the scene's exact surface (`imr evaluate`), with the RSS at its middle and end.
-// Prints the targets met or not, and a JSON line.
+// And drives read from a SLAM JSON file (--slam-frames, issue 46): the dense street written by
+// `imr run --export-stream`, read back with forgetting and tiles, the engine's bytes (the trace's
+// engine_bytes) beside the process's RSS per tenth, so that what the host holds beyond the engine
+// shows. Prints the targets met or not, and a JSON line.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -44,6 +47,7 @@ const char kUsage[] =
     "usage: imr-bench drive [--frames N] [--reference-frames N] [--keyframe-every K]\n"
     "                       [--work DIR] [--imr PATH] [--no-long] [--no-street]\n"
     "                       [--synth-frames N] [--no-default]\n"
+    "                       [--slam-frames N,N] [--no-slam] [--slam-only] [--quick]\n"
     "  --frames N            the long drive (default 20000)\n"
     "  --reference-frames N  the stretch run with and without forgetting (default 2000)\n"
     "  --keyframe-every K    frames per keyframe of the dense street (default 5, as the config)\n"
@@ -52,11 +56,18 @@ const char kUsage[] =
     "  --no-long             only the reference stretch (and the street stream)\n"
     "  --no-street           skip ../shared/data/street-stream\n"
     "  --synth-frames N      frames of imr-synth's street for the default job (default 500)\n"
-    "  --no-default          skip the default job\n";
+    "  --no-default          skip the default job\n"
+    "  --slam-frames N,N     the drives read from a SLAM JSON file (default 1000,5000)\n"
+    "  --no-slam             skip them\n"
+    "  --slam-only           only them (the generator's drives, the street stream and the default\n"
+    "                        job skipped)\n"
+    "  --quick               --slam-only with one SLAM JSON drive of 300 frames\n";
 
 struct DriveArgs {
   int frames = 20000, reference = 2000, keyframe_every = 5, synth_frames = 500;
   bool long_run = true, street = true, default_job = true;
+  std::vector<int> slam_frames = {1000, 5000};
+  bool slam = true, slam_only = false, quick = false;
   fs::path work;
   std::string imr;
 };
@@ -65,6 +76,7 @@ struct DriveArgs {
 struct DriveTargets {
   bool flat = true, peak_ok = true, steady = true, no_slower = true, same_quality = true;
   bool default_same = true, default_flat = true;
+  bool slam_flat = true, slam_peak_ok = true, slam_host_flat = true;
 };
 
 struct Run {
@@ -89,16 +101,18 @@ json DenseJob(int frames, int keyframe_every, bool forget, bool keep_truth, cons
   return job;
 }
 
-Run RunJob(const std::string& name, const json& job, const fs::path& work, const std::string& imr) {
+Run RunJob(const std::string& name, const json& job, const fs::path& work, const std::string& imr,
+           const std::vector<std::string>& extra = {}) {
   Run r;
   r.name = name;
   const fs::path dir = work / name;
   fs::create_directories(dir);
   const fs::path job_file = dir / "job.json", trace = dir / "trace.jsonl";
   std::ofstream(job_file) << job.dump(2) << "\n";
-  const ProcessResult p = RunProcess({imr, "run", job_file.string(), "-q", "--no-viewer", "--force",
-                                      "--trace", trace.string()},
-                                     "", dir / "log.txt", 0);
+  std::vector<std::string> argv = {imr, "run", job_file.string(), "-q", "--no-viewer", "--force",
+                                   "--trace", trace.string()};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  const ProcessResult p = RunProcess(argv, "", dir / "log.txt", 0);
   r.wall = p.seconds;
   const fs::path out = job["output"]["directory"].get<std::string>();
   const fs::path report = out / "report.json";
@@ -127,6 +141,7 @@ double Get(const json& j, const std::vector<std::string>& path, double otherwise
 // The trace's keyframes as (frame, value).
 struct Series {
   std::vector<double> frame, rss, seconds, engine;
+  std::vector<double> engine_bytes;  // NAN on the keyframes the trace did not measure them
 };
 Series SeriesOf(const Run& r) {
   Series s;
@@ -135,6 +150,7 @@ Series SeriesOf(const Run& r) {
     s.rss.push_back(k.value("rss_bytes", 0.0));
     s.seconds.push_back(k.value("seconds", 0.0));
     s.engine.push_back(k.value("engine_seconds", 0.0));
+    s.engine_bytes.push_back(k.contains("engine_bytes") ? k["engine_bytes"].get<double>() : NAN);
   }
   return s;
 }
@@ -214,7 +230,11 @@ bool ParseDriveArgs(int argc, char** argv, DriveArgs* a, int* status) {
   o.Path("--work", &a->work).String("--imr", &a->imr);
   o.Flag("--no-long", &a->long_run, false).Flag("--no-street", &a->street, false);
   o.Flag("--no-default", &a->default_job, false);
+  o.IntList("--slam-frames", &a->slam_frames, 50).Flag("--no-slam", &a->slam, false);
+  o.Flag("--slam-only", &a->slam_only).Flag("--quick", &a->quick);
   if (!o.Parse(argc, argv, status)) return false;
+  if (a->quick) a->slam_only = true, a->slam_frames = {300};
+  if (a->slam_only) a->slam = true, a->long_run = a->street = a->default_job = false;
   if (a->frames < a->reference || a->reference < 100 || a->keyframe_every < 1 ||
       a->synth_frames < 20) {
     std::fprintf(stderr, "drive: need 100 <= --reference-frames <= --frames, --keyframe-every >= 1, "
@@ -445,11 +465,114 @@ bool DefaultJobs(const DriveArgs& a, DriveTargets* t, json* out) {
   return true;
 }
 
+// The last keyframe at or before `i` whose engine bytes the trace measured (i itself when none).
+size_t MeasuredAt(const Series& s, size_t i) {
+  for (size_t j = std::min(i + 1, s.engine_bytes.size()); j-- > 0;)
+    if (!std::isnan(s.engine_bytes[j])) return j;
+  return i;
+}
+
+// One drive read from a SLAM JSON file: the dense street of `frames` frames written by imr run
+// --export-stream (kept in the work folder and reused), read back with forgetting and tiles.
+// Prints, per tenth, the RSS, the engine's bytes and what the host holds beyond them. False when
+// a run failed.
+bool SlamDrive(const DriveArgs& a, int frames, json* out) {
+  const std::string name = "slam" + std::to_string(frames);
+  const fs::path file = a.work / name / "drive.json";
+  if (!fs::exists(file)) {
+    json gen = DenseJob(frames, a.keyframe_every, true, false, a.work / (name + "_write/out"));
+    gen["output"]["formats"] = json::array();  // tiles only: the stream is what is wanted
+    fs::create_directories(file.parent_path());
+    const Run g = RunJob(name + "_write", gen, a.work, a.imr, {"--export-stream", file.string()});
+    if (!g.ok || !fs::exists(file)) return false;
+  }
+  const json job = {{"sequences", {file.string()}},
+                    {"input", {{"format", "slam_json"}, {"options", json::object()}}},
+                    {"engine", {{"forget", true}}},
+                    {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+                    {"output", {{"directory", (a.work / name / "out").string()},
+                                {"formats", {"ply"}}, {"tiles", json::object()}}}};
+  const Run r = RunJob(name, job, a.work, a.imr);
+  if (!r.ok) return false;
+  const Series s = SeriesOf(r);
+  const double file_mb = static_cast<double>(fs::file_size(file)) / 1e6;
+  std::printf("\nA drive of %d frames read from a SLAM JSON file (%.0f MB; imr's dense street "
+              "written by --export-stream), forgetting and tiles on:\n", frames, file_mb);
+  MarkdownHeader({"tenth", "frame", "RSS", "engine bytes", "RSS - engine"});
+  const size_t n = s.frame.size();
+  json tenths = json::array();
+  double host_first = NAN, host_last = NAN;
+  for (int t = 0; t < 10 && n >= 10; ++t) {
+    const size_t b = MeasuredAt(s, (t + 1) * n / 10 - 1);  // RSS and engine bytes together
+    const double e = s.engine_bytes[b], host = s.rss[b] - e;
+    if (t == 0) host_first = host;
+    host_last = host;
+    std::printf("| %d | %.0f | %s | %s | %s |\n", t + 1, s.frame[b], Mb(s.rss[b]).c_str(),
+                Mb(e).c_str(), Mb(host).c_str());
+    tenths.push_back({{"frame", s.frame[b]}, {"rss_bytes", s.rss[b]}, {"engine_bytes", e}});
+  }
+  // Slope of RSS - engine bytes over the second half's measured keyframes.
+  std::vector<double> x, y;
+  for (size_t i = n / 2; i < n; ++i)
+    if (!std::isnan(s.engine_bytes[i])) x.push_back(s.frame[i]), y.push_back(s.rss[i] - s.engine_bytes[i]);
+  const double slope = Slope(x, y, 0);
+  const double engine_end = Get(r.report, {"memory", "engine_bytes", "total"});
+  const double final_rss = Get(r.report, {"memory", "final_rss_bytes"});
+  const double peak = Get(r.report, {"memory", "peak_rss_bytes"});
+  const double first_rss = s.rss.empty() ? NAN : s.rss.front();
+  std::printf("\nreport.json: engine bytes %s at the end, final RSS %s (%s beyond the engine), peak "
+              "RSS %s; RSS %s after the first keyframe (the file read); RSS - engine over the "
+              "second half: %.1f kB per frame; wall %.1f s\n",
+              Mb(engine_end).c_str(), Mb(final_rss).c_str(), Mb(final_rss - engine_end).c_str(),
+              Mb(peak).c_str(), Mb(first_rss).c_str(), slope / 1e3, r.wall);
+  (*out)["slam"].push_back({{"frames", frames}, {"file_bytes", fs::file_size(file)},
+                            {"peak_rss_bytes", peak}, {"final_rss_bytes", final_rss},
+                            {"engine_bytes_end", engine_end}, {"first_rss_bytes", first_rss},
+                            {"host_bytes_first_tenth", host_first},
+                            {"host_bytes_last_tenth", host_last},
+                            {"host_slope_bytes_per_frame", slope}, {"tenths", tenths},
+                            {"wall_seconds", r.wall}});
+  return true;
+}
+
+// The SLAM JSON drives, shortest first, and their targets: the longest's peak RSS within 1.2 x
+// the shortest's and 400 MB, what the host holds beyond the engine at its end within 1.2 x the
+// shortest's.
+bool SlamDrives(const DriveArgs& a, DriveTargets* t, json* out) {
+  std::vector<int> lengths = a.slam_frames;
+  std::sort(lengths.begin(), lengths.end());
+  (*out)["slam"] = json::array();
+  for (int f : lengths)
+    if (!SlamDrive(a, f, out)) return false;
+  const json& first = (*out)["slam"].front();
+  const json& last = (*out)["slam"].back();
+  auto host = [](const json& d) {
+    return d["final_rss_bytes"].get<double>() - d["engine_bytes_end"].get<double>();
+  };
+  t->slam_flat = last["peak_rss_bytes"].get<double>() <= 1.2 * first["peak_rss_bytes"].get<double>();
+  t->slam_peak_ok = last["peak_rss_bytes"].get<double>() <= 400e6;
+  t->slam_host_flat = host(last) <= 1.2 * host(first);
+  return true;
+}
+
 void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
   auto line = [](bool met, const char* what) {
     std::printf("- %s: %s\n", met ? "met" : "NOT MET", what);
   };
   std::printf("\nTargets:\n");
+  if (a.slam) {
+    const std::string lengths = Format("%d frames beside %d", *std::max_element(a.slam_frames.begin(), a.slam_frames.end()),
+                                       *std::min_element(a.slam_frames.begin(), a.slam_frames.end()));
+    line(t.slam_flat, ("SLAM JSON: peak RSS <= 1.2 x the shortest drive's (" + lengths + ")").c_str());
+    line(t.slam_peak_ok, "SLAM JSON: the longest drive's peak RSS <= 400 MB");
+    line(t.slam_host_flat, ("SLAM JSON: RSS beyond the engine's bytes at the end <= 1.2 x the "
+                            "shortest drive's (" + lengths + ")").c_str());
+  }
+  if (a.slam_only) {
+    (*out)["targets"] = {{"slam_flat", t.slam_flat}, {"slam_peak", t.slam_peak_ok},
+                         {"slam_host_flat", t.slam_host_flat}};
+    return;
+  }
   if (a.long_run) {
     line(t.flat, "RSS at the end <= 1.2 x RSS at the reference length");
     line(t.peak_ok, "peak RSS <= 400 MB (the whole process, the single mesh at the end included)");
@@ -468,7 +591,9 @@ void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
   }
   (*out)["targets"] = {{"flat", t.flat}, {"peak", t.peak_ok}, {"steady", t.steady},
                        {"no_slower", t.no_slower}, {"same_quality", t.same_quality},
-                       {"default_same", t.default_same}, {"default_flat", t.default_flat}};
+                       {"default_same", t.default_same}, {"default_flat", t.default_flat},
+                       {"slam_flat", t.slam_flat}, {"slam_peak", t.slam_peak_ok},
+                       {"slam_host_flat", t.slam_host_flat}};
 }
 
 }  // namespace
@@ -481,11 +606,12 @@ int RunDriveBench(int argc, char** argv) {
   json out = {{"bench", "drive"}, {"frames", a.frames}, {"reference_frames", a.reference},
               {"keyframe_every", a.keyframe_every}};
   DriveTargets t;
-  if (!ReferenceStretch(a, &t, &out)) return 1;
+  if (!a.slam_only && !ReferenceStretch(a, &t, &out)) return 1;
   out["load"] = LoadAverage();  // after the reference stretch, as the figure always was
   if (a.long_run && !LongDrive(a, &t, &out)) return 1;
   if (a.street && !StreetStream(a, &out)) return 1;
   if (a.default_job && !DefaultJobs(a, &t, &out)) return 1;
+  if (a.slam && !SlamDrives(a, &t, &out)) return 1;
   PrintDriveTargets(a, t, &out);
   std::printf("%s\n", out.dump().c_str());
   return 0;
