@@ -874,6 +874,10 @@ bool RefineOptions::Check(std::string* error) const {
   if (!(step > 0 && step <= 1)) return fail("step must be in (0, 1]");
   if (!(smoothness >= 0 && smoothness <= 1)) return fail("smoothness must be in [0, 1]");
   if (!(max_move > 0) || !std::isfinite(max_move)) return fail("max_move must be > 0");
+  if (planarize < 0 || planarize > 100) return fail("planarize must be in [0, 100]");
+  if (!(planarize_tolerance > 0) || !std::isfinite(planarize_tolerance))
+    return fail("planarize_tolerance must be > 0");
+  if (!(planarize_min_share > 0 && planarize_min_share <= 1)) return fail("planarize_min_share must be in (0, 1]");
   if (depth_map_scale < 1) return fail("depth_map_scale must be >= 1");
   if (threads < 1) return fail("threads must be >= 1");
   if (error) error->clear();
@@ -990,7 +994,7 @@ class Refinement {
 
   // Coarse to fine; false when cancelled. Counts the moves the guard refused in `undone`.
   bool CoarseToFine(const std::function<bool()>& cancelled, int64_t* undone) {
-    MoveGuard guard(faces_, topo_, input_face_normals_, &p_);
+    MoveGuard& guard = guard_;
     const int S = options_.search_steps;
     for (int round = 0; round < options_.levels; ++round) {
       // The first round searches search_range on the coarsest images; each round halves the
@@ -1012,7 +1016,130 @@ class Refinement {
     return true;
   }
 
+  // Mean angle (degrees) between the normals of the two faces of each interior edge that has a
+  // face with an active vertex: what the smoothing is for (imr-bench's roughness).
+  double Roughness() const {
+    double sum = 0;
+    int64_t edges = 0;
+    for (std::size_t f = 0; f < faces_.size(); ++f) {
+      if (!topo_.face_ok[f] || !TouchesActive(f)) continue;
+      const Face& F = faces_[f];
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t g = OtherFace(f, F[k], F[(k + 1) % 3]);
+        // Each edge once: from its lower face, or from this face when the other has no active vertex.
+        if (g == kNoFace || (g < f && TouchesActive(g))) continue;
+        const Vec3 a = FaceCross(p_, F), b = FaceCross(p_, faces_[g]);
+        if (a.norm() <= 0 || b.norm() <= 0) continue;
+        sum += std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / kPi;
+        ++edges;
+      }
+    }
+    return edges > 0 ? sum / static_cast<double>(edges) : 0.0;
+  }
+
+  // Planarizing (after the photometric passes): each vertex whose neighbourhood (its 2-ring)
+  // lies on one plane, robustly fitted (a spike or a point of another surface does not tilt it),
+  // goes onto that plane; a vertex at a corner (no plane holds enough of its neighbours) stays.
+  // Jacobi rounds, each step through the same guard as the photometric moves. `moved` counts
+  // the vertices it moved.
+  void Planarize(MoveGuard& guard, int64_t* undone, int64_t* moved) {
+    if (options_.planarize <= 0) return;
+    const double tol = options_.planarize_tolerance;
+    std::vector<uint32_t> stamp(n_, 0), ring;
+    uint32_t epoch = 0;
+    std::vector<uint8_t> touched(n_, 0);
+    for (int round = 0; round < options_.planarize; ++round) {
+      for (std::size_t v = 0; v < n_; ++v) {
+        target_[v] = p_[v];
+        planned_[v] = 0;
+        if (!active_[v] || (!options_.planarize_matched && ever_matched_[v])) continue;
+        ++epoch;
+        stamp[v] = epoch;
+        ring.clear();
+        for (uint32_t i = topo_.nb_begin[v]; i < topo_.nb_begin[v + 1]; ++i) {
+          const uint32_t a = topo_.nb[i];
+          if (stamp[a] != epoch) stamp[a] = epoch, ring.push_back(a);
+        }
+        const std::size_t first = ring.size();
+        for (std::size_t k = 0; k < first; ++k)
+          for (uint32_t i = topo_.nb_begin[ring[k]]; i < topo_.nb_begin[ring[k] + 1]; ++i) {
+            const uint32_t b = topo_.nb[i];
+            if (stamp[b] != epoch) stamp[b] = epoch, ring.push_back(b);
+          }
+        Vec3 centre, normal;
+        if (!FitPlane(ring, tol, &centre, &normal)) continue;
+        Vec3 t = p_[v] - normal.dot(p_[v] - centre) * normal;
+        const Vec3 off = t - input_[v];
+        const double len = off.norm();
+        if (len > options_.max_move) t = input_[v] + off * (options_.max_move / len);
+        if ((t - p_[v]).norm() <= 1e-12 * std::max(mean_edge_, 1e-300)) continue;
+        target_[v] = t;
+        planned_[v] = (t - p_[v]).norm();
+      }
+      const std::vector<Vec3> before = p_;
+      ApplyTargets(guard, undone);
+      for (std::size_t v = 0; v < n_; ++v) touched[v] |= p_[v] != before[v];
+    }
+    for (uint8_t t : touched) *moved += t;
+  }
+
+  MoveGuard& guard() { return guard_; }
+
  private:
+  static constexpr uint32_t kNoFace = std::numeric_limits<uint32_t>::max();
+
+  // A plane through the points `ids` that holds at least planarize_min_share of them within
+  // `tol`: a least-squares fit, then reweighted (Tukey, cut at 3 tol) so that outliers stop
+  // tilting it. False when there are too few points or no such plane (a corner, a crease).
+  bool FitPlane(const std::vector<uint32_t>& ids, double tol, Vec3* centre, Vec3* normal) const {
+    if (ids.size() < 6) return false;
+    std::vector<double> w(ids.size(), 1.0);
+    const double cut = 3.0 * tol;
+    for (int it = 0; it < 4; ++it) {
+      Vec3 c = Vec3::Zero();
+      double total = 0;
+      for (std::size_t k = 0; k < ids.size(); ++k) c += w[k] * p_[ids[k]], total += w[k];
+      if (total <= 0) return false;
+      c /= total;
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      for (std::size_t k = 0; k < ids.size(); ++k) {
+        const Vec3 d = p_[ids[k]] - c;
+        cov += w[k] * d * d.transpose();
+      }
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+      *centre = c;
+      *normal = eig.eigenvectors().col(0);
+      for (std::size_t k = 0; k < ids.size(); ++k) {
+        const double r = std::fabs(normal->dot(p_[ids[k]] - c)) / cut;
+        w[k] = r < 1 ? (1 - r * r) * (1 - r * r) : 0.0;
+      }
+    }
+    std::size_t inliers = 0;
+    for (uint32_t id : ids) inliers += std::fabs(normal->dot(p_[id] - *centre)) <= tol ? 1 : 0;
+    return inliers >= options_.planarize_min_share * static_cast<double>(ids.size());
+  }
+
+  bool TouchesActive(std::size_t f) const {
+    const Face& F = faces_[f];
+    return active_[F[0]] || active_[F[1]] || active_[F[2]];
+  }
+
+  // The face other than f on edge (a, b), or kNoFace (a boundary or non-manifold edge).
+  uint32_t OtherFace(std::size_t f, uint32_t a, uint32_t b) const {
+    uint32_t found = kNoFace;
+    int count = 0;
+    for (uint32_t i = topo_.vf_begin[a]; i < topo_.vf_begin[a + 1]; ++i) {
+      const uint32_t g = topo_.vf[i];
+      if (g == f) continue;
+      const Face& G = faces_[g];
+      if (G[0] == b || G[1] == b || G[2] == b) {
+        found = g;
+        ++count;
+      }
+    }
+    return count == 1 ? found : kNoFace;
+  }
+
   void BuildMaps() {
     ParallelFor(static_cast<int64_t>(views_.size()), threads_, 1, [&](int64_t begin, int64_t end) {
       std::vector<Vec3> cam;
@@ -1184,6 +1311,7 @@ class Refinement {
   std::vector<Vec3> target_;
   std::vector<double> planned_;
   std::vector<uint32_t> search_;
+  MoveGuard guard_{faces_, topo_, input_face_normals_, &p_};
 };
 
 }  // namespace
@@ -1207,7 +1335,17 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
 
   Refinement refinement(views, faces, std::move(active), options, vertices);
   stats.mean_zncc_before = views.size() >= 2 ? refinement.Evaluate(&stats.vertices_seen) : 0.0;
-  const bool completed = refinement.CoarseToFine(cancelled, &stats.moves_undone);
+  const bool planarize = options.planarize > 0;
+  if (planarize) stats.roughness_before = refinement.Roughness();
+  bool completed = refinement.CoarseToFine(cancelled, &stats.moves_undone);
+  if (completed && planarize) {
+    if (cancelled && cancelled()) {
+      completed = false;
+    } else {
+      refinement.Planarize(refinement.guard(), &stats.moves_undone, &stats.vertices_planarized);
+    }
+  }
+  if (planarize) stats.roughness_after = refinement.Roughness();
   stats.mean_zncc_after = views.size() >= 2 ? refinement.Evaluate(nullptr) : 0.0;
 
   const std::vector<Vec3>& input = refinement.input();

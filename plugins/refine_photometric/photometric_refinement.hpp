@@ -49,6 +49,13 @@ struct RefineOptions {
   double flatten_spikes = 0.0;     // > 0: an unmatched vertex farther than this many times its
                                    // neighbours' plane-fit residual from their plane goes onto it
   double max_move = 1.0;           // metres a vertex may move in total from its input position
+  // Planarizing after the photometric passes: a vertex whose 2-ring lies on one plane (a robust
+  // fit holding planarize_min_share of it within planarize_tolerance) goes onto that plane; a
+  // corner stays. Rounds of it (0: off).
+  int planarize = 0;
+  double planarize_tolerance = 0.1;   // metres (the plugin gives it in median edge lengths)
+  double planarize_min_share = 0.7;   // share of the 2-ring the plane must hold
+  bool planarize_matched = true;      // false: vertices the images placed are not moved by it
   int depth_map_scale = 4;         // occlusion z-buffer at 1/scale of each view's resolution
   int threads = 1;                 // threads for the per-vertex search (joined before return)
   bool Check(std::string* error) const;  // false and a message naming the field when invalid
@@ -64,6 +71,9 @@ struct RefineStats {
   double mean_zncc_before = 0.0;    // mean best score at the input positions (seen vertices)
   double mean_zncc_after = 0.0;     // the same at the output positions
   double mean_move = 0.0;           // mean distance moved over moved vertices, metres
+  int64_t vertices_planarized = 0;  // vertices the planarizing moved
+  double roughness_before = 0.0;    // mean angle between neighbouring face normals (degrees) over
+  double roughness_after = 0.0;     // the interior edges of faces with an active vertex
   double seconds = 0.0;
 };
 

@@ -191,6 +191,8 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                      "description": "with remesh: split interior edges longer than this many median edge lengths at their midpoints, longest first (0: no splits)"},
     "remesh_corner_deg": {"type": "number", "default": 60, "minimum": 1, "maximum": 180,
                           "description": "with remesh: an edge whose faces meet at more than this angle is a crease: never flipped, and no flip beside it brings it below"},
+    "remesh_fold_deg": {"type": "number", "default": 180, "minimum": 1, "maximum": 180,
+                        "description": "with remesh: an edge whose faces meet at more than this is a fold (the sheet turned back on itself between noisy points), flipped when its new faces lie flat on one of the old (180: none; at least remesh_corner_deg)"},
     "max_views": {"type": "integer", "default": 5, "minimum": 2, "maximum": 64,
                   "description": "keyframes compared per vertex (the most frontal that see it)"},
     "max_view_angle_deg": {"type": "number", "default": 75, "minimum": 1, "maximum": 89,
@@ -203,6 +205,14 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                             "description": "the umbrella step projected on the vertex normal"},
     "flatten_spikes": {"type": "number", "default": 5, "minimum": 0, "maximum": 1000,
                        "description": "a vertex the images do not place, farther from its neighbours' plane than this many times their own spread about it, goes onto that plane (0: never)"},
+    "planarize": {"type": "integer", "default": 3, "minimum": 0, "maximum": 100,
+                  "description": "rounds of planarizing after the photometric passes: a vertex whose 2-ring lies on one plane (a robust fit holding planarize_min_share of it within planarize_tolerance) goes onto it; a corner stays (0: off)"},
+    "planarize_tolerance": {"type": "number", "default": 0.15, "minimum": 0.001, "maximum": 100,
+                            "description": "with planarize: how far from the plane a neighbour still counts as on it, in median edge lengths"},
+    "planarize_min_share": {"type": "number", "default": 0.7, "minimum": 0.01, "maximum": 1,
+                            "description": "with planarize: the share of the 2-ring the plane must hold"},
+    "planarize_matched": {"type": "boolean", "default": true,
+                          "description": "with planarize: false keeps the vertices the images placed where they are"},
     "max_move": {"type": "number", "default": 1.0, "minimum": 0.001, "maximum": 100,
                  "description": "how far a vertex may move in one call, in median edge lengths"},
     "max_depth": {"type": "number", "default": 0, "minimum": 0, "maximum": 100000,
@@ -228,6 +238,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     subdivide_ = p.Get<double>("subdivide");
     remesh_ = p.Get<bool>("remesh");
     remesh_options_.corner_deg = p.Get<double>("remesh_corner_deg");
+    remesh_options_.fold_deg = p.Get<double>("remesh_fold_deg");
     remesh_split_ = p.Get<double>("remesh_split");
     o_.max_views = p.Get<int>("max_views");
     o_.max_view_angle_deg = p.Get<double>("max_view_angle_deg");
@@ -235,6 +246,10 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     o_.smoothness = p.Get<double>("smoothness");
     o_.smooth_along_normal = p.Get<bool>("smooth_along_normal");
     o_.flatten_spikes = p.Get<double>("flatten_spikes");
+    o_.planarize = p.Get<int>("planarize");
+    planarize_tolerance_ = p.Get<double>("planarize_tolerance");
+    o_.planarize_min_share = p.Get<double>("planarize_min_share");
+    o_.planarize_matched = p.Get<bool>("planarize_matched");
     max_move_ = p.Get<double>("max_move");
     max_depth_ = p.Get<double>("max_depth");
     min_edge_pixels_ = p.Get<double>("min_edge_pixels");
@@ -284,6 +299,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     imr::photometric::RefineOptions o = o_;
     o.search_range = search_range_ * edge;
     o.max_move = max_move_ * edge;
+    o.planarize_tolerance = planarize_tolerance_ * edge;
     // New vertices where long edges between active vertices are split (the host checks the
     // result is a manifold with the same boundary), at the end only: the host keeps the positions
     // of its own vertices between calls, not added ones.
@@ -314,6 +330,12 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                   stats.mean_zncc_before, stats.mean_zncc_after,
                   static_cast<long long>(stats.moves_undone), stats.seconds);
     host_.Info(line);
+    if (o.planarize > 0) {
+      std::snprintf(line, sizeof(line), "%s: planarizing moved %lld vertices; roughness %.1f -> %.1f degrees",
+                    kId, static_cast<long long>(stats.vertices_planarized), stats.roughness_before,
+                    stats.roughness_after);
+      host_.Info(line);
+    }
   }
 
   // The final call's whole surface, at the positions the passes left, remeshed (remesh.hpp): its
@@ -352,10 +374,11 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
     host_.CheckCancelled();
     char line[320];
     std::snprintf(line, sizeof(line),
-                  "%s: remesh: %lld edges flipped, %lld split, %lld flips kept off creases, %lld "
+                  "%s: remesh: %lld edges flipped (%lld folds), %lld split, %lld flips kept off creases, %lld "
                   "refused (fold or sliver), %lld (a back side shown to a keyframe); mean dihedral "
                   "%.2f -> %.2f degrees, %.2f s",
-                  kId, static_cast<long long>(s.edges_flipped), static_cast<long long>(s.edges_split),
+                  kId, static_cast<long long>(s.edges_flipped), static_cast<long long>(s.folds_flipped),
+                  static_cast<long long>(s.edges_split),
                   static_cast<long long>(s.creases_kept), static_cast<long long>(s.flips_refused),
                   static_cast<long long>(s.flips_facing_away),
                   s.total_dihedral_before / static_cast<double>(std::max<int64_t>(1, s.interior_edges_before)),
@@ -487,6 +510,7 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
   imr::photometric::RefineOptions o_;
   double search_range_ = 0.6;  // in median edge lengths
   double max_move_ = 1.0;      // in median edge lengths
+  double planarize_tolerance_ = 0.15;  // in median edge lengths
   double subdivide_ = 0.0;     // in median edge lengths; 0: no subdivision
   bool remesh_ = false;        // the final call's triangles changed (RemeshCall)
   double remesh_split_ = 0.0;  // in median edge lengths; 0: no splits

@@ -42,7 +42,7 @@ class Remesher {
   Remesher(const RemeshOptions& o, const std::vector<Viewpoint>& viewpoints, std::vector<Vec3>* p,
            std::vector<Face>* faces, std::vector<std::array<uint32_t, 2>>* parents)
       : o_(o), viewpoints_(viewpoints), p_(*p), f_(*faces), parents_(parents), cos_turn_(std::cos(o.max_turn_deg * kDeg)),
-        corner_(o.corner_deg * kDeg), gain_(o.min_gain_deg * kDeg) {
+        corner_(o.corner_deg * kDeg), fold_(o.fold_deg * kDeg), gain_(o.min_gain_deg * kDeg) {
     he_.reserve(3 * f_.size());
   }
 
@@ -191,13 +191,17 @@ class Remesher {
     const Vec3 &A = p_[a], &B = p_[b], &C = p_[c], &D = p_[d];
     const Vec3 n1 = UnitNormal(A, B, C), n2 = UnitNormal(B, A, D);
     const double before = Angle(n1, n2);
-    if (before > corner_) {
+    // A fold: the two faces turn back on each other (the carving's sheet crumpled between
+    // noisy points). Flipping it is right when the new faces lie flat on one of the old ones.
+    const bool fold = before > fold_;
+    if (before > corner_ && !fold) {
       ++stats->creases_kept;
       return false;
     }
     // After: (a, d, c) and (d, b, c).
     const Vec3 m1 = UnitNormal(A, D, C), m2 = UnitNormal(D, B, C);
     const double after = Angle(m1, m2);
+    if (fold && after > corner_) return false;
     // The four edges around the quad: which old and which new face holds each.
     struct Outer {
       uint32_t u, v;
@@ -209,7 +213,8 @@ class Remesher {
       Vec3 n;
       if (!Across(e.u, e.v, &n)) continue;
       const double old_angle = Angle(*e.old_n, n), new_angle = Angle(*e.new_n, n);
-      if (old_angle > corner_ && new_angle <= corner_) {  // a crease beside it would be smoothed
+      // A crease beside it would be smoothed (a fold beside it is not a crease).
+      if (old_angle > corner_ && old_angle <= fold_ && new_angle <= corner_) {
         ++stats->creases_kept;
         return false;
       }
@@ -217,8 +222,12 @@ class Remesher {
       cost_after += new_angle;
     }
     if (!(cost_after < cost_before - gain_)) return false;
-    const bool folds = m1.dot(n1) < cos_turn_ || m1.dot(n2) < cos_turn_ || m2.dot(n1) < cos_turn_ ||
-                       m2.dot(n2) < cos_turn_ ||
+    // Each new face within max_turn of both old ones; out of a fold, of one of them (the other
+    // is the sheet turned back).
+    auto near = [this](const Vec3& m, const Vec3& n) { return m.dot(n) >= cos_turn_; };
+    const bool turned = fold ? !((near(m1, n1) && near(m2, n1)) || (near(m1, n2) && near(m2, n2)))
+                             : !(near(m1, n1) && near(m1, n2) && near(m2, n1) && near(m2, n2));
+    const bool folds = turned ||
                        !Faithful(A, D, C, around_[a] + around_[d] + around_[c]) ||
                        !Faithful(D, B, C, around_[d] + around_[b] + around_[c]);
     const double q_new = std::min(Quality(A, D, C), Quality(D, B, C));
@@ -240,6 +249,7 @@ class Remesher {
     he_[Key(d, b)] = f2, he_[Key(b, c)] = f2, he_[Key(c, d)] = f2;
     last_quad_ = {a, b, c, d};
     ++stats->edges_flipped;
+    stats->folds_flipped += fold ? 1 : 0;
     return true;
   }
 
@@ -248,7 +258,7 @@ class Remesher {
   std::vector<Vec3>& p_;
   std::vector<Face>& f_;
   std::vector<std::array<uint32_t, 2>>* parents_;
-  const double cos_turn_, corner_, gain_;  // radians (cosine for the turn)
+  const double cos_turn_, corner_, fold_, gain_;  // radians (cosine for the turn)
   std::vector<uint8_t> locked_;
   std::vector<Vec3> around_;  // per vertex, the input faces' unit normals summed (a midpoint: its ends')
   std::unordered_map<uint64_t, uint32_t> he_;  // directed edge (a << 32 | b) -> its face
@@ -266,6 +276,7 @@ bool RemeshOptions::Check(std::string* error) const {
   if (max_new_vertices < -1) return fail("max_new_vertices must be >= -1 (-1: as many as the faces)");
   if (flip_passes < 0) return fail("flip_passes must be >= 0");
   if (!(corner_deg > 0.0 && corner_deg <= 180.0)) return fail("corner_deg must be in (0, 180]");
+  if (!(fold_deg >= corner_deg && fold_deg <= 180.0)) return fail("fold_deg must be in [corner_deg, 180]");
   if (!(max_turn_deg > 0.0 && max_turn_deg < 90.0))
     return fail("max_turn_deg must be in (0, 90): a new face may not turn past a right angle");
   if (!(min_quality >= 0.0 && min_quality < 1.0)) return fail("min_quality must be in [0, 1)");

@@ -29,6 +29,10 @@ struct RemeshOptions {
   int flip_passes = 10;         // sweeps over the edges queued for a flip (each sweep re-queues
                                 // the edges around a flip)
   double corner_deg = 60.0;     // an edge whose faces meet at more than this is a crease: kept
+  double fold_deg = 180.0;      // ... unless they meet at more than this: a fold (the sheet turns
+                                // back on itself, its two faces overlapping), flipped when the
+                                // two new faces agree with each other and with one of the old
+                                // (180: no fold is flipped)
   double max_turn_deg = 75.0;   // a new face's normal within this of both faces it replaces
   double min_quality = 0.05;    // a flip's new faces at least this shaped (1: equilateral, 0:
                                 // degenerate), unless they are no worse than the old ones
@@ -46,6 +50,7 @@ struct RemeshStats {
   int64_t edges_split = 0;
   int64_t edges_flipped = 0;
   int64_t creases_kept = 0;      // flips refused because the edge or one beside it is a crease
+  int64_t folds_flipped = 0;     // of edges_flipped, folds (fold_deg) taken out
   int64_t flips_refused = 0;     // flips that would lower the dihedral but fold or degenerate
   int64_t flips_facing_away = 0;  // ... or show a viewpoint more back sides than before
   double total_dihedral_before = 0.0;  // sum over interior edges of the dihedral angle, degrees

@@ -265,6 +265,58 @@ TEST(Remesh, KeepsTheCornersOfANoisyStep) {
   EXPECT_GT(flips, 0);  // the planes' noise did get flipped: the corners were not kept by idleness
 }
 
+// A fold: a flat grid where one vertex was pushed across an edge of its link (as a noisy point
+// between its neighbours leaves the carving's sheet turned back on itself): the face of its fan
+// on that edge faces down, overlapping the face beyond. With fold_deg below their angle the flips take the
+// fold out (no face down, a manifold with the same boundary); without (180) the folds are
+// creases and stay.
+TEST(Remesh, FlipsAFoldOutOfAFlatSheet) {
+  const int n = 6;
+  auto make = [&](std::vector<Vec3>* p, Faces* faces) {
+    p->clear();
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) p->emplace_back(i, j, 0.0);
+    faces->clear();
+    for (int j = 0; j < n; ++j)  // every cell split along (i, j)-(i+1, j+1)
+      for (int i = 0; i < n; ++i) {
+        const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
+        faces->push_back({a, b, c});
+        faces->push_back({a, c, d});
+      }
+    // Vertex (3, 3) pushed across its link's edge (4, 3)-(4, 4), into the face beyond, 1 cm up:
+    // its face on that edge turns over onto that face.
+    (*p)[3 * (n + 1) + 3] = Vec3(4.2, 3.5, 0.01);
+  };
+  auto down = [](const std::vector<Vec3>& p, const Faces& fs) {
+    int count = 0;
+    for (const Face& f : fs) count += Normal(p, f).z() < 0 ? 1 : 0;
+    return count;
+  };
+  const std::vector<Viewpoint> above = {{Vec3(n / 2.0, n / 2.0, 10.0), 1e9}};
+  std::vector<Vec3> p;
+  Faces faces;
+  make(&p, &faces);
+  const int folded = down(p, faces);
+  ASSERT_GT(folded, 0);
+  const auto boundary = BoundaryEdges(faces);
+  std::vector<uint8_t> locked;
+
+  RemeshOptions creases;  // fold_deg 180: a fold is a crease
+  Faces kept = faces;
+  const RemeshStats k = Remesh(creases, above, &p, &kept, &locked);
+  EXPECT_EQ(k.folds_flipped, 0);
+  EXPECT_EQ(down(p, kept), folded);
+
+  RemeshOptions folds;
+  folds.fold_deg = 150.0;
+  const RemeshStats s = Remesh(folds, above, &p, &faces, &locked);
+  EXPECT_GT(s.folds_flipped, 0) << s.creases_kept << " creases kept, " << s.flips_refused << " refused, " << s.flips_facing_away << " facing away, " << s.edges_flipped << " flipped";
+  EXPECT_EQ(down(p, faces), 0) << "of " << folded << " faces down";
+  EXPECT_EQ(ManifoldError(p.size(), faces), "");
+  EXPECT_EQ(BoundaryEdges(faces), boundary);
+  EXPECT_LT(s.total_dihedral_after, 0.5 * s.total_dihedral_before);
+}
+
 TEST(Remesh, OptionsCheckNamesTheField) {
   RemeshOptions o;
   std::string error;
