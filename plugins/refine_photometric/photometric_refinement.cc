@@ -1042,7 +1042,7 @@ class Refinement {
   // goes onto that plane; a vertex at a corner (no plane holds enough of its neighbours) stays.
   // Jacobi rounds, each step through the same guard as the photometric moves. `moved` counts
   // the vertices it moved.
-  void Planarize(MoveGuard& guard, int64_t* undone, int64_t* moved) {
+  void Planarize(MoveGuard& guard, int64_t* undone, int64_t* moved, int64_t* on_plane) {
     if (options_.planarize <= 0) return;
     const double tol = options_.planarize_tolerance;
     std::vector<uint32_t> stamp(n_, 0), ring;
@@ -1068,6 +1068,7 @@ class Refinement {
           }
         Vec3 centre, normal;
         if (!FitPlane(ring, tol, &centre, &normal)) continue;
+        if (round == 0) ++*on_plane;
         Vec3 t = p_[v] - normal.dot(p_[v] - centre) * normal;
         const Vec3 off = t - input_[v];
         const double len = off.norm();
@@ -1342,7 +1343,8 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
     if (cancelled && cancelled()) {
       completed = false;
     } else {
-      refinement.Planarize(refinement.guard(), &stats.moves_undone, &stats.vertices_planarized);
+      refinement.Planarize(refinement.guard(), &stats.moves_undone, &stats.vertices_planarized,
+                           &stats.vertices_on_plane);
     }
   }
   if (planarize) stats.roughness_after = refinement.Roughness();

@@ -72,6 +72,7 @@ struct RefineStats {
   double mean_zncc_after = 0.0;     // the same at the output positions
   double mean_move = 0.0;           // mean distance moved over moved vertices, metres
   int64_t vertices_planarized = 0;  // vertices the planarizing moved
+  int64_t vertices_on_plane = 0;    // active vertices whose 2-ring held a plane (first round)
   double roughness_before = 0.0;    // mean angle between neighbouring face normals (degrees) over
   double roughness_after = 0.0;     // the interior edges of faces with an active vertex
   double seconds = 0.0;

@@ -331,8 +331,11 @@ class PhotometricRefiner : public imr::sdk::MeshRefiner {
                   static_cast<long long>(stats.moves_undone), stats.seconds);
     host_.Info(line);
     if (o.planarize > 0) {
-      std::snprintf(line, sizeof(line), "%s: planarizing moved %lld vertices; roughness %.1f -> %.1f degrees",
-                    kId, static_cast<long long>(stats.vertices_planarized), stats.roughness_before,
+      std::snprintf(line, sizeof(line),
+                    "%s: planarizing moved %lld vertices (%lld on a plane of their 2-ring); roughness "
+                    "%.1f -> %.1f degrees",
+                    kId, static_cast<long long>(stats.vertices_planarized),
+                    static_cast<long long>(stats.vertices_on_plane), stats.roughness_before,
                     stats.roughness_after);
       host_.Info(line);
     }
