@@ -398,8 +398,14 @@ nlohmann::json MeshJob(const MeshRequest& m, std::vector<std::string>* overrides
       {"pipeline", nlohmann::json::array()},
       {"output", {{"directory", "mesh"}, {"stem", m.out.stem().string()}, {"formats", {m.ext.substr(1)}}}}};
   if (m.f->needs_front_end) {
+    // Images: the surface imr-bench quality found best (issue 45; docs/refinement.md): points
+    // from depth maps of the keyframes beside the tracked ones, and the surface refined from the
+    // images every 10 keyframes.
     job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
     job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
+    job["pipeline"].push_back({{"kind", "dense"}, {"plugin", "org.imr.dense.patchmatch"}});
+    job["pipeline"].push_back(
+        {{"kind", "mesh_refiner"}, {"plugin", "org.imr.refine.photometric"}, {"every_keyframes", 10}});
   }
   job["pipeline"].push_back({{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}});
   *overrides = JobOverrides(m.vm);
