@@ -706,7 +706,7 @@ TEST(Tiles, GeoReferencedByTheOriginAndMergedAsWithout) {
     WriteText(dir / "bad.json", Job({"street"}, {"ply"}, {{"orign", origin}}).dump(2));
     const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "bad.json").string()));
     EXPECT_EQ(v.status, 64);
-    EXPECT_NE((v.out + v.err).find("output.tiles.orign: unknown key (expected idle_parts, max_triangles, "
+    EXPECT_NE((v.out + v.err).find("output.tiles.orign: unknown key (expected idle_parts, lod, max_triangles, "
                                    "origin or size)"),
               std::string::npos) << v.out << v.err;
   }
