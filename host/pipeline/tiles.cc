@@ -379,6 +379,21 @@ void TileWriter::Add(const engine::SurfacePart& part) {
         t.mesh.vertices.insert(t.mesh.vertices.end(), &part.vertices[3 * v], &part.vertices[3 * v] + 3);
         t.mesh.point_ids.push_back(part.point_ids[v]);
       }
+      if (options_.lod) {
+        const auto vc = vertex_cells_.try_emplace(part.keys[v], VertexCells{cell, 0, 0, false}).first;
+        if (fresh) ++vc->second.open_tiles;
+        // The lowest level whose node holds both cells.
+        int span = 0;
+        for (int d = 0; d < 3; ++d) {
+          const int64_t a = d == 0 ? std::get<0>(cell) : d == 1 ? std::get<1>(cell) : std::get<2>(cell);
+          const Cell& f0 = vc->second.first;
+          const int64_t b = d == 0 ? std::get<0>(f0) : d == 1 ? std::get<1>(f0) : std::get<2>(f0);
+          int l = 0;
+          while (l <= kMaxLodLevel && (a >> l) != (b >> l)) ++l;
+          span = std::max(span, l);
+        }
+        vc->second.span = std::max(vc->second.span, span);
+      }
       t.mesh.faces.push_back(it->second);
     }
     t.last_part = parts_;
@@ -388,6 +403,12 @@ void TileWriter::Add(const engine::SurfacePart& part) {
       open_.erase(cell);
     }
   }
+  if (options_.lod)
+    for (int64_t k : part.completed)
+      if (const auto c = vertex_cells_.find(k); c != vertex_cells_.end()) {
+        c->second.completed = true;
+        if (c->second.open_tiles == 0) vertex_cells_.erase(c);
+      }
   for (auto it = open_.begin(); it != open_.end();) {
     if (parts_ - it->second.last_part >= options_.idle_parts) {
       Write(it->first, it->second);
@@ -426,7 +447,16 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
   if (options_.lod) {
     // Only its simplified content stays, in the parent node.
     const auto start = std::chrono::steady_clock::now();
-    PushUp(1, cell, tile.mesh, tile.keys, {written}, static_cast<int64_t>(tile.mesh.faces.size() / 3), 0.0);
+    // What is known of where each vertex's triangles are: a vertex not completed yet may have
+    // some in a cell no tile holds yet, and stays locked at every level.
+    std::vector<int> spans(tile.keys.size(), kMaxLodLevel + 1);
+    for (std::size_t v = 0; v < spans.size(); ++v) {
+      const auto c = vertex_cells_.find(tile.keys[v]);
+      if (c == vertex_cells_.end()) continue;
+      if (c->second.completed) spans[v] = c->second.span;
+      if (--c->second.open_tiles == 0 && c->second.completed) vertex_cells_.erase(c);
+    }
+    PushUp(1, cell, tile.mesh, tile.keys, spans, {written}, static_cast<int64_t>(tile.mesh.faces.size() / 3), 0.0);
     const double s = SecondsSince(start);
     stats_.lod_seconds += s;
     stats_.seconds += s;
@@ -497,12 +527,15 @@ int TileWriter::WriteContent(TileMesh& tile) {
 }
 
 void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, const std::vector<int64_t>& keys,
-                        std::vector<int> children, int64_t triangles, double error) {
+                        const std::vector<int>& spans, std::vector<int> children, int64_t triangles,
+                        double error) {
   if (level > kMaxLodLevel) return;  // the children stay at the top of the tree
-  // The child's content simplified to a quarter, its border locked (a seam with a neighbour, which
-  // locks it too), before it waits for its siblings: never a full-resolution copy.
-  const engine::SimplifiedMesh s =
-      engine::SimplifyMesh(mesh, BorderVertices(mesh), std::max<int64_t>(1, triangles / 4));
+  // The child's content simplified to a quarter, its seams locked (the vertices of its border
+  // with triangles in another node of its level, which locks them too), before it waits for its
+  // siblings: never a full-resolution copy. The surface's own edge may move.
+  std::vector<char> locked = BorderVertices(mesh);
+  for (std::size_t v = 0; v < locked.size(); ++v) locked[v] = locked[v] && spans[v] > level - 1;
+  const engine::SimplifiedMesh s = engine::SimplifyMesh(mesh, locked, std::max<int64_t>(1, triangles / 4));
   const NodeKey key = {level, std::get<0>(cell) >> level, std::get<1>(cell) >> level, std::get<2>(cell) >> level};
   PendingNode& node = pending_[key];
   std::vector<uint32_t> local(s.source.size());
@@ -511,6 +544,7 @@ void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, c
     const auto [it, fresh] = node.index.emplace(k, static_cast<uint32_t>(node.keys.size()));
     if (fresh) {
       node.keys.push_back(k);
+      node.spans.push_back(spans[s.source[v]]);
       node.mesh.vertices.insert(node.mesh.vertices.end(), &s.mesh.vertices[3 * v], &s.mesh.vertices[3 * v] + 3);
       node.mesh.point_ids.push_back(s.mesh.point_ids[v]);
     }
@@ -571,19 +605,25 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
   const auto [level, x, y, z] = key;
   // The seams between the children are inside now: only the node's own border stays locked.
   const int64_t target = std::max<int64_t>(1, node.child_triangles / 4);
-  engine::SimplifiedMesh s = engine::SimplifyMesh(node.mesh, BorderVertices(node.mesh), target);
+  std::vector<char> locked = BorderVertices(node.mesh);
+  for (std::size_t v = 0; v < locked.size(); ++v) locked[v] = locked[v] && node.spans[v] > level;
+  engine::SimplifiedMesh s = engine::SimplifyMesh(node.mesh, locked, target);
   // Measured on the merged children's vertices (SimplifyMesh) and their triangles' centroids.
   const double merged_error = std::max(s.error, engine::MaxDistanceToMesh(Centroids(node.mesh), s.mesh));
   const double error = node.child_error + merged_error;
   std::vector<int64_t> keys(s.source.size());
-  for (std::size_t v = 0; v < keys.size(); ++v) keys[v] = node.keys[s.source[v]];
+  std::vector<int> spans(s.source.size());
+  for (std::size_t v = 0; v < keys.size(); ++v) {
+    keys[v] = node.keys[s.source[v]];
+    spans[v] = node.spans[s.source[v]];
+  }
   const auto triangles = static_cast<int64_t>(s.mesh.faces.size() / 3);
   const Cell cell = {x << level, y << level, z << level};
   if (triangles < kMinTileTriangles || static_cast<double>(triangles) > kMaxLodShare * static_cast<double>(node.child_triangles)) {
     // Too small a tile, or hardly simpler than its children: not written; its children hang
     // under the next node up and its content goes up in its place.
     ++stats_.lod_gathered;
-    PushUp(level + 1, cell, s.mesh, keys, std::move(node.children), triangles, error);
+    PushUp(level + 1, cell, s.mesh, keys, spans, std::move(node.children), triangles, error);
     return;
   }
   TileMesh tile;
@@ -601,7 +641,7 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
     Grow(&written_[index].box, written_[c].box);
   }
   written_[index].children = std::move(node.children);
-  PushUp(level + 1, cell, tile.mesh, tile.keys, {index}, triangles, error);
+  PushUp(level + 1, cell, tile.mesh, tile.keys, spans, {index}, triangles, error);
 }
 
 void TileWriter::WriteTileset(const std::string& state, const std::string& error) {

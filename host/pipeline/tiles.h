@@ -37,6 +37,7 @@
 #include <optional>
 #include <string>
 #include <tuple>
+#include <unordered_map>
 #include <vector>
 
 namespace imr::pipeline {
@@ -194,10 +195,19 @@ class TileWriter {
     std::vector<int> children;  // indices into written_ (a level of detail's)
     bool has_parent = false;
   };
+  // Where a vertex's triangles are, while a tile holding it is open or it is not completed: the
+  // level from which one node holds them all (a vertex is on the seam of nodes below it).
+  struct VertexCells {
+    Cell first;
+    int span = 0;
+    int open_tiles = 0;
+    bool completed = false;
+  };
   // A node of a level of detail waiting for its children: their content simplified, merged by key.
   struct PendingNode {
     engine::Mesh mesh;
     std::vector<int64_t> keys;
+    std::vector<int> spans;          // per vertex: VertexCells::span (kMaxLodLevel + 1: unknown)
     std::map<int64_t, uint32_t> index;
     std::vector<int> children;       // written tiles it will hold
     int64_t child_triangles = 0;     // of its children's content
@@ -208,7 +218,7 @@ class TileWriter {
   int WriteContent(TileMesh& tile);
   // A written tile's (or a node not written: `children`) content goes up into its parent node.
   void PushUp(int level, const Cell& cell, const engine::Mesh& mesh, const std::vector<int64_t>& keys,
-              std::vector<int> children, int64_t triangles, double error);
+              const std::vector<int>& spans, std::vector<int> children, int64_t triangles, double error);
   // Nodes whose region the drive has left (all when `all`), level by level upward.
   void FlushNodes(bool all);
   void FlushNode(const NodeKey& key, PendingNode& node);
@@ -227,6 +237,7 @@ class TileWriter {
   std::map<Cell, OpenTile> open_;
   std::vector<Written> written_;
   std::map<NodeKey, PendingNode> pending_;
+  std::unordered_map<int64_t, VertexCells> vertex_cells_;  // with lod only
   int64_t lod_count_ = 0;
   int64_t parts_ = 0;
   std::size_t tileset_names_ = 0;                        // tiles the last tileset.json names

