@@ -28,8 +28,10 @@ using SM = CGAL::Surface_mesh<Point>;
 using VD = SM::Vertex_index;
 namespace SMS = CGAL::Surface_mesh_simplification;
 
-// Lindstrom-Turk's placement, but a collapse keeps a locked vertex where it is, and an edge
-// between two locked vertices stays.
+// Lindstrom-Turk's placement, but a collapse keeps a locked vertex where it is, an edge between
+// two locked vertices stays, and no collapse joins two locked vertices that were not joined: two
+// meshes sharing a seam of locked vertices would otherwise each bridge the same two seam
+// vertices, and merged they would hold that edge four times.
 struct LockedPlacement {
   const SM::Property_map<VD, bool>* locked;
   SMS::LindstromTurk_placement<SM> base;
@@ -37,9 +39,14 @@ struct LockedPlacement {
   boost::optional<typename Profile::Point> operator()(const Profile& p) const {
     const bool l0 = (*locked)[p.v0()], l1 = (*locked)[p.v1()];
     if (l0 && l1) return boost::none;
-    if (l0) return p.p0();
-    if (l1) return p.p1();
-    return base(p);
+    if (!l0 && !l1) return base(p);
+    // The free vertex goes onto the locked one: its other locked neighbours must be the locked
+    // one's already.
+    const VD keep = l0 ? p.v0() : p.v1(), gone = l0 ? p.v1() : p.v0();
+    const SM& sm = p.surface_mesh();
+    for (VD r : CGAL::vertices_around_target(sm.halfedge(gone), sm))
+      if (r != keep && (*locked)[r] && !sm.halfedge(keep, r).is_valid()) return boost::none;
+    return l0 ? p.p0() : p.p1();
   }
 };
 

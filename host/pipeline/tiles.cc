@@ -34,6 +34,11 @@ namespace {
 constexpr int kChildrenPerNode = 8;  // the tileset's fan-out above the tiles
 constexpr int kMaxTreeDepth = 64;     // imr's trees are log8(tiles) + 2 deep
 constexpr double kTilesetSeconds = 5.0;  // tileset.json at least this often while tiles come
+// The octree of the levels of detail counts cells from here. Anchored at the sequence's origin,
+// where a drive starts, cells -1 and 0 would share no node below the top (a seam locked at every
+// level through the middle of the surface); at binary 1010...101 the seam of level L nearest to
+// the origin is 2^L / 3 cells away, as far as it can be at every level at once.
+constexpr int64_t kLodOffset = ((int64_t{1} << kMaxLodLevel) - 1) / 3;
 
 // "tiles/tile_000012.glb" -> 12; 0 when `uri` is not a tile name of imr.
 int TileIndex(const std::string& uri) {
@@ -389,7 +394,7 @@ void TileWriter::Add(const engine::SurfacePart& part) {
           const Cell& f0 = vc->second.first;
           const int64_t b = d == 0 ? std::get<0>(f0) : d == 1 ? std::get<1>(f0) : std::get<2>(f0);
           int l = 0;
-          while (l <= kMaxLodLevel && (a >> l) != (b >> l)) ++l;
+          while (l <= kMaxLodLevel && ((a + kLodOffset) >> l) != ((b + kLodOffset) >> l)) ++l;
           span = std::max(span, l);
         }
         vc->second.span = std::max(vc->second.span, span);
@@ -421,6 +426,8 @@ void TileWriter::Add(const engine::SurfacePart& part) {
 }
 
 void TileWriter::Finish() {
+  // No part comes after the last: every vertex is complete (the stream names none it keeps).
+  for (auto& [key, cells] : vertex_cells_) cells.completed = true;
   for (auto& [cell, tile] : open_) Write(cell, tile);
   open_.clear();
   if (options_.lod) FlushNodes(true);
@@ -536,7 +543,8 @@ void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, c
   std::vector<char> locked = BorderVertices(mesh);
   for (std::size_t v = 0; v < locked.size(); ++v) locked[v] = locked[v] && spans[v] > level - 1;
   const engine::SimplifiedMesh s = engine::SimplifyMesh(mesh, locked, std::max<int64_t>(1, triangles / 4));
-  const NodeKey key = {level, std::get<0>(cell) >> level, std::get<1>(cell) >> level, std::get<2>(cell) >> level};
+  const NodeKey key = {level, (std::get<0>(cell) + kLodOffset) >> level, (std::get<1>(cell) + kLodOffset) >> level,
+                       (std::get<2>(cell) + kLodOffset) >> level};
   PendingNode& node = pending_[key];
   std::vector<uint32_t> local(s.source.size());
   for (std::size_t v = 0; v < s.source.size(); ++v) {
@@ -571,8 +579,8 @@ void TileWriter::FlushNodes(bool all) {
       if (!ready) {
         // The drive has left its region: no open tile in it or next to it, no node below it waiting.
         const int64_t span = int64_t{1} << level;  // its side in cells
-        const int64_t lo[3] = {x * span - 1, y * span - 1, z * span - 1};
-        const int64_t hi[3] = {(x + 1) * span, (y + 1) * span, (z + 1) * span};
+        const int64_t lo[3] = {x * span - kLodOffset - 1, y * span - kLodOffset - 1, z * span - kLodOffset - 1};
+        const int64_t hi[3] = {(x + 1) * span - kLodOffset, (y + 1) * span - kLodOffset, (z + 1) * span - kLodOffset};
         ready = true;
         for (const auto& [c, t] : open_) {
           const int64_t p[3] = {std::get<0>(c), std::get<1>(c), std::get<2>(c)};
@@ -618,7 +626,7 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
     spans[v] = node.spans[s.source[v]];
   }
   const auto triangles = static_cast<int64_t>(s.mesh.faces.size() / 3);
-  const Cell cell = {x << level, y << level, z << level};
+  const Cell cell = {(x << level) - kLodOffset, (y << level) - kLodOffset, (z << level) - kLodOffset};
   if (triangles < kMinTileTriangles || static_cast<double>(triangles) > kMaxLodShare * static_cast<double>(node.child_triangles)) {
     // Too small a tile, or hardly simpler than its children: not written; its children hang
     // under the next node up and its content goes up in its place.
@@ -630,8 +638,9 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
   tile.level = level;
   tile.geometric_error = error;
   const double side = options_.size * static_cast<double>(int64_t{1} << level);
-  tile.origin = {(static_cast<double>(x) + 0.5) * side, (static_cast<double>(y) + 0.5) * side,
-                 (static_cast<double>(z) + 0.5) * side};
+  const double shift = static_cast<double>(kLodOffset) * options_.size;
+  tile.origin = {(static_cast<double>(x) + 0.5) * side - shift, (static_cast<double>(y) + 0.5) * side - shift,
+                 (static_cast<double>(z) + 0.5) * side - shift};
   tile.mesh = std::move(s.mesh);
   tile.keys = std::move(keys);
   const int index = WriteContent(tile);
