@@ -13,6 +13,10 @@
 // may be asked for; the result has tiles_shown and the same counts (tiles_requested: none, the
 // page loads tiles from its own scripts).
 //
+// With --view far or --view near (levels of detail, issue 46): the renderer's own error target
+// (16 px) instead of 0, and the camera 10 times the tileset's radius away (the whole drive, from
+// far) or, near, a third of the first leaf's radius from it (street level).
+//
 // Prints one JSON line: {ok, tileset_loaded, models_loaded, tiles_requested: [uris], load_errors,
 // console_errors, requests_refused, http_errors, meshes, triangles, attributes, canvas}. Exit
 // status 0 when ok, 1 otherwise.
@@ -35,7 +39,7 @@ function args() {
   return a;
 }
 
-const PAGE = `<!doctype html>
+const PAGE = (view) => `<!doctype html>
 <html><head><meta charset="utf-8"><title>imr tiles</title>
 <style>html,body{margin:0;height:100%;background:#f0f0f0}canvas{display:block}</style>
 <script type="importmap">{"imports": {
@@ -56,7 +60,8 @@ const scene = new THREE.Scene();
 scene.add(new THREE.HemisphereLight(0xffffff, 0x606060, 2.5));
 const camera = new THREE.PerspectiveCamera(50, 1000 / 700, 0.1, 100000);
 const tiles = new TilesRenderer('/run/tileset.json');
-tiles.errorTarget = 0;
+const VIEW = ${JSON.stringify(view || '')};
+if (!VIEW) tiles.errorTarget = 0;
 // 3D Tiles is z-up, three.js y-up.
 tiles.group.rotation.x = -Math.PI / 2;
 scene.add(tiles.group);
@@ -68,8 +73,21 @@ tiles.addEventListener('load-root-tileset', () => {
   const sphere = new THREE.Sphere();
   tiles.getBoundingSphere(sphere);
   sphere.applyMatrix4(tiles.group.matrixWorld);
-  // From above and a little to the side, the whole tileset in view.
-  camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(sphere.radius * 2.4));
+  // From above and a little to the side, the whole tileset in view (far: from 10 radii).
+  let distance = sphere.radius * (VIEW === 'far' ? 10 : 2.4);
+  if (VIEW === 'near') {
+    // The first leaf (a tile_ content) in tree order, from a third of its radius.
+    const find = (t) => {
+      if (t.content && t.content.uri.includes('tiles/tile_')) return t;
+      for (const c of t.children || []) { const f = find(c); if (f) return f; }
+      return null;
+    };
+    const leaf = find(tiles.root);
+    leaf.engineData.boundingVolume.getSphere(sphere);
+    sphere.applyMatrix4(tiles.group.matrixWorld);
+    distance = sphere.radius / 3;
+  }
+  camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(distance));
   camera.lookAt(sphere.center);
   camera.updateMatrixWorld();
 });
@@ -99,13 +117,13 @@ function frame() {
 requestAnimationFrame(frame);
 </script></body></html>`;
 
-function serve(run, nodeModules) {
+function serve(run, nodeModules, view) {
   const types = { '.json': 'application/json', '.glb': 'model/gltf-binary', '.js': 'text/javascript',
                   '.html': 'text/html', '.map': 'application/json' };
   const server = http.createServer((req, res) => {
     const url = decodeURIComponent(req.url.split('?')[0]);
     let file = null;
-    if (url === '/' || url === '/index.html') { res.writeHead(200, { 'content-type': 'text/html' }); res.end(PAGE); return; }
+    if (url === '/' || url === '/index.html') { res.writeHead(200, { 'content-type': 'text/html' }); res.end(PAGE(view)); return; }
     if (url.startsWith('/run/')) file = path.join(run, url.slice(5));
     else if (url.startsWith('/node_modules/')) file = path.join(nodeModules, url.slice(14));
     const inside = file && (file.startsWith(path.resolve(run) + path.sep) || file.startsWith(path.resolve(nodeModules) + path.sep));
@@ -183,7 +201,7 @@ async function viewerPage(a) {
   }
   a.run = path.resolve(a.run);
   a.nodeModules = path.resolve(a.nodeModules);
-  const server = await serve(a.run, a.nodeModules);
+  const server = await serve(a.run, a.nodeModules, a.view);
   const origin = `http://127.0.0.1:${server.address().port}`;
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'imr-chromium-'));
   const result = { ok: false, tileset_loaded: false, models_loaded: 0, tiles_requested: [],
@@ -198,7 +216,7 @@ async function viewerPage(a) {
       const url = r.url();
       if (!url.startsWith(origin)) return;
       if (r.status() !== 200) result.http_errors.push(url + ': ' + r.status());
-      const m = url.match(/\/run\/(tiles\/tile_[0-9]+\.glb)$/);
+      const m = url.match(/\/run\/(tiles\/(tile|lod)_[0-9]+\.glb)$/);
       if (m && r.status() === 200) result.tiles_requested.push(m[1]);
     });
     await page.goto(origin + '/index.html');

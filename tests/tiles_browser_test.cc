@@ -76,7 +76,8 @@ TEST(TilesBrowser, EveryTileLoadsIn3dTilesRenderer) {
       {"sequences", {"street"}},
       {"input", {{"format", "synthetic"}, {"options", {{"frames", 60}, {"seed", 3}}}}},
       {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
-      {"output", {{"directory", "runs/{sequence}"}, {"formats", json::array()}, {"tiles", {{"size", 20}}}}}};
+      // The leaves only: every one is asked for (levels of detail: below).
+      {"output", {{"directory", "runs/{sequence}"}, {"formats", json::array()}, {"tiles", {{"size", 20}, {"lod", false}}}}}};
   WriteText(dir / "job.json", job.dump(2));
   const auto run = RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / "job.json").string()));
   ASSERT_EQ(run.status, 0) << run.err;
@@ -120,6 +121,61 @@ TEST(TilesBrowser, EveryTileLoadsIn3dTilesRenderer) {
   if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
     fs::create_directories(keep);
     fs::copy_file(shot, fs::path(keep) / "tiles.png", fs::copy_options::overwrite_existing);
+  }
+}
+
+// Issue 46 items 2 and 4: levels of detail in 3d-tiles-renderer at its own error target (16 px).
+// The whole drive seen from 10 times its radius asks for at most 10 % of the leaves' bytes, and
+// for levels of detail; at street level (a third of a leaf's radius from it) leaves are asked for.
+TEST(TilesBrowser, AFarViewLoadsLevelsOfDetailAndANearOneLeaves) {
+  if (const std::string m = Missing(); !m.empty()) GTEST_SKIP() << m;
+  ScratchDir dir("tiles-browser-lod");
+  const json job = {
+      {"sequences", {"street"}},
+      {"input", {{"format", "synthetic"}, {"options", {{"frames", 150}, {"seed", 3}}}}},
+      {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+      {"output", {{"directory", "runs/{sequence}"}, {"formats", json::array()}, {"tiles", {{"size", 10}}}}}};
+  WriteText(dir / "job.json", job.dump(2));
+  const auto run = RunShell(std::string(IMR_EXE) + " run -q " + Quote((dir / "job.json").string()));
+  ASSERT_EQ(run.status, 0) << run.err;
+  const fs::path out = dir / "runs" / "street";
+  const json report = json::parse(ReadText(out / "report.json"));
+  ASSERT_TRUE(report["tiles"].contains("lod")) << report["tiles"].dump();
+  ASSERT_GE(report["tiles"]["lod"]["tiles_per_level"].size(), 3u) << report["tiles"].dump();
+  const auto leaf_bytes = report["tiles"]["bytes"].get<double>();
+  auto requested = [&](const json& r, double* bytes, int* leaves, int* lods) {
+    *bytes = 0;
+    *leaves = *lods = 0;
+    for (const auto& uri : r["tiles_requested"]) {
+      const std::string u = uri.get<std::string>();
+      *bytes += static_cast<double>(fs::file_size(out / u));
+      ++*(u.find("tiles/tile_") == 0 ? leaves : lods);
+    }
+  };
+  double far_bytes = 0, near_bytes = 0;
+  int far_leaves = 0, far_lods = 0, near_leaves = 0, near_lods = 0;
+  const json far = Browser("--run " + Quote(out.string()) + " --view far --screenshot " + Quote((dir / "far.png").string()));
+  ASSERT_TRUE(far.contains("tiles_requested")) << far.dump();
+  requested(far, &far_bytes, &far_leaves, &far_lods);
+  const json near = Browser("--run " + Quote(out.string()) + " --view near --screenshot " + Quote((dir / "near.png").string()));
+  ASSERT_TRUE(near.contains("tiles_requested")) << near.dump();
+  requested(near, &near_bytes, &near_leaves, &near_lods);
+  std::printf("far view: %d levels of detail, %d leaves, %.0f bytes = %.1f %% of the leaves' %.0f; near view: %d "
+              "levels of detail, %d leaves, %.0f bytes (%.1f %%)\n",
+              far_lods, far_leaves, far_bytes, 100.0 * far_bytes / leaf_bytes, leaf_bytes, near_lods, near_leaves,
+              near_bytes, 100.0 * near_bytes / leaf_bytes);
+  EXPECT_GT(far_lods, 0);
+  EXPECT_LE(far_bytes, 0.10 * leaf_bytes);
+  EXPECT_GT(near_leaves, 0);
+  for (const json* r : {&far, &near}) {
+    EXPECT_EQ((*r)["load_errors"], json::array()) << r->dump(2);
+    EXPECT_EQ((*r)["console_errors"], json::array()) << r->dump(2);
+    EXPECT_EQ((*r)["http_errors"], json::array()) << r->dump(2);
+  }
+  if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
+    fs::create_directories(keep);
+    fs::copy_file(dir / "far.png", fs::path(keep) / "tiles_far.png", fs::copy_options::overwrite_existing);
+    fs::copy_file(dir / "near.png", fs::path(keep) / "tiles_near.png", fs::copy_options::overwrite_existing);
   }
 }
 

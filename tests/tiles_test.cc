@@ -101,15 +101,24 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   EXPECT_GT(tileset["geometricError"].get<double>(), 0.0);
   const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
   ASSERT_GE(uris.size(), 9u);  // more than one level of the tree
-  EXPECT_EQ(report["tiles"]["count"], uris.size());
+  // The leaves (tile_) and the levels of detail (lod_, output.tiles.lod by default) apart.
+  std::vector<std::string> leaves, lods;
+  for (const std::string& u : uris) (u.rfind("tiles/lod_", 0) == 0 ? lods : leaves).push_back(u);
+  EXPECT_EQ(report["tiles"]["count"], leaves.size());
+  EXPECT_EQ(tileset["asset"]["extras"]["imr"]["tiles"], leaves.size());
+  ASSERT_FALSE(lods.empty());
+  EXPECT_EQ(report["tiles"]["lod"]["count"], lods.size());
+  EXPECT_EQ(tileset["asset"]["extras"]["imr"]["lod_tiles"], lods.size());
   std::set<std::string> on_disk;
   for (const auto& e : fs::directory_iterator(out / "tiles"))
     if (e.path().filename() != kWriteLedgerName)  // imr's record of what it wrote
       on_disk.insert("tiles/" + e.path().filename().string());
   EXPECT_EQ(on_disk, std::set<std::string>(uris.begin(), uris.end()));
-  int64_t bytes = 0;
-  for (const std::string& u : uris) bytes += static_cast<int64_t>(fs::file_size(out / u));
+  int64_t bytes = 0, lod_bytes = 0;
+  for (const std::string& u : leaves) bytes += static_cast<int64_t>(fs::file_size(out / u));
+  for (const std::string& u : lods) lod_bytes += static_cast<int64_t>(fs::file_size(out / u));
   EXPECT_EQ(report["tiles"]["bytes"], bytes);
+  EXPECT_EQ(report["tiles"]["lod"]["bytes"], lod_bytes);
   EXPECT_EQ(report["tiles"]["triangles"], report["mesh"]["faces"]);
   EXPECT_GT(report["tiles"]["vertices"].get<int64_t>(), report["mesh"]["vertices"].get<int64_t>());
   ExpectBoxesHoldTheirTiles(out, tileset["root"]);

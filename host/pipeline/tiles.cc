@@ -627,7 +627,10 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
   }
   const auto triangles = static_cast<int64_t>(s.mesh.faces.size() / 3);
   const Cell cell = {(x << level) - kLodOffset, (y << level) - kLodOffset, (z << level) - kLodOffset};
-  if (triangles < kMinTileTriangles || static_cast<double>(triangles) > kMaxLodShare * static_cast<double>(node.child_triangles)) {
+  const double share = static_cast<double>(triangles) / static_cast<double>(std::max<int64_t>(1, node.child_triangles));
+  const bool worth = share <= kMaxLodShare ||
+                     (static_cast<int>(node.children.size()) >= kLodManyChildren && share <= kMaxLodShareMany);
+  if (triangles < kMinTileTriangles || !worth) {
     // Too small a tile, or hardly simpler than its children: not written; its children hang
     // under the next node up and its content goes up in its place.
     ++stats_.lod_gathered;
@@ -944,6 +947,9 @@ MergedTiles MergeTiles(const fs::path& run) {
     if (!tileset.at("root").is_object())
       throw std::runtime_error("root: expected a tile (an object), got " + io::Describe(tileset["root"]));
     tiles = ListRunTiles(run, tileset);
+    if (static_cast<int64_t>(tiles.named.size()) > kMaxTiles)
+      throw std::runtime_error("more than " + std::to_string(kMaxTiles) + " tiles (a run of imr writes at "
+                               "most that many)");
     count = imr.value("tiles", static_cast<int64_t>(tiles.named.size()));
   } catch (const std::exception& e) {
     throw std::runtime_error(tileset_path.string() + ": not a tileset of imr (" + e.what() + ")");

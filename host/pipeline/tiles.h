@@ -96,10 +96,13 @@ inline constexpr int64_t kMinTileTriangles = 100;
 // triangles, the vertices on its content's border (shared with a neighbour of the same level, or
 // the surface's edge) locked, so that neighbouring nodes meet without cracks. A node is written
 // when no open tile lies in or next to its region and no node below it waits; one whose content
-// would be under kMinTileTriangles, or not at most kMaxLodShare of its children's, is not written
-// (its children are hung under the next node up, its content goes up in its place).
+// would be under kMinTileTriangles, or not at most kMaxLodShare of its children's triangles (or
+// kMaxLodShareMany when it stands for kLodManyChildren tiles or more: one request for many), is
+// not written (its children are hung under the next node up, its content goes up in its place).
 inline constexpr int kMaxLodLevel = 20;
 inline constexpr double kMaxLodShare = 0.5;
+inline constexpr double kMaxLodShareMany = 0.8;
+inline constexpr int kLodManyChildren = 4;
 // What a run may write and `imr tiles merge` reads: at most this many tiles (about 40 MiB of
 // tileset.json) and a tileset.json of at most this many bytes.
 inline constexpr int64_t kMaxTiles = 100000;

@@ -206,7 +206,9 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
           EXPECT_LE(child.geometric_error, parent.geometric_error);
           ++checked;
         }
-        EXPECT_LE(static_cast<double>(parent.mesh.faces.size() / 3), kMaxLodShare * static_cast<double>(below));
+        EXPECT_LE(static_cast<double>(parent.mesh.faces.size() / 3),
+                  (children.size() >= static_cast<std::size_t>(kLodManyChildren) ? kMaxLodShareMany : kMaxLodShare) *
+                      static_cast<double>(below));
       }
     }
     for (const json& c : children) check(c);
@@ -277,7 +279,8 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
     for (const auto& [k, n] : tiles_naming)
       if (n > 1 && cut_border.count(k) && !leaf_border.count(k)) ++cracks;
     EXPECT_EQ(cracks, 0) << "level " << level;
-    EXPECT_LT(cut.faces.size(), previous) << "level " << level;
+    if (with.stats.tiles_per_level[level] > 0)  // a level with no node written (all gathered) cuts as the one below
+      EXPECT_LT(cut.faces.size(), previous) << "level " << level;
     previous = cut.faces.size();
   }
   // From far (the coarsest cut) a small share of the leaves' triangles.
