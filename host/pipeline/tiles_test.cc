@@ -279,8 +279,10 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
     for (const auto& [k, n] : tiles_naming)
       if (n > 1 && cut_border.count(k) && !leaf_border.count(k)) ++cracks;
     EXPECT_EQ(cracks, 0) << "level " << level;
-    if (with.stats.tiles_per_level[level] > 0)  // a level with no node written (all gathered) cuts as the one below
+    // A level with no node written (all gathered) cuts as the one below.
+    if (with.stats.tiles_per_level[level] > 0) {
       EXPECT_LT(cut.faces.size(), previous) << "level " << level;
+    }
     previous = cut.faces.size();
   }
   // From far (the coarsest cut) a small share of the leaves' triangles.
