@@ -11,10 +11,13 @@
 // With --page index.html instead of --run: imr's batch viewer page opened from disk, its tiles
 // view (imr-tiles-viewer.js) left to load the first tiled run; only file:, blob: and data: URLs
 // may be asked for; the result has tiles_shown and the same counts (tiles_requested: none, the
-// page loads tiles from its own scripts).
+// page loads tiles from its own scripts), requested_far (what the page's first view asked for)
+// and, zoomed out to 30 radii then at street level by the first leaf, visible_far and visible_near
+// (the content uris drawn) and requested_near (asked for there; screenshots of both with
+// --screenshot-far and --screenshot-near).
 //
 // With --view far or --view near (levels of detail, issue 46): the renderer's own error target
-// (16 px) instead of 0, and the camera 10 times the tileset's radius away (the whole drive, from
+// (16 px) instead of 0, and the camera 30 times the tileset's radius away (the whole drive, from
 // far) or, near, a third of the first leaf's radius from it (street level).
 //
 // Prints one JSON line: {ok, tileset_loaded, models_loaded, tiles_requested: [uris], load_errors,
@@ -73,8 +76,8 @@ tiles.addEventListener('load-root-tileset', () => {
   const sphere = new THREE.Sphere();
   tiles.getBoundingSphere(sphere);
   sphere.applyMatrix4(tiles.group.matrixWorld);
-  // From above and a little to the side, the whole tileset in view (far: from 10 radii).
-  let distance = sphere.radius * (VIEW === 'far' ? 10 : 2.4);
+  // From above and a little to the side, the whole tileset in view (far: from 30 radii).
+  let distance = sphere.radius * (VIEW === 'far' ? 30 : 2.4);
   if (VIEW === 'near') {
     // The first leaf (a tile_ content) in tree order, from a third of its radius.
     const find = (t) => {
@@ -82,9 +85,12 @@ tiles.addEventListener('load-root-tileset', () => {
       for (const c of t.children || []) { const f = find(c); if (f) return f; }
       return null;
     };
-    const leaf = find(tiles.root);
-    leaf.engineData.boundingVolume.getSphere(sphere);
-    sphere.applyMatrix4(tiles.group.matrixWorld);
+    // Its box (the tileset's, under the root's transform; not yet preprocessed by the renderer).
+    const leaf = find(tiles.root), box = leaf.boundingVolume.box;
+    const toWorld = new THREE.Matrix4().fromArray(tiles.root.transform || new THREE.Matrix4().elements)
+      .premultiply(tiles.group.matrixWorld);
+    sphere.center.set(box[0], box[1], box[2]).applyMatrix4(toWorld);
+    sphere.radius = Math.hypot(...box.slice(3));
     distance = sphere.radius / 3;
   }
   camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(distance));
@@ -171,6 +177,7 @@ async function viewerPage(a) {
       .catch((e) => { timeout = 'not done: ' + e.message; });
     const s = await page.evaluate(() => window.imrTilesViewer || null);
     if (!s) throw new Error('the page has no tiles view (window.imrTilesViewer)');
+    result.requested_far = s.requested.slice();
     result.tileset_loaded = s.tilesetLoaded;
     result.models_loaded = s.models;
     result.tiles_shown = s.shown;
@@ -181,6 +188,25 @@ async function viewerPage(a) {
     const box = await canvas.boundingBox();
     result.canvas = box && { width: Math.round(box.width), height: Math.round(box.height) };
     await canvas.screenshot({ path: a.screenshot });
+    // Then zoomed out to 30 radii, and at street level by the first leaf: what it draws.
+    const settle = async (what) => {
+      await page.waitForFunction(() => window.imrTilesViewer.done, null, { timeout: a.timeoutMs })
+        .catch((e) => { result.load_errors.push(what + ': not done: ' + e.message); });
+    };
+    if (await page.evaluate(() => window.imrTilesViewer.farView !== undefined)) {
+      await page.evaluate(() => window.imrTilesViewer.farView(30));
+      await settle('far');
+      result.visible_far = await page.evaluate(() => window.imrTilesViewer.visible());
+      if (a.screenshotFar) await canvas.screenshot({ path: a.screenshotFar });
+      const before = (await page.evaluate(() => window.imrTilesViewer.requested)).length;
+      await page.evaluate(() => window.imrTilesViewer.nearLeaf());
+      await settle('near');
+      const n = await page.evaluate(() => window.imrTilesViewer);
+      result.requested_near = n.requested.slice(before);
+      result.visible_near = await page.evaluate(() => window.imrTilesViewer.visible());
+      result.load_errors = result.load_errors.concat(n.errors.slice(s.errors.length));
+      if (a.screenshotNear) await canvas.screenshot({ path: a.screenshotNear });
+    }
     result.ok = result.tileset_loaded && result.models_loaded > 0 && result.load_errors.length === 0 &&
                 result.console_errors.length === 0 && result.requests_refused.length === 0;
   } catch (e) {

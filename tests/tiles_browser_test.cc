@@ -125,7 +125,8 @@ TEST(TilesBrowser, EveryTileLoadsIn3dTilesRenderer) {
 }
 
 // Issue 46 items 2 and 4: levels of detail in 3d-tiles-renderer at its own error target (16 px).
-// The whole drive seen from 10 times its radius asks for at most 10 % of the leaves' bytes, and
+// The whole drive seen from 30 times its radius (as issue 46 measured: all 13 full-resolution
+// tiles were asked for) asks for at most 10 % of the leaves' bytes, and
 // for levels of detail; at street level (a third of a leaf's radius from it) leaves are asked for.
 TEST(TilesBrowser, AFarViewLoadsLevelsOfDetailAndANearOneLeaves) {
   if (const std::string m = Missing(); !m.empty()) GTEST_SKIP() << m;
@@ -305,12 +306,36 @@ TEST(TilesBrowser, ViewerPageShowsATiledRun) {
   EXPECT_EQ(page.tilesets_viewable, 1);
   EXPECT_EQ(page.meshes_viewable, 0);
   const fs::path shot = dir / "page-tiles.png";
-  const json r = Browser("--page " + Quote(page.page.string()) + " --screenshot " + Quote(shot.string()));
+  const json r = Browser("--page " + Quote(page.page.string()) + " --screenshot " + Quote(shot.string()) +
+                         " --screenshot-far " + Quote((dir / "page-tiles-far.png").string()) + " --screenshot-near " +
+                         Quote((dir / "page-tiles-near.png").string()));
   ASSERT_TRUE(r.contains("tiles_shown"));
   EXPECT_EQ(r["tiles_shown"], 0);
   EXPECT_TRUE(r["tileset_loaded"].get<bool>()) << r.dump(2);
-  // The whole street is in view: every tile is loaded.
-  EXPECT_EQ(r["models_loaded"].get<std::size_t>(), tiles) << r.dump(2);
+  // The whole street in view, then zoomed out to 30 radii: drawn, and from levels of detail only
+  // (issue 46 item 4: zoomed out the view was empty); at street level by the first leaf, leaves.
+  EXPECT_GT(r["models_loaded"].get<std::size_t>(), 0u) << r.dump(2);
+  int far_lod = 0, far_leaves = 0, near_lod = 0, near_leaves = 0;
+  for (const json& u : r.value("visible_far", json::array()))
+    ++*(u.get<std::string>().find("tiles/lod_") == 0 ? &far_lod : &far_leaves);
+  for (const json& u : r.value("visible_near", json::array()))
+    ++*(u.get<std::string>().find("tiles/lod_") == 0 ? &near_lod : &near_leaves);
+  EXPECT_GT(far_lod, 0) << r.dump(2);
+  EXPECT_EQ(far_leaves, 0) << r.dump(2);
+  EXPECT_GT(near_leaves, 0) << r.dump(2);
+  std::printf("viewer page: %zu tiles; first view loaded %zu; zoomed out draws %d levels of detail, %d leaves; "
+              "at street level %d levels of detail, %d leaves\n", tiles, r["models_loaded"].get<std::size_t>(),
+              far_lod, far_leaves, near_lod, near_leaves);
+  {
+    const io::Image far = io::ReadImage((dir / "page-tiles-far.png").string());
+    int64_t drawn = 0;
+    for (int y = 0; y < far.height; ++y)
+      for (int x = 0; x < far.width; ++x) {
+        const uint8_t* p = far.pixels.data() + y * far.stride_bytes + 3 * x;
+        drawn += (uint32_t(p[0]) << 16 | uint32_t(p[1]) << 8 | p[2]) != 0xeef1f4;
+      }
+    EXPECT_GT(drawn, 20) << "zoomed out, the tiles view is empty";
+  }
   EXPECT_EQ(r["load_errors"], json::array()) << r.dump(2);
   EXPECT_EQ(r["console_errors"], json::array()) << r.dump(2);
   EXPECT_EQ(r["requests_refused"], json::array()) << r.dump(2);
@@ -325,6 +350,8 @@ TEST(TilesBrowser, ViewerPageShowsATiledRun) {
   if (const char* keep = std::getenv("IMR_VIEWER_TEST_OUT"); keep != nullptr && *keep != '\0') {
     fs::create_directories(keep);
     fs::copy_file(shot, fs::path(keep) / "page-tiles.png", fs::copy_options::overwrite_existing);
+    for (const char* name : {"page-tiles-far.png", "page-tiles-near.png"})
+      fs::copy_file(dir / name, fs::path(keep) / name, fs::copy_options::overwrite_existing);
   }
 }
 
