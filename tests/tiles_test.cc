@@ -616,7 +616,8 @@ TEST(Tiles, OptionsThatMakeTilesOfATriangleAreRefused) {
        "as used (5), got 1e-09"},
       {{{"max_triangles", 1}}, "output.tiles.max_triangles: expected integer >= 100, got 1"},
       {{{"idle_parts", 1e9}}, "output.tiles.idle_parts: expected integer >= 1, got 1000000000 written as a "
-                              "decimal number (an integer has no point or exponent)"}};
+                              "decimal number (an integer has no point or exponent)"},
+      {{{"lod", "yes"}}, "output.tiles.lod: expected boolean, got \"yes\""}};
   for (const auto& [tiles, message] : cases) {
     WriteText(dir / "job.json", Job({"street"}, {"ply"}, tiles).dump(2));
     const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "job.json").string()));
