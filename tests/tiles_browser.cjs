@@ -14,7 +14,8 @@
 // page loads tiles from its own scripts), requested_far (what the page's first view asked for)
 // and, zoomed out to 30 radii then at street level by the first leaf, visible_far and visible_near
 // (the content uris drawn) and requested_near (asked for there; screenshots of both with
-// --screenshot-far and --screenshot-near).
+// --screenshot-far and --screenshot-near). With --click-tiles N instead: run N's "tiles" button
+// clicked first, and buttons_disabled (each run's button, disabled when its run is shown).
 //
 // With --view far or --view near (levels of detail, issue 46): the renderer's own error target
 // (16 px) instead of 0, and the camera 30 times the tileset's radius away (the whole drive, from
@@ -175,6 +176,15 @@ async function viewerPage(a) {
     let timeout = null;
     await page.waitForFunction(() => window.imrTilesViewer && window.imrTilesViewer.done, null, { timeout: a.timeoutMs })
       .catch((e) => { timeout = 'not done: ' + e.message; });
+    if (a.clickTiles !== undefined) {
+      // The run's "tiles" button: the view switches to it.
+      await page.click(`button[data-tiles="${a.clickTiles}"]`);
+      await page.waitForFunction((n) => window.imrTilesViewer.shown === n && window.imrTilesViewer.done,
+                                 Number(a.clickTiles), { timeout: a.timeoutMs })
+        .catch((e) => { timeout = 'after the click: ' + e.message; });
+      result.buttons_disabled = await page.evaluate(() =>
+        Array.from(document.querySelectorAll('button[data-tiles]'), (b) => b.disabled));
+    }
     const s = await page.evaluate(() => window.imrTilesViewer || null);
     if (!s) throw new Error('the page has no tiles view (window.imrTilesViewer)');
     result.requested_far = s.requested.slice();
@@ -193,7 +203,7 @@ async function viewerPage(a) {
       await page.waitForFunction(() => window.imrTilesViewer.done, null, { timeout: a.timeoutMs })
         .catch((e) => { result.load_errors.push(what + ': not done: ' + e.message); });
     };
-    if (await page.evaluate(() => window.imrTilesViewer.farView !== undefined)) {
+    if (a.clickTiles === undefined && await page.evaluate(() => window.imrTilesViewer.farView !== undefined)) {
       await page.evaluate(() => window.imrTilesViewer.farView(30));
       await settle('far');
       result.visible_far = await page.evaluate(() => window.imrTilesViewer.visible());

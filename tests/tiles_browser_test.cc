@@ -421,5 +421,42 @@ TEST(TilesBrowser, ViewerPageShowsAGeoReferencedRunAsWithout) {
   EXPECT_LT(differ, values / 100);
 }
 
+// Issue 46 item 4: the page's "tiles" buttons switch its view to their run: of two tiled runs,
+// the second's button shows the second (its tiles load, its button is disabled, the first's not).
+TEST(TilesBrowser, ViewerPageTilesButtonsSwitchTheView) {
+  if (const std::string m = Missing(); !m.empty()) GTEST_SKIP() << m;
+  if (!fs::exists(IMR_TILES_VIEWER_SCRIPT))
+    GTEST_SKIP() << IMR_TILES_VIEWER_SCRIPT << " was not built (node and tools/node's esbuild: tools/setup.sh)";
+  ScratchDir dir("tiles-page-buttons");
+  json sequences = json::array();
+  for (const std::string name : {"first", "second"}) {
+    const json job = {
+        {"sequences", {"street"}},
+        {"input", {{"format", "synthetic"}, {"options", {{"frames", 40}, {"seed", name == "first" ? 3 : 4}}}}},
+        {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
+        {"output", {{"directory", name + "/{sequence}"}, {"formats", json::array()}, {"tiles", {{"size", 20}}}}}};
+    WriteText(dir / (name + ".json"), job.dump(2));
+    const auto run = RunShell(std::string(IMR_EXE) + " run -q --no-viewer " + Quote((dir / (name + ".json")).string()));
+    ASSERT_EQ(run.status, 0) << run.err;
+    const fs::path out = dir / name / "street";
+    sequences.push_back({{"name", name}, {"ok", true}, {"error", ""}, {"output_directory", out.string()},
+                         {"report", json::parse(ReadText(out / "report.json"))}});
+  }
+  report::ViewerPageOptions options;
+  options.model_viewer_script = IMR_MODEL_VIEWER_SOURCE;
+  options.tiles_viewer_script = IMR_TILES_VIEWER_SCRIPT;
+  const report::ViewerPageResult page =
+      report::WriteBatchPage(dir.path(), {{"title", "buttons"}, {"sequences", sequences}}, options);
+  ASSERT_EQ(page.tilesets_viewable, 2);
+  const json r = Browser("--page " + Quote(page.page.string()) + " --click-tiles 1 --screenshot " +
+                         Quote((dir / "second.png").string()));
+  EXPECT_EQ(r["tiles_shown"], 1) << r.dump(2);
+  EXPECT_TRUE(r.value("tileset_loaded", false)) << r.dump(2);
+  EXPECT_GT(r.value("models_loaded", 0), 0) << r.dump(2);
+  EXPECT_EQ(r["buttons_disabled"], json::array({false, true})) << r.dump(2);
+  EXPECT_EQ(r["load_errors"], json::array()) << r.dump(2);
+  EXPECT_EQ(r["console_errors"], json::array()) << r.dump(2);
+}
+
 }  // namespace
 }  // namespace imr
