@@ -19,7 +19,8 @@
 //
 // With --view far or --view near (levels of detail, issue 46): the renderer's own error target
 // (16 px) instead of 0, and the camera 30 times the tileset's radius away (the whole drive, from
-// far) or, near, a third of the first leaf's radius from it (street level).
+// far) or, near, a third of the first leaf's radius from it (street level). --error-target E sets
+// the renderer's error target (pixels; a large one draws the coarsest level from any distance).
 //
 // Prints one JSON line: {ok, tileset_loaded, models_loaded, tiles_requested: [uris], load_errors,
 // console_errors, requests_refused, http_errors, meshes, triangles, attributes, canvas}. Exit
@@ -43,7 +44,7 @@ function args() {
   return a;
 }
 
-const PAGE = (view) => `<!doctype html>
+const PAGE = (view, errorTarget) => `<!doctype html>
 <html><head><meta charset="utf-8"><title>imr tiles</title>
 <style>html,body{margin:0;height:100%;background:#f0f0f0}canvas{display:block}</style>
 <script type="importmap">{"imports": {
@@ -66,6 +67,7 @@ const camera = new THREE.PerspectiveCamera(50, 1000 / 700, 0.1, 100000);
 const tiles = new TilesRenderer('/run/tileset.json');
 const VIEW = ${JSON.stringify(view || '')};
 if (!VIEW) tiles.errorTarget = 0;
+if (${JSON.stringify(errorTarget !== undefined)}) tiles.errorTarget = ${Number(errorTarget)};
 // 3D Tiles is z-up, three.js y-up.
 tiles.group.rotation.x = -Math.PI / 2;
 scene.add(tiles.group);
@@ -124,13 +126,13 @@ function frame() {
 requestAnimationFrame(frame);
 </script></body></html>`;
 
-function serve(run, nodeModules, view) {
+function serve(run, nodeModules, view, errorTarget) {
   const types = { '.json': 'application/json', '.glb': 'model/gltf-binary', '.js': 'text/javascript',
                   '.html': 'text/html', '.map': 'application/json' };
   const server = http.createServer((req, res) => {
     const url = decodeURIComponent(req.url.split('?')[0]);
     let file = null;
-    if (url === '/' || url === '/index.html') { res.writeHead(200, { 'content-type': 'text/html' }); res.end(PAGE(view)); return; }
+    if (url === '/' || url === '/index.html') { res.writeHead(200, { 'content-type': 'text/html' }); res.end(PAGE(view, errorTarget)); return; }
     if (url.startsWith('/run/')) file = path.join(run, url.slice(5));
     else if (url.startsWith('/node_modules/')) file = path.join(nodeModules, url.slice(14));
     const inside = file && (file.startsWith(path.resolve(run) + path.sep) || file.startsWith(path.resolve(nodeModules) + path.sep));
@@ -237,7 +239,7 @@ async function viewerPage(a) {
   }
   a.run = path.resolve(a.run);
   a.nodeModules = path.resolve(a.nodeModules);
-  const server = await serve(a.run, a.nodeModules, a.view);
+  const server = await serve(a.run, a.nodeModules, a.view, a.errorTarget);
   const origin = `http://127.0.0.1:${server.address().port}`;
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'imr-chromium-'));
   const result = { ok: false, tileset_loaded: false, models_loaded: 0, tiles_requested: [],

@@ -9,6 +9,7 @@
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/Surface_mesh_simplification/Edge_collapse_visitor_base.h>
+#include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Bounded_distance_placement.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Bounded_normal_change_filter.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Count_stop_predicate.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/LindstromTurk_cost.h>
@@ -75,7 +76,8 @@ struct KeepIdentity : SMS::Edge_collapse_visitor_base<SM> {
 
 }  // namespace
 
-SimplifiedMesh SimplifyMesh(const Mesh& input, const std::vector<char>& locked_in, int64_t target_triangles) {
+SimplifiedMesh SimplifyMesh(const Mesh& input, const std::vector<char>& locked_in, int64_t target_triangles,
+                            double max_distance) {
   SimplifiedMesh out;
   // Pinched vertices: one copy per fan (point_ids carry the input index through the split), each
   // locked: the fans meet there.
@@ -124,11 +126,14 @@ SimplifiedMesh SimplifyMesh(const Mesh& input, const std::vector<char>& locked_i
     visitor.source = &source;
     visitor.locked = &locked;
     LockedPlacement placement{&locked, {}};
-    SMS::edge_collapse(sm, stop,
-                       CGAL::parameters::get_cost(SMS::LindstromTurk_cost<SM>())
-                           .get_placement(placement)
-                           .filter(SMS::Bounded_normal_change_filter<>())
-                           .visitor(visitor));
+    const auto params = CGAL::parameters::get_cost(SMS::LindstromTurk_cost<SM>())
+                            .filter(SMS::Bounded_normal_change_filter<>())
+                            .visitor(visitor);
+    if (max_distance > 0.0)
+      SMS::edge_collapse(sm, stop,
+                         params.get_placement(SMS::Bounded_distance_placement<LockedPlacement, Kernel>(max_distance, placement)));
+    else
+      SMS::edge_collapse(sm, stop, params.get_placement(placement));
     sm.collect_garbage();
   }
   // Back to an engine::Mesh; the split copies of one input vertex are one vertex again.

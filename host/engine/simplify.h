@@ -23,7 +23,10 @@ struct SimplifiedMesh {
 // seam they share still meet after it. Fewer triangles than asked may remain out of reach (locked
 // vertices, collapses that would fold a triangle); a mesh that is not a 2-manifold with boundary
 // comes back as it is (error 0).
-SimplifiedMesh SimplifyMesh(const Mesh& mesh, const std::vector<char>& locked, int64_t target_triangles);
+// With `max_distance` > 0 no collapse puts a vertex further than that from `mesh` (Lindstrom-Turk
+// may place one far off on a thin strip or the surface's edge: a spike).
+SimplifiedMesh SimplifyMesh(const Mesh& mesh, const std::vector<char>& locked, int64_t target_triangles,
+                            double max_distance = 0.0);
 
 // The largest distance of `points` (packed xyz) to the triangles of `mesh` (0 for no points;
 // infinity for a mesh without triangles).

@@ -39,6 +39,10 @@ constexpr double kTilesetSeconds = 5.0;  // tileset.json at least this often whi
 // level through the middle of the surface); at binary 1010...101 the seam of level L nearest to
 // the origin is 2^L / 3 cells away, as far as it can be at every level at once.
 constexpr int64_t kLodOffset = ((int64_t{1} << kMaxLodLevel) - 1) / 3;
+// A simplification step moves no vertex further than this many cells from the mesh it simplifies
+// (Lindstrom-Turk's placement shot spikes of tens of metres off the surface's edge; measured in
+// the geometric error, they were still spikes).
+constexpr double kLodMaxStep = 0.25;
 
 // "tiles/tile_000012.glb" -> 12; 0 when `uri` is not a tile name of imr.
 int TileIndex(const std::string& uri) {
@@ -542,7 +546,8 @@ void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, c
   // siblings: never a full-resolution copy. The surface's own edge may move.
   std::vector<char> locked = BorderVertices(mesh);
   for (std::size_t v = 0; v < locked.size(); ++v) locked[v] = locked[v] && spans[v] > level - 1;
-  const engine::SimplifiedMesh s = engine::SimplifyMesh(mesh, locked, std::max<int64_t>(1, triangles / 4));
+  const engine::SimplifiedMesh s =
+      engine::SimplifyMesh(mesh, locked, std::max<int64_t>(1, triangles / 4), kLodMaxStep * options_.size);
   const NodeKey key = {level, (std::get<0>(cell) + kLodOffset) >> level, (std::get<1>(cell) + kLodOffset) >> level,
                        (std::get<2>(cell) + kLodOffset) >> level};
   PendingNode& node = pending_[key];
@@ -615,7 +620,7 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
   const int64_t target = std::max<int64_t>(1, node.child_triangles / 4);
   std::vector<char> locked = BorderVertices(node.mesh);
   for (std::size_t v = 0; v < locked.size(); ++v) locked[v] = locked[v] && node.spans[v] > level;
-  engine::SimplifiedMesh s = engine::SimplifyMesh(node.mesh, locked, target);
+  engine::SimplifiedMesh s = engine::SimplifyMesh(node.mesh, locked, target, kLodMaxStep * options_.size);
   // Measured on the merged children's vertices (SimplifyMesh) and their triangles' centroids.
   const double merged_error = std::max(s.error, engine::MaxDistanceToMesh(Centroids(node.mesh), s.mesh));
   const double error = node.child_error + merged_error;
