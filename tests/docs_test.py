@@ -37,6 +37,7 @@ NOT_OPTIONS = {
     # the SDK's structs and fields (docs/plugins.md, docs/tiles.md), glTF extras
     "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "imr_upright",
     "local_transform",  # tileset.json asset.extras.imr (docs/tiles.md)
+    "lod_tiles", "tiles_per_level", "pending_triangles_peak",  # tileset.json, report.json tiles.lod
     "engine_bytes",  # report.json memory, imr run --trace records (benchmarks.md, reliability.md)
     "imr_mesh_stream", "export_mesh_stream", "recent_keyframes_begin", "keyframe_images",
     "final_call", "imr_refine_request", "imr_refine_result", "cameras_in_o", "back_facing",

@@ -11,7 +11,16 @@
 // With --page index.html instead of --run: imr's batch viewer page opened from disk, its tiles
 // view (imr-tiles-viewer.js) left to load the first tiled run; only file:, blob: and data: URLs
 // may be asked for; the result has tiles_shown and the same counts (tiles_requested: none, the
-// page loads tiles from its own scripts).
+// page loads tiles from its own scripts), requested_far (what the page's first view asked for)
+// and, zoomed out to 30 radii then at street level by the first leaf, visible_far and visible_near
+// (the content uris drawn) and requested_near (asked for there; screenshots of both with
+// --screenshot-far and --screenshot-near). With --click-tiles N instead: run N's "tiles" button
+// clicked first, and buttons_disabled (each run's button, disabled when its run is shown).
+//
+// With --view far or --view near (levels of detail, issue 46): the renderer's own error target
+// (16 px) instead of 0, and the camera 30 times the tileset's radius away (the whole drive, from
+// far) or, near, a third of the first leaf's radius from it (street level). --error-target E sets
+// the renderer's error target (pixels; a large one draws the coarsest level from any distance).
 //
 // Prints one JSON line: {ok, tileset_loaded, models_loaded, tiles_requested: [uris], load_errors,
 // console_errors, requests_refused, http_errors, meshes, triangles, attributes, canvas}. Exit
@@ -35,7 +44,7 @@ function args() {
   return a;
 }
 
-const PAGE = `<!doctype html>
+const PAGE = (view, errorTarget) => `<!doctype html>
 <html><head><meta charset="utf-8"><title>imr tiles</title>
 <style>html,body{margin:0;height:100%;background:#f0f0f0}canvas{display:block}</style>
 <script type="importmap">{"imports": {
@@ -56,7 +65,9 @@ const scene = new THREE.Scene();
 scene.add(new THREE.HemisphereLight(0xffffff, 0x606060, 2.5));
 const camera = new THREE.PerspectiveCamera(50, 1000 / 700, 0.1, 100000);
 const tiles = new TilesRenderer('/run/tileset.json');
-tiles.errorTarget = 0;
+const VIEW = ${JSON.stringify(view || '')};
+if (!VIEW) tiles.errorTarget = 0;
+if (${JSON.stringify(errorTarget !== undefined)}) tiles.errorTarget = ${Number(errorTarget)};
 // 3D Tiles is z-up, three.js y-up.
 tiles.group.rotation.x = -Math.PI / 2;
 scene.add(tiles.group);
@@ -68,8 +79,24 @@ tiles.addEventListener('load-root-tileset', () => {
   const sphere = new THREE.Sphere();
   tiles.getBoundingSphere(sphere);
   sphere.applyMatrix4(tiles.group.matrixWorld);
-  // From above and a little to the side, the whole tileset in view.
-  camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(sphere.radius * 2.4));
+  // From above and a little to the side, the whole tileset in view (far: from 30 radii).
+  let distance = sphere.radius * (VIEW === 'far' ? 30 : 2.4);
+  if (VIEW === 'near') {
+    // The first leaf (a tile_ content) in tree order, from a third of its radius.
+    const find = (t) => {
+      if (t.content && t.content.uri.includes('tiles/tile_')) return t;
+      for (const c of t.children || []) { const f = find(c); if (f) return f; }
+      return null;
+    };
+    // Its box (the tileset's, under the root's transform; not yet preprocessed by the renderer).
+    const leaf = find(tiles.root), box = leaf.boundingVolume.box;
+    const toWorld = new THREE.Matrix4().fromArray(tiles.root.transform || new THREE.Matrix4().elements)
+      .premultiply(tiles.group.matrixWorld);
+    sphere.center.set(box[0], box[1], box[2]).applyMatrix4(toWorld);
+    sphere.radius = Math.hypot(...box.slice(3));
+    distance = sphere.radius / 3;
+  }
+  camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(distance));
   camera.lookAt(sphere.center);
   camera.updateMatrixWorld();
 });
@@ -99,13 +126,13 @@ function frame() {
 requestAnimationFrame(frame);
 </script></body></html>`;
 
-function serve(run, nodeModules) {
+function serve(run, nodeModules, view, errorTarget) {
   const types = { '.json': 'application/json', '.glb': 'model/gltf-binary', '.js': 'text/javascript',
                   '.html': 'text/html', '.map': 'application/json' };
   const server = http.createServer((req, res) => {
     const url = decodeURIComponent(req.url.split('?')[0]);
     let file = null;
-    if (url === '/' || url === '/index.html') { res.writeHead(200, { 'content-type': 'text/html' }); res.end(PAGE); return; }
+    if (url === '/' || url === '/index.html') { res.writeHead(200, { 'content-type': 'text/html' }); res.end(PAGE(view, errorTarget)); return; }
     if (url.startsWith('/run/')) file = path.join(run, url.slice(5));
     else if (url.startsWith('/node_modules/')) file = path.join(nodeModules, url.slice(14));
     const inside = file && (file.startsWith(path.resolve(run) + path.sep) || file.startsWith(path.resolve(nodeModules) + path.sep));
@@ -151,8 +178,18 @@ async function viewerPage(a) {
     let timeout = null;
     await page.waitForFunction(() => window.imrTilesViewer && window.imrTilesViewer.done, null, { timeout: a.timeoutMs })
       .catch((e) => { timeout = 'not done: ' + e.message; });
+    if (a.clickTiles !== undefined) {
+      // The run's "tiles" button: the view switches to it.
+      await page.click(`button[data-tiles="${a.clickTiles}"]`);
+      await page.waitForFunction((n) => window.imrTilesViewer.shown === n && window.imrTilesViewer.done,
+                                 Number(a.clickTiles), { timeout: a.timeoutMs })
+        .catch((e) => { timeout = 'after the click: ' + e.message; });
+      result.buttons_disabled = await page.evaluate(() =>
+        Array.from(document.querySelectorAll('button[data-tiles]'), (b) => b.disabled));
+    }
     const s = await page.evaluate(() => window.imrTilesViewer || null);
     if (!s) throw new Error('the page has no tiles view (window.imrTilesViewer)');
+    result.requested_far = s.requested.slice();
     result.tileset_loaded = s.tilesetLoaded;
     result.models_loaded = s.models;
     result.tiles_shown = s.shown;
@@ -163,6 +200,25 @@ async function viewerPage(a) {
     const box = await canvas.boundingBox();
     result.canvas = box && { width: Math.round(box.width), height: Math.round(box.height) };
     await canvas.screenshot({ path: a.screenshot });
+    // Then zoomed out to 30 radii, and at street level by the first leaf: what it draws.
+    const settle = async (what) => {
+      await page.waitForFunction(() => window.imrTilesViewer.done, null, { timeout: a.timeoutMs })
+        .catch((e) => { result.load_errors.push(what + ': not done: ' + e.message); });
+    };
+    if (a.clickTiles === undefined && await page.evaluate(() => window.imrTilesViewer.farView !== undefined)) {
+      await page.evaluate(() => window.imrTilesViewer.farView(30));
+      await settle('far');
+      result.visible_far = await page.evaluate(() => window.imrTilesViewer.visible());
+      if (a.screenshotFar) await canvas.screenshot({ path: a.screenshotFar });
+      const before = (await page.evaluate(() => window.imrTilesViewer.requested)).length;
+      await page.evaluate(() => window.imrTilesViewer.nearLeaf());
+      await settle('near');
+      const n = await page.evaluate(() => window.imrTilesViewer);
+      result.requested_near = n.requested.slice(before);
+      result.visible_near = await page.evaluate(() => window.imrTilesViewer.visible());
+      result.load_errors = result.load_errors.concat(n.errors.slice(s.errors.length));
+      if (a.screenshotNear) await canvas.screenshot({ path: a.screenshotNear });
+    }
     result.ok = result.tileset_loaded && result.models_loaded > 0 && result.load_errors.length === 0 &&
                 result.console_errors.length === 0 && result.requests_refused.length === 0;
   } catch (e) {
@@ -183,7 +239,7 @@ async function viewerPage(a) {
   }
   a.run = path.resolve(a.run);
   a.nodeModules = path.resolve(a.nodeModules);
-  const server = await serve(a.run, a.nodeModules);
+  const server = await serve(a.run, a.nodeModules, a.view, a.errorTarget);
   const origin = `http://127.0.0.1:${server.address().port}`;
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'imr-chromium-'));
   const result = { ok: false, tileset_loaded: false, models_loaded: 0, tiles_requested: [],
@@ -198,7 +254,7 @@ async function viewerPage(a) {
       const url = r.url();
       if (!url.startsWith(origin)) return;
       if (r.status() !== 200) result.http_errors.push(url + ': ' + r.status());
-      const m = url.match(/\/run\/(tiles\/tile_[0-9]+\.glb)$/);
+      const m = url.match(/\/run\/(tiles\/(tile|lod)_[0-9]+\.glb)$/);
       if (m && r.status() === 200) result.tiles_requested.push(m[1]);
     });
     await page.goto(origin + '/index.html');

@@ -101,15 +101,24 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   EXPECT_GT(tileset["geometricError"].get<double>(), 0.0);
   const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
   ASSERT_GE(uris.size(), 9u);  // more than one level of the tree
-  EXPECT_EQ(report["tiles"]["count"], uris.size());
+  // The leaves (tile_) and the levels of detail (lod_, output.tiles.lod by default) apart.
+  std::vector<std::string> leaves, lods;
+  for (const std::string& u : uris) (u.rfind("tiles/lod_", 0) == 0 ? lods : leaves).push_back(u);
+  EXPECT_EQ(report["tiles"]["count"], leaves.size());
+  EXPECT_EQ(tileset["asset"]["extras"]["imr"]["tiles"], leaves.size());
+  ASSERT_FALSE(lods.empty());
+  EXPECT_EQ(report["tiles"]["lod"]["count"], lods.size());
+  EXPECT_EQ(tileset["asset"]["extras"]["imr"]["lod_tiles"], lods.size());
   std::set<std::string> on_disk;
   for (const auto& e : fs::directory_iterator(out / "tiles"))
     if (e.path().filename() != kWriteLedgerName)  // imr's record of what it wrote
       on_disk.insert("tiles/" + e.path().filename().string());
   EXPECT_EQ(on_disk, std::set<std::string>(uris.begin(), uris.end()));
-  int64_t bytes = 0;
-  for (const std::string& u : uris) bytes += static_cast<int64_t>(fs::file_size(out / u));
+  int64_t bytes = 0, lod_bytes = 0;
+  for (const std::string& u : leaves) bytes += static_cast<int64_t>(fs::file_size(out / u));
+  for (const std::string& u : lods) lod_bytes += static_cast<int64_t>(fs::file_size(out / u));
   EXPECT_EQ(report["tiles"]["bytes"], bytes);
+  EXPECT_EQ(report["tiles"]["lod"]["bytes"], lod_bytes);
   EXPECT_EQ(report["tiles"]["triangles"], report["mesh"]["faces"]);
   EXPECT_GT(report["tiles"]["vertices"].get<int64_t>(), report["mesh"]["vertices"].get<int64_t>());
   ExpectBoxesHoldTheirTiles(out, tileset["root"]);
@@ -607,7 +616,8 @@ TEST(Tiles, OptionsThatMakeTilesOfATriangleAreRefused) {
        "as used (5), got 1e-09"},
       {{{"max_triangles", 1}}, "output.tiles.max_triangles: expected integer >= 100, got 1"},
       {{{"idle_parts", 1e9}}, "output.tiles.idle_parts: expected integer >= 1, got 1000000000 written as a "
-                              "decimal number (an integer has no point or exponent)"}};
+                              "decimal number (an integer has no point or exponent)"},
+      {{{"lod", "yes"}}, "output.tiles.lod: expected boolean, got \"yes\""}};
   for (const auto& [tiles, message] : cases) {
     WriteText(dir / "job.json", Job({"street"}, {"ply"}, tiles).dump(2));
     const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "job.json").string()));
@@ -706,7 +716,7 @@ TEST(Tiles, GeoReferencedByTheOriginAndMergedAsWithout) {
     WriteText(dir / "bad.json", Job({"street"}, {"ply"}, {{"orign", origin}}).dump(2));
     const auto v = RunShell(std::string(IMR_EXE) + " validate " + Quote((dir / "bad.json").string()));
     EXPECT_EQ(v.status, 64);
-    EXPECT_NE((v.out + v.err).find("output.tiles.orign: unknown key (expected idle_parts, max_triangles, "
+    EXPECT_NE((v.out + v.err).find("output.tiles.orign: unknown key (expected idle_parts, lod, max_triangles, "
                                    "origin or size)"),
               std::string::npos) << v.out << v.err;
   }

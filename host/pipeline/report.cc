@@ -352,6 +352,14 @@ json TilesJson(const ReportInputs& in) {
           {"seconds", t.seconds},
           {"keyframes_given", in.tile_images.keyframes}};
   if (!t.origin.is_null()) tiles["origin"] = t.origin;
+  if (t.lod_tiles > 0 || t.lod_gathered > 0)
+    tiles["lod"] = {{"count", t.lod_tiles},
+                    {"triangles", t.lod_triangles},
+                    {"bytes", t.lod_bytes},
+                    {"gathered", t.lod_gathered},
+                    {"tiles_per_level", t.tiles_per_level},
+                    {"pending_triangles_peak", t.lod_pending_triangles_peak},
+                    {"seconds", t.lod_seconds}};
   const ExportImageStats& ti = in.tile_images;
   if (ti.store.requests > 0)
     tiles["image_service"] = {{"requests", ti.store.requests},

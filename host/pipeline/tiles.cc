@@ -1,6 +1,7 @@
 #include "host/pipeline/tiles.h"
 
 #include "host/engine/mesh_topology.h"
+#include "host/engine/simplify.h"
 #include "host/eval/mesh_io.h"
 #include "host/io/schema.h"
 #include "host/pipeline/run.h"
@@ -16,6 +17,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <numbers>
 #include <regex>
@@ -32,6 +34,15 @@ namespace {
 constexpr int kChildrenPerNode = 8;  // the tileset's fan-out above the tiles
 constexpr int kMaxTreeDepth = 64;     // imr's trees are log8(tiles) + 2 deep
 constexpr double kTilesetSeconds = 5.0;  // tileset.json at least this often while tiles come
+// The octree of the levels of detail counts cells from here. Anchored at the sequence's origin,
+// where a drive starts, cells -1 and 0 would share no node below the top (a seam locked at every
+// level through the middle of the surface); at binary 1010...101 the seam of level L nearest to
+// the origin is 2^L / 3 cells away, as far as it can be at every level at once.
+constexpr int64_t kLodOffset = ((int64_t{1} << kMaxLodLevel) - 1) / 3;
+// A simplification step moves no vertex further than this many cells from the mesh it simplifies
+// (Lindstrom-Turk's placement shot spikes of tens of metres off the surface's edge; measured in
+// the geometric error, they were still spikes).
+constexpr double kLodMaxStep = 0.25;
 
 // "tiles/tile_000012.glb" -> 12; 0 when `uri` is not a tile name of imr.
 int TileIndex(const std::string& uri) {
@@ -46,6 +57,51 @@ bool IsTileName(const std::string& name) {
   static const std::regex kTile("tile_[0-9]{6}\\.glb");
   return std::regex_match(name, kTile);
 }
+
+// "tiles/lod_000012.glb" -> 12 (a level of detail); 0 when it is not one.
+int LodIndex(const std::string& uri) {
+  if (uri.rfind("tiles/", 0) != 0 || uri.size() != 20) return 0;
+  const std::string name = uri.substr(6);
+  static const std::regex kLod("lod_[0-9]{6}\\.glb");
+  if (!std::regex_match(name, kLod)) return 0;
+  return std::stoi(name.substr(4, 6));
+}
+
+bool IsLodName(const std::string& name) { return LodIndex("tiles/" + name) > 0; }
+
+std::string LodStem(int index) {
+  char stem[32];
+  std::snprintf(stem, sizeof(stem), "lod_%06d", index);
+  return stem;
+}
+
+std::string LodUri(int index) { return "tiles/" + LodStem(index) + ".glb"; }
+
+// Per vertex: on an edge of one triangle only (the mesh's border: a seam with a neighbour's
+// content, written or not yet, or the surface's own edge).
+std::vector<char> BorderVertices(const engine::Mesh& m) {
+  std::set<std::pair<uint32_t, uint32_t>> edges;
+  for (std::size_t f = 0; f + 2 < m.faces.size(); f += 3)
+    for (int k = 0; k < 3; ++k) edges.insert({m.faces[f + k], m.faces[f + (k + 1) % 3]});
+  std::vector<char> border(m.vertices.size() / 3, 0);
+  for (const auto& [a, b] : edges)
+    if (!edges.count({b, a})) border[a] = border[b] = 1;
+  return border;
+}
+
+// The centroids of a mesh's triangles, packed xyz (where a simplification's error is measured
+// besides the vertices).
+std::vector<double> Centroids(const engine::Mesh& m) {
+  std::vector<double> c;
+  c.reserve(m.faces.size());
+  for (std::size_t f = 0; f + 2 < m.faces.size(); f += 3)
+    for (int d = 0; d < 3; ++d)
+      c.push_back((m.vertices[3 * m.faces[f] + d] + m.vertices[3 * m.faces[f + 1] + d] +
+                   m.vertices[3 * m.faces[f + 2] + d]) / 3.0);
+  return c;
+}
+
+std::array<double, 6> MeshBox(const engine::Mesh& m);
 
 std::string TileStem(int index) {
   char stem[32];
@@ -97,6 +153,15 @@ bool EveryPrimitiveHas(const json& gltf, const std::string& attribute) {
 }
 
 std::array<double, 6> EmptyBox() { return {1e300, 1e300, 1e300, -1e300, -1e300, -1e300}; }
+
+std::array<double, 6> MeshBox(const engine::Mesh& m) {
+  std::array<double, 6> box = EmptyBox();
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    box[i % 3] = std::min(box[i % 3], m.vertices[i]);
+    box[3 + i % 3] = std::max(box[3 + i % 3], m.vertices[i]);
+  }
+  return box;
+}
 
 void Grow(std::array<double, 6>* box, const std::array<double, 6>& other) {
   for (int k = 0; k < 3; ++k) {
@@ -196,7 +261,11 @@ const json& TilesSchema() {
       {"idle_parts", {{"type", "integer"}, {"default", 2}, {"minimum", 1},
                       {"description", "a tile is written once this many parts of the surface in a "
                                       "row (the engine hands one out as the cameras move on) added "
-                                      "nothing to it"}}}};
+                                      "nothing to it"}}},
+      {"lod", {{"type", "boolean"}, {"default", true},
+               {"description", "levels of detail: inner nodes of the tileset carry their children's "
+                               "surface simplified (a quarter of the triangles a level), written as "
+                               "the drive goes; false: full-resolution tiles only"}}}};
   return schema;
 }
 
@@ -208,6 +277,7 @@ TilesOptions TilesOptionsFromJson(const json& tiles) {
   o.size = tiles.value("size", o.size);
   o.max_triangles = tiles.value("max_triangles", o.max_triangles);
   o.idle_parts = tiles.value("idle_parts", o.idle_parts);
+  o.lod = tiles.value("lod", o.lod);
   if (const auto g = tiles.find("origin"); g != tiles.end() && g->is_object()) {
     o.origin.given = true;
     o.origin.latitude = g->value("latitude", 0.0);
@@ -246,7 +316,7 @@ std::string ForeignTiles(const fs::path& output_dir, const std::string& job, con
       return tiles.string() + ": not a folder: imr writes the tiles there";
     if (!has_tileset)
       for (const auto& e : fs::directory_iterator(tiles, ec))
-        if (IsTileName(e.path().filename().string()))
+        if (IsTileName(e.path().filename().string()) || IsLodName(e.path().filename().string()))
           return e.path().string() + ": a tile with no tileset.json of imr beside its folder: imr "
                  "would overwrite it" + advice;
   }
@@ -278,7 +348,7 @@ TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json id
       throw std::runtime_error(what.rfind(tileset_path().string(), 0) == 0 ? what
                                                                            : tileset_path().string() + ": " + what);
     }
-    for (const auto* list : {&earlier.named, &earlier.after})
+    for (const auto* list : {&earlier.named, &earlier.after, &earlier.lod, &earlier.lod_after})
       for (const std::string& uri : *list)
         if (fs::exists(fs::symlink_status(output_dir_ / uri, ec))) old.push_back(output_dir_ / uri);
   }
@@ -318,6 +388,21 @@ void TileWriter::Add(const engine::SurfacePart& part) {
         t.mesh.vertices.insert(t.mesh.vertices.end(), &part.vertices[3 * v], &part.vertices[3 * v] + 3);
         t.mesh.point_ids.push_back(part.point_ids[v]);
       }
+      if (options_.lod) {
+        const auto vc = vertex_cells_.try_emplace(part.keys[v], VertexCells{cell, 0, 0, false}).first;
+        if (fresh) ++vc->second.open_tiles;
+        // The lowest level whose node holds both cells.
+        int span = 0;
+        for (int d = 0; d < 3; ++d) {
+          const int64_t a = d == 0 ? std::get<0>(cell) : d == 1 ? std::get<1>(cell) : std::get<2>(cell);
+          const Cell& f0 = vc->second.first;
+          const int64_t b = d == 0 ? std::get<0>(f0) : d == 1 ? std::get<1>(f0) : std::get<2>(f0);
+          int l = 0;
+          while (l <= kMaxLodLevel && ((a + kLodOffset) >> l) != ((b + kLodOffset) >> l)) ++l;
+          span = std::max(span, l);
+        }
+        vc->second.span = std::max(vc->second.span, span);
+      }
       t.mesh.faces.push_back(it->second);
     }
     t.last_part = parts_;
@@ -327,6 +412,12 @@ void TileWriter::Add(const engine::SurfacePart& part) {
       open_.erase(cell);
     }
   }
+  if (options_.lod)
+    for (int64_t k : part.completed)
+      if (const auto c = vertex_cells_.find(k); c != vertex_cells_.end()) {
+        c->second.completed = true;
+        if (c->second.open_tiles == 0) vertex_cells_.erase(c);
+      }
   for (auto it = open_.begin(); it != open_.end();) {
     if (parts_ - it->second.last_part >= options_.idle_parts) {
       Write(it->first, it->second);
@@ -335,11 +426,15 @@ void TileWriter::Add(const engine::SurfacePart& part) {
       ++it;
     }
   }
+  if (options_.lod) FlushNodes(false);
 }
 
 void TileWriter::Finish() {
+  // No part comes after the last: every vertex is complete (the stream names none it keeps).
+  for (auto& [key, cells] : vertex_cells_) cells.completed = true;
   for (auto& [cell, tile] : open_) Write(cell, tile);
   open_.clear();
+  if (options_.lod) FlushNodes(true);
   const auto start = std::chrono::steady_clock::now();
   WriteTileset("complete");
   stats_.seconds += SecondsSince(start);
@@ -353,6 +448,33 @@ void TileWriter::MarkFailed(const std::string& error) noexcept {
 }
 
 void TileWriter::Write(const Cell& cell, OpenTile& t) {
+  TileMesh tile;
+  tile.origin = {(static_cast<double>(std::get<0>(cell)) + 0.5) * options_.size,
+                 (static_cast<double>(std::get<1>(cell)) + 0.5) * options_.size,
+                 (static_cast<double>(std::get<2>(cell)) + 0.5) * options_.size};
+  tile.mesh = std::move(t.mesh);
+  tile.keys = std::move(t.keys);
+  const int written = WriteContent(tile);
+  if (options_.lod) {
+    // Only its simplified content stays, in the parent node.
+    const auto start = std::chrono::steady_clock::now();
+    // What is known of where each vertex's triangles are: a vertex not completed yet may have
+    // some in a cell no tile holds yet, and stays locked at every level.
+    std::vector<int> spans(tile.keys.size(), kMaxLodLevel + 1);
+    for (std::size_t v = 0; v < spans.size(); ++v) {
+      const auto c = vertex_cells_.find(tile.keys[v]);
+      if (c == vertex_cells_.end()) continue;
+      if (c->second.completed) spans[v] = c->second.span;
+      if (--c->second.open_tiles == 0 && c->second.completed) vertex_cells_.erase(c);
+    }
+    PushUp(1, cell, tile.mesh, tile.keys, spans, {written}, static_cast<int64_t>(tile.mesh.faces.size() / 3), 0.0);
+    const double s = SecondsSince(start);
+    stats_.lod_seconds += s;
+    stats_.seconds += s;
+  }
+}
+
+int TileWriter::WriteContent(TileMesh& tile) {
   const auto start = std::chrono::steady_clock::now();
   if (!have_root_transform_) {
     if (root_transform_fn_) local_frame_ = root_transform_fn_();
@@ -368,22 +490,13 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
     }
     have_root_transform_ = true;
   }
-  if (static_cast<int64_t>(written_.size()) >= kMaxTiles)
+  const bool leaf = tile.level == 0;
+  if ((leaf ? stats_.tiles : stats_.lod_tiles) >= kMaxTiles)
     throw std::runtime_error("output.tiles: more than " + std::to_string(kMaxTiles) + " tiles, more "
                              "than imr tiles merge reads: choose a larger size or max_triangles");
-  TileMesh tile;
-  tile.index = static_cast<int>(written_.size()) + 1;
-  tile.origin = {(static_cast<double>(std::get<0>(cell)) + 0.5) * options_.size,
-                 (static_cast<double>(std::get<1>(cell)) + 0.5) * options_.size,
-                 (static_cast<double>(std::get<2>(cell)) + 0.5) * options_.size};
-  tile.box = EmptyBox();
-  for (std::size_t i = 0; i < t.mesh.vertices.size(); ++i) {
-    tile.box[i % 3] = std::min(tile.box[i % 3], t.mesh.vertices[i]);
-    tile.box[3 + i % 3] = std::max(tile.box[3 + i % 3], t.mesh.vertices[i]);
-  }
-  tile.mesh = std::move(t.mesh);
-  tile.keys = std::move(t.keys);
-  const std::string stem = TileStem(tile.index);
+  tile.index = static_cast<int>(leaf ? stats_.tiles : stats_.lod_tiles) + 1;
+  tile.box = MeshBox(tile.mesh);
+  const std::string stem = leaf ? TileStem(tile.index) : LodStem(tile.index);
   StagingDirectory staging(tiles_dir_);
   write_(tile, staging.path(), stem);
   const fs::path staged = staging.path() / (stem + ".glb");
@@ -400,17 +513,152 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
                              "where imr writes tile " + std::to_string(tile.index) + ": imr would "
                              "overwrite it; move it away");
   staging.Commit();
-  stats_.bytes += static_cast<int64_t>(fs::file_size(final_path));
-  ++stats_.tiles;
-  stats_.triangles += static_cast<int64_t>(tile.mesh.faces.size() / 3);
-  stats_.vertices += static_cast<int64_t>(tile.keys.size());
-  written_.push_back({"tiles/" + stem + ".glb", tile.box, static_cast<int64_t>(tile.mesh.faces.size() / 3)});
+  const auto bytes = static_cast<int64_t>(fs::file_size(final_path));
+  const auto triangles = static_cast<int64_t>(tile.mesh.faces.size() / 3);
+  if (leaf) {
+    stats_.bytes += bytes;
+    ++stats_.tiles;
+    stats_.triangles += triangles;
+    stats_.vertices += static_cast<int64_t>(tile.keys.size());
+  } else {
+    stats_.lod_bytes += bytes;
+    ++stats_.lod_tiles;
+    stats_.lod_triangles += triangles;
+  }
+  if (static_cast<int>(stats_.tiles_per_level.size()) <= tile.level) stats_.tiles_per_level.resize(tile.level + 1, 0);
+  ++stats_.tiles_per_level[tile.level];
+  written_.push_back({"tiles/" + stem + ".glb", tile.box, triangles, tile.level, tile.geometric_error, {}, false});
   // Rewritten when the tiles since its last version are a quarter of those it names (or time
   // has passed): O(1) bytes per tile in all, where every tile would make it O(tiles^2).
   const std::size_t since = written_.size() - tileset_names_;
   if (since >= std::max<std::size_t>(1, tileset_names_ / 4) || SecondsSince(tileset_time_) >= kTilesetSeconds)
     WriteTileset("running");
   stats_.seconds += SecondsSince(start);
+  return static_cast<int>(written_.size()) - 1;
+}
+
+void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, const std::vector<int64_t>& keys,
+                        const std::vector<int>& spans, std::vector<int> children, int64_t triangles,
+                        double error) {
+  if (level > kMaxLodLevel) return;  // the children stay at the top of the tree
+  // The child's content simplified to a quarter, its seams locked (the vertices of its border
+  // with triangles in another node of its level, which locks them too), before it waits for its
+  // siblings: never a full-resolution copy. The surface's own edge may move.
+  std::vector<char> locked = BorderVertices(mesh);
+  for (std::size_t v = 0; v < locked.size(); ++v) locked[v] = locked[v] && spans[v] > level - 1;
+  const engine::SimplifiedMesh s =
+      engine::SimplifyMesh(mesh, locked, std::max<int64_t>(1, triangles / 4), kLodMaxStep * options_.size);
+  const NodeKey key = {level, (std::get<0>(cell) + kLodOffset) >> level, (std::get<1>(cell) + kLodOffset) >> level,
+                       (std::get<2>(cell) + kLodOffset) >> level};
+  PendingNode& node = pending_[key];
+  std::vector<uint32_t> local(s.source.size());
+  for (std::size_t v = 0; v < s.source.size(); ++v) {
+    const int64_t k = keys[s.source[v]];
+    const auto [it, fresh] = node.index.emplace(k, static_cast<uint32_t>(node.keys.size()));
+    if (fresh) {
+      node.keys.push_back(k);
+      node.spans.push_back(spans[s.source[v]]);
+      node.mesh.vertices.insert(node.mesh.vertices.end(), &s.mesh.vertices[3 * v], &s.mesh.vertices[3 * v] + 3);
+      node.mesh.point_ids.push_back(s.mesh.point_ids[v]);
+    }
+    local[v] = it->second;
+  }
+  for (uint32_t f : s.mesh.faces) node.mesh.faces.push_back(local[f]);
+  node.children.insert(node.children.end(), children.begin(), children.end());
+  node.child_triangles += triangles;
+  node.child_error = std::max(node.child_error, error + s.error);
+  int64_t held = 0;
+  for (const auto& [k, n] : pending_) held += static_cast<int64_t>(n.mesh.faces.size() / 3);
+  stats_.lod_pending_triangles_peak = std::max(stats_.lod_pending_triangles_peak, held);
+}
+
+void TileWriter::FlushNodes(bool all) {
+  const auto start = std::chrono::steady_clock::now();
+  const double seconds_before = stats_.seconds;  // WriteContent counts its own
+  // pending_ is ordered by level: a node flushed goes up into a later entry (seen in this pass or,
+  // when it lands before the next one of the level above, in the next).
+  do {
+    for (auto it = pending_.begin(); it != pending_.end();) {
+      const auto [level, x, y, z] = it->first;
+      bool ready = all;
+      if (!ready) {
+        // The drive has left its region: no open tile in it or next to it, no node below it waiting.
+        const int64_t span = int64_t{1} << level;  // its side in cells
+        const int64_t lo[3] = {x * span - kLodOffset - 1, y * span - kLodOffset - 1, z * span - kLodOffset - 1};
+        const int64_t hi[3] = {(x + 1) * span - kLodOffset, (y + 1) * span - kLodOffset, (z + 1) * span - kLodOffset};
+        ready = true;
+        for (const auto& [c, t] : open_) {
+          const int64_t p[3] = {std::get<0>(c), std::get<1>(c), std::get<2>(c)};
+          if (p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1] && p[2] >= lo[2] && p[2] <= hi[2]) {
+            ready = false;
+            break;
+          }
+        }
+        for (auto below = pending_.begin(); ready && below != it; ++below) {
+          const auto [l, a, b, c] = below->first;
+          if (l < level && (a >> (level - l)) == x && (b >> (level - l)) == y && (c >> (level - l)) == z) ready = false;
+        }
+      }
+      if (ready) {
+        PendingNode node = std::move(it->second);
+        const NodeKey key = it->first;
+        it = pending_.erase(it);
+        FlushNode(key, node);
+      } else {
+        ++it;
+      }
+    }
+  } while (all && !pending_.empty());
+  const double s = SecondsSince(start);
+  stats_.lod_seconds += s;
+  stats_.seconds = seconds_before + s;
+}
+
+void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
+  const auto [level, x, y, z] = key;
+  // The seams between the children are inside now: only the node's own border stays locked.
+  const int64_t target = std::max<int64_t>(1, node.child_triangles / 4);
+  std::vector<char> locked = BorderVertices(node.mesh);
+  for (std::size_t v = 0; v < locked.size(); ++v) locked[v] = locked[v] && node.spans[v] > level;
+  engine::SimplifiedMesh s = engine::SimplifyMesh(node.mesh, locked, target, kLodMaxStep * options_.size);
+  // Measured on the merged children's vertices (SimplifyMesh) and their triangles' centroids.
+  const double merged_error = std::max(s.error, engine::MaxDistanceToMesh(Centroids(node.mesh), s.mesh));
+  const double error = node.child_error + merged_error;
+  std::vector<int64_t> keys(s.source.size());
+  std::vector<int> spans(s.source.size());
+  for (std::size_t v = 0; v < keys.size(); ++v) {
+    keys[v] = node.keys[s.source[v]];
+    spans[v] = node.spans[s.source[v]];
+  }
+  const auto triangles = static_cast<int64_t>(s.mesh.faces.size() / 3);
+  const Cell cell = {(x << level) - kLodOffset, (y << level) - kLodOffset, (z << level) - kLodOffset};
+  const double share = static_cast<double>(triangles) / static_cast<double>(std::max<int64_t>(1, node.child_triangles));
+  const bool worth = share <= kMaxLodShare ||
+                     (static_cast<int>(node.children.size()) >= kLodManyChildren && share <= kMaxLodShareMany);
+  if (triangles < kMinTileTriangles || !worth) {
+    // Too small a tile, or hardly simpler than its children: not written; its children hang
+    // under the next node up and its content goes up in its place.
+    ++stats_.lod_gathered;
+    PushUp(level + 1, cell, s.mesh, keys, spans, std::move(node.children), triangles, error);
+    return;
+  }
+  TileMesh tile;
+  tile.level = level;
+  tile.geometric_error = error;
+  const double side = options_.size * static_cast<double>(int64_t{1} << level);
+  const double shift = static_cast<double>(kLodOffset) * options_.size;
+  tile.origin = {(static_cast<double>(x) + 0.5) * side - shift, (static_cast<double>(y) + 0.5) * side - shift,
+                 (static_cast<double>(z) + 0.5) * side - shift};
+  tile.mesh = std::move(s.mesh);
+  tile.keys = std::move(keys);
+  const int index = WriteContent(tile);
+  // Its bounding volume holds its children's too.
+  for (int c : node.children) {
+    written_[c].has_parent = true;
+    Grow(&written_[index].box, written_[c].box);
+  }
+  written_[index].children = std::move(node.children);
+  PushUp(level + 1, cell, tile.mesh, tile.keys, spans, {index}, triangles, error);
 }
 
 void TileWriter::WriteTileset(const std::string& state, const std::string& error) {
@@ -418,32 +666,48 @@ void TileWriter::WriteTileset(const std::string& state, const std::string& error
     json j;
     std::array<double, 6> box;
   };
+  // A written tile and, for a level of detail, its subtree (it replaces its children near by).
+  std::function<json(const Written&)> subtree = [&](const Written& w) {
+    json j = {{"boundingVolume", BoxJson(w.box)}, {"geometricError", w.error}, {"content", {{"uri", w.uri}}}};
+    if (w.level > 0) {
+      j["refine"] = "REPLACE";
+      j["children"] = json::array();
+      for (int c : w.children) j["children"].push_back(subtree(written_[c]));
+    }
+    return j;
+  };
   std::vector<Node> level;
   for (const Written& w : written_)
-    level.push_back({{{"boundingVolume", BoxJson(w.box)}, {"geometricError", 0.0},
-                      {"content", {{"uri", w.uri}}}},
-                     w.box});
+    if (!w.has_parent) level.push_back({subtree(w), w.box});
   // Groups of kChildrenPerNode in writing order (along the drive: near each other), upward.
   while (level.size() > static_cast<std::size_t>(kChildrenPerNode)) {
     std::vector<Node> up;
     for (std::size_t i = 0; i < level.size(); i += kChildrenPerNode) {
       Node n{{{"refine", "ADD"}, {"children", json::array()}}, EmptyBox()};
+      double children_error = 0.0;
       for (std::size_t k = i; k < std::min(level.size(), i + kChildrenPerNode); ++k) {
         Grow(&n.box, level[k].box);
+        children_error = std::max(children_error, level[k].j["geometricError"].get<double>());
         n.j["children"].push_back(std::move(level[k].j));
       }
       n.j["boundingVolume"] = BoxJson(n.box);
-      n.j["geometricError"] = Diagonal(n.box);
+      // Never below its children's (3D Tiles: a parent's error is at least theirs).
+      n.j["geometricError"] = std::max(Diagonal(n.box), children_error);
       up.push_back(std::move(n));
     }
     level = std::move(up);
   }
   std::array<double, 6> box = EmptyBox();
-  for (const Node& n : level) Grow(&box, n.box);
+  double top_error = 0.0;
+  for (const Node& n : level) {
+    Grow(&box, n.box);
+    top_error = std::max(top_error, n.j["geometricError"].get<double>());
+  }
   if (level.empty()) box = {-0.5, -0.5, -0.5, 0.5, 0.5, 0.5};
+  top_error = std::max(top_error, Diagonal(box));
   json root = {{"transform", root_transform_},
                {"boundingVolume", BoxJson(box)},
-               {"geometricError", Diagonal(box)},
+               {"geometricError", top_error},
                {"refine", "ADD"},
                {"children", json::array()}};
   for (Node& n : level) root["children"].push_back(std::move(n.j));
@@ -451,10 +715,10 @@ void TileWriter::WriteTileset(const std::string& state, const std::string& error
   imr["complete"] = state == "complete";
   imr["state"] = state;
   if (!error.empty()) imr["error"] = JsonText(error);
-  imr["tiles"] = written_.size();
-  int64_t triangles = 0;
-  for (const Written& w : written_) triangles += w.triangles;
-  imr["triangles"] = triangles;
+  // The leaves (what `imr tiles merge` merges); the levels of detail apart.
+  imr["tiles"] = stats_.tiles;
+  imr["triangles"] = stats_.triangles;
+  if (options_.lod) imr["lod_tiles"] = stats_.lod_tiles;
   // Geo-referenced: where, and the frame before it (what the transform is without an origin).
   if (!stats_.origin.is_null()) {
     imr["origin"] = stats_.origin;
@@ -462,7 +726,7 @@ void TileWriter::WriteTileset(const std::string& state, const std::string& error
   }
   const json tileset = {
       {"asset", {{"version", "1.1"}, {"generator", std::string("imr ") + Version()}, {"extras", {{"imr", imr}}}}},
-      {"geometricError", Diagonal(box)},
+      {"geometricError", top_error},
       {"root", root}};
   const std::string text = DumpJson(tileset, 1) + "\n";
   WriteFileAtomically(tileset_path(), text);
@@ -472,7 +736,7 @@ void TileWriter::WriteTileset(const std::string& state, const std::string& error
   tileset_time_ = std::chrono::steady_clock::now();
 }
 
-std::vector<fs::path> TileWriter::files() const {
+std::vector<fs::path> TileWriter::files() const {  // leaves and levels of detail
   std::vector<fs::path> out;
   for (const Written& w : written_) out.push_back(output_dir_ / w.uri);
   out.push_back(tileset_path());
@@ -568,16 +832,17 @@ std::vector<std::string> TileContentUris(const json& tile) {
     if (t.depth > kMaxTreeDepth)
       throw std::runtime_error(t.where + ": the tree is more than " + std::to_string(kMaxTreeDepth) +
                                " levels deep (imr's are a few)");
-    if (++tiles > 2 * kMaxTiles)
-      throw std::runtime_error("more than " + std::to_string(2 * kMaxTiles) + " tiles in the tree (a "
+    if (++tiles > 4 * kMaxTiles)
+      throw std::runtime_error("more than " + std::to_string(4 * kMaxTiles) + " tiles in the tree (a "
                                "run of imr writes at most " + std::to_string(kMaxTiles) + ")");
     if (const auto c = t.tile->find("content"); c != t.tile->end()) {
       if (!c->is_object() || !c->contains("uri") || !(*c)["uri"].is_string())
         throw std::runtime_error(t.where + ".content: expected {\"uri\": \"...\"}, got " + io::Describe(*c));
       out.push_back((*c)["uri"].get<std::string>());
-      if (static_cast<int64_t>(out.size()) > kMaxTiles)
-        throw std::runtime_error("more than " + std::to_string(kMaxTiles) + " tiles (a run of imr "
-                                 "writes at most that many)");
+      if (static_cast<int64_t>(out.size()) > 2 * kMaxTiles)
+        throw std::runtime_error("more than " + std::to_string(2 * kMaxTiles) + " tiles (a run of imr "
+                                 "writes at most " + std::to_string(kMaxTiles) + " and as many levels "
+                                 "of detail)");
     }
     if (const auto c = t.tile->find("children"); c != t.tile->end()) {
       if (!c->is_array())
@@ -616,19 +881,37 @@ json ReadTilesetFile(const fs::path& path, InputRole role) {
 
 RunTiles ListRunTiles(const fs::path& run, const json& tileset) {
   RunTiles out;
-  if (tileset.is_object() && tileset.contains("root")) out.named = TileContentUris(tileset["root"]);
-  std::set<int> named;
-  int highest = 0;
+  if (tileset.is_object() && tileset.contains("root"))
+    for (std::string& uri : TileContentUris(tileset["root"]))
+      (LodIndex(uri) > 0 ? out.lod : out.named).push_back(std::move(uri));
+  std::set<int> named, named_lod;
+  int highest = 0, highest_lod = 0;
   for (const std::string& uri : out.named) {
     named.insert(TileIndex(uri));
     highest = std::max(highest, TileIndex(uri));
   }
-  std::set<int> on_disk;
+  for (const std::string& uri : out.lod) {
+    named_lod.insert(LodIndex(uri));
+    highest_lod = std::max(highest_lod, LodIndex(uri));
+  }
+  std::set<int> on_disk, lod_on_disk;
   std::error_code ec;
   if (fs::is_directory(run / "tiles", ec))
-    for (const auto& e : fs::directory_iterator(run / "tiles", ec))
-      if (const int i = TileIndex("tiles/" + e.path().filename().string()); i > 0 && !named.count(i))
-        on_disk.insert(i);
+    for (const auto& e : fs::directory_iterator(run / "tiles", ec)) {
+      const std::string uri = "tiles/" + e.path().filename().string();
+      if (const int i = TileIndex(uri); i > 0 && !named.count(i)) on_disk.insert(i);
+      if (const int i = LodIndex(uri); i > 0 && !named_lod.count(i)) lod_on_disk.insert(i);
+    }
+  // Levels of detail the same way (numbered apart).
+  int next_lod = highest_lod + 1;
+  for (int i : lod_on_disk) {
+    if (i == next_lod) {
+      out.lod_after.push_back(LodUri(i));
+      ++next_lod;
+    } else {
+      out.other.push_back(LodUri(i));
+    }
+  }
   // The writer numbers tiles 1, 2, ... and names them in order: what follows the highest it
   // names without a gap was written after it.
   int next = highest + 1;
@@ -669,6 +952,9 @@ MergedTiles MergeTiles(const fs::path& run) {
     if (!tileset.at("root").is_object())
       throw std::runtime_error("root: expected a tile (an object), got " + io::Describe(tileset["root"]));
     tiles = ListRunTiles(run, tileset);
+    if (static_cast<int64_t>(tiles.named.size()) > kMaxTiles)
+      throw std::runtime_error("more than " + std::to_string(kMaxTiles) + " tiles (a run of imr writes at "
+                               "most that many)");
     count = imr.value("tiles", static_cast<int64_t>(tiles.named.size()));
   } catch (const std::exception& e) {
     throw std::runtime_error(tileset_path.string() + ": not a tileset of imr (" + e.what() + ")");

@@ -37,6 +37,7 @@
 #include <optional>
 #include <string>
 #include <tuple>
+#include <unordered_map>
 #include <vector>
 
 namespace imr::pipeline {
@@ -78,6 +79,7 @@ struct TilesOptions {
   int idle_parts = 2;          // ... or when this many released parts in a row added nothing
                                // to it (the surface has moved on)
   TilesOrigin origin;          // "origin" given: the tileset in ECEF
+  bool lod = true;             // levels of detail: inner nodes carry their children simplified
   // Empty when usable, else which key and why.
   std::string Check() const;
   // `size` against the Steiner spacing the run uses (a cell smaller than the surface's coarsest
@@ -87,6 +89,20 @@ struct TilesOptions {
 // A tile is a request of a 3D Tiles viewer and a file: fewer triangles cost more in requests and
 // files than they hold.
 inline constexpr int64_t kMinTileTriangles = 100;
+// Levels of detail (TilesOptions::lod): a node of level L covers 2^L x 2^L x 2^L grid cells (an
+// octree over the cells: the grid is in the sequence's frame, whose up is not known when it is
+// cut, and on a street it is one or two cells high, so the octree is a quadtree along the ground).
+// Its content is its children's merged by vertex key and simplified to about a quarter of their
+// triangles, the vertices on its content's border (shared with a neighbour of the same level, or
+// the surface's edge) locked, so that neighbouring nodes meet without cracks. A node is written
+// when no open tile lies in or next to its region and no node below it waits; one whose content
+// would be under kMinTileTriangles, or not at most kMaxLodShare of its children's triangles (or
+// kMaxLodShareMany when it stands for kLodManyChildren tiles or more: one request for many), is
+// not written (its children are hung under the next node up, its content goes up in its place).
+inline constexpr int kMaxLodLevel = 20;
+inline constexpr double kMaxLodShare = 0.5;
+inline constexpr double kMaxLodShareMany = 0.8;
+inline constexpr int kLodManyChildren = 4;
 // What a run may write and `imr tiles merge` reads: at most this many tiles (about 40 MiB of
 // tileset.json) and a tileset.json of at most this many bytes.
 inline constexpr int64_t kMaxTiles = 100000;
@@ -98,7 +114,10 @@ const nlohmann::json& TilesSchema();
 
 // One tile as the exporter gets it.
 struct TileMesh {
-  int index = 0;                    // 1, 2, ...: tiles/tile_<index, 6 digits>.glb
+  int index = 0;                    // 1, 2, ...: tiles/tile_<index, 6 digits>.glb (a level of
+                                    // detail: tiles/lod_<index, 6 digits>.glb)
+  int level = 0;                    // 0: a leaf, full resolution; L: a level of detail
+  double geometric_error = 0.0;     // measured (a leaf: 0)
   engine::Mesh mesh;                // in the sequence's frame
   std::vector<int64_t> keys;        // per vertex: its key (the surface stream's)
   std::array<double, 3> origin{};   // the vertices are written relative to it
@@ -119,6 +138,14 @@ struct TilesStats {
   int64_t tileset_writes = 0;  // tileset.json versions written
   int64_t tileset_bytes = 0;   // summed over them
   nlohmann::json origin;       // TilesOrigin::ToJson of the one used; null: not geo-referenced
+  // Levels of detail (not in the counts above, which are the leaves').
+  int64_t lod_tiles = 0;
+  int64_t lod_triangles = 0;
+  int64_t lod_bytes = 0;
+  int64_t lod_gathered = 0;    // nodes not written (too small, or not simpler than their children)
+  double lod_seconds = 0.0;    // simplifying and writing them (within `seconds`)
+  int64_t lod_pending_triangles_peak = 0;  // coarse content held for nodes waiting for children
+  std::vector<int64_t> tiles_per_level;    // [0] leaves, [L] level L
 };
 
 // <output>/tileset.json and <output>/tiles/ are imr's (a tileset written for this sequence of
@@ -155,6 +182,7 @@ class TileWriter {
 
  private:
   using Cell = std::tuple<int64_t, int64_t, int64_t>;
+  using NodeKey = std::tuple<int, int64_t, int64_t, int64_t>;  // level, cell >> level
   struct OpenTile {
     engine::Mesh mesh;
     std::vector<int64_t> keys;
@@ -165,8 +193,38 @@ class TileWriter {
     std::string uri;
     std::array<double, 6> box;
     int64_t triangles = 0;
+    int level = 0;
+    double error = 0.0;
+    std::vector<int> children;  // indices into written_ (a level of detail's)
+    bool has_parent = false;
+  };
+  // Where a vertex's triangles are, while a tile holding it is open or it is not completed: the
+  // level from which one node holds them all (a vertex is on the seam of nodes below it).
+  struct VertexCells {
+    Cell first;
+    int span = 0;
+    int open_tiles = 0;
+    bool completed = false;
+  };
+  // A node of a level of detail waiting for its children: their content simplified, merged by key.
+  struct PendingNode {
+    engine::Mesh mesh;
+    std::vector<int64_t> keys;
+    std::vector<int> spans;          // per vertex: VertexCells::span (kMaxLodLevel + 1: unknown)
+    std::map<int64_t, uint32_t> index;
+    std::vector<int> children;       // written tiles it will hold
+    int64_t child_triangles = 0;     // of its children's content
+    double child_error = 0.0;        // max over children: their error + their simplification's
   };
   void Write(const Cell& cell, OpenTile& tile);
+  // Writes `tile` (staged, renamed) as a leaf or a level of detail; its index into written_.
+  int WriteContent(TileMesh& tile);
+  // A written tile's (or a node not written: `children`) content goes up into its parent node.
+  void PushUp(int level, const Cell& cell, const engine::Mesh& mesh, const std::vector<int64_t>& keys,
+              const std::vector<int>& spans, std::vector<int> children, int64_t triangles, double error);
+  // Nodes whose region the drive has left (all when `all`), level by level upward.
+  void FlushNodes(bool all);
+  void FlushNode(const NodeKey& key, PendingNode& node);
   // state: "running", "complete" or "failed" (with error).
   void WriteTileset(const std::string& state, const std::string& error = "");
 
@@ -181,6 +239,9 @@ class TileWriter {
   WriteTileGlb write_;
   std::map<Cell, OpenTile> open_;
   std::vector<Written> written_;
+  std::map<NodeKey, PendingNode> pending_;
+  std::unordered_map<int64_t, VertexCells> vertex_cells_;  // with lod only
+  int64_t lod_count_ = 0;
   int64_t parts_ = 0;
   std::size_t tileset_names_ = 0;                        // tiles the last tileset.json names
   std::chrono::steady_clock::time_point tileset_time_;   // when it was written
@@ -204,6 +265,10 @@ struct RunTiles {
   std::vector<std::string> named;  // "tiles/tile_NNNNNN.glb", in tree order
   std::vector<std::string> after;  // written after the last tileset.json, in order
   std::vector<std::string> other;  // tile names that are not the run's
+  // Levels of detail ("tiles/lod_NNNNNN.glb"): named, and written after the last tileset.json
+  // (numbered on). Never merged: the leaves are the surface.
+  std::vector<std::string> lod;
+  std::vector<std::string> lod_after;
 };
 RunTiles ListRunTiles(const std::filesystem::path& run_folder, const nlohmann::json& tileset);
 

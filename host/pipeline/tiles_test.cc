@@ -5,6 +5,8 @@
 // thing through the imr executable.
 #include "host/pipeline/tiles.h"
 
+#include "host/engine/mesh_topology.h"
+#include "host/engine/simplify.h"
 #include "host/engine/surface_stream.h"
 #include "host/engine/testing/run_stream.h"
 #include "host/engine/testing/slice_parts.h"
@@ -18,6 +20,8 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <functional>
+#include <map>
 #include <numbers>
 #include <iterator>
 #include <set>
@@ -61,6 +65,7 @@ TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
   o.enabled = true;
   o.size = 10.0;
   o.max_triangles = 150;
+  o.lod = false;  // the leaves (LevelsOfDetail... below: with them)
   TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}},
                     [] { return TilesetFrame({}); },
                     [&](const TileMesh& t, const fs::path& staging, const std::string& stem) {
@@ -123,6 +128,227 @@ TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
       for (const json& c : (*n)["children"]) nodes.push_back(&c);
   }
   EXPECT_EQ(writer.files().size(), written.size() + 1);
+}
+
+// Issue 46 item 2: levels of detail written as the parts come. Every node's content holds its
+// children's vertices within its geometricError; cut at any level (a node of that level or below
+// where it stands, its subtree left out) and merged by key, the tiles are a 2-manifold with the
+// leaves' own border exactly (locked seams: no crack, no gap); coarser levels hold fewer
+// triangles; nodes are written while the parts come; the leaves are what they are without LOD.
+TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCracks) {
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = 120;
+  so.points_per_keyframe = 150;
+  synthetic::SyntheticStream stream(so);
+  engine::EngineOptions eo;
+  eo.num_threads = 1;
+  engine::Engine engine(eo, nullptr);
+  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine).ok());
+  const auto parts = engine::testing::SliceIntoParts(engine.ExtractBoundary(), eo.steiner_export, 40,
+                                                     engine::testing::CutOrder::kAlongY);
+  struct Run {
+    std::map<std::string, TileMesh> tiles;  // by uri
+    json tileset;
+    TilesStats stats;
+    int64_t lod_during = 0;
+  };
+  auto run = [&](bool lod) {
+    io::testing::TempDir dir("imr-tiles-lod");
+    Run r;
+    TilesOptions o;
+    o.enabled = true;
+    o.size = 10.0;
+    o.max_triangles = 400;
+    o.lod = lod;
+    TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+                      [&](const TileMesh& t, const fs::path& staging, const std::string& stem) {
+                        WriteStandInGlb(staging / (stem + ".glb"));
+                        r.tiles["tiles/" + stem + ".glb"] = t;
+                      });
+    engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(eo));
+    for (const auto& part : parts) {
+      EXPECT_EQ(surface.Add(part), "");
+      writer.Add(surface.TakeReleased());
+    }
+    r.lod_during = writer.stats().lod_tiles;
+    writer.Finish();
+    r.stats = writer.stats();
+    r.tileset = json::parse(std::ifstream(dir / "tileset.json"));
+    return r;
+  };
+  const Run with = run(true), without = run(false);
+  ASSERT_GE(with.stats.tiles_per_level.size(), 3u) << "two levels of detail at least";
+  EXPECT_GT(with.lod_during, 0) << "levels of detail written while the parts come";
+  EXPECT_EQ(with.tileset["asset"]["extras"]["imr"]["lod_tiles"], with.stats.lod_tiles);
+  EXPECT_EQ(with.tileset["asset"]["extras"]["imr"]["tiles"], with.stats.tiles);
+  // The leaves are the same tiles as without levels of detail.
+  std::map<std::string, std::vector<int64_t>> leaves_with, leaves_without;
+  for (const auto& [uri, t] : with.tiles) if (t.level == 0) leaves_with[uri] = t.keys;
+  for (const auto& [uri, t] : without.tiles) leaves_without[uri] = t.keys;
+  EXPECT_EQ(leaves_with, leaves_without);
+  // Every node: its children's vertices within its geometric error of its content.
+  int checked = 0;
+  std::function<void(const json&)> check = [&](const json& n) {
+    const json children = n.value("children", json::array());
+    if (n.contains("content")) {
+      const TileMesh& parent = with.tiles.at(n["content"]["uri"].get<std::string>());
+      EXPECT_EQ(n["geometricError"].get<double>(), parent.geometric_error);
+      if (parent.level > 0) {
+        EXPECT_EQ(n["refine"], "REPLACE");
+        EXPECT_GE(static_cast<int64_t>(parent.mesh.faces.size() / 3), kMinTileTriangles);
+        int64_t below = 0;
+        for (const json& c : children) {
+          const TileMesh& child = with.tiles.at(c["content"]["uri"].get<std::string>());
+          below += static_cast<int64_t>(child.mesh.faces.size() / 3);
+          EXPECT_LE(engine::MaxDistanceToMesh(child.mesh.vertices, parent.mesh), parent.geometric_error + 1e-9)
+              << n["content"]["uri"] << " over " << c["content"]["uri"];
+          EXPECT_LE(child.geometric_error, parent.geometric_error);
+          ++checked;
+        }
+        EXPECT_LE(static_cast<double>(parent.mesh.faces.size() / 3),
+                  (children.size() >= static_cast<std::size_t>(kLodManyChildren) ? kMaxLodShareMany : kMaxLodShare) *
+                      static_cast<double>(below));
+      }
+    }
+    for (const json& c : children) check(c);
+  };
+  check(with.tileset["root"]);
+  EXPECT_GT(checked, 4);
+  // Cut at each level and merged by key: a 2-manifold whose border is the leaves' border.
+  auto merged_cut = [&](int level) {
+    engine::Mesh m;
+    std::map<int64_t, uint32_t> index;
+    std::function<void(const json&)> take = [&](const json& n) {
+      if (n.contains("content")) {
+        const TileMesh& t = with.tiles.at(n["content"]["uri"].get<std::string>());
+        if (t.level <= level) {
+          for (uint32_t f : t.mesh.faces) {
+            const auto [it, fresh] = index.emplace(t.keys[f], static_cast<uint32_t>(index.size()));
+            if (fresh) {
+              m.vertices.insert(m.vertices.end(), &t.mesh.vertices[3 * f], &t.mesh.vertices[3 * f] + 3);
+              m.point_ids.push_back(t.keys[f]);
+            }
+            m.faces.push_back(it->second);
+          }
+          return;
+        }
+      }
+      for (const json& c : n.value("children", json::array())) take(c);
+    };
+    take(with.tileset["root"]);
+    return m;
+  };
+  auto border = [](const engine::Mesh& m) {
+    std::set<std::pair<int64_t, int64_t>> edges, out;
+    for (std::size_t f = 0; f < m.faces.size(); f += 3)
+      for (int k = 0; k < 3; ++k)
+        edges.insert({m.point_ids[m.faces[f + k]], m.point_ids[m.faces[f + (k + 1) % 3]]});
+    for (const auto& [a, b] : edges)
+      if (!edges.count({b, a})) out.insert({a, b});
+    return out;
+  };
+  const engine::Mesh leaves = merged_cut(0);
+  std::size_t previous = leaves.faces.size();
+  for (int level = 1; level < static_cast<int>(with.stats.tiles_per_level.size()); ++level) {
+    const engine::Mesh cut = merged_cut(level);
+    engine::Mesh split = cut;
+    engine::SplitPinchedVertices(&split);  // as the leaves merge
+    engine::Mesh leaves_split = leaves;
+    engine::SplitPinchedVertices(&leaves_split);
+    const auto check_cut = engine::CheckMesh(split, false);
+    EXPECT_TRUE(check_cut.ok) << "level " << level << ": " << check_cut.message;
+    // A crack: a vertex of a seam (a key in two tiles of the cut; locked) inside the leaves' surface
+    // but on the border of the cut.
+    std::map<int64_t, int> tiles_naming;
+    std::function<void(const json&)> count = [&](const json& n) {
+      if (n.contains("content")) {
+        const TileMesh& t = with.tiles.at(n["content"]["uri"].get<std::string>());
+        if (t.level <= level) {
+          for (int64_t k : t.keys) ++tiles_naming[k];
+          return;
+        }
+      }
+      for (const json& c : n.value("children", json::array())) count(c);
+    };
+    count(with.tileset["root"]);
+    std::set<int64_t> leaf_border, cut_border;
+    for (const auto& [a, b] : border(leaves)) leaf_border.insert({a, b});
+    for (const auto& [a, b] : border(cut)) cut_border.insert({a, b});
+    int cracks = 0;
+    for (const auto& [k, n] : tiles_naming)
+      if (n > 1 && cut_border.count(k) && !leaf_border.count(k)) ++cracks;
+    EXPECT_EQ(cracks, 0) << "level " << level;
+    // A level with no node written (all gathered) cuts as the one below.
+    if (with.stats.tiles_per_level[level] > 0) {
+      EXPECT_LT(cut.faces.size(), previous) << "level " << level;
+    }
+    previous = cut.faces.size();
+  }
+  // From far (the coarsest cut) a small share of the leaves' triangles.
+  std::printf("coarsest cut: %zu triangles of the leaves' %zu\n", previous / 3, leaves.faces.size() / 3);
+  EXPECT_LT(previous, leaves.faces.size() / 5);
+  // Coarse content held while the parts came: a share of the surface, never all of it.
+  EXPECT_LT(with.stats.lod_pending_triangles_peak, with.stats.triangles / 2);
+  std::printf("levels of detail: tiles per level");
+  for (int64_t n : with.stats.tiles_per_level) std::printf(" %lld", static_cast<long long>(n));
+  std::printf("; leaf triangles %lld, lod %lld, held at most %lld, %.3f s\n",
+              static_cast<long long>(with.stats.triangles), static_cast<long long>(with.stats.lod_triangles),
+              static_cast<long long>(with.stats.lod_pending_triangles_peak), with.stats.lod_seconds);
+}
+
+// A run stopped mid-way (the exporter throws): the levels of detail it wrote are the run's
+// (named, or numbered on after the last tileset), never another's files; a re-run removes them.
+TEST(TileWriterTest, AStoppedRunsLevelsOfDetailAreItsOwn) {
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = 120;
+  so.points_per_keyframe = 150;
+  synthetic::SyntheticStream stream(so);
+  engine::EngineOptions eo;
+  eo.num_threads = 1;
+  engine::Engine engine(eo, nullptr);
+  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine).ok());
+  const auto parts = engine::testing::SliceIntoParts(engine.ExtractBoundary(), eo.steiner_export, 40,
+                                                     engine::testing::CutOrder::kAlongY);
+  io::testing::TempDir dir("imr-tiles-lod-stop");
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 10.0;
+  o.max_triangles = 400;
+  int lod_written = 0, leaves_written = 0;
+  {
+    TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+                      [&](const TileMesh& t, const fs::path& staging, const std::string& stem) {
+                        if (lod_written == 3) throw std::runtime_error("stopped");
+                        WriteStandInGlb(staging / (stem + ".glb"));
+                        ++(t.level > 0 ? lod_written : leaves_written);
+                      });
+    engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(eo));
+    try {
+      for (const auto& part : parts) {
+        ASSERT_EQ(surface.Add(part), "");
+        writer.Add(surface.TakeReleased());
+      }
+      writer.Finish();
+      ADD_FAILURE() << "the run was not stopped";
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(std::string(e.what()), "stopped");
+    }
+  }
+  ASSERT_EQ(lod_written, 3);
+  std::ofstream(dir / "tiles" / "lod_000009.glb") << "not the run's";
+  const RunTiles tiles = ListRunTiles(dir.path(), json::parse(std::ifstream(dir / "tileset.json")));
+  EXPECT_EQ(tiles.lod.size() + tiles.lod_after.size(), 3u);
+  EXPECT_EQ(tiles.named.size() + tiles.after.size(), static_cast<std::size_t>(leaves_written));
+  EXPECT_EQ(tiles.other, std::vector<std::string>{"tiles/lod_000009.glb"});
+  // A re-run replaces them all but the other file.
+  o.lod = false;
+  TileWriter again(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+                   [](const TileMesh&, const fs::path&, const std::string&) {});
+  EXPECT_FALSE(fs::exists(dir / "tiles" / "lod_000001.glb"));
+  EXPECT_FALSE(fs::exists(dir / "tiles" / "tile_000001.glb"));
+  EXPECT_TRUE(fs::exists(dir / "tiles" / "lod_000009.glb"));
 }
 
 // The local frame: a KITTI-style camera (x right, y down, z forward) driving along world +z,
@@ -202,6 +428,7 @@ TEST(TileWriterTest, TheTilesetsRewriteCostIsBoundedPerTile) {
   o.enabled = true;
   o.size = 1.0;
   o.idle_parts = 1;
+  o.lod = false;  // one-triangle tiles: every node would be gathered
   int exported = 0;
   TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
                     [&](const TileMesh&, const fs::path& staging, const std::string& stem) {
@@ -567,8 +794,9 @@ TEST(TileWriterTest, ContentUrisOfATreeThatIsNotOneAreRefused) {
   for (int i = 0; i < 70; ++i) deep = json{{"children", {deep}}};
   EXPECT_NE(error(deep).find("more than 64 levels deep"), std::string::npos) << error(deep);
   json wide = {{"children", json::array()}};
-  for (int64_t i = 0; i <= kMaxTiles; ++i) wide["children"].push_back({{"content", {{"uri", "tiles/tile_000001.glb"}}}});
-  EXPECT_EQ(error(wide), "more than 100000 tiles (a run of imr writes at most that many)");
+  // The leaves and as many levels of detail at most.
+  for (int64_t i = 0; i <= 2 * kMaxTiles; ++i) wide["children"].push_back({{"content", {{"uri", "tiles/tile_000001.glb"}}}});
+  EXPECT_EQ(error(wide), "more than 200000 tiles (a run of imr writes at most 100000 and as many levels of detail)");
 }
 
 }  // namespace

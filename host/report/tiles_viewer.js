@@ -20,8 +20,10 @@ const BASE = 'https://imr-tiles.invalid/';
   if (!table || !host) return;
   const runs = JSON.parse(table.textContent);
   // For tests and the curious: what the view has done.
+  // requested: the tiles asked for, in order (levels of detail far away, leaves near);
+  // nearLeaf(): the camera to street level at the first leaf (for tests).
   const state = window.imrTilesViewer = { shown: null, tilesetLoaded: false, models: 0, errors: [],
-                                          done: false, show: null };
+                                          done: false, show: null, requested: [], nearLeaf: null };
   const say = (text) => { if (status) status.textContent = text; };
 
   const waiting = {};  // "<n>/<path>" -> [resolve, reject]
@@ -36,8 +38,9 @@ const BASE = 'https://imr-tiles.invalid/';
     return new Promise((resolve, reject) => {
       const run = runs[n];
       const name = path === 'tileset.json' ? 'tileset' : path.replace(/^tiles\//, '').replace(/\.glb$/, '');
-      if (!run || !/^(tileset|tile_[0-9]{6})$/.test(name)) { reject(new Error('not a tile of this page: ' + path)); return; }
+      if (!run || !/^(tileset|tile_[0-9]{6}|lod_[0-9]{6})$/.test(name)) { reject(new Error('not a tile of this page: ' + path)); return; }
       waiting[n + '/' + path] = [resolve, reject];
+      state.requested.push(path);
       const s = document.createElement('script');
       s.src = run.scripts + '/' + name + '.js';
       s.onerror = () => reject(new Error('cannot load ' + s.src));
@@ -70,6 +73,7 @@ const BASE = 'https://imr-tiles.invalid/';
   const plain = new THREE.MeshStandardMaterial({ color: 0xeba64d, roughness: 0.8, side: THREE.DoubleSide });
   let tiles = null;
   let quiet = 0;
+  let radius = 1;  // the tileset's bounding sphere's
 
   function resize() {
     const w = host.clientWidth || 800, h = host.clientHeight || 520;
@@ -113,9 +117,7 @@ const BASE = 'https://imr-tiles.invalid/';
       sphere.applyMatrix4(tiles.group.matrixWorld);
       controls.target.copy(sphere.center);
       camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(sphere.radius * 2.2));
-      camera.near = Math.max(sphere.radius / 1000, 0.01);
-      camera.far = sphere.radius * 20;
-      camera.updateProjectionMatrix();
+      radius = Math.max(sphere.radius, 1e-3);
       controls.update();
     });
     tiles.addEventListener('load-model', (e) => {
@@ -133,11 +135,48 @@ const BASE = 'https://imr-tiles.invalid/';
     });
   }
   state.show = show;
+  // The camera `k` radii from the target, as it looks now (zoomed out: the levels of detail).
+  state.farView = function (k) {
+    const away = camera.position.clone().sub(controls.target).normalize();
+    camera.position.copy(controls.target).addScaledVector(away, radius * k);
+    controls.update();
+    quiet = 0;
+    state.done = false;
+  };
+  // The content uris drawn now.
+  state.visible = () => Array.from((tiles && tiles.visibleTiles) || [], (t) => t.content && t.content.uri).filter(Boolean);
+  state.nearLeaf = function () {
+    const find = (t) => {
+      if (t.content && t.content.uri.includes('tiles/tile_')) return t;
+      for (const c of t.children || []) { const f = find(c); if (f) return f; }
+      return null;
+    };
+    const leaf = tiles && tiles.root && find(tiles.root);
+    if (!leaf) return false;
+    // Its box (the tileset's, under the root's transform; not yet preprocessed by the renderer).
+    const box = leaf.boundingVolume.box;
+    const toWorld = new THREE.Matrix4().fromArray(tiles.root.transform || new THREE.Matrix4().elements)
+      .premultiply(tiles.group.matrixWorld);
+    const sphere = new THREE.Sphere(new THREE.Vector3(box[0], box[1], box[2]).applyMatrix4(toWorld),
+                                    Math.hypot(...box.slice(3)));
+    controls.target.copy(sphere.center);
+    camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(sphere.radius / 3));
+    controls.update();
+    quiet = 0;
+    state.done = false;
+    return true;
+  };
 
   function frame() {
     requestAnimationFrame(frame);
     if (!tiles) return;
     controls.update();
+    // Near and far planes around what is in view, however far it is zoomed out (a fixed far
+    // plane of 20 radii left the view empty beyond it).
+    const d = camera.position.distanceTo(controls.target);
+    camera.near = Math.max(Math.min(radius / 1000, d / 100), 0.01);
+    camera.far = d + 4 * radius;
+    camera.updateProjectionMatrix();
     camera.updateMatrixWorld();
     tiles.update();
     renderer.render(scene, camera);

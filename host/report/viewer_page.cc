@@ -509,12 +509,15 @@ std::vector<std::string> TileUris(const json& ts) {
   return uris;
 }
 
-// Only imr's tile names, inside the run's tiles/ folder: the tileset is read, not trusted.
-void CheckTileUri(const std::string& u, const fs::path& tileset) {
+// Only imr's tile names (a leaf, tile_NNNNNN.glb, or a level of detail, lod_NNNNNN.glb), inside
+// the run's tiles/ folder: the tileset is read, not trusted. The name without ".glb".
+std::string CheckTileUri(const std::string& u, const fs::path& tileset) {
   const std::string name = u.rfind("tiles/", 0) == 0 ? u.substr(6) : "";
-  if (name.size() != 15 || name.rfind("tile_", 0) != 0 || name.substr(11) != ".glb" ||
-      name.substr(5, 6).find_first_not_of("0123456789") != std::string::npos)
-    throw std::runtime_error(tileset.string() + ": content uri '" + JsonText(u) + "' is not a tile of imr");
+  for (const std::string prefix : {"tile_", "lod_"})
+    if (name.size() == prefix.size() + 10 && name.rfind(prefix, 0) == 0 && name.substr(prefix.size() + 6) == ".glb" &&
+        name.substr(prefix.size(), 6).find_first_not_of("0123456789") == std::string::npos)
+      return name.substr(0, prefix.size() + 6);
+  throw std::runtime_error(tileset.string() + ": content uri '" + JsonText(u) + "' is not a tile of imr");
 }
 
 // Row i's tileset and tiles as scripts, and its entry in the page's tiles table (null, with a
@@ -543,7 +546,7 @@ json WriteTileScripts(const Row& r, std::size_t i, const fs::path& run_dir, cons
     };
     put("tileset.json", "tileset", text);
     for (const std::string& u : uris)
-      put(u, u.substr(6, 11), ReadBytes(r.output / u, "a tile"));
+      put(u, CheckTileUri(u, r.tileset), ReadBytes(r.output / u, "a tile"));
     ++result.tilesets_viewable;
     const json triangles = At(r.report, "/tiles/triangles");
     return {{"name", r.name},
