@@ -140,7 +140,7 @@ bool Carving::Shrink(const std::vector<Cell_handle>& d, const std::vector<Point>
       [&] { return !meets_o(); }, sorted) || !meets_o();
   // forget: a final cell of O next to the change stays (PeelFromO leaves it): when the change
   // fails, that is what forgetting cost it (a point moved far or the cameras jumped), counted.
-  if (!ok && s_.opt.forget)
+  if (!ok && s_.forgetting)
     for (Cell_handle c : *planned_e)
       if (c->info().in_o && c->info().final) {
         ++s_.stats.shrinks_blocked_final;

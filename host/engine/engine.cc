@@ -41,6 +41,8 @@ namespace imr::engine {
 namespace detail {
 
 EngineState::EngineState(const EngineOptions& o) : opt(o) {
+  forgetting = opt.forget == ForgetMode::kOn;
+  if (forgetting) stats.forget_on_update = 1;
   unit = {ToUnits(opt.w1), ToUnits(opt.w2), ToUnits(opt.w3)};
   threshold = ToUnits(opt.free_threshold);
   // Exact mode: a cell's weight is w1 times the rays that cross it.
@@ -86,7 +88,7 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
     PlaceSteinerPoints(u, s.cameras.size() - centres.size());
     s.stats.time.steiner += SecondsSince(ts);
   }
-  if (s.opt.forget) forgetting.AddUpdateCameras(centres);  // a copy: measured below too
+  if (forgetting.Armed()) forgetting.AddUpdateCameras(centres);  // a copy: measured below too
   const int64_t known = static_cast<int64_t>(s.cameras.size());
   for (const MovedPoint& m : u.moved_points) s.points[s.point_index.at(m.id)].named = known;
   for (uint64_t id : u.removed_points) s.points[s.point_index.at(id)].named = known;
@@ -121,7 +123,7 @@ Status Engine::Impl::ApplyUpdate(const KeyframeUpdate& update) {
   }
   if (exact) timed_batch([&] { UncastMoving(u); });
   // Between the batches no ray lists are kept: the triangulation may be rebuilt.
-  if (s.opt.forget && forgetting.Due()) Forget();
+  if (forgetting.Armed() && forgetting.Due()) Forget();
   timed(&s.stats.time.move, [&] {
     if (exact) {
       ExactMoves(u);
@@ -183,7 +185,7 @@ void Engine::Impl::Grow() {
   const bool open_path = s.opt.camera_path > 0 && s.dt.dimension() == 3;
   const std::vector<Cell_handle> path = open_path ? CameraPathCells() : std::vector<Cell_handle>();
   if (open_path && s.cells_in_o > 0) carving.OpenPath(path);
-  carving.Grow(s.opt.forget ? CameraCell() : Cell_handle());
+  carving.Grow(s.forgetting ? CameraCell() : Cell_handle());
   if (open_path && s.cells_in_o > 0) OpenCameraPath(path);
 }
 
@@ -276,6 +278,7 @@ EngineMemory Engine::Memory() const {
   return m;
 }
 const EngineOptions& Engine::options() const { return impl_->s.opt; }
+bool Engine::forgetting() const { return impl_->s.forgetting; }
 ManifoldCheckResult Engine::CheckInvariants() const {
   return detail::InvariantChecker(impl_->s).Check();
 }

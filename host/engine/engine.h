@@ -62,6 +62,16 @@ enum class LongRays {
 std::string ToString(LongRays rule);
 bool FromString(const std::string& s, LongRays* rule);
 
+// Whether the engine forgets what the cameras left behind (EngineOptions::forget).
+enum class ForgetMode {
+  kOff,
+  kOn,
+  kAuto,  // On once the cameras are seen to travel (a drive), off while they stay around what
+          // they look at (an object ring) or come in one update (an SfM model): Forgetting's rule.
+};
+std::string ToString(ForgetMode mode);  // "false", "true", "auto"
+bool FromString(const std::string& s, ForgetMode* mode);
+
 // The most Steiner grid nodes around one camera that EngineOptions::CheckSteinerGrid accepts: the
 // grid covers a camera's rays, at most a cube of +-(max_ray_length + steiner_margin) in steps of
 // steiner_spacing; each node is a vertex of the triangulation (a kB or so). 1e7 nodes: a spacing of
@@ -141,11 +151,12 @@ struct EngineOptions {
                                       // threads (what each does to its cells, read only) and
                                       // committed in order; false: each made with CGAL's vertex
                                       // removal and insertion (the same cells and weights).
-  bool forget = false;                // Long drives (DESIGN.md section 10): the part of the
-                                      // triangulation that no live camera, ray or point can
+  ForgetMode forget = ForgetMode::kAuto;  // Long drives (DESIGN.md section 10): the part of
+                                      // the triangulation that no live camera, ray or point can
                                       // reach any more is final: its part of dO is handed out
                                       // (TakeFinalParts) and its cells, rays and points are
                                       // freed, so memory stays flat in the drive's length.
+                                      // kAuto: so once the cameras travel (Engine::forgetting).
   double forget_distance = 0.0;       // A cell is final once it lies this far (metres) behind
                                       // every one of the last `window` cameras; 0: derived
                                       // from the options (ForgetDistance).
@@ -315,6 +326,14 @@ struct EngineStats {
   int64_t cameras_in_o = 0;
   // forget (EngineOptions::forget):
   int64_t forget_steps = 0;           // Steps run (the newest camera moved forget_step).
+  // kAuto: the update (1-based) from which the engine forgets, 0 while it does not (kOn: 1);
+  // the steps that had cells to make final but kept them live (the cameras did not travel);
+  // and what the rule measured at the last of its looks (camera_spread 0: not measured).
+  int64_t forget_on_update = 0;
+  int64_t forget_steps_held = 0;
+  double forget_camera_spread = 0.0;  // Spread of the camera centres (median distance from
+  double forget_point_spread = 0.0;   // their per-axis median), of the points likewise
+  double forget_camera_step = 0.0;    // The median distance between consecutive cameras
   int64_t cells_finalized = 0;        // Cells that became final.
   int64_t cells_final = 0;            // Current cells that are final (finite and infinite).
   int64_t rebuilds = 0;               // Triangulations rebuilt without forgotten vertices.
@@ -403,11 +422,18 @@ class Engine {
   // out yet, every vertex completed. Without forgetting it is the whole filtered dO. Call it once,
   // after the last update.
   SurfacePart FinishSurface();
+  // The surface not handed out yet, as a part (its vertices keyed, none completed): merged with
+  // the parts taken so far and finished (FinishExportedMesh), the whole surface now, in the
+  // middle of a run that forgets (the Python module's mesh). The run goes on unchanged.
+  SurfacePart LiveSurface();
 
   const EngineStats& Stats() const;
   // What the engine's structures take now (walks every cell: milliseconds on a large scene).
   EngineMemory Memory() const;
   const EngineOptions& options() const;
+  // Whether the engine forgets now: options().forget is kOn, or kAuto and the cameras have
+  // been seen to travel (once on, it stays on). Before it is on, no part is handed out.
+  bool forgetting() const;
 
   // Polled in the update's long loops (the Steiner grid): when it returns true, ApplyUpdate
   // stops and returns an error starting "stopped"; the engine is then not to be used further.

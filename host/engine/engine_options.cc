@@ -60,6 +60,18 @@ bool FromString(const std::string& s, LongRays* rule) {
   return true;
 }
 
+std::string ToString(ForgetMode mode) {
+  return mode == ForgetMode::kOn ? "true" : mode == ForgetMode::kOff ? "false" : "auto";
+}
+
+bool FromString(const std::string& s, ForgetMode* mode) {
+  if (s == "true") *mode = ForgetMode::kOn;
+  else if (s == "false") *mode = ForgetMode::kOff;
+  else if (s == "auto") *mode = ForgetMode::kAuto;
+  else return false;
+  return true;
+}
+
 double EngineOptions::SteinerNodesPerCamera() const {
   const double side = 2.0 * (max_ray_length + steiner_margin) / steiner_spacing + 2.0;
   return side * side * side;
@@ -113,7 +125,8 @@ std::string EngineOptions::Check() const {
   if (!std::isfinite(forget_distance) || forget_distance < 0.0)
     e << "forget_distance must be >= 0; ";
   if (!std::isfinite(forget_step) || forget_step < 0.0) e << "forget_step must be >= 0; ";
-  if (forget && visibility_mode == VisibilityMode::kRays)
+  // kAuto stays off in the rays mode (Forgetting::Armed).
+  if (forget == ForgetMode::kOn && visibility_mode == VisibilityMode::kRays)
     e << "forget needs visibility_mode 'exact' or 'weights' (the rays mode is the paper's "
          "baseline, kept whole); ";
   if (shrink_passes < 1) e << "shrink_passes must be >= 1; ";

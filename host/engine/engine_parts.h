@@ -227,6 +227,8 @@ struct EngineState {
   explicit EngineState(const EngineOptions& o);
 
   EngineOptions opt;
+  // Whether the engine forgets: opt.forget kOn, or kAuto once Forgetting's rule said so.
+  bool forgetting = false;
   Dt dt;
   std::array<int64_t, 3> unit{};  // w1, w2, w3 in weight units.
   int64_t threshold = 0;          // T_w in weight units: a cell is free above it.
@@ -330,7 +332,7 @@ struct EngineState {
   // the cells made in its place are final where they touch a deep vertex (BornFinal).
   // `strict`: any final cell refuses (a move in place reshapes the cells it keeps).
   bool BlockedByFinal(const std::vector<Cell_handle>& cells, bool strict = false) {
-    if (!opt.forget) return false;
+    if (!forgetting) return false;
     for (Cell_handle c : cells) {
       if (!c->info().final) continue;
       bool inert = !strict && !c->info().in_o;
@@ -346,7 +348,7 @@ struct EngineState {
   // nothing around a deep vertex changes (it was completed), and inert final cells are all
   // that a change there may have destroyed.
   void BornFinal(const std::vector<Cell_handle>& made) {
-    if (!opt.forget) return;
+    if (!forgetting) return;
     for (Cell_handle c : made) {
       bool deep = false;
       for (int i = 0; i < 4 && !deep; ++i)
@@ -951,6 +953,13 @@ class Forgetting {
   Forgetting(EngineState& s, RayCaster& caster, SteinerGrid& steiner)
       : s_(s), caster_(caster), steiner_(steiner) {}
 
+  // Whether forgetting may run: forget kOn, or kAuto outside the rays mode (whose ray lists
+  // forgetting cannot free). Under kAuto the steps run from the start, and the first step that
+  // finds cells to make final decides (Travelled): before it nothing differs from forget false.
+  bool Armed() const {
+    return s_.opt.forget == ForgetMode::kOn ||
+           (s_.opt.forget == ForgetMode::kAuto && s_.opt.visibility_mode != VisibilityMode::kRays);
+  }
   // The centres of the cameras an update adds (every update calls it, before its points).
   void AddUpdateCameras(std::vector<Point> centres);
   // Whether a step is due: the newest camera moved forget_step since the last step.
@@ -976,6 +985,15 @@ class Forgetting {
 
  private:
   bool BecomesFinal(Cell_handle c) const;
+  // kAuto: whether the cameras travel, so that what they leave behind is not seen again: not
+  // the first update (an SfM model comes in one), the cameras one after the other along a path
+  // (the median step between consecutive cameras under forget_distance / 2: an SfM model
+  // replayed in an order of its own jumps), and not around an object (their centres spread no
+  // more than kAroundAnObject times as far as the points: a ring's cameras spread wider than
+  // the object they circle, a drive's points spread along and beside the path). Measured into
+  // the stats.
+  bool Travelled();
+  static constexpr double kAroundAnObject = 2.0;
   bool FarBehind(const Point& p, double radius) const;
   void Rebuild(const std::vector<Vertex_handle>& gone);
   // Rebuild's steps, in order (forget.cc).

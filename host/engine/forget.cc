@@ -4,6 +4,8 @@
 // the keyframe (Engine::Impl::WithoutRetired, Forget).
 #include "host/engine/engine_parts.h"
 
+#include <algorithm>
+#include <cmath>
 #include <unordered_map>
 
 namespace imr::engine::detail {
@@ -125,6 +127,49 @@ bool Forgetting::BecomesFinal(Cell_handle c) const {
   return FarBehind(g, std::sqrt(r2));
 }
 
+namespace {
+
+// How far `points` spread: the median distance from their per-axis median (robust to outliers;
+// pipeline/scale.cc measures the scale's cameras and points alike).
+double Spread(std::vector<Vec3> points) {
+  if (points.empty()) return 0.0;
+  auto median = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  std::vector<double> v(points.size());
+  Vec3 m{};
+  for (int a = 0; a < 3; ++a) {
+    for (size_t i = 0; i < points.size(); ++i) v[i] = points[i][a];
+    m[a] = median(v);
+  }
+  for (size_t i = 0; i < points.size(); ++i)
+    v[i] = std::hypot(points[i][0] - m[0], points[i][1] - m[1], points[i][2] - m[2]);
+  return median(v);
+}
+
+}  // namespace
+
+bool Forgetting::Travelled() {
+  if (s_.stats.updates == 0 || s_.cameras.size() < 2) return false;
+  std::vector<double> steps;
+  steps.reserve(s_.cameras.size() - 1);
+  for (size_t i = 1; i < s_.cameras.size(); ++i)
+    steps.push_back(std::sqrt(CGAL::squared_distance(s_.cameras[i - 1], s_.cameras[i])));
+  std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+  s_.stats.forget_camera_step = steps[steps.size() / 2];
+  std::vector<Vec3> centres, points;
+  centres.reserve(s_.cameras.size());
+  for (const Point& c : s_.cameras) centres.push_back({c.x(), c.y(), c.z()});
+  points.reserve(s_.points.size());
+  for (const PointRecord& rec : s_.points)
+    if (!rec.removed) points.push_back(rec.position);
+  s_.stats.forget_camera_spread = Spread(std::move(centres));
+  s_.stats.forget_point_spread = Spread(std::move(points));
+  return s_.stats.forget_camera_step < 0.5 * s_.opt.ForgetDistance() &&
+         s_.stats.forget_camera_spread <= kAroundAnObject * s_.stats.forget_point_spread;
+}
+
 void Forgetting::Freeze(std::vector<Triangle>* facets, std::vector<Vertex_handle>* deep) {
   facets->clear();
   deep->clear();
@@ -165,6 +210,15 @@ void Forgetting::Freeze(std::vector<Triangle>* facets, std::vector<Vertex_handle
       c->info().stamp = tested;
       if (BecomesFinal(c)) now.push_back(c);
     }
+  }
+  // kAuto: the first step with something to make final decides; until then nothing was.
+  if (!s_.forgetting && !now.empty()) {
+    if (!Travelled()) {
+      ++s_.stats.forget_steps_held;
+      return;
+    }
+    s_.forgetting = true;
+    s_.stats.forget_on_update = s_.stats.updates + 1;
   }
   const uint64_t mark = ++s_.stamp;
   for (Cell_handle c : now) {
@@ -486,7 +540,7 @@ using detail::Triangle;
 // Forgetting's entry in the keyframe: the update without what it says of retired points, and a
 // step (what became final handed out as a part, then maybe a rebuild).
 std::unique_ptr<KeyframeUpdate> Engine::Impl::WithoutRetired(const KeyframeUpdate& u) {
-  if (!s.opt.forget || forgetting.retired().runs() == 0) return nullptr;
+  if (!s.forgetting || forgetting.retired().runs() == 0) return nullptr;
   auto retired = [&](uint64_t id) { return !s.point_index.count(id); };  // Validate: retired
   const int64_t moves = std::count_if(u.moved_points.begin(), u.moved_points.end(),
                                       [&](const MovedPoint& m) { return retired(m.id); });

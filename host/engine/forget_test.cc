@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 #include <set>
 
@@ -26,6 +27,7 @@ TEST(SurfacePartsTest, FinishSurfaceWithoutForgettingIsTheExportedMesh) {
   synthetic::SyntheticStream stream(Street(60));
   EngineOptions eo;
   eo.num_threads = 1;
+  eo.forget = ForgetMode::kOff;
   Engine engine(eo, nullptr);
   ASSERT_TRUE(testing::RunStream(&stream, &engine).ok());
   EXPECT_TRUE(engine.TakeFinalParts().empty());
@@ -75,12 +77,13 @@ ForgetRun RunForgetting(const synthetic::StreamOptions& so, EngineOptions eo, in
   return r;
 }
 
-EngineOptions Forgetting(bool on) {
+EngineOptions Forgetting(ForgetMode mode) {
   EngineOptions eo;
   eo.num_threads = 1;
-  eo.forget = on;
+  eo.forget = mode;
   return eo;
 }
+EngineOptions Forgetting(bool on) { return Forgetting(on ? ForgetMode::kOn : ForgetMode::kOff); }
 
 // A drive long enough for a good part of it to be left behind: parts are handed out while it
 // goes, the triangulation is rebuilt without what was forgotten, the full invariant check holds
@@ -146,6 +149,146 @@ TEST(ForgettingTest, TheSurfaceIsTheOneWithoutForgetting) {
   // point records.
   EXPECT_LT(with.memory.Total(), without.memory.Total() * 3 / 4);
   EXPECT_LT(with.stats.cells, without.stats.cells);
+}
+
+// engine.forget "auto" (the default) decides on the camera path. On a drive it turns on at the
+// first step that has something to make final, so the run is the very run with forget true:
+// the same parts, the same surface.
+TEST(ForgettingTest, AutoForgetsOnADriveAsForgetTrueDoes) {
+  EXPECT_EQ(EngineOptions{}.forget, ForgetMode::kAuto);
+  ForgetRun on = RunForgetting(Street(450), Forgetting(true));
+  ForgetRun automatic = RunForgetting(Street(450), Forgetting(ForgetMode::kAuto));
+  ASSERT_EQ(automatic.merge, "");
+  EXPECT_GT(automatic.stats.forget_on_update, 1);  // decided on the way, not at the start
+  EXPECT_EQ(automatic.stats.forget_steps_held, 0);
+  EXPECT_GT(automatic.stats.forget_point_spread, 0.0);
+  EXPECT_LE(automatic.stats.forget_camera_spread, 2.0 * automatic.stats.forget_point_spread);
+  EXPECT_GT(automatic.stats.points_forgotten, 100);
+  EXPECT_EQ(automatic.parts.size(), on.parts.size());
+  EXPECT_EQ(automatic.stats.cells_finalized, on.stats.cells_finalized);
+  EXPECT_EQ(automatic.merged.vertices, on.merged.vertices);
+  EXPECT_EQ(automatic.merged.faces, on.merged.faces);
+  EXPECT_EQ(automatic.merged.point_ids, on.merged.point_ids);
+  EXPECT_EQ(automatic.memory.Total(), on.memory.Total());
+}
+
+// An object ring: cameras on a circle of radius 40 m around a sphere of radius 8 m, looking at
+// it; each point enters with the first camera that sees it and gains the later ones (a move
+// in place). The ring is wider than forget_distance (56 m by default), so forget true makes
+// cells on its far side final; what the cameras come back to is then lost.
+class RingStream {
+ public:
+  explicit RingStream(int cameras) : cameras_(cameras) {
+    const int n = 1500;
+    const double golden = M_PI * (3.0 - std::sqrt(5.0));
+    for (int i = 0; i < n; ++i) {  // a Fibonacci sphere: evenly spread
+      const double y = 1.0 - 2.0 * (i + 0.5) / n, r = std::sqrt(1.0 - y * y), a = golden * i;
+      points_.push_back({8.0 * r * std::cos(a), 8.0 * y, 8.0 * r * std::sin(a)});
+    }
+    seen_.assign(n, false);
+  }
+  bool Next(KeyframeUpdate* u) {
+    if (next_ >= cameras_) return false;
+    *u = KeyframeUpdate{};
+    const double a = 2.0 * M_PI * next_ / cameras_;
+    Camera c;
+    c.id = static_cast<uint64_t>(next_);
+    c.center = {40.0 * std::cos(a), 2.0, 40.0 * std::sin(a)};
+    u->cameras.push_back(c);
+    for (size_t i = 0; i < points_.size(); ++i) {
+      const Vec3& p = points_[i];
+      // Seen where the sphere faces the camera (its outward normal is p / 8).
+      const double facing = (p[0] * (c.center[0] - p[0]) + p[1] * (c.center[1] - p[1]) +
+                             p[2] * (c.center[2] - p[2])) / 8.0;
+      if (facing <= 0.3 * 32.0) continue;
+      if (!seen_[i]) {
+        u->new_points.push_back({i + 1000, p, {c.id}});
+        seen_[i] = true;
+      } else {
+        u->moved_points.push_back({i + 1000, p, {c.id}});
+      }
+    }
+    ++next_;
+    return true;
+  }
+
+ private:
+  int cameras_, next_ = 0;
+  std::vector<Vec3> points_;
+  std::vector<bool> seen_;
+};
+
+struct RingRun {
+  Mesh mesh;
+  EngineStats stats;
+  size_t parts = 0;
+};
+RingRun RunRing(ForgetMode mode) {
+  RingStream ring(72);
+  Engine engine(Forgetting(mode), nullptr);
+  RingRun r;
+  KeyframeUpdate u;
+  while (ring.Next(&u)) {
+    const Status s = engine.ApplyUpdate(u);
+    EXPECT_TRUE(s.ok()) << s.message();
+    if (!s.ok()) break;
+    r.parts += engine.TakeFinalParts().size();
+  }
+  r.mesh = engine.ExtractMesh();
+  r.stats = engine.Stats();
+  return r;
+}
+
+// On the ring auto stays off: the rule looked (steps that found cells to make final held them),
+// the cameras spread wider than the sphere they circle, and the surface is the one without
+// forgetting, to the byte; forget true on the same ring does make cells final.
+TEST(ForgettingTest, AutoStaysOffOnAnObjectRing) {
+  const RingRun off = RunRing(ForgetMode::kOff);
+  const RingRun automatic = RunRing(ForgetMode::kAuto);
+  const RingRun on = RunRing(ForgetMode::kOn);
+  ASSERT_GT(off.mesh.faces.size(), 300u);
+  EXPECT_GT(on.stats.cells_finalized, 0) << "the ring must be wide enough for forget true to act";
+  EXPECT_EQ(automatic.stats.forget_on_update, 0);
+  EXPECT_GT(automatic.stats.forget_steps_held, 0);
+  EXPECT_GT(automatic.stats.forget_camera_spread, 2.0 * automatic.stats.forget_point_spread);
+  EXPECT_EQ(automatic.stats.cells_finalized, 0);
+  EXPECT_EQ(automatic.parts, 0u);
+  EXPECT_EQ(automatic.mesh.vertices, off.mesh.vertices);
+  EXPECT_EQ(automatic.mesh.faces, off.mesh.faces);
+  EXPECT_EQ(automatic.mesh.point_ids, off.mesh.point_ids);
+}
+
+// A model in one update (an SfM batch) never turns forgetting on, whatever its cameras do.
+TEST(ForgettingTest, AutoStaysOffForOneUpdate) {
+  synthetic::SyntheticStream stream(Street(200));
+  KeyframeUpdate all;
+  synthetic::StreamKeyframe kf;
+  std::map<uint64_t, size_t> at;
+  while (stream.Next(&kf)) {
+    const KeyframeUpdate u = testing::ToUpdate(kf);
+    all.cameras.insert(all.cameras.end(), u.cameras.begin(), u.cameras.end());
+    for (const NewPoint& p : u.new_points) {
+      at[p.id] = all.new_points.size();
+      all.new_points.push_back(p);
+    }
+    for (const MovedPoint& m : u.moved_points) {  // the final position, every camera
+      NewPoint& p = all.new_points[at.at(m.id)];
+      p.position = m.position;
+      p.camera_ids.insert(p.camera_ids.end(), m.camera_ids.begin(), m.camera_ids.end());
+    }
+    for (uint64_t id : u.removed_points) all.new_points[at.at(id)].camera_ids.clear();
+  }
+  std::vector<NewPoint> kept;
+  for (NewPoint& p : all.new_points)
+    if (!p.camera_ids.empty()) kept.push_back(std::move(p));
+  all.new_points = std::move(kept);
+  all.last = true;
+  Engine engine(Forgetting(ForgetMode::kAuto), nullptr);
+  const Status s = engine.ApplyUpdate(all);
+  ASSERT_TRUE(s.ok()) << s.message();
+  EXPECT_FALSE(engine.forgetting());
+  EXPECT_TRUE(engine.TakeFinalParts().empty());
+  EXPECT_EQ(engine.Stats().cells_finalized, 0);
 }
 
 // Points far behind can still be named: a late move of a forgotten point (a SLAM system

@@ -117,6 +117,8 @@ SurfacePart Engine::FinishSurface() {
   return part;
 }
 
+SurfacePart Engine::LiveSurface() { return impl_->MakePart(impl_->LiveBoundary()); }
+
 Mesh Engine::ExtractMesh() const {
   const auto t0 = Clock::now();
   Mesh m = impl_->ToMesh(impl_->LiveBoundary(), impl_->s.opt.steiner_export);

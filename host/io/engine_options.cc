@@ -12,6 +12,10 @@ namespace {
 template <typename E>
 std::vector<E> EnumValues();
 template <>
+std::vector<engine::ForgetMode> EnumValues() {
+  return {engine::ForgetMode::kAuto, engine::ForgetMode::kOn, engine::ForgetMode::kOff};
+}
+template <>
 std::vector<engine::LongRays> EnumValues() {
   return {engine::LongRays::kSkip, engine::LongRays::kNearCamera};
 }
@@ -142,7 +146,10 @@ std::vector<EngineOption> MakeTable() {
       Option("forget", &E::forget, kNone, "",
              "long drives: the part of the scene the cameras have left behind (forget_distance "
              "behind every one of the last `window` cameras) is final: its surface is "
-             "handed out (tiles) and its cells, rays and points leave memory"),
+             "handed out (tiles) and its cells, rays and points leave memory. true or false "
+             "(also as JSON booleans); auto: on once the cameras travel (one after the other "
+             "along a path, not around what they look at: their centres spread at most twice "
+             "as far as the points), off for an object ring or a model in one update"),
       Option("forget_distance", &E::forget_distance, Min(0.0), "m",
              "forget: how far behind the cameras a cell is final; 0: max_ray_length + "
              "steiner_margin + shrink_radius + steiner_spacing (which engine.scale auto scales)"),
@@ -187,7 +194,11 @@ const json& EngineOptionsSchema() {
   return schema;
 }
 
-bool EngineOptionsFromJson(const json& j, EngineOptions* o, std::vector<Problem>* problems) {
+bool EngineOptionsFromJson(const json& given, EngineOptions* o, std::vector<Problem>* problems) {
+  // "forget" was a boolean before "auto": true and false stay the words they were.
+  json j = given;
+  if (j.is_object() && j.contains("forget") && j["forget"].is_boolean())
+    j["forget"] = j["forget"].get<bool>() ? "true" : "false";
   const std::size_t before = problems->size();
   ValidateAgainstSchema(EngineOptionsSchema(), j, "engine", problems);
   if (problems->size() != before) return false;

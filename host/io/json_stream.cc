@@ -18,12 +18,16 @@ struct UnreadableJson : std::runtime_error {
 
 // Builds values from SAX events. Depth 0 is the top-level object; depth 1 its members; for a
 // streamed array member, depth 2 are its elements, each built and delivered on its own.
+using ElementAt = std::function<void(const std::string&, std::size_t, json&&, int64_t, int64_t)>;
+
 class Streamer : public nlohmann::json_sax<json> {
  public:
+  // `in`: the stream parsed, asked where an element begins and ends (the parser reads it one
+  // character at a time, without looking ahead past a bracket).
   Streamer(const std::set<std::string>& streamed,
-           const std::function<void(const std::string&, json&&)>& member,
-           const std::function<void(const std::string&, std::size_t, json&&)>& element)
-      : streamed_(streamed), member_(member), element_(element) {}
+           const std::function<void(const std::string&, json&&)>& member, const ElementAt& element,
+           std::istream* in)
+      : streamed_(streamed), member_(member), element_(element), in_(in) {}
 
   bool null() override { return Value(json(nullptr)); }
   bool boolean(bool v) override { return Value(json(v)); }
@@ -107,6 +111,7 @@ class Streamer : public nlohmann::json_sax<json> {
     if (stack_.empty()) {
       root_ = std::move(container);
       stack_.push_back(&root_);
+      if (streaming_) begin_ = static_cast<int64_t>(in_->tellg()) - 1;  // at its bracket
     } else {
       json& parent = *stack_.back();
       json* child;
@@ -128,16 +133,21 @@ class Streamer : public nlohmann::json_sax<json> {
     return true;
   }
   void Deliver(json&& v) {
-    if (streaming_)
-      element_(key_, index_++, std::move(v));
-    else
+    if (streaming_) {
+      const bool container = v.is_structured();
+      element_(key_, index_++, std::move(v), container ? begin_ : -1,
+               container ? static_cast<int64_t>(in_->tellg()) : -1);
+    } else {
       member_(key_, std::move(v));
+    }
     root_ = json();
   }
 
   const std::set<std::string>& streamed_;
   const std::function<void(const std::string&, json&&)>& member_;
-  const std::function<void(const std::string&, std::size_t, json&&)>& element_;
+  const ElementAt& element_;
+  std::istream* in_;
+  int64_t begin_ = -1;
   bool in_top_ = false;
   bool done_ = false;
   bool streaming_ = false;
@@ -157,9 +167,19 @@ std::set<std::string> StreamJsonFile(const std::filesystem::path& file, const st
                     const std::function<void(const std::string&, nlohmann::json&&)>& member,
                     const std::function<void(const std::string&, std::size_t,
                                              nlohmann::json&&)>& element) {
+  return StreamJsonFile(file, streamed, member,
+                        [&](const std::string& key, std::size_t i, json&& e, int64_t, int64_t) {
+                          element(key, i, std::move(e));
+                        });
+}
+
+std::set<std::string> StreamJsonFile(
+    const std::filesystem::path& file, const std::set<std::string>& streamed,
+    const std::function<void(const std::string&, nlohmann::json&&)>& member,
+    const std::function<void(const std::string&, std::size_t, nlohmann::json&&, int64_t, int64_t)>& element) {
   // The open rule: a FIFO or a device named as the file is refused by name, never waited on.
   InputStream in(file, "a JSON file");
-  Streamer s(streamed, member, element);
+  Streamer s(streamed, member, element, &in);
   try {
     nlohmann::json::sax_parse(in, &s);
   } catch (const std::ios_base::failure& e) {

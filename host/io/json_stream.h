@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <set>
@@ -30,5 +31,14 @@ std::set<std::string> StreamJsonFile(const std::filesystem::path& file, const st
                     const std::function<void(const std::string& key, nlohmann::json&& value)>& member,
                     const std::function<void(const std::string& key, std::size_t index,
                                              nlohmann::json&& element)>& element);
+
+// The same, with each streamed element's place in the file: the bytes [begin, end) hold its text
+// (begin -1 for an element that is not an object or an array), so that a second pass can read
+// one element again without parsing the file up to it (the SLAM JSON reader's views).
+std::set<std::string> StreamJsonFile(
+    const std::filesystem::path& file, const std::set<std::string>& streamed,
+    const std::function<void(const std::string& key, nlohmann::json&& value)>& member,
+    const std::function<void(const std::string& key, std::size_t index, nlohmann::json&& element,
+                             int64_t begin, int64_t end)>& element);
 
 }  // namespace imr::io

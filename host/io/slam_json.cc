@@ -5,12 +5,14 @@
 #include "host/io/openmvg_reader.h"
 #include "host/io/update_check.h"
 #include "host/io/schema.h"
+#include "host/util/input_file.h"
 #include "host/util/json_text.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 
@@ -57,20 +59,26 @@ std::string Coordinates(const Vec3& x) {
   return b;
 }
 
-// Reads the file once (the compact observations, about 48 bytes each, and the views), checks
-// every keyframe's update at open (a dry run: bad input fails before the run), then builds each
-// update only when it is asked for, and lets go of its observations and of the points nothing
-// later in the file touches: what it holds shrinks as the drive goes instead of holding every
-// update from the start (issue 46).
+// Reads the file in passes, so that what it holds does not follow the file's size (issue 46):
+//  1. a SAX pass (json_stream.h) reads and checks the views one at a time and keeps, per view,
+//     its camera and where its text lies in the file, and per point only the last keyframe that
+//     names it (then, per keyframe, the points last used there: 8 bytes a point);
+//  2. at open still, a dry run builds every update from the views read again one at a time and
+//     drops it, so that bad input fails before the run (removed points, observations after a
+//     removal, keyframes out of order); a point's state lives from its first observation to its
+//     last use;
+//  3. the live run builds each update the same way when it is asked for.
+// What a pass holds at a time: the observations of one keyframe's views, those an imr stream
+// delivers later than their view's keyframe until then, and the points being tracked.
 class SlamJsonSource : public KeyframeSource {
  public:
   SlamJsonSource(const std::filesystem::path& file, const SlamJsonOptions& o)
-      : f_(file.string()), opt_(o) {
+      : file_(file), f_(file.string()), opt_(o) {
     const std::set<std::string> keys = StreamJsonFile(
         file, {"views", "intrinsics"},
         [&](const std::string& key, json&& v) { Member(key, v); },
-        [&](const std::string& key, std::size_t i, json&& e) {
-          if (key == "views") View(i, e);
+        [&](const std::string& key, std::size_t i, json&& e, int64_t begin, int64_t end) {
+          if (key == "views") View(i, e, begin, end);
           else Intrinsic(i, e);
         });
     if (!keys.count("views")) f_.Fail("(top level)", "missing field \"views\"");
@@ -81,33 +89,25 @@ class SlamJsonSource : public KeyframeSource {
   bool Next(engine::KeyframeUpdate* u, KeyframeInfo* info) override {
     if (next_ >= list_.numbers.size()) return false;
     *u = engine::KeyframeUpdate{};
-    DeliverKeyframe(next_, &live_, &live_points_, u);
-    // The points whose last use this was, and the keyframe's own lists.
-    for (uint64_t id : erase_at_[next_]) live_points_.erase(id);
+    DeliverKeyframe(next_, &live_, u);
     Release(&erase_at_[next_]);
     Release(&list_.removed[next_]);
     *info = {static_cast<int>(next_), list_.frames[next_]};
     ++next_;
     u->last = next_ == list_.numbers.size();
-    if (u->last) {
-      Release(&chunks_);
-      Release(&late_);
-      Release(&live_points_);
-    }
+    if (u->last) live_ = Delivery{};  // the file closed, nothing pending
     return true;
   }
   int KeyframeCount() const override { return static_cast<int>(list_.numbers.size()); }
 
-  // What the reader still holds for the keyframes not handed out yet: the observations not
-  // delivered, the points' states, their release schedule and the keyframes' removals (not the
-  // views' geometry, kept for Camera()). Blocks are full but the last (shrunk at Build), and
-  // freed once delivered.
+  // What the reader still holds for the keyframes not handed out yet: the observations read
+  // ahead of their keyframe (an imr stream's later ones), the points' states, their release
+  // schedule and the keyframes' removals (not the views' cameras, kept for Camera()). At open:
+  // the schedule and the removals, 8 bytes a point and a removal, none per observation.
   int64_t PendingBytes() const override {
     int64_t b = 0;
-    for (std::size_t c = live_.chunk; c < chunks_.size(); ++c)
-      b += static_cast<int64_t>((chunks_[c].size() - (c == live_.chunk ? live_.pos : 0)) * sizeof(Obs));
-    b += static_cast<int64_t>(late_.capacity() * sizeof(Obs));
-    for (const auto& [id, p] : live_points_)
+    for (const auto& [k, obs] : live_.ahead) b += static_cast<int64_t>(obs.capacity() * sizeof(Obs));
+    for (const auto& [id, p] : live_.points)
       b += static_cast<int64_t>(sizeof(id) + sizeof(p) + p.cameras.capacity() * sizeof(uint64_t));
     for (std::size_t k = 0; k < erase_at_.size(); ++k)
       b += static_cast<int64_t>((erase_at_[k].capacity() + list_.removed[k].capacity()) * sizeof(uint64_t));
@@ -127,7 +127,7 @@ class SlamJsonSource : public KeyframeSource {
     uint64_t intrinsic = 0;
     bool has_intrinsic = false;
     int width = 0, height = 0;  // the view's own image size (imr's writer and others put it here)
-    std::string path;
+    int64_t begin = 0, end = 0;  // its text in the file
   };
   struct Obs {
     uint64_t point;
@@ -136,6 +136,9 @@ class SlamJsonSource : public KeyframeSource {
     uint32_t view;
     uint32_t index;  // within the view, for messages
   };
+
+  // A view's path in the file, for messages.
+  static std::string ViewPath(std::size_t i) { return "views[" + std::to_string(i) + "]"; }
 
   void Member(const std::string& key, const json& v) {
     if (key == "slam_data_version") {
@@ -164,10 +167,11 @@ class SlamJsonSource : public KeyframeSource {
       f_.Fail(path, "intrinsic " + std::to_string(id) + " is listed twice");
   }
 
-  void View(std::size_t i, const json& v) {
-    const std::string path = "views[" + std::to_string(i) + "]";
+  // Pass 1: the view's camera and place, its observations checked, each point's last keyframe.
+  void View(std::size_t i, const json& v, int64_t begin, int64_t end) {
+    const std::string path = ViewPath(i);
     ViewRec r;
-    r.path = path;
+    r.begin = begin, r.end = end;
     CameraGeometry& g = r.geometry;
     g.id = f_.Id(f_.Member(v, "viewId", path), path + ".viewId");
     if (!view_by_id_.emplace(g.id, views_.size()).second)
@@ -189,13 +193,26 @@ class SlamJsonSource : public KeyframeSource {
     const json& ex = f_.Member(v, "extrinsic", path);
     const Mat3 rot = f_.Rotation(f_.Member(ex, "rotation", path + ".extrinsic"), path + ".extrinsic.rotation");
     SetFromCenter(rot, f_.Vector3(f_.Member(ex, "center", path + ".extrinsic"), path + ".extrinsic.center"), &g);
+    const int64_t vk = r.keyframe != kNone ? r.keyframe : static_cast<int64_t>(i) / std::max(1, opt_.views_per_keyframe);
+    views_.push_back(std::move(r));
+    Observations(views_.size() - 1, v, [&](const Obs& o) {
+      const int64_t at = o.keyframe != kNone ? o.keyframe : vk;
+      auto [it, first] = last_number_.try_emplace(o.point, at);
+      if (!first) it->second = std::max(it->second, at);
+    });
+  }
+
+  // The observations of view `vi` (its JSON `v`), checked, each handed to `fn` in file order with
+  // its delivery keyframe (kNone: the view's).
+  // A view sees a point once at a keyframe (imr's streams list it again at a later keyframe with
+  // the later estimate): the same pointId twice at one keyframe with two positions is a
+  // contradiction (the same position twice is read as once).
+  template <class Fn>
+  void Observations(std::size_t vi, const json& v, Fn&& fn) const {
+    const std::string path = ViewPath(vi);
     const json& obs = f_.Member(v, "observations", path);
     if (!obs.is_array()) f_.Fail(path + ".observations", "expected an array, got " + Describe(obs));
-    // A view sees a point once at a keyframe (imr's streams list it again at a later keyframe
-    // with the later estimate): the same pointId twice at one keyframe with two positions is a
-    // contradiction (the same position twice is read as once).
-    std::map<std::pair<uint64_t, int64_t>, std::size_t> seen;
-    std::vector<Obs> here;
+    std::map<std::pair<uint64_t, int64_t>, std::pair<Vec3, uint32_t>> seen;
     for (std::size_t j = 0; j < obs.size(); ++j) {
       const std::string op = path + ".observations[" + std::to_string(j) + "]";
       Obs o;
@@ -203,41 +220,26 @@ class SlamJsonSource : public KeyframeSource {
       o.x = f_.Vector3(f_.Member(obs[j], "X", op), op + ".X");
       o.keyframe = kNone;
       if (const json* k = f_.Optional(obs[j], "keyframe", op)) o.keyframe = f_.Integer(*k, op + ".keyframe");
-      if (const auto [it, first] = seen.try_emplace({o.point, o.keyframe}, here.size()); !first) {
-        const Vec3& before = here[it->second].x;
+      o.view = static_cast<uint32_t>(vi);
+      o.index = static_cast<uint32_t>(j);
+      const auto [it, first] = seen.try_emplace({o.point, o.keyframe}, o.x, o.index);
+      if (!first) {
+        const Vec3& before = it->second.first;
         if (before != o.x)
           f_.Fail(op + ".pointId",
                   "point " + std::to_string(o.point) + " is listed twice in view " +
-                      std::to_string(g.id) + " with two positions (observations[" +
-                      std::to_string(here[it->second].index) + "].X [" + Coordinates(before) +
+                      std::to_string(views_[vi].geometry.id) + " with two positions (observations[" +
+                      std::to_string(it->second.second) + "].X [" + Coordinates(before) +
                       "], here [" + Coordinates(o.x) +
                       "]): a view sees a point once (at a keyframe)");
         continue;
       }
-      o.view = static_cast<uint32_t>(views_.size());
-      o.index = static_cast<uint32_t>(j);
-      here.push_back(o);
+      fn(o);
     }
-    // Delivered with the view's keyframe (in file order, in blocks), or later (an explicit
-    // later keyframe: kept apart, put in keyframe order at Build).
-    const int64_t vk = r.keyframe != kNone ? r.keyframe : static_cast<int64_t>(i) / std::max(1, opt_.views_per_keyframe);
-    for (Obs& o : here) {
-      if (o.keyframe != kNone && o.keyframe != vk) {
-        late_.push_back(o);
-        continue;
-      }
-      o.keyframe = kNone;
-      if (chunks_.empty() || chunks_.back().size() == kChunk) {
-        chunks_.emplace_back();
-        chunks_.back().reserve(kChunk);
-      }
-      chunks_.back().push_back(o);
-    }
-    views_.push_back(std::move(r));
   }
 
   std::string ObsPath(const Obs& o) const {
-    return views_[o.view].path + ".observations[" + std::to_string(o.index) + "]";
+    return ViewPath(o.view) + ".observations[" + std::to_string(o.index) + "]";
   }
 
   void Build() {
@@ -246,28 +248,38 @@ class SlamJsonSource : public KeyframeSource {
     list_ = ListKeyframes();
     const bool has_imr_stream = !imr_stream_.is_null();
     imr_stream_ = nullptr;  // its keyframes are in list_ now
-    OrderObservations();
-    if (!chunks_.empty()) chunks_.back().shrink_to_fit();
-    // The dry run: every update built and dropped, so that bad input fails here; it notes the
-    // last keyframe each point is used at, when the live run lets go of its state.
-    std::unordered_map<uint64_t, PointState> points;
+    for (std::size_t i = 0; i < list_.numbers.size(); ++i) slot_[list_.numbers[i]] = i;
+    for (std::size_t i = 0; i < views_.size(); ++i)
+      if (!slot_.count(views_[i].keyframe))
+        f_.Fail(ViewPath(i) + ".keyframe", "keyframe " + std::to_string(views_[i].keyframe) +
+                                               " is not in imr_stream.keyframes");
+    // Each point leaves the reader's memory after the last keyframe that observes or removes it.
+    for (std::size_t k = 0; k < list_.numbers.size(); ++k)
+      for (uint64_t id : list_.removed[k]) {
+        auto [it, first] = last_number_.try_emplace(id, list_.numbers[k]);
+        if (!first) it->second = std::max(it->second, list_.numbers[k]);
+      }
+    const std::size_t points = last_number_.size();
+    erase_at_.assign(list_.numbers.size(), {});
+    for (const auto& [id, number] : last_number_) {
+      // A keyframe no list names fails in the dry run (a late observation's): keep it to the end.
+      auto s = slot_.upper_bound(number);
+      erase_at_[s == slot_.begin() ? 0 : std::prev(s)->second].push_back(id);
+    }
+    Release(&last_number_);
+    for (auto& ids : erase_at_) ids.shrink_to_fit();
+    // The dry run: every update built and dropped, so that bad input fails here.
     Delivery d;
     engine::KeyframeUpdate scratch;
     for (std::size_t k = 0; k < list_.numbers.size(); ++k) {
       scratch = engine::KeyframeUpdate{};
-      DeliverKeyframe(k, &d, &points, &scratch);
-    }
-    int64_t pending = 0;
-    erase_at_.assign(list_.numbers.size(), {});
-    for (const auto& [id, s] : points) {
-      pending += s.entered ? 0 : 1;
-      erase_at_[s.last_use].push_back(id);
+      DeliverKeyframe(k, &d, &scratch);
     }
     summary_ = {{"file", f_.file()},
                 {"views", views_.size()},
                 {"observations", d.observations},
-                {"points", points.size()},
-                {"points_never_entered", pending},
+                {"points", points},
+                {"points_never_entered", d.never_entered},
                 {"moves", d.moves},
                 {"min_views", list_.min_views},
                 {"keyframes", list_.numbers.size()},
@@ -287,25 +299,29 @@ class SlamJsonSource : public KeyframeSource {
     bool entered = false, removed = false;
     Vec3 position{};
     std::vector<uint64_t> cameras;
-    std::size_t last_use = 0;  // the last keyframe (index) that observed or removed it so far
   };
 
-  // Where the delivery of the keyframes stands: the next view, observation block and place in
-  // it, later observation, the counts. `release`: blocks are freed once delivered (the live run).
+  // Where a pass over the keyframes stands: the next view, the observations read ahead of their
+  // keyframe (by keyframe number, in file order), the points between their first observation and
+  // their last use, the counts.
   struct Delivery {
-    std::size_t vi = 0, chunk = 0, pos = 0, li = 0;
-    int64_t moves = 0, observations = 0;
-    bool release = false;
+    std::size_t vi = 0;
+    std::map<int64_t, std::vector<Obs>> ahead;
+    std::unordered_map<uint64_t, PointState> points;
+    std::unique_ptr<InputStream> in;  // the file, opened at the first view read
+    std::string text;                 // a view's text
+    int64_t moves = 0, observations = 0, never_entered = 0;
   };
 
   // Intrinsics of the views.
   void ResolveIntrinsics() {
-    for (ViewRec& v : views_) {
+    for (std::size_t i = 0; i < views_.size(); ++i) {
+      ViewRec& v = views_[i];
       if (!v.has_intrinsic) continue;
       auto it = intrinsics_.find(v.intrinsic);
       if (it == intrinsics_.end())
-        f_.Fail(v.path + ".id_intrinsic", "view " + std::to_string(v.geometry.id) + " uses intrinsic " +
-                                              std::to_string(v.intrinsic) + ", which intrinsics does not list");
+        f_.Fail(ViewPath(i) + ".id_intrinsic", "view " + std::to_string(v.geometry.id) + " uses intrinsic " +
+                                                   std::to_string(v.intrinsic) + ", which intrinsics does not list");
       v.geometry.intrinsics = it->second;
       v.geometry.has_intrinsics = true;
       // An intrinsic without an image size takes the view's (SLAM JSON puts it in either place).
@@ -320,13 +336,13 @@ class SlamJsonSource : public KeyframeSource {
     for (std::size_t i = 0; i < views_.size(); ++i) {
       ViewRec& v = views_[i];
       if ((v.keyframe != kNone) != numbered)
-        f_.Fail(v.path, numbered ? "missing field \"keyframe\" (the first view has one: all need one)"
-                                 : "has a \"keyframe\" but the first view has none (all or none)");
+        f_.Fail(ViewPath(i), numbered ? "missing field \"keyframe\" (the first view has one: all need one)"
+                                      : "has a \"keyframe\" but the first view has none (all or none)");
       if (!numbered) v.keyframe = static_cast<int64_t>(i) / opt_.views_per_keyframe;
       if (i > 0 && v.keyframe < views_[i - 1].keyframe)
-        f_.Fail(v.path + ".keyframe", "keyframe " + std::to_string(v.keyframe) +
-                                          " comes after keyframe " + std::to_string(views_[i - 1].keyframe) +
-                                          " (views must be in keyframe order)");
+        f_.Fail(ViewPath(i) + ".keyframe", "keyframe " + std::to_string(v.keyframe) +
+                                               " comes after keyframe " + std::to_string(views_[i - 1].keyframe) +
+                                               " (views must be in keyframe order)");
     }
   }
 
@@ -365,45 +381,60 @@ class SlamJsonSource : public KeyframeSource {
     return list;
   }
 
-  // Every view and observation in a listed keyframe; the observations in delivery order:
-  // (keyframe, view order, order in the view).
-  void OrderObservations() {
-    const KeyframeList& list = list_;
-    std::unordered_map<int64_t, std::size_t> slot;
-    for (std::size_t i = 0; i < list.numbers.size(); ++i) slot[list.numbers[i]] = i;
-    for (const ViewRec& v : views_)
-      if (!slot.count(v.keyframe))
-        f_.Fail(v.path + ".keyframe", "keyframe " + std::to_string(v.keyframe) + " is not in imr_stream.keyframes");
-    // The blocks' observations are at their view's keyframe, which is listed (above).
-    for (Obs& o : late_) {
-      const int64_t vk = views_[o.view].keyframe;
-      if (o.keyframe < vk)
-        f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) +
-                                              " is before its view's keyframe " + std::to_string(vk));
-      if (!slot.count(o.keyframe))
-        f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) + " is not in imr_stream.keyframes");
-    }
-    std::stable_sort(late_.begin(), late_.end(), [](const Obs& a, const Obs& b) { return a.keyframe < b.keyframe; });
+
+  // The text of view `vi`, read again (pass 1 checked it: a difference now means the file
+  // changed while it was read).
+  json ReadView(std::size_t vi, Delivery* d) const {
+    const ViewRec& v = views_[vi];
+    if (!d->in) d->in = std::make_unique<InputStream>(file_, "a JSON file");
+    d->text.resize(static_cast<std::size_t>(v.end - v.begin));
+    d->in->seekg(v.begin);
+    d->in->read(d->text.data(), static_cast<std::streamsize>(d->text.size()));
+    json j = json::parse(d->text, nullptr, /*allow_exceptions=*/false);
+    if (!d->in->good() || v.begin < 0 || !j.is_object())
+      f_.Fail(ViewPath(vi), "changed while it was read (read again at its keyframe, it is no longer "
+                            "the view read at open): do not write the file while imr reads it");
+    return j;
   }
 
   // Keyframe k's update: its cameras, its removals, and its observations as new points (seen by
-  // min_views cameras) and moved ones.
-  // Its observations in the file's order: the later ones of earlier views first (their views
-  // come before this keyframe's), then those of its own views.
-  void DeliverKeyframe(std::size_t k, Delivery* d,
-                       std::unordered_map<uint64_t, PointState>* points_in, engine::KeyframeUpdate* out) {
+  // min_views cameras) and moved ones. Its observations in the file's order: the later ones of
+  // earlier views first (their views come before this keyframe's), then those of its own views.
+  void DeliverKeyframe(std::size_t k, Delivery* d, engine::KeyframeUpdate* out) {
     const KeyframeList& list = list_;
-    std::unordered_map<uint64_t, PointState>& points = *points_in;
+    std::unordered_map<uint64_t, PointState>& points = d->points;
     engine::KeyframeUpdate& u = *out;
-    for (; d->vi < views_.size() && views_[d->vi].keyframe == list.numbers[k]; ++d->vi)
-      u.cameras.push_back({views_[d->vi].geometry.id, views_[d->vi].geometry.center});
+    const int64_t number = list.numbers[k];
+    std::vector<Obs> now;
+    if (auto it = d->ahead.find(number); it != d->ahead.end()) {
+      now = std::move(it->second);
+      d->ahead.erase(it);
+    }
+    for (; d->vi < views_.size() && views_[d->vi].keyframe == number; ++d->vi) {
+      const std::size_t vi = d->vi;
+      u.cameras.push_back({views_[vi].geometry.id, views_[vi].geometry.center});
+      const json v = ReadView(vi, d);
+      Observations(vi, v, [&](Obs o) {
+        if (o.keyframe == kNone || o.keyframe == number) {
+          o.keyframe = kNone;
+          now.push_back(o);
+          return;
+        }
+        if (o.keyframe < number)
+          f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) +
+                                                " is before its view's keyframe " + std::to_string(number));
+        if (!slot_.count(o.keyframe))
+          f_.Fail(ObsPath(o) + ".keyframe", "keyframe " + std::to_string(o.keyframe) +
+                                                " is not in imr_stream.keyframes");
+        d->ahead[o.keyframe].push_back(o);
+      });
+    }
     for (uint64_t id : list.removed[k]) {
       auto it = points.find(id);
       if (it == points.end() || !it->second.entered || it->second.removed)
         f_.Fail("imr_stream.keyframes[" + std::to_string(k) + "].removed_points",
-                PointNotInStream(id, list.numbers[k]));
+                PointNotInStream(id, number));
       it->second.removed = true;
-      it->second.last_use = k;
     }
     u.removed_points = list.removed[k];
     std::vector<uint64_t> touched;
@@ -412,23 +443,9 @@ class SlamJsonSource : public KeyframeSource {
       Vec3 before;  // the estimate the engine has
     };
     std::unordered_map<uint64_t, Move> moved;
-    const int64_t number = list.numbers[k];
-    // The next observation of keyframe k, or null.
-    auto next = [&]() -> const Obs* {
-      if (d->li < late_.size() && late_[d->li].keyframe == number) return &late_[d->li++];
-      while (d->chunk < chunks_.size() && d->pos == chunks_[d->chunk].size()) {
-        if (d->release) Release(&chunks_[d->chunk]);
-        ++d->chunk, d->pos = 0;
-      }
-      if (d->chunk < chunks_.size() && views_[chunks_[d->chunk][d->pos].view].keyframe == number)
-        return &chunks_[d->chunk][d->pos++];
-      return nullptr;
-    };
-    for (const Obs* op = next(); op != nullptr; op = next()) {
-      const Obs& o = *op;
+    for (const Obs& o : now) {
       ++d->observations;
       PointState& s = points[o.point];
-      s.last_use = k;
       if (s.removed)
         f_.Fail(ObsPath(o), ObservedAfterRemoval(o.point));
       const uint64_t cam = views_[o.view].geometry.id;
@@ -462,22 +479,28 @@ class SlamJsonSource : public KeyframeSource {
         u.new_points.push_back({id, s.position, s.cameras});
       }
     }
+    // The points whose last use this was.
+    for (uint64_t id : erase_at_[k]) {
+      auto it = points.find(id);
+      if (it == points.end()) continue;
+      d->never_entered += it->second.entered ? 0 : 1;
+      points.erase(it);
+    }
   }
 
+  std::filesystem::path file_;
   JsonFields f_;
   SlamJsonOptions opt_;
-  static constexpr std::size_t kChunk = 1 << 14;  // observations per block (768 kB)
 
   json imr_stream_;
   std::map<uint64_t, Intrinsics> intrinsics_;
   std::vector<ViewRec> views_;
   std::unordered_map<uint64_t, std::size_t> view_by_id_;
-  std::vector<std::vector<Obs>> chunks_;  // observations at their view's keyframe, file order
-  std::vector<Obs> late_;                 // those delivered later, in keyframe order
+  std::unordered_map<uint64_t, int64_t> last_number_;  // pass 1: point -> last keyframe number
   KeyframeList list_;
-  std::vector<std::vector<uint64_t>> erase_at_;  // per keyframe: points last used there
-  std::unordered_map<uint64_t, PointState> live_points_;
-  Delivery live_{0, 0, 0, 0, 0, 0, true};
+  std::map<int64_t, std::size_t> slot_;           // keyframe number -> index
+  std::vector<std::vector<uint64_t>> erase_at_;   // per keyframe: points last used there
+  Delivery live_;
   std::size_t next_ = 0;
   json summary_;
 };

@@ -22,10 +22,11 @@
 //   - top-level "imr_stream": {"min_views": 1, "keyframes": [{"keyframe", "frame",
 //     "removed_points": [ids]}]}  - every update, even an empty one, and removals.
 //
-// Memory: one SAX pass (json_stream.h), views converted one at a time into a compact
-// observation list (48 bytes per observation); every update is checked at open, then built only
-// when asked for, and the observations and point states it was the last to need are freed: what
-// the reader holds shrinks over the drive (PendingBytes) but starts at the whole file's list.
+// Memory: the file is read in passes: at open a SAX pass (json_stream.h) keeps each view's camera
+// and where its text lies, and each point's last keyframe (8 bytes a point, none per
+// observation), and a dry run builds every update from the views read again one at a time, so
+// that bad input fails at open; each update is then built the same way when it is asked for.
+// What the reader holds is the tracks alive at a keyframe, not the file (PendingBytes).
 #pragma once
 
 #include "host/io/colmap_model.h"

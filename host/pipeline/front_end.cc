@@ -49,13 +49,6 @@ std::vector<uint64_t> Slice(const imr_refiner_update& u, const imr_point_estimat
   return {u.camera_ids + p.first_camera, u.camera_ids + p.first_camera + p.camera_count};
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
 }  // namespace
 
 imr_camera ToPluginCamera(const io::CameraGeometry& g, int width, int height) {
@@ -141,14 +134,10 @@ int ImageFrontEndSource::KeyframeCount() const {
 void ImageFrontEndSource::TrackPointError(uint64_t id, const io::Vec3& position, bool is_new) {
   if (!truth_) return;
   const double d = truth_->scene.Distance(truth_->ToScene(position));
-  if (is_new) {
-    point_errors_[id] = {d, d, 0};
-    return;
-  }
-  auto it = point_errors_.find(id);
-  if (it == point_errors_.end()) return;
-  it->second.latest = d;
-  ++it->second.moves;
+  if (is_new)
+    point_errors_.Add(id, d, next_keyframe_);
+  else
+    point_errors_.Move(id, d, next_keyframe_);
 }
 
 bool ImageFrontEndSource::TrackFrame(TrackedFrame* out) {
@@ -268,7 +257,7 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
       update->moved_points.push_back(std::move(m));
     }
     update->removed_points.assign(out.removed_ids, out.removed_ids + out.removed_count);
-    for (uint64_t id : update->removed_points) point_errors_.erase(id);
+    for (uint64_t id : update->removed_points) point_errors_.Remove(id);
     if (dense_ != nullptr) {
       for (const engine::NewPoint& n : update->new_points)
         if (n.id >= kDenseIdBase)
@@ -280,6 +269,7 @@ bool ImageFrontEndSource::Next(engine::KeyframeUpdate* update, io::KeyframeInfo*
     stats_.new_points += static_cast<int64_t>(out.new_count);
     stats_.moved_points += static_cast<int64_t>(out.moved_count);
     stats_.removed_points += static_cast<int64_t>(out.removed_count);
+    if (truth_) point_errors_.EndKeyframe(next_keyframe_);
     *info = {next_keyframe_++, index};
     ++stats_.keyframes;
     return true;
@@ -389,19 +379,13 @@ json ImageFrontEndSource::Summary() const {
                     : 0.0}};
   if (truth_) {
     // The refiner's promise: estimates get closer to the true surface as observations accumulate.
-    std::vector<double> first_all, first_moved, latest_moved;
-    for (const auto& [id, e] : point_errors_) {
-      first_all.push_back(e.first);
-      if (e.moves == 0) continue;
-      first_moved.push_back(e.first);
-      latest_moved.push_back(e.latest);
-    }
+    const PointErrorSummary::Figures f = point_errors_.Result();
     j["point_error"] = {{"reference", "distance to the true synthetic surface, metres"},
-                        {"points", first_all.size()},
-                        {"median_first_estimate", Median(first_all)},
-                        {"moved_points", first_moved.size()},
-                        {"moved_median_first_estimate", Median(first_moved)},
-                        {"moved_median_latest_estimate", Median(latest_moved)}};
+                        {"points", f.points},
+                        {"median_first_estimate", f.median_first},
+                        {"moved_points", f.moved},
+                        {"moved_median_first_estimate", f.moved_median_first},
+                        {"moved_median_latest_estimate", f.moved_median_latest}};
   }
   return j;
 }

@@ -12,6 +12,7 @@
 #include "host/io/image_io.h"
 #include "host/io/image_sequence.h"
 #include "host/io/keyframe_source.h"
+#include "host/pipeline/point_error_summary.h"
 #include "host/pipeline/prefetch.h"
 #include "host/pipeline/stage_watch.h"
 
@@ -159,13 +160,9 @@ class ImageFrontEndSource : public io::KeyframeSource {
   std::size_t ahead_frame_ = 0;
   std::vector<uint64_t> keyframe_tracks_;  // sorted track ids seen at the last keyframe
   std::unique_ptr<SyntheticTruth> truth_;
-  // Synthetic truth only: distance to the true surface of each point's first and latest estimate.
-  struct PointError {
-    double first = 0.0;
-    double latest = 0.0;
-    int moves = 0;
-  };
-  std::unordered_map<uint64_t, PointError> point_errors_;
+  // Synthetic truth only: distance to the true surface of each point's first and latest
+  // estimate, held while the refiner moves the point (point_error_summary.h).
+  PointErrorSummary point_errors_;
   std::vector<double> dense_errors_;  // synthetic truth only: each dense point's distance to it
   // track_ahead: TrackFrame on a thread of its own; declared last, so that its thread is joined
   // before anything it uses goes.

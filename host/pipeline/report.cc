@@ -140,7 +140,7 @@ std::string RefusedPointsWarning(const engine::EngineStats& s, const engine::Mes
 }
 
 std::string ForgettingWarning(const engine::EngineStats& s, const engine::EngineOptions& o) {
-  if (!o.forget) return {};
+  if (s.forget_on_update == 0) return {};  // it never forgot (off, or auto that stayed off)
   std::vector<std::string> what;
   if (s.changes_refused_final > 0)
     what.push_back(std::to_string(s.changes_refused_final) +
@@ -235,7 +235,12 @@ json EngineStatsJson(const engine::EngineStats& s) {
             {"inside", s.cameras_in_o},
             {"share", s.cameras_checked > 0 ? static_cast<double>(s.cameras_in_o) / s.cameras_checked : 0.0}}},
           {"forget",
-           {{"steps", s.forget_steps},
+           {{"on_from_update", s.forget_on_update},
+            {"steps_held", s.forget_steps_held},
+            {"camera_spread", s.forget_camera_spread},
+            {"point_spread", s.forget_point_spread},
+            {"camera_step", s.forget_camera_step},
+            {"steps", s.forget_steps},
             {"cells_finalized", s.cells_finalized},
             {"cells_final", s.cells_final},
             {"final_cells_replaced", s.final_cells_replaced},

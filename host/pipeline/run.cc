@@ -403,7 +403,9 @@ void SequenceRun::StartEngine() {
 // the surface stream to the tiles and to a spool for the single mesh (streamed_surface.h).
 void SequenceRun::StartStreamedSurface() {
   const TilesOptions tiles = TilesOptionsFromJson(v_.tiles);
-  if (!engine_options_.forget && !tiles.enabled) return;  // today's path: ExtractMesh at the end
+  // Today's path, ExtractMesh at the end, until the engine forgets (engine.forget auto decides
+  // on the way: before, it handed nothing out).
+  if (streamed_ || (!engine_->forgetting() && !tiles.enabled)) return;
   const fs::path out = result_->output_directory;
   if (tiles.enabled) {
     const std::string job = fs::absolute(job_.file).lexically_normal().string();
@@ -548,6 +550,11 @@ void SequenceRun::ProcessKeyframes() {
                                policy_->error());
     export_context_.Add(update, kf, front_end_);
     event.keyframes = ++keyframes_;
+    if (!streamed_ && engine_->forgetting()) {  // engine.forget auto: the cameras travel
+      LogInfo("[" + seq_.name + "] keyframe " + std::to_string(kf.index) + ": the engine forgets from here on "
+              "(engine.forget auto: the cameras travel); the surface is written in parts");
+      StartStreamedSurface();
+    }
     // The refinement first: the parts handed out now carry its positions.
     if (refinement_) refinement_->OnKeyframe(*engine_, export_context_, watch_, keyframes_);
     if (streamed_) {
@@ -588,9 +595,10 @@ void SequenceRun::Finish() {
   WriteStreamExports();
   // A source that measures the mesh triangle by triangle reads it in blocks too.
   std::unique_ptr<io::BlockEvaluation> blocks;
-  if (streamed_ && engine_options_.forget && v_.evaluation.is_null() && !job_.output.formats.empty())
+  const bool forgot = engine_->forgetting();
+  if (streamed_ && forgot && v_.evaluation.is_null() && !job_.output.formats.empty())
     blocks = source_->EvaluateInBlocks();
-  if (streamed_ && (!engine_options_.forget || (source_->CanEvaluate() && !blocks) ||
+  if (streamed_ && (!forgot || (source_->CanEvaluate() && !blocks) ||
                     !v_.evaluation.is_null()))
     WholeMesh();
   std::function<void()> evaluate;
@@ -612,7 +620,7 @@ void SequenceRun::Finish() {
 }
 
 const engine::Mesh& SequenceRun::WholeMesh() {
-  if (!mesh_) mesh_ = streamed_->ReadMesh(/*canonical=*/!engine_options_.forget);
+  if (!mesh_) mesh_ = streamed_->ReadMesh(/*canonical=*/!engine_->forgetting());
   return *mesh_;
 }
 

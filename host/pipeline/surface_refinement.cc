@@ -59,7 +59,8 @@ engine::Mesh RefinedMesh(const imr_refine_result& result, engine::Mesh& mesh,
   if (streamed && result.faces != nullptr)
     throw std::runtime_error(where + ": refine subdivided the surface, which a run that writes it "
                              "in parts (engine.forget, output.tiles) cannot take: turn the "
-                             "plugin's subdivision off");
+                             "plugin's subdivision off, or set engine.forget false (its default, "
+                             "auto, forgets once the cameras travel)");
   engine::Mesh refined;
   refined.vertices.assign(result.vertices, result.vertices + 3 * result.vertex_count);
   refined.point_ids = mesh.point_ids;

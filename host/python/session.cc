@@ -224,11 +224,21 @@ void Session::Apply(Keyframe k) {
                              policy_->error());
   export_context_.Add(k.update, k.info, nullptr);
   ++keyframes_;
+  // engine.forget (auto: once the cameras travel): what became final leaves the engine; the
+  // session keeps it, a mesh far smaller than the engine's state, for Mesh().
+  for (engine::SurfacePart& part : engine_->TakeFinalParts()) final_parts_.push_back(std::move(part));
 }
 
 engine::Mesh Session::Mesh() {
   if (!engine_) Start();
-  return engine_->ExtractMesh();
+  if (final_parts_.empty()) return engine_->ExtractMesh();
+  std::vector<engine::SurfacePart> parts = final_parts_;
+  parts.push_back(engine_->LiveSurface());
+  engine::Mesh mesh;
+  if (const std::string e = engine::MergeSurfaceParts(parts, &mesh); !e.empty())
+    throw std::runtime_error("the surface's parts do not fit together: " + e);
+  engine::FinishExportedMesh(&mesh, engine_->options());
+  return mesh;
 }
 
 json Session::Stats() {

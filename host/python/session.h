@@ -104,6 +104,7 @@ class Session {
   pipeline::ExportContext export_context_;
   std::vector<std::shared_ptr<io::KeyframeSource>> sources_;  // for the exports
   int keyframes_ = 0;
+  std::vector<engine::SurfacePart> final_parts_;  // handed out by the engine (engine.forget)
 };
 
 // `imr run` of a job (a file, or JSON text anchored at `job_file`), each sequence in this process

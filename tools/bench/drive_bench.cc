@@ -15,7 +15,9 @@
 // And drives read from a SLAM JSON file (--slam-frames, issue 46): the dense street written by
 // `imr run --export-stream`, read back with forgetting and tiles, the engine's bytes (the trace's
 // engine_bytes) beside the process's RSS per tenth, so that what the host holds beyond the engine
-// shows. Prints the targets met or not, and a JSON line.
+// shows. And drives from images (--image-frames, issue 46): imr-synth's street of that many frames
+// through the README's default job (the image pipeline, its refinement and colours, tiles), with
+// the same per-tenth figures. Prints the targets met or not, and a JSON line.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -47,7 +49,8 @@ const char kUsage[] =
     "usage: imr-bench drive [--frames N] [--reference-frames N] [--keyframe-every K]\n"
     "                       [--work DIR] [--imr PATH] [--no-long] [--no-street]\n"
     "                       [--synth-frames N] [--no-default]\n"
-    "                       [--slam-frames N,N] [--no-slam] [--slam-only] [--quick]\n"
+    "                       [--slam-frames N,N] [--no-slam] [--slam-only]\n"
+    "                       [--image-frames N,N] [--no-image] [--quick]\n"
     "  --frames N            the long drive (default 20000)\n"
     "  --reference-frames N  the stretch run with and without forgetting (default 2000)\n"
     "  --keyframe-every K    frames per keyframe of the dense street (default 5, as the config)\n"
@@ -59,15 +62,20 @@ const char kUsage[] =
     "  --no-default          skip the default job\n"
     "  --slam-frames N,N     the drives read from a SLAM JSON file (default 1000,5000)\n"
     "  --no-slam             skip them\n"
-    "  --slam-only           only them (the generator's drives, the street stream and the default\n"
-    "                        job skipped)\n"
-    "  --quick               --slam-only with one SLAM JSON drive of 300 frames\n";
+    "  --slam-only           only them and the image drives (the generator's drives, the street\n"
+    "                        stream and the default job skipped)\n"
+    "  --image-frames N,N    drives from images: imr-synth's street of N frames through the\n"
+    "                        default job with tiles (default 1000,5000)\n"
+    "  --no-image            skip them\n"
+    "  --quick               --slam-only with one SLAM JSON drive of 300 frames and one image\n"
+    "                        drive of 150\n";
 
 struct DriveArgs {
   int frames = 20000, reference = 2000, keyframe_every = 5, synth_frames = 500;
   bool long_run = true, street = true, default_job = true;
   std::vector<int> slam_frames = {1000, 5000};
-  bool slam = true, slam_only = false, quick = false;
+  std::vector<int> image_frames = {1000, 5000};
+  bool slam = true, slam_only = false, quick = false, image = true;
   fs::path work;
   std::string imr;
 };
@@ -77,6 +85,7 @@ struct DriveTargets {
   bool flat = true, peak_ok = true, steady = true, no_slower = true, same_quality = true;
   bool default_same = true, default_flat = true;
   bool slam_flat = true, slam_peak_ok = true, slam_host_flat = true;
+  bool image_flat = true, image_peak_ok = true, image_host_flat = true;
 };
 
 struct Run {
@@ -232,9 +241,10 @@ bool ParseDriveArgs(int argc, char** argv, DriveArgs* a, int* status) {
   o.Flag("--no-default", &a->default_job, false);
   o.IntList("--slam-frames", &a->slam_frames, 50).Flag("--no-slam", &a->slam, false);
   o.Flag("--slam-only", &a->slam_only).Flag("--quick", &a->quick);
+  o.IntList("--image-frames", &a->image_frames, 20).Flag("--no-image", &a->image, false);
   if (!o.Parse(argc, argv, status)) return false;
-  if (a->quick) a->slam_only = true, a->slam_frames = {300};
-  if (a->slam_only) a->slam = true, a->long_run = a->street = a->default_job = false;
+  if (a->quick) a->slam_only = true, a->slam_frames = {300}, a->image_frames = {150};
+  if (a->slam_only) a->long_run = a->street = a->default_job = false;  // --no-slam: images only
   if (a->frames < a->reference || a->reference < 100 || a->keyframe_every < 1 ||
       a->synth_frames < 20) {
     std::fprintf(stderr, "drive: need 100 <= --reference-frames <= --frames, --keyframe-every >= 1, "
@@ -472,6 +482,8 @@ size_t MeasuredAt(const Series& s, size_t i) {
   return i;
 }
 
+json Tenths(const Run& r);
+
 // One drive read from a SLAM JSON file: the dense street of `frames` frames written by imr run
 // --export-stream (kept in the work folder and reused), read back with forgetting and tiles.
 // Prints, per tenth, the RSS, the engine's bytes and what the host holds beyond them. False when
@@ -488,16 +500,25 @@ bool SlamDrive(const DriveArgs& a, int frames, json* out) {
   }
   const json job = {{"sequences", {file.string()}},
                     {"input", {{"format", "slam_json"}, {"options", json::object()}}},
-                    {"engine", {{"forget", true}}},
                     {"pipeline", {{{"kind", "exporter"}, {"plugin", "org.imr.exporter.assimp"}}}},
                     {"output", {{"directory", (a.work / name / "out").string()},
                                 {"formats", {"ply"}}, {"tiles", json::object()}}}};
   const Run r = RunJob(name, job, a.work, a.imr);
   if (!r.ok) return false;
-  const Series s = SeriesOf(r);
   const double file_mb = static_cast<double>(fs::file_size(file)) / 1e6;
   std::printf("\nA drive of %d frames read from a SLAM JSON file (%.0f MB; imr's dense street "
-              "written by --export-stream), forgetting and tiles on:\n", frames, file_mb);
+              "written by --export-stream), engine.forget auto, tiles:\n", frames, file_mb);
+  json d = Tenths(r);
+  d["frames"] = frames;
+  d["file_bytes"] = fs::file_size(file);
+  (*out)["slam"].push_back(d);
+  return true;
+}
+
+// The run's RSS, the engine's bytes and what the host holds beyond them per tenth (printed), and
+// report.json's figures at the end.
+json Tenths(const Run& r) {
+  const Series s = SeriesOf(r);
   MarkdownHeader({"tenth", "frame", "RSS", "engine bytes", "RSS - engine"});
   const size_t n = s.frame.size();
   json tenths = json::array();
@@ -521,18 +542,15 @@ bool SlamDrive(const DriveArgs& a, int frames, json* out) {
   const double peak = Get(r.report, {"memory", "peak_rss_bytes"});
   const double first_rss = s.rss.empty() ? NAN : s.rss.front();
   std::printf("\nreport.json: engine bytes %s at the end, final RSS %s (%s beyond the engine), peak "
-              "RSS %s; RSS %s after the first keyframe (the file read); RSS - engine over the "
+              "RSS %s; RSS %s after the first keyframe (the input opened); RSS - engine over the "
               "second half: %.1f kB per frame; wall %.1f s\n",
               Mb(engine_end).c_str(), Mb(final_rss).c_str(), Mb(final_rss - engine_end).c_str(),
               Mb(peak).c_str(), Mb(first_rss).c_str(), slope / 1e3, r.wall);
-  (*out)["slam"].push_back({{"frames", frames}, {"file_bytes", fs::file_size(file)},
-                            {"peak_rss_bytes", peak}, {"final_rss_bytes", final_rss},
-                            {"engine_bytes_end", engine_end}, {"first_rss_bytes", first_rss},
-                            {"host_bytes_first_tenth", host_first},
-                            {"host_bytes_last_tenth", host_last},
-                            {"host_slope_bytes_per_frame", slope}, {"tenths", tenths},
-                            {"wall_seconds", r.wall}});
-  return true;
+  return {{"peak_rss_bytes", peak}, {"final_rss_bytes", final_rss},
+          {"engine_bytes_end", engine_end}, {"first_rss_bytes", first_rss},
+          {"host_bytes_first_tenth", host_first}, {"host_bytes_last_tenth", host_last},
+          {"host_slope_bytes_per_frame", slope}, {"tenths", tenths}, {"wall_seconds", r.wall},
+          {"forget_on_from_update", Get(r.report, {"engine", "forget", "on_from_update"})}};
 }
 
 // The SLAM JSON drives, shortest first, and their targets: the longest's peak RSS within 1.2 x
@@ -555,6 +573,55 @@ bool SlamDrives(const DriveArgs& a, DriveTargets* t, json* out) {
   return true;
 }
 
+// One drive from images: imr-synth's street of `frames` frames (kept in the work folder and
+// reused) through the README's default job (configs/default.json: features, refiner, the
+// photometric refinement, coloured exports; engine.forget at its default, auto) with tiles.
+bool ImageDrive(const DriveArgs& a, int frames, json* out) {
+  const std::string name = "image" + std::to_string(frames);
+  const fs::path seq = a.work / name / "synth-street";
+  if (!fs::exists(seq / "poses.txt")) {
+    fs::create_directories(seq.parent_path());
+    const std::string synth = (fs::path(a.imr).parent_path() / "imr-synth").string();
+    if (Sh(Quote(synth) + " --out " + Quote(seq.string()) + " --frames " + std::to_string(frames) +
+           " --color --no-lidar --force -q >" + Quote((a.work / name / "synth.log").string()) +
+           " 2>&1") != 0) {
+      std::fprintf(stderr, "drive: imr-synth failed; see %s\n", (a.work / name / "synth.log").c_str());
+      return false;
+    }
+  }
+  json job = json::parse(ReadFileBytes(fs::path(IMR_SOURCE_DIR) / "configs/default.json"));
+  job.erase("description");
+  job["sequences"] = {seq.string()};
+  job["output"] = {{"directory", (a.work / name / "out").string()}, {"stem", "mesh"},
+                   {"formats", {"ply"}}, {"tiles", json::object()}};
+  const Run r = RunJob(name, job, a.work, a.imr);
+  if (!r.ok) return false;
+  std::printf("\nA drive of %d frames from images (imr-synth's street through the default job, "
+              "engine.forget auto, tiles):\n", frames);
+  json d = Tenths(r);
+  d["frames"] = frames;
+  (*out)["image"].push_back(d);
+  return true;
+}
+
+// The image drives, shortest first, and their targets as the SLAM JSON drives'.
+bool ImageDrives(const DriveArgs& a, DriveTargets* t, json* out) {
+  std::vector<int> lengths = a.image_frames;
+  std::sort(lengths.begin(), lengths.end());
+  (*out)["image"] = json::array();
+  for (int f : lengths)
+    if (!ImageDrive(a, f, out)) return false;
+  const json& first = (*out)["image"].front();
+  const json& last = (*out)["image"].back();
+  auto host = [](const json& d) {
+    return d["final_rss_bytes"].get<double>() - d["engine_bytes_end"].get<double>();
+  };
+  t->image_flat = last["peak_rss_bytes"].get<double>() <= 1.2 * first["peak_rss_bytes"].get<double>();
+  t->image_peak_ok = last["peak_rss_bytes"].get<double>() <= 400e6;
+  t->image_host_flat = host(last) <= 1.2 * host(first);
+  return true;
+}
+
 void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
   auto line = [](bool met, const char* what) {
     std::printf("- %s: %s\n", met ? "met" : "NOT MET", what);
@@ -568,9 +635,18 @@ void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
     line(t.slam_host_flat, ("SLAM JSON: RSS beyond the engine's bytes at the end <= 1.2 x the "
                             "shortest drive's (" + lengths + ")").c_str());
   }
+  if (a.image) {
+    const std::string lengths = Format("%d frames beside %d", *std::max_element(a.image_frames.begin(), a.image_frames.end()),
+                                       *std::min_element(a.image_frames.begin(), a.image_frames.end()));
+    line(t.image_flat, ("images: peak RSS <= 1.2 x the shortest drive's (" + lengths + ")").c_str());
+    line(t.image_peak_ok, "images: the longest drive's peak RSS <= 400 MB");
+    line(t.image_host_flat, ("images: RSS beyond the engine's bytes at the end <= 1.2 x the "
+                             "shortest drive's (" + lengths + ")").c_str());
+  }
   if (a.slam_only) {
     (*out)["targets"] = {{"slam_flat", t.slam_flat}, {"slam_peak", t.slam_peak_ok},
-                         {"slam_host_flat", t.slam_host_flat}};
+                         {"slam_host_flat", t.slam_host_flat}, {"image_flat", t.image_flat},
+                         {"image_peak", t.image_peak_ok}, {"image_host_flat", t.image_host_flat}};
     return;
   }
   if (a.long_run) {
@@ -593,7 +669,8 @@ void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
                        {"no_slower", t.no_slower}, {"same_quality", t.same_quality},
                        {"default_same", t.default_same}, {"default_flat", t.default_flat},
                        {"slam_flat", t.slam_flat}, {"slam_peak", t.slam_peak_ok},
-                       {"slam_host_flat", t.slam_host_flat}};
+                       {"slam_host_flat", t.slam_host_flat}, {"image_flat", t.image_flat},
+                       {"image_peak", t.image_peak_ok}, {"image_host_flat", t.image_host_flat}};
 }
 
 }  // namespace
@@ -612,6 +689,7 @@ int RunDriveBench(int argc, char** argv) {
   if (a.street && !StreetStream(a, &out)) return 1;
   if (a.default_job && !DefaultJobs(a, &t, &out)) return 1;
   if (a.slam && !SlamDrives(a, &t, &out)) return 1;
+  if (a.image && !ImageDrives(a, &t, &out)) return 1;
   PrintDriveTargets(a, t, &out);
   std::printf("%s\n", out.dump().c_str());
   return 0;

@@ -44,7 +44,12 @@ struct RunResult {
   double observations_per_frame = 0.0;
 };
 
-EngineOptions g_base_options;
+// The paper's engine, measured on the whole scene (forgetting has its own bench: drive).
+EngineOptions g_base_options = [] {
+  EngineOptions o;
+  o.forget = engine::ForgetMode::kOff;
+  return o;
+}();
 
 RunResult Run(const std::string& mode, bool frozen, const synthetic::StreamOptions& base,
               bool evaluate) {

@@ -91,6 +91,7 @@ EngineRun RunEngine(const synthetic::StreamOptions& so, const std::string& mode,
   EngineRun r;
   synthetic::SyntheticStream stream(so);
   engine::EngineOptions eo;
+  eo.forget = engine::ForgetMode::kOff;  // the paper's engine, measured whole (forgetting: drive)
   eo.steiner_export = engine::SteinerExportRule::kAnySteiner;  // As the default job.
   std::unique_ptr<engine::WeightTransferPolicy> policy;
   engine::testing::ConfigureMode(mode, &eo, &policy);

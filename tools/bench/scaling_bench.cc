@@ -58,6 +58,7 @@ json RunOne(const std::string& mode, int frames, const ScalingArgs& a) {
   so.seed = a.seed;
   synthetic::SyntheticStream stream(so);
   engine::EngineOptions eo;
+  eo.forget = engine::ForgetMode::kOff;  // memory and time of the whole scene (forgetting: drive)
   std::unique_ptr<engine::WeightTransferPolicy> policy;
   engine::testing::ConfigureMode(mode, &eo, &policy);
   const long heap0 = HeapInUseBytes();

@@ -24,13 +24,15 @@ def street_stream(shared_dir):
 
 def test_street_stream_fed_from_python_is_imr_runs_mesh(shared_dir, tmp_path, run_imr):
     stream = street_stream(shared_dir)
-    engine = imr.Engine()  # a job's defaults: engine.scale auto for slam_json, as imr run
+    # A job's defaults (engine.scale auto for slam_json, as imr run) but forgetting: imr run
+    # writes a forgetting run's mesh in the order its parts became final (the next test).
+    engine = imr.Engine(forget=False)
     for kf in imr.read_slam_json(stream):
         engine.add_keyframe(kf)
     engine.write(tmp_path / "py" / "mesh.ply")
 
     job = write_job(tmp_path / "job.json", {
-        "sequences": [stream], "input": {"format": "slam_json"},
+        "sequences": [stream], "input": {"format": "slam_json"}, "engine": {"forget": False},
         "pipeline": [{"kind": "exporter", "plugin": "org.imr.exporter.assimp"}],
         "output": {"directory": str(tmp_path / "cli"), "formats": ["ply"]}})
     r = run_imr("run", "-q", job)
@@ -54,6 +56,38 @@ def test_street_stream_fed_from_python_is_imr_runs_mesh(shared_dir, tmp_path, ru
     assert np.array_equal(ply_faces, faces)
     assert np.array_equal(ply_vertices, vertices.astype(np.float32))
 
+
+def test_street_stream_forgetting_by_default_gives_imr_runs_triangles(shared_dir, tmp_path, run_imr):
+    """engine.forget auto: the street stream travels, the engine hands its surface out in parts
+    and the module keeps them: its mesh holds imr run's triangles (imr run writes them in the
+    order the parts became final, the module in the canonical order)."""
+    stream = street_stream(shared_dir)
+    engine = imr.Engine()
+    for kf in imr.read_slam_json(stream):
+        engine.add_keyframe(kf)
+    engine.write(tmp_path / "py" / "mesh.ply")
+    job = write_job(tmp_path / "job.json", {
+        "sequences": [stream], "input": {"format": "slam_json"},
+        "pipeline": [{"kind": "exporter", "plugin": "org.imr.exporter.assimp"}],
+        "output": {"directory": str(tmp_path / "cli"), "formats": ["ply"]}})
+    r = run_imr("run", "-q", job)
+    assert r.returncode == 0, r.stdout + r.stderr
+    report = json.load(open(tmp_path / "cli" / "report.json"))
+    stats = engine.stats()
+    assert report["engine"]["forget"]["on_from_update"] > 1
+    assert stats["forget"]["on_from_update"] == report["engine"]["forget"]["on_from_update"]
+    # imr run's count has the last part (Engine::FinishSurface), the module's live surface none.
+    assert stats["forget"]["parts"] + 1 == report["engine"]["forget"]["parts"]
+
+    def triangles(ply):
+        v, f = read_binary_ply(ply)
+        t = v[f].reshape(len(f), 9)
+        return sorted(map(tuple, np.array([np.roll(r.reshape(3, 3), -int(np.lexsort(r.reshape(3, 3).T[::-1])[0]), axis=0).ravel() for r in t]).tolist()))
+
+    cli = triangles((tmp_path / "cli" / "mesh.ply").read_bytes())
+    py = triangles((tmp_path / "py" / "mesh.ply").read_bytes())
+    assert len(cli) == report["mesh"]["faces"] > 10000
+    assert py == cli, "other triangles than imr run's"
 
 def colmap_model(tmp_path, run_imr):
     """A small COLMAP text model: imr's own export of a synthetic run."""

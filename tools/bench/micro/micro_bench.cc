@@ -42,6 +42,7 @@ std::unique_ptr<Scene> BuildScene() {
   s->so.points_per_keyframe = 150;
   s->so.noise_at_10m = 0.1;
   engine::EngineOptions eo;
+  eo.forget = engine::ForgetMode::kOff;  // the micro benches probe the whole scene
   engine::testing::ConfigureMode("nearest", &eo, &s->policy);
   s->engine = std::make_unique<Engine>(eo, s->policy.get());
   synthetic::SyntheticStream stream(s->so);
