@@ -1069,13 +1069,7 @@ class Refinement {
         Vec3 centre, normal;
         if (!FitPlane(ring, tol, &centre, &normal)) continue;
         if (round == 0) ++*on_plane;
-        Vec3 t = p_[v] - normal.dot(p_[v] - centre) * normal;
-        const Vec3 off = t - input_[v];
-        const double len = off.norm();
-        if (len > options_.max_move) t = input_[v] + off * (options_.max_move / len);
-        if ((t - p_[v]).norm() <= 1e-12 * std::max(mean_edge_, 1e-300)) continue;
-        target_[v] = t;
-        planned_[v] = (t - p_[v]).norm();
+        PlanMove(v, p_[v] - normal.dot(p_[v] - centre) * normal);
       }
       const std::vector<Vec3> before = p_;
       ApplyTargets(guard, undone);
@@ -1255,15 +1249,19 @@ class Refinement {
         move += options_.smoothness * umbrella;
         if (options_.flatten_spikes > 0 && !matched_[v] && e - b >= 4) move += SpikeMove(v, mean, b, e);
       }
-      Vec3 t = p_[v] + move;
-      const Vec3 off = t - input_[v];
-      const double len = off.norm();
-      if (len > options_.max_move) t = input_[v] + off * (options_.max_move / len);
-      // Displacements at rounding level are noise, not moves.
-      if ((t - p_[v]).norm() <= 1e-12 * std::max(mean_edge_, 1e-300)) continue;
-      target_[v] = t;
-      planned_[v] = (t - p_[v]).norm();
+      PlanMove(v, p_[v] + move);
     }
+  }
+
+  // Vertex v's target `t`, kept within max_move of its input position.
+  void PlanMove(std::size_t v, Vec3 t) {
+    const Vec3 off = t - input_[v];
+    const double len = off.norm();
+    if (len > options_.max_move) t = input_[v] + off * (options_.max_move / len);
+    // Displacements at rounding level are noise, not moves.
+    if ((t - p_[v]).norm() <= 1e-12 * std::max(mean_edge_, 1e-300)) return;
+    target_[v] = t;
+    planned_[v] = (t - p_[v]).norm();
   }
 
   // Apply vertex by vertex so every check sees the current neighbours; a refused step is
