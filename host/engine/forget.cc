@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <unordered_map>
 
 namespace imr::engine::detail {
@@ -39,7 +40,10 @@ bool RetiredIds::Contains(uint64_t id) const {
 }
 
 uint64_t Forgetting::Voxel(const Point& p, double size) {
-  auto axis = [&](double x) { return static_cast<uint64_t>(std::floor(x / size)) & 0x1FFFFF; };
+  // Through int64_t: a negative coordinate's cell, converted straight to unsigned, is undefined.
+  auto axis = [&](double x) {
+    return static_cast<uint64_t>(static_cast<int64_t>(std::floor(x / size))) & 0x1FFFFF;
+  };
   return axis(p.x()) << 42 | axis(p.y()) << 21 | axis(p.z());
 }
 
