@@ -1017,7 +1017,7 @@ class Refinement {
   }
 
   // Mean angle (degrees) between the normals of the two faces of each interior edge that has a
-  // face with an active vertex: what the smoothing is for (imr-bench's roughness).
+  // face with an active vertex: what planarizing lowers (imr-bench's roughness).
   double Roughness() const {
     double sum = 0;
     int64_t edges = 0;
