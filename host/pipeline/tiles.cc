@@ -902,27 +902,22 @@ RunTiles ListRunTiles(const fs::path& run, const json& tileset) {
       if (const int i = TileIndex(uri); i > 0 && !named.count(i)) on_disk.insert(i);
       if (const int i = LodIndex(uri); i > 0 && !named_lod.count(i)) lod_on_disk.insert(i);
     }
-  // Levels of detail the same way (numbered apart).
-  int next_lod = highest_lod + 1;
-  for (int i : lod_on_disk) {
-    if (i == next_lod) {
-      out.lod_after.push_back(LodUri(i));
-      ++next_lod;
-    } else {
-      out.other.push_back(LodUri(i));
-    }
-  }
   // The writer numbers tiles 1, 2, ... and names them in order: what follows the highest it
-  // names without a gap was written after it.
-  int next = highest + 1;
-  for (int i : on_disk) {
-    if (i == next) {
-      out.after.push_back(TileUri(i));
-      ++next;
-    } else {
-      out.other.push_back(TileUri(i));
+  // names without a gap was written after it. Levels of detail the same way, numbered apart.
+  auto written_after = [&out](const std::set<int>& found, int highest_named, std::string (*uri)(int),
+                              std::vector<std::string>* after) {
+    int next = highest_named + 1;
+    for (int i : found) {
+      if (i == next) {
+        after->push_back(uri(i));
+        ++next;
+      } else {
+        out.other.push_back(uri(i));
+      }
     }
-  }
+  };
+  written_after(lod_on_disk, highest_lod, LodUri, &out.lod_after);
+  written_after(on_disk, highest, TileUri, &out.after);
   return out;
 }
 

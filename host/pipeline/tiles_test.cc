@@ -46,18 +46,31 @@ void WriteStandInGlb(const fs::path& path) {
 }
 
 
-TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
-  synthetic::StreamOptions so;
-  so.scene = synthetic::SceneKind::kStreet;
-  so.frames = 60;
-  so.points_per_keyframe = 150;
-  synthetic::SyntheticStream stream(so);
+// The engine the street tests run: its defaults on one thread.
+engine::EngineOptions StreetEngineOptions() {
   engine::EngineOptions eo;
   eo.num_threads = 1;
+  return eo;
+}
+
+// imr-synth's street stream of `frames` frames through that engine, its boundary cut into 40
+// parts along the street as forgetting would hand them out (empty when the run failed).
+std::vector<engine::SurfacePart> StreetParts(int frames) {
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = frames;
+  so.points_per_keyframe = 150;
+  synthetic::SyntheticStream stream(so);
+  const engine::EngineOptions eo = StreetEngineOptions();
   engine::Engine engine(eo, nullptr);
-  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine).ok());
-  const auto parts = engine::testing::SliceIntoParts(engine.ExtractBoundary(), eo.steiner_export, 40,
-                                                     engine::testing::CutOrder::kAlongY);
+  if (!engine::testing::RunStream(&stream, &engine).ok()) return {};
+  return engine::testing::SliceIntoParts(engine.ExtractBoundary(), eo.steiner_export, 40,
+                                         engine::testing::CutOrder::kAlongY);
+}
+
+TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
+  const std::vector<engine::SurfacePart> parts = StreetParts(60);
+  ASSERT_FALSE(parts.empty());
 
   io::testing::TempDir dir("imr-tiles-writer");
   std::vector<TileMesh> written;
@@ -74,7 +87,7 @@ TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
                     });
   // Before any tile: an empty tileset of imr, marking the folder.
   EXPECT_EQ(json::parse(std::ifstream(dir / "tileset.json"))["asset"]["extras"]["imr"]["tiles"], 0);
-  engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(eo));
+  engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(StreetEngineOptions()));
   std::size_t before_last = 0;
   for (std::size_t p = 0; p < parts.size(); ++p) {
     ASSERT_EQ(surface.Add(parts[p]), "");
@@ -136,17 +149,8 @@ TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
 // leaves' own border exactly (locked seams: no crack, no gap); coarser levels hold fewer
 // triangles; nodes are written while the parts come; the leaves are what they are without LOD.
 TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCracks) {
-  synthetic::StreamOptions so;
-  so.scene = synthetic::SceneKind::kStreet;
-  so.frames = 120;
-  so.points_per_keyframe = 150;
-  synthetic::SyntheticStream stream(so);
-  engine::EngineOptions eo;
-  eo.num_threads = 1;
-  engine::Engine engine(eo, nullptr);
-  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine).ok());
-  const auto parts = engine::testing::SliceIntoParts(engine.ExtractBoundary(), eo.steiner_export, 40,
-                                                     engine::testing::CutOrder::kAlongY);
+  const std::vector<engine::SurfacePart> parts = StreetParts(120);
+  ASSERT_FALSE(parts.empty());
   struct Run {
     std::map<std::string, TileMesh> tiles;  // by uri
     json tileset;
@@ -166,7 +170,7 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
                         WriteStandInGlb(staging / (stem + ".glb"));
                         r.tiles["tiles/" + stem + ".glb"] = t;
                       });
-    engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(eo));
+    engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(StreetEngineOptions()));
     for (const auto& part : parts) {
       EXPECT_EQ(surface.Add(part), "");
       writer.Add(surface.TakeReleased());
@@ -300,17 +304,8 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
 // A run stopped mid-way (the exporter throws): the levels of detail it wrote are the run's
 // (named, or numbered on after the last tileset), never another's files; a re-run removes them.
 TEST(TileWriterTest, AStoppedRunsLevelsOfDetailAreItsOwn) {
-  synthetic::StreamOptions so;
-  so.scene = synthetic::SceneKind::kStreet;
-  so.frames = 120;
-  so.points_per_keyframe = 150;
-  synthetic::SyntheticStream stream(so);
-  engine::EngineOptions eo;
-  eo.num_threads = 1;
-  engine::Engine engine(eo, nullptr);
-  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine).ok());
-  const auto parts = engine::testing::SliceIntoParts(engine.ExtractBoundary(), eo.steiner_export, 40,
-                                                     engine::testing::CutOrder::kAlongY);
+  const std::vector<engine::SurfacePart> parts = StreetParts(120);
+  ASSERT_FALSE(parts.empty());
   io::testing::TempDir dir("imr-tiles-lod-stop");
   TilesOptions o;
   o.enabled = true;
@@ -324,7 +319,7 @@ TEST(TileWriterTest, AStoppedRunsLevelsOfDetailAreItsOwn) {
                         WriteStandInGlb(staging / (stem + ".glb"));
                         ++(t.level > 0 ? lod_written : leaves_written);
                       });
-    engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(eo));
+    engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(StreetEngineOptions()));
     try {
       for (const auto& part : parts) {
         ASSERT_EQ(surface.Add(part), "");

@@ -994,7 +994,6 @@ class Refinement {
 
   // Coarse to fine; false when cancelled. Counts the moves the guard refused in `undone`.
   bool CoarseToFine(const std::function<bool()>& cancelled, int64_t* undone) {
-    MoveGuard& guard = guard_;
     const int S = options_.search_steps;
     for (int round = 0; round < options_.levels; ++round) {
       // The first round searches search_range on the coarsest images; each round halves the
@@ -1010,7 +1009,7 @@ class Refinement {
         Search(level, range);
         for (std::size_t v = 0; v < n_; ++v) ever_matched_[v] |= matched_[v];
         PlanTargets();
-        ApplyTargets(guard, undone);
+        ApplyTargets(undone);
       }
     }
     return true;
@@ -1042,7 +1041,7 @@ class Refinement {
   // goes onto that plane; a vertex at a corner (no plane holds enough of its neighbours) stays.
   // Jacobi rounds, each step through the same guard as the photometric moves. `moved` counts
   // the vertices it moved.
-  void Planarize(MoveGuard& guard, int64_t* undone, int64_t* moved, int64_t* on_plane) {
+  void Planarize(int64_t* undone, int64_t* moved, int64_t* on_plane) {
     if (options_.planarize <= 0) return;
     const double tol = options_.planarize_tolerance;
     std::vector<uint32_t> stamp(n_, 0), ring;
@@ -1072,13 +1071,11 @@ class Refinement {
         PlanMove(v, p_[v] - normal.dot(p_[v] - centre) * normal);
       }
       const std::vector<Vec3> before = p_;
-      ApplyTargets(guard, undone);
+      ApplyTargets(undone);
       for (std::size_t v = 0; v < n_; ++v) touched[v] |= p_[v] != before[v];
     }
     for (uint8_t t : touched) *moved += t;
   }
-
-  MoveGuard& guard() { return guard_; }
 
  private:
   static constexpr uint32_t kNoFace = std::numeric_limits<uint32_t>::max();
@@ -1266,15 +1263,15 @@ class Refinement {
 
   // Apply vertex by vertex so every check sees the current neighbours; a refused step is
   // halved, then dropped.
-  void ApplyTargets(MoveGuard& guard, int64_t* undone) {
-    guard.Prepare(planned_);
+  void ApplyTargets(int64_t* undone) {
+    guard_.Prepare(planned_);
     for (std::size_t v = 0; v < n_; ++v) {
       if (planned_[v] == 0) continue;
       const Vec3 delta = target_[v] - p_[v];
       bool done = false;
       for (int h = 0; h <= kMaxHalvings && !done; ++h) {
         const Vec3 q = p_[v] + std::ldexp(1.0, -h) * delta;
-        if (guard.Allows(static_cast<uint32_t>(v), q)) {
+        if (guard_.Allows(static_cast<uint32_t>(v), q)) {
           p_[v] = q;
           done = true;
         }
@@ -1341,7 +1338,7 @@ bool Refine(const std::vector<View>& views, const std::vector<std::array<uint32_
     if (cancelled && cancelled()) {
       completed = false;
     } else {
-      refinement.Planarize(refinement.guard(), &stats.moves_undone, &stats.vertices_planarized,
+      refinement.Planarize(&stats.moves_undone, &stats.vertices_planarized,
                            &stats.vertices_on_plane);
     }
   }
