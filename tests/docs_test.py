@@ -39,6 +39,7 @@ NOT_OPTIONS = {
     "local_transform",  # tileset.json asset.extras.imr (docs/tiles.md)
     "lod_tiles", "tiles_per_level", "pending_triangles_peak",  # tileset.json, report.json tiles.lod
     "engine_bytes",  # report.json memory, imr run --trace records (benchmarks.md, reliability.md)
+    "heap_bytes", "final_heap_bytes",  # imr run --trace records, report.json memory (reliability.md)
     "on_from_update",  # report.json engine.forget (engine.md: forget auto)
     "imr_mesh_stream", "export_mesh_stream", "recent_keyframes_begin", "keyframe_images",
     "final_call", "imr_refine_request", "imr_refine_result", "cameras_in_o", "back_facing",

@@ -80,7 +80,11 @@ ImageFrontEndSource::ImageFrontEndSource(io::ImageSequence sequence,
                                          const imr::sdk::Instance& features,
                                          const imr::sdk::Instance& refiner,
                                          const FrontEndOptions& options)
-    : sequence_(std::move(sequence)), features_(features), refiner_(refiner), options_(options) {
+    : sequence_(std::move(sequence)),
+      features_(features),
+      refiner_(refiner),
+      options_(options),
+      dense_errors_(options.tau) {
   if (const std::string e = options_.Check(); !e.empty())
     throw std::invalid_argument("front end options: " + e);
   if (sequence_.frames.empty())
@@ -328,7 +332,7 @@ void ImageFrontEndSource::AddDensePoints(const TrackedFrame& tracked,
         throw std::runtime_error("frame " + std::to_string(index) + ": dense point " +
                                  std::to_string(p.id) + " is seen from camera " +
                                  std::to_string(c) + ", not a frame given so far");
-    if (truth_) dense_errors_.push_back(truth_->scene.Distance(truth_->ToScene(n.position)));
+    if (truth_) dense_errors_.Add(truth_->scene.Distance(truth_->ToScene(n.position)));
     update->new_points.push_back(std::move(n));
   }
   for (uint64_t i = 0; i < out.removed_count; ++i)
@@ -359,13 +363,11 @@ json ImageFrontEndSource::Summary() const {
   if (dense_ != nullptr) {
     j["seconds"]["dense"] = s.dense_seconds;
     j["dense_points"] = {{"new", s.dense_new_points}, {"removed", s.dense_removed_points}};
-    if (truth_ && !dense_errors_.empty()) {
-      std::vector<double> e = dense_errors_;
-      std::sort(e.begin(), e.end());
-      const auto at = [&](double q) { return e[static_cast<std::size_t>(q * (e.size() - 1))]; };
+    if (truth_ && dense_errors_.size() > 0) {
+      const DistanceSample& e = dense_errors_;
       j["dense_points"]["error"] = {{"reference", "distance to the true synthetic surface, metres"},
-                                    {"median", at(0.5)}, {"p90", at(0.9)},
-                                    {"within_tau", static_cast<double>(std::lower_bound(e.begin(), e.end(), options_.tau) - e.begin()) / e.size()}};
+                                    {"median", e.Quantile(0.5)}, {"p90", e.Quantile(0.9)},
+                                    {"within_tau", static_cast<double>(e.below()) / static_cast<double>(e.size())}};
     }
   }
   j["observations"] = s.observations;

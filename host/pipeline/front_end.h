@@ -163,7 +163,7 @@ class ImageFrontEndSource : public io::KeyframeSource {
   // Synthetic truth only: distance to the true surface of each point's first and latest
   // estimate, held while the refiner moves the point (point_error_summary.h).
   PointErrorSummary point_errors_;
-  std::vector<double> dense_errors_;  // synthetic truth only: each dense point's distance to it
+  DistanceSample dense_errors_;  // synthetic truth only: the dense points' distances to it
   // track_ahead: TrackFrame on a thread of its own; declared last, so that its thread is joined
   // before anything it uses goes.
   std::unique_ptr<Prefetcher<TrackedFrame>> tracker_;

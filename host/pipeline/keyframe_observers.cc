@@ -50,8 +50,13 @@ void TraceWriter::OnKeyframe(KeyframeEvent& e) {
   if (e.check_seconds >= 0.0) line["check_seconds"] = e.check_seconds;
   // The engine's bytes beside the RSS show what the host holds beyond the engine; Memory() walks
   // every cell (milliseconds), so only every kEngineBytesEvery-th keyframe and the first.
-  if (e.keyframes == 1 || e.keyframes % kEngineBytesEvery == 0)
+  if (e.keyframes == 1 || e.keyframes % kEngineBytesEvery == 0) {
     line["engine_bytes"] = engine_.Memory().Total();
+    // And the allocator's: what the heap holds beyond the engine, what freeing kept resident.
+    const HeapBytes heap = CurrentHeapBytes();
+    if (!heap.allocator.empty())
+      line["heap_bytes"] = {{"allocated", heap.allocated}, {"resident", heap.resident}};
+  }
   out_ << DumpJson(line) << '\n';
   out_.flush();
   if (!out_) throw std::runtime_error(partial_.string() + ": cannot write the trace");

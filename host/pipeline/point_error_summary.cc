@@ -87,6 +87,42 @@ PointErrorSummary::Figures PointErrorSummary::Result() const {
   return f;
 }
 
+void DistanceSample::Add(double d) {
+  ++n_;
+  if (d < limit_) ++below_;
+  if (exact_.size() < kExact && bins_.empty()) {
+    exact_.push_back(d);
+    return;
+  }
+  if (bins_.empty()) {
+    bins_.assign(PointErrorSummary::kBins, 0);
+    for (double e : exact_) ++bins_[PointErrorSummary::Bin(e)];
+    exact_.clear();
+    exact_.shrink_to_fit();
+  }
+  ++bins_[PointErrorSummary::Bin(d)];
+}
+
+double DistanceSample::Quantile(double q) const {
+  if (n_ == 0) return 0.0;
+  const int64_t rank = static_cast<int64_t>(q * static_cast<double>(n_ - 1));
+  if (bins_.empty()) {
+    std::vector<double> e = exact_;
+    std::nth_element(e.begin(), e.begin() + rank, e.end());
+    return e[static_cast<std::size_t>(rank)];
+  }
+  int64_t left = rank;
+  for (int b = 0; b < PointErrorSummary::kBins; ++b) {
+    if (left < bins_[b]) return PointErrorSummary::BinValue(b);
+    left -= bins_[b];
+  }
+  return PointErrorSummary::BinValue(PointErrorSummary::kBins - 1);
+}
+
+int64_t DistanceSample::HeldBytes() const {
+  return static_cast<int64_t>(exact_.capacity() * sizeof(double) + bins_.capacity() * sizeof(uint32_t));
+}
+
 int64_t PointErrorSummary::HeldBytes() const {
   // A node per record (its key, value and the next pointer), a bucket pointer each.
   const int64_t node = static_cast<int64_t>(sizeof(uint64_t) + sizeof(Live) + sizeof(void*));

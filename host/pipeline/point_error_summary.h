@@ -13,6 +13,29 @@
 
 namespace imr::pipeline {
 
+// Distances kept exactly up to kExact of them, then in PointErrorSummary's bins: the dense
+// points' errors (front end, synthetic truth only) held a double per dense point for the drive.
+class DistanceSample {
+ public:
+  // below() counts the distances under `limit`.
+  explicit DistanceSample(double limit = 0.0) : limit_(limit) {}
+  void Add(double d);
+  int64_t size() const { return n_; }
+  // The element at rank floor(q (n - 1)): exact up to kExact values, within a bin after.
+  double Quantile(double q) const;
+  // How many were under the limit (exact: counted as they came).
+  int64_t below() const { return below_; }
+  int64_t HeldBytes() const;
+
+  static constexpr std::size_t kExact = std::size_t{1} << 16;
+
+ private:
+  double limit_;
+  int64_t n_ = 0, below_ = 0;
+  std::vector<double> exact_;
+  std::vector<uint32_t> bins_;  // empty until exact_ is full
+};
+
 class PointErrorSummary {
  public:
   // A new point, its distance at keyframe `keyframe` (keyframes count up from 0).
@@ -51,6 +74,7 @@ class PointErrorSummary {
     int64_t keyframe = 0;  // of its last update
   };
   using Histogram = std::vector<uint32_t>;  // kBins counts, empty until the first fold
+  friend class DistanceSample;
   static int Bin(double d);
   static double BinValue(int bin);
   static double Median(const Histogram& h, std::vector<double> live);

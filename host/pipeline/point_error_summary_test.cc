@@ -95,5 +95,33 @@ TEST(PointErrorSummary, MediansMatchTheExactOnes) {
   }
 }
 
+// The dense points' distances: exact quantiles while few, within a fine bin once folded, and what
+// is held stops growing (a double per distance grew with the drive).
+TEST(DistanceSample, ExactWhileFewWithinABinAfterAndBounded) {
+  DistanceSample small(0.2), large(0.2);
+  std::vector<double> all;
+  const std::size_t n = 4 * DistanceSample::kExact;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double d = 0.5 * std::fmod(i * 0.618034, 1.0) * std::fmod(i * 0.414214, 1.0);
+    if (i < 1000) small.Add(d);
+    large.Add(d);
+    all.push_back(d);
+  }
+  std::vector<double> first(all.begin(), all.begin() + 1000);
+  std::sort(first.begin(), first.end());
+  std::sort(all.begin(), all.end());
+  EXPECT_EQ(small.Quantile(0.5), first[499]);
+  EXPECT_EQ(small.Quantile(0.9), first[static_cast<std::size_t>(0.9 * 999)]);
+  EXPECT_EQ(small.below(), std::lower_bound(first.begin(), first.end(), 0.2) - first.begin());
+  EXPECT_NEAR(large.Quantile(0.5), all[(n - 1) / 2], PointErrorSummary::kFineBin);
+  EXPECT_NEAR(large.Quantile(0.9), all[static_cast<std::size_t>(0.9 * (n - 1))], PointErrorSummary::kFineBin);
+  EXPECT_EQ(large.below(), std::lower_bound(all.begin(), all.end(), 0.2) - all.begin());
+  EXPECT_EQ(large.size(), static_cast<int64_t>(n));
+  const int64_t held = large.HeldBytes();
+  for (std::size_t i = 0; i < n; ++i) large.Add(0.01);
+  EXPECT_EQ(large.HeldBytes(), held);
+  EXPECT_LT(held, static_cast<int64_t>(DistanceSample::kExact * sizeof(double)));
+}
+
 }  // namespace
 }  // namespace imr::pipeline

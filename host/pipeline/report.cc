@@ -264,8 +264,14 @@ json EngineStatsJson(const engine::EngineStats& s) {
 // Peak and final RSS, and the engine's bytes by structure.
 json MemoryJson(const ReportInputs& in) {
   const engine::EngineMemory& m = in.engine_memory;
+  json heap = nullptr;
+  if (!in.final_heap.allocator.empty())
+    heap = {{"allocator", in.final_heap.allocator},
+            {"allocated", in.final_heap.allocated},
+            {"resident", in.final_heap.resident}};
   return {{"peak_rss_bytes", in.peak_rss_bytes},
           {"final_rss_bytes", in.final_rss_bytes},
+          {"final_heap_bytes", heap},
           {"engine_bytes",
            {{"total", m.Total()},
             {"cells", m.cells},

@@ -12,6 +12,7 @@
 #include "host/pipeline/streamed_surface.h"
 #include "host/pipeline/surface_refinement.h"
 #include "host/pipeline/tiles.h"
+#include "host/util/process_memory.h"
 #include "host/plugin/registry.h"
 #include "host/render/rasterizer.h"
 
@@ -75,6 +76,7 @@ struct ReportInputs {
   const engine::EngineStats* stats = nullptr;
   engine::EngineMemory engine_memory;  // at the end of the run
   uint64_t peak_rss_bytes = 0, final_rss_bytes = 0;  // the process's (one sequence per process in a batch)
+  HeapBytes final_heap;  // the allocator's figures at the end, beside final_rss_bytes
   const engine::Mesh* mesh = nullptr;  // null: tiles only, or the single mesh written in blocks
   const StreamedSurface* streamed_mesh = nullptr;  // the single mesh on disk (streamed runs)
   std::size_t formats_streamed = 0;    // of the job's formats, written in blocks

@@ -845,6 +845,7 @@ void SequenceRun::WriteMeshAndReport(std::future<void>* evaluation) {
   }
   report_.peak_rss_bytes = PeakResidentBytes();
   report_.final_rss_bytes = ResidentBytes();
+  report_.final_heap = CurrentHeapBytes();
   report_.mesh = mesh_ ? &*mesh_ : nullptr;
   if (streamed_ && !job_.output.formats.empty()) report_.streamed_mesh = &*streamed_;
   report_.engine_seconds = engine_seconds_;

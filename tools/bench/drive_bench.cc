@@ -151,6 +151,8 @@ double Get(const json& j, const std::vector<std::string>& path, double otherwise
 struct Series {
   std::vector<double> frame, rss, seconds, engine;
   std::vector<double> engine_bytes;  // NAN on the keyframes the trace did not measure them
+  // The allocator's figures (trace heap_bytes), measured with engine_bytes; NAN where not.
+  std::vector<double> heap_allocated, heap_resident;
 };
 Series SeriesOf(const Run& r) {
   Series s;
@@ -160,6 +162,9 @@ Series SeriesOf(const Run& r) {
     s.seconds.push_back(k.value("seconds", 0.0));
     s.engine.push_back(k.value("engine_seconds", 0.0));
     s.engine_bytes.push_back(k.contains("engine_bytes") ? k["engine_bytes"].get<double>() : NAN);
+    const bool heap = k.contains("heap_bytes");
+    s.heap_allocated.push_back(heap ? k["heap_bytes"]["allocated"].get<double>() : NAN);
+    s.heap_resident.push_back(heap ? k["heap_bytes"]["resident"].get<double>() : NAN);
   }
   return s;
 }
@@ -516,10 +521,13 @@ bool SlamDrive(const DriveArgs& a, int frames, json* out) {
 }
 
 // The run's RSS, the engine's bytes and what the host holds beyond them per tenth (printed), and
-// report.json's figures at the end.
+// report.json's figures at the end. With the allocator's figures, RSS - engine splits into what
+// the heap holds beyond the engine (allocated - engine: a leak grows it), what freeing kept
+// resident (resident - allocated) and the rest (code, libraries, stacks).
 json Tenths(const Run& r) {
   const Series s = SeriesOf(r);
-  MarkdownHeader({"tenth", "frame", "RSS", "engine bytes", "RSS - engine"});
+  MarkdownHeader({"tenth", "frame", "RSS", "engine bytes", "RSS - engine", "heap allocated - engine",
+                  "heap resident - allocated"});
   const size_t n = s.frame.size();
   json tenths = json::array();
   double host_first = NAN, host_last = NAN;
@@ -528,9 +536,13 @@ json Tenths(const Run& r) {
     const double e = s.engine_bytes[b], host = s.rss[b] - e;
     if (t == 0) host_first = host;
     host_last = host;
-    std::printf("| %d | %.0f | %s | %s | %s |\n", t + 1, s.frame[b], Mb(s.rss[b]).c_str(),
-                Mb(e).c_str(), Mb(host).c_str());
-    tenths.push_back({{"frame", s.frame[b]}, {"rss_bytes", s.rss[b]}, {"engine_bytes", e}});
+    const double alloc = s.heap_allocated[b], resident = s.heap_resident[b];
+    std::printf("| %d | %.0f | %s | %s | %s | %s | %s |\n", t + 1, s.frame[b], Mb(s.rss[b]).c_str(),
+                Mb(e).c_str(), Mb(host).c_str(), std::isnan(alloc) ? "-" : Mb(alloc - e).c_str(),
+                std::isnan(alloc) ? "-" : Mb(resident - alloc).c_str());
+    json tenth = {{"frame", s.frame[b]}, {"rss_bytes", s.rss[b]}, {"engine_bytes", e}};
+    if (!std::isnan(alloc)) tenth["heap_allocated_bytes"] = alloc, tenth["heap_resident_bytes"] = resident;
+    tenths.push_back(tenth);
   }
   // Slope of RSS - engine bytes over the second half's measured keyframes.
   std::vector<double> x, y;
@@ -546,11 +558,17 @@ json Tenths(const Run& r) {
               "second half: %.1f kB per frame; wall %.1f s\n",
               Mb(engine_end).c_str(), Mb(final_rss).c_str(), Mb(final_rss - engine_end).c_str(),
               Mb(peak).c_str(), Mb(first_rss).c_str(), slope / 1e3, r.wall);
+  const double heap_end = Get(r.report, {"memory", "final_heap_bytes", "allocated"});
+  const double heap_resident_end = Get(r.report, {"memory", "final_heap_bytes", "resident"});
+  if (!std::isnan(heap_end))
+    std::printf("the allocator at the end: %s allocated (%s beyond the engine), %s resident\n",
+                Mb(heap_end).c_str(), Mb(heap_end - engine_end).c_str(), Mb(heap_resident_end).c_str());
   return {{"peak_rss_bytes", peak}, {"final_rss_bytes", final_rss},
           {"engine_bytes_end", engine_end}, {"first_rss_bytes", first_rss},
           {"host_bytes_first_tenth", host_first}, {"host_bytes_last_tenth", host_last},
           {"host_slope_bytes_per_frame", slope}, {"tenths", tenths}, {"wall_seconds", r.wall},
-          {"forget_on_from_update", Get(r.report, {"engine", "forget", "on_from_update"})}};
+          {"forget_on_from_update", Get(r.report, {"engine", "forget", "on_from_update"})},
+          {"heap_allocated_end", heap_end}, {"heap_resident_end", heap_resident_end}};
 }
 
 // The SLAM JSON drives, shortest first, and their targets: the longest's peak RSS within 1.2 x
