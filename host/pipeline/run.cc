@@ -493,9 +493,13 @@ void SequenceRun::WriteTile(const TileMesh& t, const fs::path& dir, const std::s
 // What runs after every keyframe, in this order (the trace writes the check's time).
 void SequenceRun::AddObservers() {
   if (!options_.export_stream.empty() || !options_.export_colmap.empty()) {
+    // The spool lies beside the first export: the same disk, a folder the run may write into.
+    const fs::path first = ExpandExportPath(
+        options_.export_stream.empty() ? options_.export_colmap : options_.export_stream, v_, seq_.name);
+    const fs::path beside = first.has_parent_path() ? first.parent_path() : fs::path(".");
     auto o = std::make_unique<StreamRecording>(
         source_.get(), std::string("imr ") + Version() + ", job " + job_.Name() + ", sequence " +
-                           seq_.name);
+                           seq_.name, beside);
     recording_ = o.get();
     observers_.push_back(std::move(o));
   }
@@ -771,15 +775,18 @@ void SequenceRun::WarnAbout() {
 void SequenceRun::WriteStreamExports() {
   if (!options_.export_stream.empty()) {
     const fs::path p = ExpandExportPath(options_.export_stream, v_, seq_.name);
-    if (p.has_parent_path()) EnsureWritableDirectory(p.parent_path());
-    WriteFileAtomically(p, recording_->recorder().SlamJson());
+    CheckWriteTarget(p);  // before the file is written: a refusal costs no time
+    // Written streamed into a staging folder beside it, then renamed into place.
+    StagingDirectory out(p.has_parent_path() ? p.parent_path() : fs::path("."));
+    recording_->recorder().WriteSlamJson(out.path() / p.filename());
+    out.Commit();
     report_.exports["stream"] = fs::absolute(p).string();
     result_->extra_files.push_back(p);
   }
   if (!options_.export_colmap.empty()) {
     const fs::path p = ExpandExportPath(options_.export_colmap, v_, seq_.name);
     StagingDirectory colmap(p);
-    io::WriteColmapText(recording_->recorder().Colmap(), colmap.path());
+    recording_->recorder().WriteColmap(colmap.path());
     for (auto& f : colmap.Commit()) result_->extra_files.push_back(std::move(f));
     report_.exports["colmap"] = fs::absolute(p).string();
   }
