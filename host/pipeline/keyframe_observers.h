@@ -53,6 +53,7 @@ class StreamRecording : public KeyframeObserver {
       : spool_(spool_beside), recorder_(source, std::move(written_by), {spool_.path()}) {}
   void OnKeyframe(KeyframeEvent& event) override { recorder_.Record(event.update, event.info); }
   io::StreamRecorder& recorder() { return recorder_; }
+  const io::StreamRecorder& recorder() const { return recorder_; }
 
  private:
   StagingDirectory spool_;  // before the recorder: its files close before the folder goes

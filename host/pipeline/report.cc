@@ -264,7 +264,7 @@ json EngineStatsJson(const engine::EngineStats& s) {
 // Peak and final RSS, and the engine's bytes by structure.
 json MemoryJson(const ReportInputs& in) {
   const engine::EngineMemory& m = in.engine_memory;
-  return {{"peak_rss_bytes", in.peak_rss_bytes},
+  json j = {{"peak_rss_bytes", in.peak_rss_bytes},
           {"final_rss_bytes", in.final_rss_bytes},
           {"engine_bytes",
            {{"total", m.Total()},
@@ -277,6 +277,8 @@ json MemoryJson(const ReportInputs& in) {
             {"cameras", m.cameras}}},
           {"ray_entries",
            {{"held", m.ray_entries_used}, {"live", m.ray_entries_live}}}};
+  if (!in.export_recorder.is_null()) j["export_recorder"] = in.export_recorder;
+  return j;
 }
 
 // The mesh: tiles only (its size from the surface stream), written in blocks from the spool, or

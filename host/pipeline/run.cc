@@ -852,6 +852,14 @@ void SequenceRun::WriteMeshAndReport(std::future<void>* evaluation) {
   }
   report_.peak_rss_bytes = PeakResidentBytes();
   report_.final_rss_bytes = ResidentBytes();
+  if (recording_ != nullptr) {
+    const io::StreamRecorder& r = recording_->recorder();
+    const io::StreamRecorder::Stats st = r.stats();
+    report_.export_recorder = {{"held_bytes", r.HeldBytes()},        {"views", st.views},
+                               {"observations", st.observations},   {"points_spooled", st.points_spooled},
+                               {"points_recovered", st.points_recovered}, {"spool_scans", st.spool_scans},
+                               {"evict_after_keyframes", st.evict_after_keyframes}};
+  }
   report_.mesh = mesh_ ? &*mesh_ : nullptr;
   if (streamed_ && !job_.output.formats.empty()) report_.streamed_mesh = &*streamed_;
   report_.engine_seconds = engine_seconds_;
