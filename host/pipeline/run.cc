@@ -771,6 +771,21 @@ void SequenceRun::WarnAbout() {
          "its replay will differ");
 }
 
+// Runs `write` (files into the staging folder `staging`); a failure names the file where it was
+// to go in `destination`, not its staged copy.
+template <class F>
+void WriteStaged(const fs::path& staging, const fs::path& destination, F write) {
+  try {
+    write();
+  } catch (const std::runtime_error& e) {
+    std::string what = e.what();
+    const std::string staged = staging.string() + "/";
+    if (what.rfind(staged, 0) == 0)
+      what = (destination.empty() ? fs::path(".") : destination).string() + "/" + what.substr(staged.size());
+    throw std::runtime_error(what);
+  }
+}
+
 // --export-stream and --export-colmap, from the recorded updates.
 void SequenceRun::WriteStreamExports() {
   if (!options_.export_stream.empty()) {
@@ -778,7 +793,7 @@ void SequenceRun::WriteStreamExports() {
     CheckWriteTarget(p);  // before the file is written: a refusal costs no time
     // Written streamed into a staging folder beside it, then renamed into place.
     StagingDirectory out(p.has_parent_path() ? p.parent_path() : fs::path("."));
-    recording_->recorder().WriteSlamJson(out.path() / p.filename());
+    WriteStaged(out.path(), p.parent_path(), [&] { recording_->recorder().WriteSlamJson(out.path() / p.filename()); });
     out.Commit();
     report_.exports["stream"] = fs::absolute(p).string();
     result_->extra_files.push_back(p);
@@ -786,7 +801,7 @@ void SequenceRun::WriteStreamExports() {
   if (!options_.export_colmap.empty()) {
     const fs::path p = ExpandExportPath(options_.export_colmap, v_, seq_.name);
     StagingDirectory colmap(p);
-    recording_->recorder().WriteColmap(colmap.path());
+    WriteStaged(colmap.path(), p, [&] { recording_->recorder().WriteColmap(colmap.path()); });
     for (auto& f : colmap.Commit()) result_->extra_files.push_back(std::move(f));
     report_.exports["colmap"] = fs::absolute(p).string();
   }
