@@ -307,6 +307,39 @@ TEST_F(WriteRuleCli, NoCommandWritesOverAUsersFileOrItsOwnInputs) {
   }
 }
 
+// --export-stream and --export-colmap are written streamed from spools in a staging folder beside
+// them (issue 46): a run killed while writing the stream (a file size limit's SIGXFSZ) leaves no
+// half file under the final names; one whose write fails (the limit's EFBIG, the signal ignored)
+// exits non-zero naming the file and leaves neither a half file nor a staging folder.
+TEST_F(WriteRuleCli, AnExportCutShortLeavesNoHalfFile) {
+  const fs::path row = D() / "cut-export";
+  fs::create_directories(row);
+  WriteText(row / "job.json", SyntheticJob("out/{sequence}", 60).dump(2));
+  for (const bool killed : {true, false}) {
+    const fs::path at = row / (killed ? "killed" : "failed");
+    fs::create_directories(at);
+    // 1,200 KiB a file (prlimit: bytes, where sh's ulimit counts blocks of a size the shell
+    // chooses): the mesh, the spools (17,700 observations of 48 bytes) and the COLMAP files fit,
+    // the stream (1.6 MB) not.
+    const std::string limit = std::string(killed ? "" : "trap '' XFSZ; ") + "prlimit --fsize=1228800 ";
+    const CommandResult r = RunShell(limit + kImr + " run -q --force " + Q(row / "job.json") +
+                                     " --export-stream " + Q(at / "s.json") + " --export-colmap " +
+                                     Q(at / "colmap"));
+    EXPECT_NE(r.status, 0) << (killed ? "killed" : "failed");  // the sequence's process's
+    EXPECT_FALSE(fs::exists(at / "s.json"));
+    EXPECT_FALSE(fs::exists(at / "colmap" / "points3D.txt"));
+    if (killed) {
+      EXPECT_NE(r.err.find("SIGXFSZ"), std::string::npos) << r.err;
+      continue;
+    }
+    // The file named where it was to go, not its staged copy.
+    EXPECT_NE(r.err.find((at / "s.json").string() + ": write failed: File too large"), std::string::npos)
+        << r.err;
+    for (const auto& e : fs::directory_iterator(at))
+      EXPECT_NE(e.path().filename().string().rfind(".imr-staging-", 0), 0u) << e.path() << " was left";
+  }
+}
+
 // What imr wrote, it may write again: the same commands succeed on their own earlier outputs.
 TEST_F(WriteRuleCli, ARerunReplacesWhatImrWrote) {
   const fs::path row = D() / "rerun";

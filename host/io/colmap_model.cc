@@ -513,53 +513,72 @@ void WriteColmapBinary(const ColmapModel& m, const fs::path& dir) {
   WriteFileAtomically(dir / "points3D.bin", p.str());
 }
 
-void WriteColmapText(const ColmapModel& m, const fs::path& dir) {
-  fs::create_directories(dir);
+std::string ColmapCamerasText(const std::vector<ColmapModel::Camera>& cameras) {
   std::string s = "# Camera list with one line of data per camera:\n"
                   "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
-                  "# Number of cameras: " + std::to_string(m.cameras.size()) + "\n";
-  for (const auto& c : m.cameras) {
+                  "# Number of cameras: " + std::to_string(cameras.size()) + "\n";
+  for (const auto& c : cameras) {
     s += std::to_string(c.id) + " " + c.model + " " + std::to_string(c.width) + " " + std::to_string(c.height);
     for (double p : c.params) s += " " + ExactNumber(p);
     s += "\n";
   }
-  WriteFileAtomically(dir / "cameras.txt", s);
+  return s;
+}
+
+std::string ColmapImagesHeader(std::size_t images, std::size_t observations) {
+  return "# Image list with two lines of data per image:\n"
+         "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
+         "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
+         "# Number of images: " + std::to_string(images) +
+         ", mean observations per image: " +
+         (images == 0 ? std::string("0") : ExactNumber(double(observations) / double(images))) + "\n";
+}
+
+void AppendColmapImageHead(const ColmapModel::Image& im, std::string* s) {
+  *s += std::to_string(im.id);
+  for (double q : im.qvec) *s += " " + ExactNumber(q);
+  for (double t : im.tvec) *s += " " + ExactNumber(t);
+  *s += " " + std::to_string(im.camera_id) + " " + im.name + "\n";
+}
+
+void AppendColmapPoint2D(const ColmapModel::Point2D& q, bool first, std::string* s) {
+  *s += (first ? "" : " ") + ExactNumber(q.x) + " " + ExactNumber(q.y) + " " + std::to_string(q.point3d_id);
+}
+
+std::string ColmapPointsHeader(std::size_t points, std::size_t track_entries) {
+  return "# 3D point list with one line of data per point:\n"
+         "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n"
+         "# Number of points: " + std::to_string(points) + ", mean track length: " +
+         (points == 0 ? std::string("0") : ExactNumber(double(track_entries) / double(points))) + "\n";
+}
+
+void AppendColmapPoint3D(const ColmapModel::Point3D& p, std::string* s) {
+  *s += std::to_string(p.id);
+  for (double x : p.xyz) *s += " " + ExactNumber(x);
+  for (uint8_t c : p.rgb) *s += " " + std::to_string(c);
+  *s += " " + ExactNumber(p.error);
+  for (const auto& e : p.track) *s += " " + std::to_string(e.image_id) + " " + std::to_string(e.point2d_idx);
+  *s += "\n";
+}
+
+void WriteColmapText(const ColmapModel& m, const fs::path& dir) {
+  fs::create_directories(dir);
+  WriteFileAtomically(dir / "cameras.txt", ColmapCamerasText(m.cameras));
 
   std::size_t obs = 0;
   for (const auto& im : m.images) obs += im.points2d.size();
-  s = "# Image list with two lines of data per image:\n"
-      "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
-      "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
-      "# Number of images: " + std::to_string(m.images.size()) +
-      ", mean observations per image: " +
-      (m.images.empty() ? std::string("0") : ExactNumber(double(obs) / double(m.images.size()))) + "\n";
+  std::string s = ColmapImagesHeader(m.images.size(), obs);
   for (const auto& im : m.images) {
-    s += std::to_string(im.id);
-    for (double q : im.qvec) s += " " + ExactNumber(q);
-    for (double t : im.tvec) s += " " + ExactNumber(t);
-    s += " " + std::to_string(im.camera_id) + " " + im.name + "\n";
-    for (std::size_t i = 0; i < im.points2d.size(); ++i) {
-      const auto& q = im.points2d[i];
-      s += (i ? " " : "") + ExactNumber(q.x) + " " + ExactNumber(q.y) + " " + std::to_string(q.point3d_id);
-    }
+    AppendColmapImageHead(im, &s);
+    for (std::size_t i = 0; i < im.points2d.size(); ++i) AppendColmapPoint2D(im.points2d[i], i == 0, &s);
     s += "\n";
   }
   WriteFileAtomically(dir / "images.txt", s);
 
   std::size_t track = 0;
   for (const auto& p : m.points) track += p.track.size();
-  s = "# 3D point list with one line of data per point:\n"
-      "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n"
-      "# Number of points: " + std::to_string(m.points.size()) + ", mean track length: " +
-      (m.points.empty() ? std::string("0") : ExactNumber(double(track) / double(m.points.size()))) + "\n";
-  for (const auto& p : m.points) {
-    s += std::to_string(p.id);
-    for (double x : p.xyz) s += " " + ExactNumber(x);
-    for (uint8_t c : p.rgb) s += " " + std::to_string(c);
-    s += " " + ExactNumber(p.error);
-    for (const auto& e : p.track) s += " " + std::to_string(e.image_id) + " " + std::to_string(e.point2d_idx);
-    s += "\n";
-  }
+  s = ColmapPointsHeader(m.points.size(), track);
+  for (const auto& p : m.points) AppendColmapPoint3D(p, &s);
   WriteFileAtomically(dir / "points3D.txt", s);
 }
 

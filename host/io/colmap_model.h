@@ -84,5 +84,14 @@ void WriteColmapBinary(const ColmapModel& m, const std::filesystem::path& dir);
 // Writes cameras.txt, images.txt and points3D.txt into `dir` (created if needed), each
 // atomically, numbers with round-trip precision. Throws naming the path on failure.
 void WriteColmapText(const ColmapModel& m, const std::filesystem::path& dir);
+// The text files' parts, for writers that stream a model too large to hold (io/stream_recorder.h):
+// cameras.txt whole; images.txt's header, an image's first line, one 2D point of its second line
+// (first: the line's first, no space before it); points3D.txt's header and one point's line.
+std::string ColmapCamerasText(const std::vector<ColmapModel::Camera>& cameras);
+std::string ColmapImagesHeader(std::size_t images, std::size_t observations);
+void AppendColmapImageHead(const ColmapModel::Image& image, std::string* s);
+void AppendColmapPoint2D(const ColmapModel::Point2D& point, bool first, std::string* s);
+std::string ColmapPointsHeader(std::size_t points, std::size_t track_entries);
+void AppendColmapPoint3D(const ColmapModel::Point3D& point, std::string* s);
 
 }  // namespace imr::io

@@ -6,6 +6,7 @@
 #include "host/io/openmvg_reader.h"
 #include "host/io/schema.h"
 #include "host/io/slam_json.h"
+#include "host/io/stream_recorder.h"
 #include "host/io/testing/temp_dir.h"
 
 #include <gtest/gtest.h>
@@ -387,9 +388,11 @@ bool SameUpdate(const engine::KeyframeUpdate& a, const engine::KeyframeUpdate& b
 
 TEST(RoundTrip, AnExportedStreamReplaysToTheSameUpdates) {
   TempDir dir;
+  fs::create_directories(dir / "spool");
+  fs::create_directories(dir / "spool2");
   std::vector<engine::KeyframeUpdate> stream = Stream();
   CanonicalOrder order;
-  StreamRecorder recorder(nullptr, "test");
+  StreamRecorder recorder(nullptr, "test", {dir / "spool"});
   for (std::size_t k = 0; k < stream.size(); ++k) {
     order.Apply(&stream[k]);
     recorder.Record(stream[k], {static_cast<int>(k), static_cast<int>(10 * k)});
@@ -400,7 +403,7 @@ TEST(RoundTrip, AnExportedStreamReplaysToTheSameUpdates) {
   EXPECT_EQ(stream[0].new_points[0].camera_ids, (std::vector<uint64_t>{10, 11}));  // arrival
   stream[2].moved_points.erase(stream[2].moved_points.begin());
   EXPECT_EQ(recorder.unrepresentable(), 0);
-  Write(dir / "stream.json", recorder.SlamJson());
+  recorder.WriteSlamJson(dir / "stream.json");
   auto replay = Open("slam_json", dir / "stream.json");
   ASSERT_EQ(replay->KeyframeCount(), 4);
   std::vector<engine::KeyframeUpdate> back = All(replay.get());
@@ -410,24 +413,25 @@ TEST(RoundTrip, AnExportedStreamReplaysToTheSameUpdates) {
     EXPECT_TRUE(SameUpdate(stream[k], back[k], &why)) << "keyframe " << k << ": " << why;
   }
   // Recording the replay writes the same file.
-  StreamRecorder again(nullptr, "test");
+  StreamRecorder again(nullptr, "test", {dir / "spool2"});
   CanonicalOrder order2;
   for (std::size_t k = 0; k < back.size(); ++k) {
     order2.Apply(&back[k]);
     again.Record(back[k], {static_cast<int>(k), static_cast<int>(10 * k)});
   }
-  EXPECT_EQ(again.SlamJson(), Read(dir / "stream.json"));
+  again.WriteSlamJson(dir / "again.json");
+  EXPECT_EQ(Read(dir / "again.json"), Read(dir / "stream.json"));
 
   // The final COLMAP model: live points only, every track entry an existing 2D point.
-  const ColmapModel m = recorder.Colmap();
+  fs::create_directories(dir / "colmap");
+  recorder.WriteColmap(dir / "colmap");
+  const ColmapModel m = ReadColmapModel(dir / "colmap");
   EXPECT_NO_THROW(CheckColmapModel(m, "export"));
   ASSERT_EQ(m.points.size(), 2u);  // point 2 was removed
   EXPECT_EQ(m.points[0].id, 1u);
   EXPECT_EQ(m.points[0].xyz, (Vec3{0.1, 0.3, 5.2}));
   EXPECT_EQ(m.points[0].track.size(), 3u);
   EXPECT_EQ(m.images.size(), 3u);
-  WriteColmapText(m, dir / "colmap");
-  EXPECT_NO_THROW(ReadColmapModel(dir / "colmap"));
 }
 
 // A SLAM JSON drive of `views` views 1 m apart, every view one keyframe: at each view 12 new

@@ -1,5 +1,6 @@
 // The incremental SLAM JSON of the real-time manifold mesher of Piazza et al. 2018
-// (slam_data_version 0.3; docs/interop.md), read as a keyframe stream and written by --export-stream.
+// (slam_data_version 0.3; docs/interop.md), read as a keyframe stream and written by
+// --export-stream (io/stream_recorder.h).
 //
 //   {"slam_data_version": "0.3", "root_path": "...",
 //    "intrinsics": [{"intrinsicId": 0, "value": {"polymorphic_name": "pinhole",
@@ -62,57 +63,6 @@ class CanonicalOrder {
 
  private:
   std::unordered_map<uint64_t, uint64_t> arrival_;
-};
-
-// Records the updates that reached the engine and writes them as SLAM JSON 0.3 (with the imr
-// extensions: the replay reproduces the run exactly) or, at the end, the final points with their
-// visibility as a COLMAP text model. Camera rotations and intrinsics come from the source when it
-// knows them (else identity and a placeholder pinhole, said in the file).
-class StreamRecorder {
- public:
-  explicit StreamRecorder(const KeyframeSource* source, std::string written_by = "imr");
-  void Record(const engine::KeyframeUpdate& update, const KeyframeInfo& info);
-
-  std::string SlamJson() const;
-  // Live points (not removed, seen by a camera) at their last estimate; every view becomes an
-  // image, every track entry indexes one of its 2D points: the source's keypoint (Keypoint),
-  // else the projection of the estimate the view saw when it observed the point, else that of
-  // the final estimate (0 0 where none projects). A point's ERROR is the mean distance from its
-  // 2D points to the final estimate's projections (-1 when none has both). Pixels in COLMAP's
-  // convention (cameras from other formats shifted by half a pixel).
-  ColmapModel Colmap() const;
-  // Points that entered with no camera: a SLAM JSON file cannot hold them (replay then differs).
-  int64_t unrepresentable() const { return unrepresentable_; }
-
- private:
-  struct Observation {
-    uint64_t point;
-    Vec3 x;
-    int64_t keyframe;  // when it reached the engine
-  };
-  struct View {
-    uint64_t id;
-    Vec3 center;
-    int64_t keyframe;
-    const CameraGeometry* geometry;  // owned by the source, may be null
-    std::vector<Observation> observations;
-  };
-  struct PointState {
-    Vec3 position;
-    std::vector<uint64_t> cameras;
-    bool removed = false;
-  };
-  struct Keyframe {
-    int64_t frame;
-    std::vector<uint64_t> removed;
-  };
-  const KeyframeSource* source_;
-  std::string written_by_;
-  std::vector<View> views_;
-  std::unordered_map<uint64_t, std::size_t> view_index_;
-  std::map<uint64_t, PointState> points_;
-  std::vector<Keyframe> keyframes_;
-  int64_t unrepresentable_ = 0;
 };
 
 }  // namespace imr::io

@@ -7,6 +7,7 @@
 #include "host/engine/engine.h"
 #include "host/io/keyframe_source.h"
 #include "host/io/slam_json.h"
+#include "host/io/stream_recorder.h"
 #include "host/pipeline/mesh_export.h"
 #include "host/pipeline/run.h"
 
@@ -19,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "host/util/atomic_file.h"
 #include "host/util/clock.h"
 
 namespace imr::pipeline {
@@ -41,15 +43,20 @@ class KeyframeObserver {
 };
 
 // --export-stream / --export-colmap: every update as the engine got it, for the SLAM JSON stream
-// and the COLMAP model written when the sequence ends.
+// and the COLMAP model written when the sequence ends. What it records is spooled to a staging
+// folder in `spool_beside` (removed with everything in it when the recording ends, written or not;
+// a killed run's is removed by the next run's leftover sweep of that folder).
 class StreamRecording : public KeyframeObserver {
  public:
-  StreamRecording(const io::KeyframeSource* source, std::string written_by)
-      : recorder_(source, std::move(written_by)) {}
+  StreamRecording(const io::KeyframeSource* source, std::string written_by,
+                  const std::filesystem::path& spool_beside)
+      : spool_(spool_beside), recorder_(source, std::move(written_by), {spool_.path()}) {}
   void OnKeyframe(KeyframeEvent& event) override { recorder_.Record(event.update, event.info); }
+  io::StreamRecorder& recorder() { return recorder_; }
   const io::StreamRecorder& recorder() const { return recorder_; }
 
  private:
+  StagingDirectory spool_;  // before the recorder: its files close before the folder goes
   io::StreamRecorder recorder_;
 };
 

@@ -269,7 +269,7 @@ json MemoryJson(const ReportInputs& in) {
     heap = {{"allocator", in.final_heap.allocator},
             {"allocated", in.final_heap.allocated},
             {"resident", in.final_heap.resident}};
-  return {{"peak_rss_bytes", in.peak_rss_bytes},
+  json j = {{"peak_rss_bytes", in.peak_rss_bytes},
           {"final_rss_bytes", in.final_rss_bytes},
           {"final_heap_bytes", heap},
           {"engine_bytes",
@@ -283,6 +283,8 @@ json MemoryJson(const ReportInputs& in) {
             {"cameras", m.cameras}}},
           {"ray_entries",
            {{"held", m.ray_entries_used}, {"live", m.ray_entries_live}}}};
+  if (!in.export_recorder.is_null()) j["export_recorder"] = in.export_recorder;
+  return j;
 }
 
 // The mesh: tiles only (its size from the surface stream), written in blocks from the spool, or

@@ -77,6 +77,7 @@ struct ReportInputs {
   engine::EngineMemory engine_memory;  // at the end of the run
   uint64_t peak_rss_bytes = 0, final_rss_bytes = 0;  // the process's (one sequence per process in a batch)
   HeapBytes final_heap;  // the allocator's figures at the end, beside final_rss_bytes
+  nlohmann::json export_recorder;  // --export-stream/--export-colmap's recorder (null: not asked)
   const engine::Mesh* mesh = nullptr;  // null: tiles only, or the single mesh written in blocks
   const StreamedSurface* streamed_mesh = nullptr;  // the single mesh on disk (streamed runs)
   std::size_t formats_streamed = 0;    // of the job's formats, written in blocks

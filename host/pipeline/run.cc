@@ -493,9 +493,13 @@ void SequenceRun::WriteTile(const TileMesh& t, const fs::path& dir, const std::s
 // What runs after every keyframe, in this order (the trace writes the check's time).
 void SequenceRun::AddObservers() {
   if (!options_.export_stream.empty() || !options_.export_colmap.empty()) {
+    // The spool lies beside the first export: the same disk, a folder the run may write into.
+    const fs::path first = ExpandExportPath(
+        options_.export_stream.empty() ? options_.export_colmap : options_.export_stream, v_, seq_.name);
+    const fs::path beside = first.has_parent_path() ? first.parent_path() : fs::path(".");
     auto o = std::make_unique<StreamRecording>(
         source_.get(), std::string("imr ") + Version() + ", job " + job_.Name() + ", sequence " +
-                           seq_.name);
+                           seq_.name, beside);
     recording_ = o.get();
     observers_.push_back(std::move(o));
   }
@@ -767,19 +771,37 @@ void SequenceRun::WarnAbout() {
          "its replay will differ");
 }
 
+// Runs `write` (files into the staging folder `staging`); a failure names the file where it was
+// to go in `destination`, not its staged copy.
+template <class F>
+void WriteStaged(const fs::path& staging, const fs::path& destination, F write) {
+  try {
+    write();
+  } catch (const std::runtime_error& e) {
+    std::string what = e.what();
+    const std::string staged = staging.string() + "/";
+    if (what.rfind(staged, 0) == 0)
+      what = (destination.empty() ? fs::path(".") : destination).string() + "/" + what.substr(staged.size());
+    throw std::runtime_error(what);
+  }
+}
+
 // --export-stream and --export-colmap, from the recorded updates.
 void SequenceRun::WriteStreamExports() {
   if (!options_.export_stream.empty()) {
     const fs::path p = ExpandExportPath(options_.export_stream, v_, seq_.name);
-    if (p.has_parent_path()) EnsureWritableDirectory(p.parent_path());
-    WriteFileAtomically(p, recording_->recorder().SlamJson());
+    CheckWriteTarget(p);  // before the file is written: a refusal costs no time
+    // Written streamed into a staging folder beside it, then renamed into place.
+    StagingDirectory out(p.has_parent_path() ? p.parent_path() : fs::path("."));
+    WriteStaged(out.path(), p.parent_path(), [&] { recording_->recorder().WriteSlamJson(out.path() / p.filename()); });
+    out.Commit();
     report_.exports["stream"] = fs::absolute(p).string();
     result_->extra_files.push_back(p);
   }
   if (!options_.export_colmap.empty()) {
     const fs::path p = ExpandExportPath(options_.export_colmap, v_, seq_.name);
     StagingDirectory colmap(p);
-    io::WriteColmapText(recording_->recorder().Colmap(), colmap.path());
+    WriteStaged(colmap.path(), p, [&] { recording_->recorder().WriteColmap(colmap.path()); });
     for (auto& f : colmap.Commit()) result_->extra_files.push_back(std::move(f));
     report_.exports["colmap"] = fs::absolute(p).string();
   }
@@ -846,6 +868,14 @@ void SequenceRun::WriteMeshAndReport(std::future<void>* evaluation) {
   report_.peak_rss_bytes = PeakResidentBytes();
   report_.final_rss_bytes = ResidentBytes();
   report_.final_heap = CurrentHeapBytes();
+  if (recording_ != nullptr) {
+    const io::StreamRecorder& r = recording_->recorder();
+    const io::StreamRecorder::Stats st = r.stats();
+    report_.export_recorder = {{"held_bytes", r.HeldBytes()},        {"views", st.views},
+                               {"observations", st.observations},   {"points_spooled", st.points_spooled},
+                               {"points_recovered", st.points_recovered}, {"spool_scans", st.spool_scans},
+                               {"evict_after_keyframes", st.evict_after_keyframes}};
+  }
   report_.mesh = mesh_ ? &*mesh_ : nullptr;
   if (streamed_ && !job_.output.formats.empty()) report_.streamed_mesh = &*streamed_;
   report_.engine_seconds = engine_seconds_;

@@ -18,7 +18,7 @@ set -euo pipefail
 mode=$1 src=$2 bin=$3
 jobs=${IMR_SUBBUILD_JOBS:-2}
 sanitize_targets=(engine_engine_test engine_engine_property_test io_job_test io_readers_test
-                  io_image_sequence_test)
+                  io_image_sequence_test io_stream_recorder_test)
 # -O1 with assertions (no NDEBUG): fast enough to run, and CGAL's and our asserts stay armed.
 common=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1
         -DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -DIMR_BUILD_BENCH=OFF -DIMR_BUILD_TESTS=ON -Wno-dev)
