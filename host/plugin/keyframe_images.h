@@ -23,7 +23,11 @@ namespace imr::plugin {
 struct KeyframeImageStoreOptions {
   // Decoded bytes kept at most: held images count, released ones are evicted (least recently
   // used first) to stay within it. Asking for an image that would take held bytes beyond it fails.
-  uint64_t budget_bytes = uint64_t{512} << 20;
+  // 128 MiB: ~90 KITTI-sized colour images. The whole drive's images stayed decoded at the final
+  // export within 512 MiB (281 MB at 1,000 imr-synth frames: the drive's peak, issue 46); a
+  // one-pass export (vertex colours) decodes each once whatever the budget, a textured one
+  // decodes again only the views that fell out before its atlas pass, which goes last to first.
+  uint64_t budget_bytes = uint64_t{128} << 20;
 
   // Empty when usable, else which field and why.
   std::string Check() const;

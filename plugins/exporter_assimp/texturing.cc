@@ -842,7 +842,9 @@ void CopyPatches(const std::vector<Patch>& patches, const std::vector<View>& vie
                  TexturedMesh& out) {
   std::vector<std::vector<std::size_t>> by_view(views.size());
   for (std::size_t i = 0; i < patches.size(); ++i) by_view[static_cast<std::size_t>(patches[i].view)].push_back(i);
-  for (std::size_t vi = 0; vi < views.size(); ++vi) {
+  // Last view first: pass 1 went first to last, so the host's cache (least recently used out,
+  // plugin/keyframe_images.h) still holds the last ones when the images do not all fit.
+  for (std::size_t vi = views.size(); vi-- > 0;) {
     if (by_view[vi].empty()) continue;
     if (check_cancelled) check_cancelled();
     const imr::sdk::KeyframeImage image = fetch(static_cast<uint64_t>(views[vi].index));
