@@ -120,7 +120,7 @@ struct EngineOptions {
                                       // new vertex at their centroid.
   int smoothing_iterations = 0;       // Export: Taubin lambda|mu smoothing steps (boundary
                                       // vertices fixed; topology unchanged); 0: none.
-  double min_component_area = 0.5;    // Export: a connected piece of the surface with less
+  double min_component_area = 1.0;    // Export: a connected piece of the surface with less
                                       // area than this many steiner_spacing^2 is dropped (specks
                                       // stray points leave in free space); 0: keep every piece.
                                       // Streamed: a piece is weighed once it is whole
