@@ -6,7 +6,6 @@
 
 #include "host/engine/engine.h"
 #include "host/io/keyframe_source.h"
-#include "host/io/slam_json.h"
 #include "host/io/stream_recorder.h"
 #include "host/pipeline/mesh_export.h"
 #include "host/pipeline/run.h"
