@@ -99,6 +99,7 @@ class SequenceRun {
   void ProcessKeyframes();
   bool NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info);
   void Finish();
+  void ReleaseFrontEnd();
   engine::Mesh CheckedMesh();
   void FinishStreamedSurface();
   const engine::Mesh& WholeMesh();
@@ -585,6 +586,7 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 // truth, the job's "evaluation"), or forgetting is off (tiles only: the single mesh in canonical
 // order, today's bytes).
 void SequenceRun::Finish() {
+  ReleaseFrontEnd();
   if (streamed_)
     FinishStreamedSurface();
   else
@@ -615,11 +617,31 @@ void SequenceRun::Finish() {
     };
   }
   std::future<void> evaluation;
-  if (evaluate && prefetch_)
+  if (evaluate && overlap_ && front_end_ != nullptr)  // as with the front end's prefetch
     evaluation = std::async(std::launch::async, evaluate);
   else if (evaluate)
     evaluate();
   WriteMeshAndReport(&evaluation);
+}
+
+// The input read to its end: the front end's threads stop and its plugins go (the tracker's image
+// pyramids, the dense stage's frames: ~18 MB at the end of an imr-synth drive), each on the lane
+// that made it, before the end's refine call and exports decode keyframe images. The front end
+// itself stays (its figures, the evaluation against its ground truth) and calls no plugin again.
+void SequenceRun::ReleaseFrontEnd() {
+  if (front_end_ == nullptr) return;
+  prefetch_.reset();
+  if (refiner_lane_)
+    refiner_lane_->Run([&] {
+      dense_.reset();
+      refiner_.reset();
+    });
+  else {
+    dense_.reset();
+    refiner_.reset();
+  }
+  if (features_lane_) features_lane_->Run([&] { features_.reset(); });
+  else features_.reset();
 }
 
 const engine::Mesh& SequenceRun::WholeMesh() {
