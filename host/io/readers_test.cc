@@ -386,6 +386,35 @@ bool SameUpdate(const engine::KeyframeUpdate& a, const engine::KeyframeUpdate& b
   return false;
 }
 
+// Cameras in arrival order whatever their ids, and what the order holds over a drive (issue 46):
+// a run per stretch of consecutive ids, not a record per camera.
+TEST(CanonicalOrder, CamerasInArrivalOrderInRunsNotARecordPerFrame) {
+  CanonicalOrder order;
+  engine::KeyframeUpdate u;
+  for (uint64_t id : {10, 11, 5, 12}) u.cameras.push_back({id, {}, {}});
+  u.new_points.push_back({1, {0, 0, 0}, {12, 5, 99, 10, 5, 11}});  // 99: never arrived, last
+  order.Apply(&u);
+  EXPECT_EQ(u.new_points[0].camera_ids, (std::vector<uint64_t>{10, 11, 5, 12, 99}));
+  EXPECT_EQ(order.runs(), 3u);  // 10..11, 5, 12 (12 came after 5, not after 11)
+
+  // A drive numbering its frames in order (every frame's camera in the update, as the image
+  // front end gives them): one run, however long.
+  auto drive = [](int keyframes) {
+    CanonicalOrder o;
+    for (uint64_t k = 0; k < static_cast<uint64_t>(keyframes); ++k) {
+      engine::KeyframeUpdate d;
+      for (uint64_t f = 5 * k; f < 5 * k + 5; ++f) d.cameras.push_back({f, {}, {}});
+      d.new_points.push_back({k, {0, 0, 0}, {5 * k + 4, 5 * k}});
+      o.Apply(&d);
+      EXPECT_EQ(d.new_points[0].camera_ids, (std::vector<uint64_t>{5 * k, 5 * k + 4}));
+    }
+    return o.runs();
+  };
+  const std::size_t at_200 = drive(200), at_800 = drive(800);
+  EXPECT_EQ(at_200, 1u);
+  EXPECT_LE(at_800, at_200) << "a record per frame: 1,000 -> 4,000";
+}
+
 TEST(RoundTrip, AnExportedStreamReplaysToTheSameUpdates) {
   TempDir dir;
   fs::create_directories(dir / "spool");

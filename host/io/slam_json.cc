@@ -513,18 +513,35 @@ std::unique_ptr<KeyframeSource> OpenSlamJson(const std::filesystem::path& file, 
 
 // -----------------------------------------------------------------------------------------------
 
+uint64_t CanonicalOrder::Rank(uint64_t id) const {
+  auto next = runs_.upper_bound(id);
+  if (next == runs_.begin()) return UINT64_MAX;
+  const auto& [first, run] = *std::prev(next);
+  return id <= run.last_id ? run.first_rank + (id - first) : UINT64_MAX;
+}
+
+void CanonicalOrder::Arrive(uint64_t id) {
+  if (Rank(id) != UINT64_MAX) return;  // its first arrival counts
+  const uint64_t rank = arrived_++;
+  auto next = runs_.upper_bound(id);
+  if (next != runs_.begin()) {
+    auto& [first, run] = *std::prev(next);
+    if (run.last_id + 1 == id && run.first_rank + (id - first) == rank) {  // the next in order
+      run.last_id = id;
+      return;
+    }
+  }
+  runs_.emplace(id, Run{id, rank});
+}
+
 void CanonicalOrder::Apply(engine::KeyframeUpdate* u) {
-  for (const engine::Camera& c : u->cameras) arrival_.emplace(c.id, arrival_.size());
+  for (const engine::Camera& c : u->cameras) Arrive(c.id);
   auto order = [&](std::vector<uint64_t>* ids) {
     std::vector<uint64_t> out;
     for (uint64_t id : *ids)
       if (std::find(out.begin(), out.end(), id) == out.end()) out.push_back(id);
-    std::stable_sort(out.begin(), out.end(), [&](uint64_t a, uint64_t b) {
-      auto ia = arrival_.find(a), ib = arrival_.find(b);
-      const uint64_t ra = ia == arrival_.end() ? UINT64_MAX : ia->second;
-      const uint64_t rb = ib == arrival_.end() ? UINT64_MAX : ib->second;
-      return ra < rb;
-    });
+    std::stable_sort(out.begin(), out.end(),
+                     [&](uint64_t a, uint64_t b) { return Rank(a) < Rank(b); });
     *ids = std::move(out);
   };
   for (auto& p : u->new_points) order(&p.camera_ids);

@@ -35,7 +35,6 @@
 
 #include <filesystem>
 #include <map>
-#include <unordered_map>
 
 namespace imr::io {
 
@@ -60,9 +59,20 @@ std::unique_ptr<KeyframeSource> OpenSlamJson(const std::filesystem::path& file,
 class CanonicalOrder {
  public:
   void Apply(engine::KeyframeUpdate* update);
+  // What it holds: a run per stretch of cameras that arrived with consecutive ids (one for a
+  // source numbering its frames in order), not a record per camera, which grew with the drive.
+  std::size_t runs() const { return runs_.size(); }
 
  private:
-  std::unordered_map<uint64_t, uint64_t> arrival_;
+  void Arrive(uint64_t id);
+  // The camera's place in arrival order; UINT64_MAX when it has not arrived.
+  uint64_t Rank(uint64_t id) const;
+  struct Run {
+    uint64_t last_id;     // ids first..last_id arrived in that order,
+    uint64_t first_rank;  // the first of them as the first_rank-th camera
+  };
+  std::map<uint64_t, Run> runs_;  // by first id
+  uint64_t arrived_ = 0;
 };
 
 }  // namespace imr::io

@@ -99,6 +99,7 @@ class SequenceRun {
   void ProcessKeyframes();
   bool NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo* info);
   void Finish();
+  void ReleaseFrontEnd();
   engine::Mesh CheckedMesh();
   void FinishStreamedSurface();
   const engine::Mesh& WholeMesh();
@@ -585,7 +586,7 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 // truth, the job's "evaluation"), or forgetting is off (tiles only: the single mesh in canonical
 // order, today's bytes).
 void SequenceRun::Finish() {
-  if (streamed_ && refinement_) refinement_->FinishLive(*engine_, export_context_, watch_);
+  ReleaseFrontEnd();
   if (streamed_)
     FinishStreamedSurface();
   else
@@ -616,11 +617,31 @@ void SequenceRun::Finish() {
     };
   }
   std::future<void> evaluation;
-  if (evaluate && prefetch_)
+  if (evaluate && overlap_ && front_end_ != nullptr)  // as with the front end's prefetch
     evaluation = std::async(std::launch::async, evaluate);
   else if (evaluate)
     evaluate();
   WriteMeshAndReport(&evaluation);
+}
+
+// The input read to its end: the front end's threads stop and its plugins go (the tracker's image
+// pyramids, the dense stage's frames: ~18 MB at the end of an imr-synth drive), each on the lane
+// that made it, before the end's refine call and exports decode keyframe images. The front end
+// itself stays (its figures, the evaluation against its ground truth) and calls no plugin again.
+void SequenceRun::ReleaseFrontEnd() {
+  if (front_end_ == nullptr) return;
+  prefetch_.reset();
+  if (refiner_lane_)
+    refiner_lane_->Run([&] {
+      dense_.reset();
+      refiner_.reset();
+    });
+  else {
+    dense_.reset();
+    refiner_.reset();
+  }
+  if (features_lane_) features_lane_->Run([&] { features_.reset(); });
+  else features_.reset();
 }
 
 const engine::Mesh& SequenceRun::WholeMesh() {
@@ -642,13 +663,21 @@ engine::Mesh SequenceRun::CheckedMesh() {
   return mesh;
 }
 
-// The streamed surface's end: the engine's last part, the last tiles, dO checked; then the engine
-// goes (its memory with it). The single mesh was checked as it was spooled, one vertex at a time.
+// The streamed surface's end: what is left of the engine's surface (its last part, and the mesh
+// the refinement's final call takes), dO checked and the engine's figures taken; then the engine
+// goes (its memory with it) before the final refine call, the last part, the last tiles and the
+// exports, which decode keyframe images (the end of a 5,000-frame drive peaked with both). The
+// single mesh was checked as it was spooled, one vertex at a time.
 void SequenceRun::FinishStreamedSurface() {
   watch_.SetPosition("the last part of the surface and its tiles");
-  streamed_->Finish(*engine_);
-  if (tiles_)
-    for (const fs::path& f : tiles_->files()) result_->extra_files.push_back(f);
+  std::optional<engine::Mesh> live;
+  double extract_seconds = 0.0;
+  if (refinement_) {
+    const auto start = std::chrono::steady_clock::now();
+    live = engine_->ExtractMesh();
+    extract_seconds = SecondsSince(start);
+  }
+  engine::SurfacePart last = engine_->FinishSurface();
   report_.boundary_check = engine_->CheckInvariants();
   if (!report_.boundary_check.ok)
     throw std::runtime_error("invariant check failed after the last keyframe (" +
@@ -656,6 +685,11 @@ void SequenceRun::FinishStreamedSurface() {
   engine_stats_ = engine_->Stats();
   report_.engine_memory = engine_->Memory();
   engine_.reset();
+  if (refinement_) refinement_->FinishLive(std::move(*live), extract_seconds, export_context_, watch_);
+  live.reset();
+  streamed_->Finish(std::move(last));
+  if (tiles_)
+    for (const fs::path& f : tiles_->files()) result_->extra_files.push_back(f);
   if (!job_.output.formats.empty()) {
     report_.mesh_check = streamed_->mesh_check();
     if (!report_.mesh_check.ok)

@@ -256,9 +256,8 @@ void StreamedSurface::Take(engine::Engine& engine) {
   stats_.max_update_seconds = std::max(stats_.max_update_seconds, s);
 }
 
-void StreamedSurface::Finish(engine::Engine& engine) {
+void StreamedSurface::Finish(engine::SurfacePart last) {
   const auto start = std::chrono::steady_clock::now();
-  engine::SurfacePart last = engine.FinishSurface();
   if (filter_) filter_(&last);
   Feed(last);
   if (const std::string e = stream_.Finish(); !e.empty())

@@ -51,8 +51,9 @@ class StreamedSurface {
   void SetPartFilter(std::function<void(engine::SurfacePart*)> filter) { filter_ = std::move(filter); }
   // After each ApplyUpdate: the parts that became final. Throws when a part does not fit.
   void Take(engine::Engine& engine);
-  // After the last update: the rest of the surface, the open tiles and the final tileset.
-  void Finish(engine::Engine& engine);
+  // After the last update: the rest of the surface (the engine's FinishSurface, taken before the
+  // engine goes: the last tiles decode keyframe images), the open tiles and the final tileset.
+  void Finish(engine::SurfacePart last);
 
   // --- The single mesh, after Finish (spool given) ---
   uint64_t vertex_count() const { return next_vertex_; }

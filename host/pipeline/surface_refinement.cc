@@ -119,14 +119,12 @@ void SurfaceRefinement::Finish(engine::Mesh* mesh, const ExportContext& context,
   Refine(mesh, context, watch, /*final_call=*/true);
 }
 
-void SurfaceRefinement::FinishLive(const engine::Engine& engine, const ExportContext& context,
-                                   StageWatch& watch) {
+void SurfaceRefinement::FinishLive(engine::Mesh live, double extract_seconds,
+                                   const ExportContext& context, StageWatch& watch) {
   streamed_ = true;
-  const auto start = std::chrono::steady_clock::now();
-  engine::Mesh mesh = engine.ExtractMesh();
-  stats_.seconds += SecondsSince(start);
-  if (mesh.faces.empty()) return;
-  Refine(&mesh, context, watch, /*final_call=*/true);
+  stats_.seconds += extract_seconds;
+  if (live.faces.empty()) return;
+  Refine(&live, context, watch, /*final_call=*/true);
 }
 
 void SurfaceRefinement::Freeze(engine::SurfacePart* part) {

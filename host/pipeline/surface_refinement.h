@@ -8,7 +8,7 @@
 // out: each part's vertices take their refined positions before it goes to the tiles and the
 // spool (Freeze), and keep them: a vertex handed out is FIXED in later calls (its other faces come
 // later, at the position already written), and forgotten once complete. The last call refines
-// what the engine still holds, before its last part (FinishLive).
+// what the engine still held, before its last part goes through Freeze (FinishLive).
 #pragma once
 
 #include "host/engine/engine.h"
@@ -58,8 +58,11 @@ class SurfaceRefinement {
   // A part the engine hands out, before the surface stream: each vertex at its refined position
   // (the one it was written with, when an earlier part named it), then complete ones forgotten.
   void Freeze(engine::SurfacePart* part);
-  // The final call on what the engine still holds (before its last part goes through Freeze).
-  void FinishLive(const engine::Engine& engine, const ExportContext& context, StageWatch& watch);
+  // The final call on what the engine still holds, `live` (its ExtractMesh, taken with its last
+  // part before the engine goes; `extract_seconds` its time), before that last part goes through
+  // Freeze.
+  void FinishLive(engine::Mesh live, double extract_seconds, const ExportContext& context,
+                  StageWatch& watch);
 
   const SurfaceRefinementStats& stats() const { return stats_; }
 

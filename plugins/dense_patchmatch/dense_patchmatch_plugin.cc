@@ -3,8 +3,10 @@
 // (patch_match.cc), at a fraction of the image's resolution; pixels kept where the views agree at
 // a triangulation angle wide enough to trust the depth, thinned to one point per cell of a 3D grid
 // so that a surface seen again from the next keyframes is not sampled again. The plugin keeps the
-// last few keyframes (at the working resolution) and nothing else: bounded memory on any drive.
+// last few keyframes (at the working resolution) and the grid's cells within reach of the newest
+// (point_cells.hpp), nothing else: bounded memory on any drive.
 #include "patch_match.hpp"
+#include "point_cells.hpp"
 
 #include <imr/sdk/plugin.hpp>
 
@@ -19,7 +21,6 @@
 #include <optional>
 #include <string>
 #include <thread>
-#include <unordered_set>
 #include <vector>
 
 namespace {
@@ -98,6 +99,7 @@ class DensePatchMatch : public imr::sdk::Dense {
       throw imr::sdk::InvalidArgument("max_depth: expected more than min_depth");
     point_step_ = p.Get<int>("point_step");
     spacing_ = p.Get<double>("spacing");
+    cells_.SetSpacing(spacing_);
     spacing_ratio_ = p.Get<double>("spacing_ratio");
     consistency_ = p.Get<double>("consistency");
     const int threads = p.Get<int>("threads");
@@ -187,6 +189,10 @@ class DensePatchMatch : public imr::sdk::Dense {
     const DepthMap m = imr::dense::ComputeDepthMap(rk.view, nbs, o, [this] { return host_.IsCancelled(); });
     ToPoints(rk, nbs, nb_ids, m, update);
     previous_ = Previous{rk.id, rk.view, m.depth};
+    // The cells no map made from near here reaches (twice the farthest depth searched: a point
+    // lies at most ~1.4 depths from its camera at the image's corners) go.
+    reach_ = std::max(reach_, 2.0 * o.max_depth);
+    cells_.Forget(rk.view.Center(), reach_);
   }
 
   void ToPoints(const Frame& rk, const std::vector<View>& nbs, const std::vector<uint64_t>& nb_ids,
@@ -203,6 +209,7 @@ class DensePatchMatch : public imr::sdk::Dense {
       if (depths.size() < 16) return;  // too little to choose a spacing from
       std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
       spacing_ = spacing_ratio_ * depths[depths.size() / 2];
+      cells_.SetSpacing(spacing_);
     }
     const int step = point_step_;
     for (int y0 = 0; y0 < m.depth.rows; y0 += step)
@@ -236,7 +243,7 @@ class DensePatchMatch : public imr::sdk::Dense {
           if (std::acos(std::clamp(a.dot(b), -1.0, 1.0)) >= min_angle_) cams.push_back(nb_ids[k]);
         }
         if (static_cast<int>(cams.size()) - 1 < o_.min_views) continue;
-        if (!cells_.insert(CellKey(X)).second) continue;  // this part of the surface has a point
+        if (!cells_.Insert(X)) continue;  // this part of the surface has a point
         std::sort(cams.begin(), cams.end());
         imr_point_estimate p{};
         p.id = next_id_++;
@@ -267,11 +274,6 @@ class DensePatchMatch : public imr::sdk::Dense {
     return d > 0.0 && std::abs(d - x.z()) <= consistency_ * x.z();
   }
 
-  uint64_t CellKey(const Eigen::Vector3d& X) const {
-    const auto q = [&](double a) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(a / spacing_))) & 0x1fffff; };
-    return q(X.x()) | (q(X.y()) << 21) | (q(X.z()) << 42);
-  }
-
   imr::sdk::Host host_;
   double scale_ = 0.25;
   int near_ = 2, far_ = 5;
@@ -284,7 +286,8 @@ class DensePatchMatch : public imr::sdk::Dense {
   std::deque<Frame> window_;  // the last 2 far_ + 1 frames
   uint64_t next_reference_ = 0;  // the next keyframe id a depth map is owed for
   uint64_t next_id_ = 0;
-  std::unordered_set<uint64_t> cells_;  // 3D grid cells holding a point
+  imr::dense::PointCells cells_;  // 3D grid cells holding a point, within reach_ of the newest map
+  double reach_ = 0.0;
 };
 
 }  // namespace

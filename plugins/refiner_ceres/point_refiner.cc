@@ -27,6 +27,34 @@ std::string RefinerOptions::Check() const {
   return {};
 }
 
+void IdRuns::Add(uint64_t id) {
+  auto next = runs_.upper_bound(id);  // the first run starting after id
+  if (next != runs_.begin()) {
+    auto prev = std::prev(next);
+    if (id <= prev->second) return;  // already in
+    if (id == prev->second + 1) {    // extends the run before it, maybe up to the next one
+      prev->second = id;
+      if (next != runs_.end() && next->first == id + 1) {
+        prev->second = next->second;
+        runs_.erase(next);
+      }
+      return;
+    }
+  }
+  if (next != runs_.end() && next->first == id + 1) {  // extends the run after it
+    const uint64_t last = next->second;
+    runs_.erase(next);
+    runs_.emplace(id, last);
+    return;
+  }
+  runs_.emplace(id, id);
+}
+
+bool IdRuns::Contains(uint64_t id) const {
+  auto next = runs_.upper_bound(id);
+  return next != runs_.begin() && id <= std::prev(next)->second;
+}
+
 void PointRefiner::ValidateCamera(const imr_camera& c) const {
   const std::string where = "camera " + std::to_string(c.id);
   if (has_frame_ && c.id <= last_camera_id_)
@@ -73,7 +101,7 @@ void PointRefiner::AddFrame(const imr_camera& camera,
 
   for (const imr_track_observation& o : observations) {
     // An id is one track: a tracker that reuses an ended id gets no second point for it.
-    if (!ended_.empty() && ended_.count(o.track_id)) continue;
+    if (!ended_.empty() && ended_.Contains(o.track_id)) continue;
     Track& track = tracks_[o.track_id];
     track.last_camera = camera.id;
     if (track.rejected) continue;
@@ -91,7 +119,7 @@ void PointRefiner::ProcessKeyframe(uint64_t keyframe_id, RefinerUpdate* update) 
     track.dirty = false;
     // A track not seen in this keyframe has ended (ids are never reused): its estimate is final.
     if (track.last_camera != keyframe_id) {
-      ended_.insert(it->first);
+      ended_.Add(it->first);
       it = tracks_.erase(it);
       continue;
     }
