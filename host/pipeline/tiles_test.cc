@@ -5,6 +5,9 @@
 // thing through the imr executable.
 #include "host/pipeline/tiles.h"
 
+#include "host/eval/mesh_stats.h"
+#include "host/pipeline/streamed_surface.h"
+
 #include "host/engine/mesh_topology.h"
 #include "host/engine/simplify.h"
 #include "host/engine/surface_stream.h"
@@ -792,6 +795,135 @@ TEST(TileWriterTest, ContentUrisOfATreeThatIsNotOneAreRefused) {
   // The leaves and as many levels of detail at most.
   for (int64_t i = 0; i <= 2 * kMaxTiles; ++i) wide["children"].push_back({{"content", {{"uri", "tiles/tile_000001.glb"}}}});
   EXPECT_EQ(error(wide), "more than 200000 tiles (a run of imr writes at most 100000 and as many levels of detail)");
+}
+
+// Issue 45 item 3: a drive with forgetting on, specks put into its parts as they come (a closed
+// octahedron of 1.7 m^2 whole in one part, another across two parts): neither reaches the single
+// mesh nor the tiles, which are the parts' own export (FinishExportedMesh of their union: no
+// piece under engine.min_component_area, a 2-manifold) and agree triangle for triangle.
+TEST(TileWriterTest, SpecksInAForgettingRunsPartsAreNotWritten) {
+  engine::EngineOptions eo = StreetEngineOptions();
+  eo.forget = engine::ForgetMode::kOn;
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = 200;
+  so.points_per_keyframe = 150;
+  synthetic::SyntheticStream stream(so);
+  engine::Engine engine(eo, nullptr);
+  io::testing::TempDir dir("imr-tiles-specks");
+  fs::create_directories(dir / "spool");
+  std::vector<TileMesh> written;
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 20.0;
+  o.max_triangles = 1000;
+  o.lod = false;
+  TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}},
+                    [] { return TilesetFrame({}); },
+                    [&](const TileMesh& t, const fs::path& staging, const std::string& stem) {
+                      WriteStandInGlb(staging / (stem + ".glb"));
+                      if (t.level == 0) written.push_back(t);
+                    });
+  StreamedSurface surface(eo, dir / "spool", &writer);
+  // An octahedron of radius 0.5 at height 60 m, its keys far from the engine's.
+  int64_t next_key = int64_t{1} << 40;
+  auto speck = [&](double y, engine::SurfacePart* first, engine::SurfacePart* second) {
+    const double c[6][3] = {{0.5, 0, 0}, {-0.5, 0, 0}, {0, 0.5, 0}, {0, -0.5, 0}, {0, 0, 0.5}, {0, 0, -0.5}};
+    const int f[8][3] = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+    std::vector<int64_t> keys;
+    for (int i = 0; i < 6; ++i) keys.push_back(next_key++);
+    for (int t = 0; t < 8; ++t) {
+      engine::SurfacePart* p = t < 4 ? first : second;
+      for (int k = 0; k < 3; ++k) {
+        const int v = f[t][k];
+        p->faces.push_back(static_cast<uint32_t>(p->keys.size()));
+        p->keys.push_back(keys[static_cast<std::size_t>(v)]);
+        p->point_ids.push_back(-1);
+        p->vertices.insert(p->vertices.end(), {c[v][0], y + c[v][1], 60.0 + c[v][2]});
+      }
+    }
+    second->completed.insert(second->completed.end(), keys.begin(), keys.end());
+  };
+  std::vector<engine::SurfacePart> parts;  // as the stream got them
+  engine::SurfacePart pending_;            // the second speck's second half
+  surface.SetPartFilter([&](engine::SurfacePart* p) {
+    // A part names a vertex once: merge the speck's repeated corners by key.
+    auto dedup = [](engine::SurfacePart* q) {
+      std::map<int64_t, uint32_t> at;
+      engine::SurfacePart d = *q;
+      d.vertices.clear();
+      d.keys.clear();
+      d.point_ids.clear();
+      for (uint32_t& i : d.faces) {
+        const auto [it, fresh] = at.emplace(q->keys[i], static_cast<uint32_t>(d.keys.size()));
+        if (fresh) {
+          d.keys.push_back(q->keys[i]);
+          d.point_ids.push_back(q->point_ids[i]);
+          d.vertices.insert(d.vertices.end(), &q->vertices[3 * i], &q->vertices[3 * i] + 3);
+        }
+        i = it->second;
+      }
+      *q = std::move(d);
+    };
+    if (parts.size() == 2) speck(20.0, p, p);  // whole in this part
+    if (parts.size() == 3) {
+      engine::SurfacePart tail;
+      speck(40.0, p, &tail);  // half now, half (and its completion) with the next part
+      pending_ = std::move(tail);
+    } else if (parts.size() == 4) {
+      for (std::size_t i = 0; i < pending_.faces.size(); ++i) {
+        const uint32_t v = pending_.faces[i];
+        p->faces.push_back(static_cast<uint32_t>(p->keys.size()));
+        p->keys.push_back(pending_.keys[v]);
+        p->point_ids.push_back(pending_.point_ids[v]);
+        p->vertices.insert(p->vertices.end(), &pending_.vertices[3 * v], &pending_.vertices[3 * v] + 3);
+      }
+      p->completed.insert(p->completed.end(), pending_.completed.begin(), pending_.completed.end());
+    }
+    dedup(p);
+    parts.push_back(*p);
+  });
+  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine, [&](const synthetic::StreamKeyframe&) {
+                surface.Take(engine);
+                return true;
+              }).ok());
+  ASSERT_GT(parts.size(), 5u) << "the drive should hand its surface out in parts";
+  surface.Finish(engine);
+  const engine::SurfaceStreamStats& st = surface.stats().stream;
+  EXPECT_GE(st.dropped.components, 2);
+  EXPECT_GE(st.dropped.faces, 16);
+  EXPECT_EQ(st.held_small_triangles, 0);
+  // The single mesh: the parts' export exactly, a manifold, no piece under the threshold.
+  EXPECT_TRUE(surface.mesh_check().ok) << surface.mesh_check().message;
+  const engine::Mesh mesh = surface.ReadMesh(/*canonical=*/true);
+  engine::Mesh whole;
+  ASSERT_EQ(engine::MergeSurfaceParts(parts, &whole), "");
+  engine::DroppedComponents d;
+  engine::FinishExportedMesh(&whole, eo, &d);
+  EXPECT_EQ(d.components, st.dropped.components);
+  EXPECT_EQ(mesh.faces, whole.faces);
+  EXPECT_EQ(mesh.vertices, whole.vertices);
+  EXPECT_EQ(static_cast<int64_t>(mesh.faces.size() / 3), st.triangles_released);
+  const eval::MeshStatistics ms = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces);
+  ASSERT_GT(ms.component_list.size(), 0u);
+  for (const eval::ComponentStatistics& c : ms.component_list) EXPECT_GE(c.area, eo.MinComponentArea());
+  EXPECT_EQ(ms.unused_vertices, 0);
+  for (std::size_t i = 2; i < mesh.vertices.size(); i += 3) EXPECT_LT(mesh.vertices[i], 59.0);
+  // The tiles: the same triangles (by their corners' positions), none of a speck.
+  // A triangle as its corners from the smallest (orientation kept).
+  auto corners = [](const engine::Mesh& m, std::size_t f) {
+    std::array<std::array<double, 3>, 3> c{};
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) c[k][a] = m.vertices[3 * m.faces[f + k] + a];
+    std::rotate(c.begin(), std::min_element(c.begin(), c.end()), c.end());
+    return c;
+  };
+  std::multiset<std::array<std::array<double, 3>, 3>> from_tiles, from_mesh;
+  for (const TileMesh& t : written)
+    for (std::size_t f = 0; f < t.mesh.faces.size(); f += 3) from_tiles.insert(corners(t.mesh, f));
+  for (std::size_t f = 0; f < mesh.faces.size(); f += 3) from_mesh.insert(corners(mesh, f));
+  EXPECT_EQ(from_tiles.size(), from_mesh.size());
+  EXPECT_TRUE(from_tiles == from_mesh);
 }
 
 }  // namespace
