@@ -580,13 +580,12 @@ void TileWriter::FlushNodes(bool all) {
   do {
     for (auto it = pending_.begin(); it != pending_.end();) {
       const auto [level, x, y, z] = it->first;
-      bool ready = all;
-      if (!ready) {
-        // The drive has left its region: no open tile in it or next to it, no node below it waiting.
+      bool ready = true;
+      if (!all) {
+        // The drive has left its region: no open tile in it or next to it.
         const int64_t span = int64_t{1} << level;  // its side in cells
         const int64_t lo[3] = {x * span - kLodOffset - 1, y * span - kLodOffset - 1, z * span - kLodOffset - 1};
         const int64_t hi[3] = {(x + 1) * span - kLodOffset, (y + 1) * span - kLodOffset, (z + 1) * span - kLodOffset};
-        ready = true;
         for (const auto& [c, t] : open_) {
           const int64_t p[3] = {std::get<0>(c), std::get<1>(c), std::get<2>(c)};
           if (p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1] && p[2] >= lo[2] && p[2] <= hi[2]) {
@@ -594,16 +593,19 @@ void TileWriter::FlushNodes(bool all) {
             break;
           }
         }
-        for (auto below = pending_.begin(); ready && below != it; ++below) {
-          const auto [l, a, b, c] = below->first;
-          if (l < level && (a >> (level - l)) == x && (b >> (level - l)) == y && (c >> (level - l)) == z) ready = false;
-        }
+      }
+      // No node below it waiting, at the end too: one flushed in this pass may have gone up into a
+      // node behind the loop's place, and flushed now this one would be a second node of its key.
+      for (auto below = pending_.begin(); ready && below != it; ++below) {
+        const auto [l, a, b, c] = below->first;
+        if (l < level && (a >> (level - l)) == x && (b >> (level - l)) == y && (c >> (level - l)) == z) ready = false;
       }
       if (ready) {
         PendingNode node = std::move(it->second);
         const NodeKey key = it->first;
         it = pending_.erase(it);
-        FlushNode(key, node);
+        // At the end, the last node waiting is the top of the tree: nothing comes above it.
+        FlushNode(key, node, all && pending_.empty());
       } else {
         ++it;
       }
@@ -614,7 +616,7 @@ void TileWriter::FlushNodes(bool all) {
   stats_.seconds = seconds_before + s;
 }
 
-void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
+void TileWriter::FlushNode(const NodeKey& key, PendingNode& node, bool top) {
   const auto [level, x, y, z] = key;
   // The seams between the children are inside now: only the node's own border stays locked.
   const int64_t target = std::max<int64_t>(1, node.child_triangles / 4);
@@ -635,7 +637,11 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
   const double share = static_cast<double>(triangles) / static_cast<double>(std::max<int64_t>(1, node.child_triangles));
   const bool worth = share <= kMaxLodShare ||
                      (static_cast<int>(node.children.size()) >= kLodManyChildren && share <= kMaxLodShareMany);
-  if (triangles < kMinTileTriangles || !worth) {
+  // The top node is written however small: gathered, its children would hang at the top of the
+  // tree and a view from far would ask for each of them (a simpler surface, e.g. without its
+  // specks, makes a smaller top).
+  const bool too_small = triangles < kMinTileTriangles && !(top && node.children.size() >= 2);
+  if (too_small || !worth) {
     // Too small a tile, or hardly simpler than its children: not written; its children hang
     // under the next node up and its content goes up in its place.
     ++stats_.lod_gathered;

@@ -98,7 +98,9 @@ inline constexpr int64_t kMinTileTriangles = 100;
 // when no open tile lies in or next to its region and no node below it waits; one whose content
 // would be under kMinTileTriangles, or not at most kMaxLodShare of its children's triangles (or
 // kMaxLodShareMany when it stands for kLodManyChildren tiles or more: one request for many), is
-// not written (its children are hung under the next node up, its content goes up in its place).
+// not written (its children are hung under the next node up, its content goes up in its place);
+// the top node with two children or more is written under kMinTileTriangles too (one request
+// from far, not one per child).
 inline constexpr int kMaxLodLevel = 20;
 inline constexpr double kMaxLodShare = 0.5;
 inline constexpr double kMaxLodShareMany = 0.8;
@@ -224,7 +226,8 @@ class TileWriter {
               const std::vector<int>& spans, std::vector<int> children, int64_t triangles, double error);
   // Nodes whose region the drive has left (all when `all`), level by level upward.
   void FlushNodes(bool all);
-  void FlushNode(const NodeKey& key, PendingNode& node);
+  // `top`: the last node of the tree (at the end, none other waits).
+  void FlushNode(const NodeKey& key, PendingNode& node, bool top);
   // state: "running", "complete" or "failed" (with error).
   void WriteTileset(const std::string& state, const std::string& error = "");
 
