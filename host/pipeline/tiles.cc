@@ -416,7 +416,7 @@ void TileWriter::Add(const engine::SurfacePart& part) {
     for (int64_t k : part.completed)
       if (const auto c = vertex_cells_.find(k); c != vertex_cells_.end()) {
         c->second.completed = true;
-        if (c->second.open_tiles == 0) vertex_cells_.erase(c);
+        if (c->second.open_tiles == 0 && c->second.unknown_in_nodes == 0) vertex_cells_.erase(c);
       }
   for (auto it = open_.begin(); it != open_.end();) {
     if (parts_ - it->second.last_part >= options_.idle_parts) {
@@ -459,13 +459,15 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
     // Only its simplified content stays, in the parent node.
     const auto start = std::chrono::steady_clock::now();
     // What is known of where each vertex's triangles are: a vertex not completed yet may have
-    // some in a cell no tile holds yet, and stays locked at every level.
+    // some in a cell no tile holds yet, and stays locked until a node holding it is flushed after
+    // its completion (completions may come parts after a tile is written).
     std::vector<int> spans(tile.keys.size(), kMaxLodLevel + 1);
     for (std::size_t v = 0; v < spans.size(); ++v) {
       const auto c = vertex_cells_.find(tile.keys[v]);
       if (c == vertex_cells_.end()) continue;
       if (c->second.completed) spans[v] = c->second.span;
-      if (--c->second.open_tiles == 0 && c->second.completed) vertex_cells_.erase(c);
+      if (--c->second.open_tiles == 0 && c->second.completed && c->second.unknown_in_nodes == 0)
+        vertex_cells_.erase(c);
     }
     PushUp(1, cell, tile.mesh, tile.keys, spans, {written}, static_cast<int64_t>(tile.mesh.faces.size() / 3), 0.0);
     const double s = SecondsSince(start);
@@ -555,11 +557,16 @@ void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, c
   for (std::size_t v = 0; v < s.source.size(); ++v) {
     const int64_t k = keys[s.source[v]];
     const auto [it, fresh] = node.index.emplace(k, static_cast<uint32_t>(node.keys.size()));
+    const int span = spans[s.source[v]];
     if (fresh) {
       node.keys.push_back(k);
-      node.spans.push_back(spans[s.source[v]]);
+      node.spans.push_back(span);
       node.mesh.vertices.insert(node.mesh.vertices.end(), &s.mesh.vertices[3 * v], &s.mesh.vertices[3 * v] + 3);
       node.mesh.point_ids.push_back(s.mesh.point_ids[v]);
+      if (span > kMaxLodLevel) CountUnknownSpan(k, +1);
+    } else if (node.spans[it->second] > kMaxLodLevel && span <= kMaxLodLevel) {
+      node.spans[it->second] = span;  // known since (completed): the same for every copy
+      CountUnknownSpan(k, -1);
     }
     local[v] = it->second;
   }
@@ -616,8 +623,31 @@ void TileWriter::FlushNodes(bool all) {
   stats_.seconds = seconds_before + s;
 }
 
+void TileWriter::CountUnknownSpan(int64_t key, int delta) {
+  const auto c = vertex_cells_.find(key);
+  if (c == vertex_cells_.end()) return;
+  c->second.unknown_in_nodes += delta;
+  if (c->second.unknown_in_nodes == 0 && c->second.open_tiles == 0 && c->second.completed) vertex_cells_.erase(c);
+}
+
 void TileWriter::FlushNode(const NodeKey& key, PendingNode& node, bool top) {
   const auto [level, x, y, z] = key;
+  // Spans unknown when the content came up: known now if the vertex was completed since (its
+  // entry is kept while this node names it; released once the content has gone up).
+  std::vector<int64_t> unknown;
+  for (std::size_t v = 0; v < node.keys.size(); ++v) {
+    if (node.spans[v] <= kMaxLodLevel) continue;
+    unknown.push_back(node.keys[v]);
+    if (const auto c = vertex_cells_.find(node.keys[v]); c != vertex_cells_.end() && c->second.completed)
+      node.spans[v] = c->second.span;
+  }
+  struct Release {  // on every way out, after the content went up (PushUp counts its own)
+    TileWriter* w;
+    const std::vector<int64_t>& keys;
+    ~Release() {
+      for (int64_t k : keys) w->CountUnknownSpan(k, -1);
+    }
+  } release{this, unknown};
   // The seams between the children are inside now: only the node's own border stays locked.
   const int64_t target = std::max<int64_t>(1, node.child_triangles / 4);
   std::vector<char> locked = BorderVertices(node.mesh);

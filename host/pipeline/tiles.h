@@ -200,19 +200,23 @@ class TileWriter {
     std::vector<int> children;  // indices into written_ (a level of detail's)
     bool has_parent = false;
   };
-  // Where a vertex's triangles are, while a tile holding it is open or it is not completed: the
-  // level from which one node holds them all (a vertex is on the seam of nodes below it).
+  // Where a vertex's triangles are, while a tile holding it is open, it is not completed, or a
+  // node waiting holds it with its span unknown: the level from which one node holds them all (a
+  // vertex is on the seam of nodes below it).
   struct VertexCells {
     Cell first;
     int span = 0;
     int open_tiles = 0;
+    int unknown_in_nodes = 0;  // pending nodes holding it with span kMaxLodLevel + 1
     bool completed = false;
   };
   // A node of a level of detail waiting for its children: their content simplified, merged by key.
   struct PendingNode {
     engine::Mesh mesh;
     std::vector<int64_t> keys;
-    std::vector<int> spans;          // per vertex: VertexCells::span (kMaxLodLevel + 1: unknown)
+    std::vector<int> spans;          // per vertex: VertexCells::span (kMaxLodLevel + 1: unknown,
+                                     // not completed when last looked up: looked up again when
+                                     // the node is flushed)
     std::map<int64_t, uint32_t> index;
     std::vector<int> children;       // written tiles it will hold
     int64_t child_triangles = 0;     // of its children's content
@@ -228,6 +232,9 @@ class TileWriter {
   void FlushNodes(bool all);
   // `top`: the last node of the tree (at the end, none other waits).
   void FlushNode(const NodeKey& key, PendingNode& node, bool top);
+  // A pending node holds (+1) or no longer holds (-1) vertex `key` with its span unknown; the
+  // vertex's VertexCells goes when nothing needs it.
+  void CountUnknownSpan(int64_t key, int delta);
   // state: "running", "complete" or "failed" (with error).
   void WriteTileset(const std::string& state, const std::string& error = "");
 

@@ -342,6 +342,20 @@ std::vector<engine::SurfacePart> StripParts() {
   return parts;
 }
 
+// The tiles a view from far asks for: the first content down each branch from the root.
+std::vector<std::string> TopTiles(const json& root) {
+  std::vector<std::string> top;
+  std::function<void(const json&)> first_content = [&](const json& n) {
+    if (n.contains("content")) {
+      top.push_back(n["content"]["uri"].get<std::string>());
+      return;
+    }
+    for (const json& c : n.value("children", json::array())) first_content(c);
+  };
+  first_content(root);
+  return top;
+}
+
 // Issue 45: a surface whose top of the tree simplifies under kMinTileTriangles (here a flat strip;
 // on a street, the same street without its specks) still has one node at the top: gathered, its
 // 16 children would hang at the top of the tileset and a view from far would ask for each.
@@ -359,22 +373,63 @@ TEST(TileWriterTest, TheTopOfTheTreeIsOneNodeHoweverSmall) {
   for (const engine::SurfacePart& p : StripParts()) writer.Add(p);
   writer.Finish();
   ASSERT_EQ(writer.stats().tiles, 16);
-  // The tiles a view from far asks for: the first content down each branch from the root.
-  std::vector<std::string> top;
-  std::function<void(const json&)> first_content = [&](const json& n) {
-    if (n.contains("content")) {
-      top.push_back(n["content"]["uri"].get<std::string>());
-      return;
-    }
-    for (const json& c : n.value("children", json::array())) first_content(c);
-  };
   const json ts = json::parse(std::ifstream(dir / "tileset.json"));
-  first_content(ts["root"]);
+  const std::vector<std::string> top = TopTiles(ts["root"]);
   ASSERT_EQ(top.size(), 1u) << ts["root"].dump(1);
   const TileMesh& t = tiles.at(top[0]);
   EXPECT_GT(t.level, 0);
   EXPECT_LT(static_cast<int64_t>(t.mesh.faces.size() / 3), kMinTileTriangles) << "the case this test is for";
   EXPECT_EQ(TileContentUris(ts["root"]).size(), tiles.size()) << "every tile under it";
+}
+
+// Issue 45: a vertex's lock is decided when the node holding it is flushed, not when its tile is
+// written: completions that come parts after the tiles (as when the stream holds a small piece's
+// completions) give the same levels as on time, and however late, the tree keeps one node at the
+// top (locked at every level, the nodes were not worth writing and the top was lost).
+TEST(TileWriterTest, CompletionsThatComeLateGiveTheSameLevels) {
+  const std::vector<engine::SurfacePart> parts = StreetParts(120);
+  ASSERT_FALSE(parts.empty());
+  std::vector<engine::SurfacePart> released;
+  engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(StreetEngineOptions()));
+  for (const auto& part : parts) {
+    ASSERT_EQ(surface.Add(part), "");
+    released.push_back(surface.TakeReleased());
+  }
+  struct Run {
+    TilesStats stats;
+    std::vector<std::string> top;
+  };
+  auto run = [&](std::size_t late) {  // each part's completions handed `late` parts later
+    io::testing::TempDir dir("imr-tiles-late");
+    TilesOptions o;
+    o.enabled = true;
+    o.size = 10.0;
+    o.max_triangles = 400;
+    TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+                      [&](const TileMesh&, const fs::path& staging, const std::string& stem) {
+                        WriteStandInGlb(staging / (stem + ".glb"));
+                      });
+    for (std::size_t i = 0; i < released.size(); ++i) {
+      engine::SurfacePart p = released[i];
+      p.completed = i >= late ? released[i - late].completed : std::vector<int64_t>();
+      writer.Add(p);
+    }
+    writer.Finish();  // the last `late` parts' completions: every vertex is complete at the end
+    return Run{writer.stats(), TopTiles(json::parse(std::ifstream(dir / "tileset.json"))["root"])};
+  };
+  const Run on_time = run(0);
+  ASSERT_GE(on_time.stats.tiles_per_level.size(), 3u);
+  EXPECT_EQ(on_time.top.size(), 1u);
+  for (std::size_t late : {2, 3, 4}) {
+    const Run r = run(late);
+    EXPECT_EQ(r.stats.tiles_per_level, on_time.stats.tiles_per_level) << late << " parts late";
+    EXPECT_NEAR(static_cast<double>(r.stats.lod_triangles), static_cast<double>(on_time.stats.lod_triangles),
+                0.1 * static_cast<double>(on_time.stats.lod_triangles)) << late << " parts late";
+  }
+  // Later than the nodes are flushed (the drive has left): locked there, not above.
+  const Run very_late = run(12);
+  EXPECT_EQ(very_late.top.size(), 1u);
+  EXPECT_EQ(very_late.stats.tiles_per_level.size(), on_time.stats.tiles_per_level.size());
 }
 
 // A run stopped mid-way (the exporter throws): the levels of detail it wrote are the run's
