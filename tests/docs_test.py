@@ -37,7 +37,7 @@ NOT_OPTIONS = {
     # the SDK's structs and fields (docs/plugins.md, docs/tiles.md), glTF extras
     "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "imr_upright",
     "local_transform",  # tileset.json asset.extras.imr (docs/tiles.md)
-    "lod_tiles", "tiles_per_level", "pending_triangles_peak",  # tileset.json, report.json tiles.lod
+    "lod_tiles", "tiles_per_level", "pending_triangles_peak", "subtree_bytes", "tileset_writes", "tileset_bytes",  # tileset.json, report.json tiles.lod
     "engine_bytes",  # report.json memory, imr run --trace records (benchmarks.md, reliability.md)
     "heap_bytes", "final_heap_bytes",  # imr run --trace records, report.json memory (reliability.md)
     "on_from_update",  # report.json engine.forget (engine.md: forget auto)

@@ -73,8 +73,11 @@ tiles.group.rotation.x = -Math.PI / 2;
 scene.add(tiles.group);
 tiles.setCamera(camera);
 tiles.setResolutionFromRenderer(camera, renderer);
-tiles.addEventListener('load-root-tileset', () => {
-  state.tilesetLoaded = true;
+// The camera is placed once the tileset is read (near: once the first leaf is found, which may
+// take reading external tilesets); the renderer asks for nothing before.
+let seen = false, placed = false;
+tiles.addEventListener('load-root-tileset', async () => {
+  seen = true;
   tiles.group.updateMatrixWorld(true);
   const sphere = new THREE.Sphere();
   tiles.getBoundingSphere(sphere);
@@ -82,14 +85,20 @@ tiles.addEventListener('load-root-tileset', () => {
   // From above and a little to the side, the whole tileset in view (far: from 30 radii).
   let distance = sphere.radius * (VIEW === 'far' ? 30 : 2.4);
   if (VIEW === 'near') {
-    // The first leaf (a tile_ content) in tree order, from a third of its radius.
-    const find = (t) => {
-      if (t.content && t.content.uri.includes('tiles/tile_')) return t;
-      for (const c of t.children || []) { const f = find(c); if (f) return f; }
+    // The first leaf (a tile_ content) in tree order, from a third of its radius; levels of
+    // detail's subtrees (external tilesets, their uris relative to tiles/) read on the way.
+    const find = async (t, base) => {
+      if (t.content && t.content.uri.includes('tile_')) return t;
+      if (t.content && /\.json$/.test(t.content.uri)) {
+        const sub = await (await fetch('/run/' + base + t.content.uri)).json();
+        const f = await find(sub.root, 'tiles/');
+        if (f) return f;
+      }
+      for (const c of t.children || []) { const f = await find(c, base); if (f) return f; }
       return null;
     };
     // Its box (the tileset's, under the root's transform; not yet preprocessed by the renderer).
-    const leaf = find(tiles.root), box = leaf.boundingVolume.box;
+    const leaf = await find(tiles.root, ''), box = leaf.boundingVolume.box;
     const toWorld = new THREE.Matrix4().fromArray(tiles.root.transform || new THREE.Matrix4().elements)
       .premultiply(tiles.group.matrixWorld);
     sphere.center.set(box[0], box[1], box[2]).applyMatrix4(toWorld);
@@ -99,6 +108,8 @@ tiles.addEventListener('load-root-tileset', () => {
   camera.position.copy(sphere.center).add(new THREE.Vector3(0.3, 1.0, 0.6).normalize().multiplyScalar(distance));
   camera.lookAt(sphere.center);
   camera.updateMatrixWorld();
+  placed = true;
+  state.tilesetLoaded = true;
 });
 tiles.addEventListener('load-model', (e) => {
   state.models += 1;
@@ -115,7 +126,7 @@ tiles.addEventListener('load-error', (e) => state.loadErrors.push(String(e.url) 
 let quiet = 0;
 function frame() {
   camera.updateMatrixWorld();
-  tiles.update();
+  if (placed || !seen) tiles.update();
   renderer.render(scene, camera);
   const stats = tiles.stats || {};
   const busy = (stats.downloading || 0) + (stats.parsing || 0);

@@ -68,17 +68,24 @@ engine::Mesh AsEngineMesh(const eval::TriangleMesh& t) {
 }
 
 // Every leaf's box holds its tile's vertices (the tile read in the sequence's frame).
-void ExpectBoxesHoldTheirTiles(const fs::path& run, const json& tile) {
+void ExpectBoxesHoldTheirTiles(const fs::path& run, const json& tile, const std::string& base = "") {
   if (tile.contains("content")) {
-    const eval::TriangleMesh m = eval::ReadMesh(run / tile["content"]["uri"].get<std::string>());
+    const std::string uri = base + tile["content"]["uri"].get<std::string>();
+    if (fs::path(uri).extension() == ".json") {  // a level of detail's subtree (external tileset)
+      const json tree = json::parse(ReadText(run / uri));
+      EXPECT_EQ(tree["root"]["boundingVolume"], tile["boundingVolume"]) << uri;
+      ExpectBoxesHoldTheirTiles(run, tree["root"], "tiles/");
+      return;
+    }
+    const eval::TriangleMesh m = eval::ReadMesh(run / uri);
     const json& b = tile["boundingVolume"]["box"];
     ASSERT_EQ(b.size(), 12u);
     for (const auto& v : m.vertices)
       for (int k = 0; k < 3; ++k)
         EXPECT_LE(std::abs(v[k] - b[k].get<double>()), b[3 + 4 * k].get<double>() + 1e-3)
-            << tile["content"]["uri"] << " axis " << k;
+            << uri << " axis " << k;
   }
-  for (const json& c : tile.value("children", json::array())) ExpectBoxesHoldTheirTiles(run, c);
+  for (const json& c : tile.value("children", json::array())) ExpectBoxesHoldTheirTiles(run, c, base);
 }
 
 TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
@@ -99,7 +106,8 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   EXPECT_EQ(tileset["root"]["transform"].size(), 16u);
   EXPECT_EQ(tileset["root"]["refine"], "ADD");
   EXPECT_GT(tileset["geometricError"].get<double>(), 0.0);
-  const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
+  std::vector<std::string> subtrees;  // the levels of detail's, tiles/lod_NNNNNN.json
+  const std::vector<std::string> uris = pipeline::TileContentUris(out, tileset["root"], InputRole::kInput, &subtrees);
   ASSERT_GE(uris.size(), 9u);  // more than one level of the tree
   // The leaves (tile_) and the levels of detail (lod_, output.tiles.lod by default) apart.
   std::vector<std::string> leaves, lods;
@@ -113,7 +121,10 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   for (const auto& e : fs::directory_iterator(out / "tiles"))
     if (e.path().filename() != kWriteLedgerName)  // imr's record of what it wrote
       on_disk.insert("tiles/" + e.path().filename().string());
-  EXPECT_EQ(on_disk, std::set<std::string>(uris.begin(), uris.end()));
+  std::set<std::string> named(uris.begin(), uris.end());
+  named.insert(subtrees.begin(), subtrees.end());
+  EXPECT_EQ(on_disk, named);
+  EXPECT_EQ(subtrees.size(), lods.size()) << "a subtree per level of detail";
   int64_t bytes = 0, lod_bytes = 0;
   for (const std::string& u : leaves) bytes += static_cast<int64_t>(fs::file_size(out / u));
   for (const std::string& u : lods) lod_bytes += static_cast<int64_t>(fs::file_size(out / u));
@@ -149,13 +160,17 @@ TEST(Tiles, WrittenBesideTheSameMeshAndMergedIntoIt) {
   const auto again = RunShell(std::string(IMR_EXE) + " run -q --set output.tiles.size=40 " +
                               Quote((dir / "tiles.json").string()));
   ASSERT_EQ(again.status, 0) << again.err;
-  const std::vector<std::string> uris2 = pipeline::TileContentUris(json::parse(ReadText(out / "tileset.json"))["root"]);
+  std::vector<std::string> subtrees2;
+  const std::vector<std::string> uris2 = pipeline::TileContentUris(
+      out, json::parse(ReadText(out / "tileset.json"))["root"], InputRole::kInput, &subtrees2);
   std::set<std::string> on_disk2;
   for (const auto& e : fs::directory_iterator(out / "tiles"))
     if (e.path().filename() != kWriteLedgerName)  // imr's record of what it wrote
       on_disk2.insert("tiles/" + e.path().filename().string());
   EXPECT_LT(uris2.size(), uris.size());
-  EXPECT_EQ(on_disk2, std::set<std::string>(uris2.begin(), uris2.end()));
+  std::set<std::string> named2(uris2.begin(), uris2.end());
+  named2.insert(subtrees2.begin(), subtrees2.end());
+  EXPECT_EQ(on_disk2, named2);
 }
 
 // The real thing end to end: a street long enough that the engine forgets (engine.forget) hands
@@ -342,7 +357,7 @@ TEST(Tiles, TexturedFromTheKeyframesThatSeeEachTile) {
   EXPECT_LT(tiles["keyframes_given"].get<int64_t>(), count * keyframes) << tiles.dump();
   EXPECT_EQ(tiles["image_service"]["decodes"], tiles["keyframes_given"]) << tiles.dump();
   int textured = 0;
-  for (const std::string& uri : pipeline::TileContentUris(json::parse(ReadText(dir / "out" / "tileset.json"))["root"])) {
+  for (const std::string& uri : pipeline::TileContentUris(dir / "out", json::parse(ReadText(dir / "out" / "tileset.json"))["root"])) {
     const std::string glb = ReadText(dir / "out" / uri);
     uint32_t length = 0;
     std::memcpy(&length, glb.data() + 12, 4);
@@ -401,7 +416,7 @@ TEST(Tiles, AStoppedRunKeepsWholeTilesOnly) {
   ASSERT_TRUE(WIFSIGNALED(status));
   const json tileset = json::parse(ReadText(out / "tileset.json"));
   EXPECT_EQ(tileset["asset"]["extras"]["imr"]["complete"], false);
-  const std::vector<std::string> uris = pipeline::TileContentUris(tileset["root"]);
+  const std::vector<std::string> uris = pipeline::TileContentUris(out, tileset["root"]);
   EXPECT_GE(uris.size(), 5u);
   std::size_t whole = 0;
   for (const auto& e : fs::directory_iterator(out / "tiles")) {
@@ -683,7 +698,7 @@ TEST(Tiles, GeoReferencedByTheOriginAndMergedAsWithout) {
   // Everything but the root's transform and the extras as without the origin.
   EXPECT_EQ(geo_tileset["root"]["children"], plain_tileset["root"]["children"]);
   EXPECT_EQ(geo_tileset["root"]["boundingVolume"], plain_tileset["root"]["boundingVolume"]);
-  const std::vector<std::string> uris = pipeline::TileContentUris(geo_tileset["root"]);
+  const std::vector<std::string> uris = pipeline::TileContentUris(out, geo_tileset["root"]);
   ASSERT_GE(uris.size(), 2u);
   for (const std::string& u : uris) EXPECT_EQ(ReadText(out / u), ReadText(plain / u)) << u;
   const json report = json::parse(ReadText(out / "report.json"));
@@ -802,25 +817,35 @@ TEST(Tiles, ARerunAndTheMergeTakeOnlyTheRunsOwnTiles) {
   ASSERT_EQ(merge.status, 0) << merge.err;
   EXPECT_NE(merge.err.find("(tiles/tile_555555.glb): not its tiles, left out"), std::string::npos) << merge.err;
   EXPECT_EQ(merge.err.find("did not finish"), std::string::npos) << merge.err;
-  // Tile 2's node taken out of the finished tileset: the merge names it missing.
-  json tileset = json::parse(ReadText(out / "tileset.json"));
-  std::vector<json*> todo = {&tileset["root"]};
+  // Tile 2's node taken out of the finished tileset (tileset.json, or the level of detail's
+  // subtree that holds it, where its uri is relative to tiles/): the merge names it missing.
   bool removed = false;
-  while (!todo.empty() && !removed) {
-    json* t = todo.back();
-    todo.pop_back();
-    if (!t->contains("children")) continue;
-    json& children = (*t)["children"];
-    for (std::size_t i = 0; i < children.size() && !removed; ++i)
-      if (children[i].contains("content") && children[i]["content"]["uri"] == "tiles/tile_000002.glb") {
-        children.erase(i);
-        removed = true;
-      } else {
-        todo.push_back(&children[i]);
-      }
+  std::vector<fs::path> files = {out / "tileset.json"};
+  for (const auto& e : fs::directory_iterator(out / "tiles"))
+    if (e.path().extension() == ".json") files.push_back(e.path());
+  for (const fs::path& file : files) {
+    json tileset = json::parse(ReadText(file));
+    const std::string uri = file.filename() == "tileset.json" ? "tiles/tile_000002.glb" : "tile_000002.glb";
+    std::vector<json*> todo = {&tileset["root"]};
+    while (!todo.empty() && !removed) {
+      json* t = todo.back();
+      todo.pop_back();
+      if (!t->contains("children")) continue;
+      json& children = (*t)["children"];
+      for (std::size_t i = 0; i < children.size() && !removed; ++i)
+        if (children[i].contains("content") && children[i]["content"]["uri"] == uri) {
+          children.erase(i);
+          removed = true;
+        } else {
+          todo.push_back(&children[i]);
+        }
+    }
+    if (removed) {
+      WriteText(file, tileset.dump());
+      break;
+    }
   }
   ASSERT_TRUE(removed);
-  WriteText(out / "tileset.json", tileset.dump());
   const auto missing = RunShell(std::string(IMR_EXE) + " tiles merge " + Quote(out.string()) + " --out " +
                                 Quote((dir / "m2.ply").string()));
   EXPECT_EQ(missing.status, 1);

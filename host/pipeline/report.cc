@@ -368,6 +368,8 @@ json TilesJson(const ReportInputs& in) {
           {"bytes", t.bytes},
           {"open_tiles_peak", t.open_tiles_peak},
           {"seconds", t.seconds},
+          {"tileset_writes", t.tileset_writes},
+          {"tileset_bytes", t.tileset_bytes},
           {"keyframes_given", in.tile_images.keyframes}};
   if (!t.origin.is_null()) tiles["origin"] = t.origin;
   if (t.lod_tiles > 0 || t.lod_gathered > 0)
@@ -377,6 +379,7 @@ json TilesJson(const ReportInputs& in) {
                     {"gathered", t.lod_gathered},
                     {"tiles_per_level", t.tiles_per_level},
                     {"pending_triangles_peak", t.lod_pending_triangles_peak},
+                    {"subtree_bytes", t.lod_tree_bytes},
                     {"seconds", t.lod_seconds}};
   const ExportImageStats& ti = in.tile_images;
   if (ti.store.requests > 0)

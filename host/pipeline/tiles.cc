@@ -19,6 +19,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <list>
 #include <numbers>
 #include <regex>
 #include <set>
@@ -58,14 +59,17 @@ bool IsTileName(const std::string& name) {
   return std::regex_match(name, kTile);
 }
 
-// "tiles/lod_000012.glb" -> 12 (a level of detail); 0 when it is not one.
+// "tiles/lod_000012.glb" -> 12 (a level of detail), and its subtree's tileset
+// "tiles/lod_000012.json" -> 12; 0 when it is neither.
 int LodIndex(const std::string& uri) {
-  if (uri.rfind("tiles/", 0) != 0 || uri.size() != 20) return 0;
+  if (uri.rfind("tiles/", 0) != 0 || (uri.size() != 20 && uri.size() != 21)) return 0;
   const std::string name = uri.substr(6);
-  static const std::regex kLod("lod_[0-9]{6}\\.glb");
+  static const std::regex kLod("lod_[0-9]{6}\\.(glb|json)");
   if (!std::regex_match(name, kLod)) return 0;
   return std::stoi(name.substr(4, 6));
 }
+
+bool IsJsonUri(const std::string& uri) { return uri.size() > 5 && uri.compare(uri.size() - 5, 5, ".json") == 0; }
 
 bool IsLodName(const std::string& name) { return LodIndex("tiles/" + name) > 0; }
 
@@ -76,6 +80,7 @@ std::string LodStem(int index) {
 }
 
 std::string LodUri(int index) { return "tiles/" + LodStem(index) + ".glb"; }
+std::string LodTreeUri(int index) { return "tiles/" + LodStem(index) + ".json"; }
 
 // Per vertex: on an edge of one triangle only (the mesh's border: a seam with a neighbour's
 // content, written or not yet, or the surface's own edge).
@@ -342,13 +347,14 @@ TileWriter::TileWriter(const TilesOptions& options, fs::path output_dir, json id
   if (fs::exists(tileset_path(), ec)) {
     RunTiles earlier;
     try {
-      earlier = ListRunTiles(output_dir_, ReadTilesetFile(tileset_path(), InputRole::kOwnOutput));
+      earlier = ListRunTiles(output_dir_, ReadTilesetFile(tileset_path(), InputRole::kOwnOutput),
+                             InputRole::kOwnOutput);
     } catch (const std::runtime_error& e) {  // ReadTilesetFile's messages name the file already
       const std::string what = e.what();
       throw std::runtime_error(what.rfind(tileset_path().string(), 0) == 0 ? what
                                                                            : tileset_path().string() + ": " + what);
     }
-    for (const auto* list : {&earlier.named, &earlier.after, &earlier.lod, &earlier.lod_after})
+    for (const auto* list : {&earlier.named, &earlier.after, &earlier.lod, &earlier.lod_trees, &earlier.lod_after})
       for (const std::string& uri : *list)
         if (fs::exists(fs::symlink_status(output_dir_ / uri, ec))) old.push_back(output_dir_ / uri);
   }
@@ -455,6 +461,7 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
   tile.mesh = std::move(t.mesh);
   tile.keys = std::move(t.keys);
   const int written = WriteContent(tile);
+  MaybeWriteTileset();
   if (options_.lod) {
     // Only its simplified content stays, in the parent node.
     const auto start = std::chrono::steady_clock::now();
@@ -530,13 +537,20 @@ int TileWriter::WriteContent(TileMesh& tile) {
   if (static_cast<int>(stats_.tiles_per_level.size()) <= tile.level) stats_.tiles_per_level.resize(tile.level + 1, 0);
   ++stats_.tiles_per_level[tile.level];
   written_.push_back({"tiles/" + stem + ".glb", tile.box, triangles, tile.level, tile.geometric_error, {}, false});
-  // Rewritten when the tiles since its last version are a quarter of those it names (or time
-  // has passed): O(1) bytes per tile in all, where every tile would make it O(tiles^2).
+  stats_.seconds += SecondsSince(start);
+  return static_cast<int>(written_.size()) - 1;
+}
+
+// Called once what was written last is whole on disk (a level of detail: its subtree too), so
+// that no version of tileset.json names a file not there yet. Rewritten when the tiles since its
+// last version are a quarter of those it names (or time has passed): O(1) bytes per tile in all,
+// where every tile would make it O(tiles^2).
+void TileWriter::MaybeWriteTileset() {
+  const auto start = std::chrono::steady_clock::now();
   const std::size_t since = written_.size() - tileset_names_;
   if (since >= std::max<std::size_t>(1, tileset_names_ / 4) || SecondsSince(tileset_time_) >= kTilesetSeconds)
     WriteTileset("running");
   stats_.seconds += SecondsSince(start);
-  return static_cast<int>(written_.size()) - 1;
 }
 
 void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, const std::vector<int64_t>& keys,
@@ -694,7 +708,42 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node, bool top) {
     Grow(&written_[index].box, written_[c].box);
   }
   written_[index].children = std::move(node.children);
+  WriteLodTree(index);
+  MaybeWriteTileset();
   PushUp(level + 1, cell, tile.mesh, tile.keys, spans, {index}, triangles, error);
+}
+
+// A level of detail's subtree as a tileset of its own (an external tileset, written once: its
+// children are final), so that tileset.json names it in one tile and its rewrite stays the size
+// of the tiles and nodes not yet under a written level of detail, not the drive's.
+void TileWriter::WriteLodTree(int index) {
+  const Written& w = written_[index];
+  const std::string stem = LodStem(LodIndex(w.uri));
+  json root = {{"boundingVolume", BoxJson(w.box)},
+               {"geometricError", w.error},
+               {"refine", "REPLACE"},
+               {"content", {{"uri", stem + ".glb"}}},
+               {"children", json::array()}};
+  for (int c : w.children) {
+    const Written& child = written_[c];
+    // Beside it in tiles/: a leaf's GLB, or a level of detail's own subtree.
+    const std::string uri = child.level > 0 ? LodStem(LodIndex(child.uri)) + ".json"
+                                            : fs::path(child.uri).filename().string();
+    root["children"].push_back({{"boundingVolume", BoxJson(child.box)},
+                                {"geometricError", child.error},
+                                {"content", {{"uri", uri}}}});
+  }
+  const json tree = {{"asset", {{"version", "1.1"}, {"generator", std::string("imr ") + Version()}}},
+                     {"geometricError", w.error},
+                     {"root", root}};
+  const fs::path path = tiles_dir_ / (stem + ".json");
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(path, ec)))
+    throw std::runtime_error(path.string() + ": a file that no tileset of this run names is where imr "
+                             "writes a level of detail's subtree: imr would overwrite it; move it away");
+  const std::string text = DumpJson(tree, 1) + "\n";
+  WriteFileAtomically(path, text);
+  stats_.lod_tree_bytes += static_cast<int64_t>(text.size());
 }
 
 void TileWriter::WriteTileset(const std::string& state, const std::string& error) {
@@ -702,15 +751,18 @@ void TileWriter::WriteTileset(const std::string& state, const std::string& error
     json j;
     std::array<double, 6> box;
   };
-  // A written tile and, for a level of detail, its subtree (it replaces its children near by).
-  std::function<json(const Written&)> subtree = [&](const Written& w) {
-    json j = {{"boundingVolume", BoxJson(w.box)}, {"geometricError", w.error}, {"content", {{"uri", w.uri}}}};
-    if (w.level > 0) {
-      j["refine"] = "REPLACE";
-      j["children"] = json::array();
-      for (int c : w.children) j["children"].push_back(subtree(written_[c]));
-    }
-    return j;
+  // A written tile, or a level of detail's subtree as the external tileset it was written to
+  // (WriteLodTree): what is named here is the tiles and nodes no written node holds yet.
+  auto subtree = [&](const Written& w) {
+    if (w.level == 0)
+      return json{{"boundingVolume", BoxJson(w.box)}, {"geometricError", w.error}, {"content", {{"uri", w.uri}}}};
+    // "REPLACE": the subtree's root (the same error) stands for this tile; under "ADD" viewers
+    // (3d-tiles-renderer, as CesiumJS) skip a child whose parent meets the error target already,
+    // and this tile draws nothing itself.
+    return json{{"boundingVolume", BoxJson(w.box)},
+                {"geometricError", w.error},
+                {"refine", "REPLACE"},
+                {"content", {{"uri", LodTreeUri(LodIndex(w.uri))}}}};
   };
   std::vector<Node> level;
   for (const Written& w : written_)
@@ -851,14 +903,20 @@ TilesOrigin OriginFromAnchor(const geo::GeoAnchor& anchor, const std::array<doub
 
 std::array<double, 9> TileGltfRotation() { return {1, 0, 0, 0, 0, 1, 0, -1, 0}; }
 
-std::vector<std::string> TileContentUris(const json& tile) {
+std::vector<std::string> TileContentUris(const fs::path& run, const json& tile, InputRole role,
+                                         std::vector<std::string>* subtrees) {
   std::vector<std::string> out;
   struct Todo {
     const json* tile;
     int depth;
     std::string where;
+    std::string base;  // where its uris are relative to, from the run folder ("" or "tiles/")
   };
-  std::vector<Todo> todo = {{&tile, 0, "root"}};
+  std::vector<Todo> todo = {{&tile, 0, "root", ""}};
+  // The external tilesets read (a level of detail's subtree each), kept while their tiles are
+  // walked; each read once (a subtree naming itself is refused, not followed).
+  std::list<json> trees;
+  std::set<std::string> read;
   int64_t tiles = 0;
   while (!todo.empty()) {
     const Todo t = std::move(todo.back());
@@ -874,7 +932,23 @@ std::vector<std::string> TileContentUris(const json& tile) {
     if (const auto c = t.tile->find("content"); c != t.tile->end()) {
       if (!c->is_object() || !c->contains("uri") || !(*c)["uri"].is_string())
         throw std::runtime_error(t.where + ".content: expected {\"uri\": \"...\"}, got " + io::Describe(*c));
-      out.push_back((*c)["uri"].get<std::string>());
+      const std::string uri = t.base + (*c)["uri"].get<std::string>();
+      if (IsJsonUri(uri)) {
+        // Only imr's own subtrees are followed: tiles/lod_NNNNNN.json, nowhere else.
+        if (LodIndex(uri) <= 0)
+          throw std::runtime_error(t.where + ".content: '" + JsonText(uri) + "' is not a tileset of imr "
+                                   "(a level of detail's subtree is tiles/lod_NNNNNN.json)");
+        if (!read.insert(uri).second)
+          throw std::runtime_error(t.where + ".content: '" + uri + "' is named twice in the tree");
+        if (subtrees != nullptr) subtrees->push_back(uri);
+        trees.push_back(ReadTilesetFile(run / uri, role));
+        const json& tree = trees.back();
+        if (!tree.is_object() || !tree.contains("root"))
+          throw std::runtime_error((run / uri).string() + ": a tileset with no root tile");
+        todo.push_back({&tree["root"], t.depth + 1, uri + ": root", "tiles/"});
+      } else {
+        out.push_back(uri);
+      }
       if (static_cast<int64_t>(out.size()) > 2 * kMaxTiles)
         throw std::runtime_error("more than " + std::to_string(2 * kMaxTiles) + " tiles (a run of imr "
                                  "writes at most " + std::to_string(kMaxTiles) + " and as many levels "
@@ -884,7 +958,7 @@ std::vector<std::string> TileContentUris(const json& tile) {
       if (!c->is_array())
         throw std::runtime_error(t.where + ".children: expected an array, got " + io::Describe(*c));
       for (std::size_t k = c->size(); k-- > 0;)
-        todo.push_back({&(*c)[k], t.depth + 1, t.where + ".children[" + std::to_string(k) + "]"});
+        todo.push_back({&(*c)[k], t.depth + 1, t.where + ".children[" + std::to_string(k) + "]", t.base});
     }
   }
   return out;
@@ -915,10 +989,10 @@ json ReadTilesetFile(const fs::path& path, InputRole role) {
   }
 }
 
-RunTiles ListRunTiles(const fs::path& run, const json& tileset) {
+RunTiles ListRunTiles(const fs::path& run, const json& tileset, InputRole role) {
   RunTiles out;
   if (tileset.is_object() && tileset.contains("root"))
-    for (std::string& uri : TileContentUris(tileset["root"]))
+    for (std::string& uri : TileContentUris(run, tileset["root"], role, &out.lod_trees))
       (LodIndex(uri) > 0 ? out.lod : out.named).push_back(std::move(uri));
   std::set<int> named, named_lod;
   int highest = 0, highest_lod = 0;
@@ -940,20 +1014,21 @@ RunTiles ListRunTiles(const fs::path& run, const json& tileset) {
     }
   // The writer numbers tiles 1, 2, ... and names them in order: what follows the highest it
   // names without a gap was written after it. Levels of detail the same way, numbered apart.
-  auto written_after = [&out](const std::set<int>& found, int highest_named, std::string (*uri)(int),
-                              std::vector<std::string>* after) {
+  // A level of detail is its GLB and its subtree's tileset (written right after it): both, as
+  // far as they are there.
+  auto written_after = [&](const std::set<int>& found, int highest_named,
+                           std::vector<std::string (*)(int)> uris, std::vector<std::string>* after) {
     int next = highest_named + 1;
     for (int i : found) {
-      if (i == next) {
-        after->push_back(uri(i));
-        ++next;
-      } else {
-        out.other.push_back(uri(i));
-      }
+      const bool ours = i == next;
+      if (ours) ++next;
+      for (auto uri : uris)
+        if (uris.size() == 1 || fs::exists(fs::symlink_status(run / uri(i), ec)))
+          (ours ? after : &out.other)->push_back(uri(i));
     }
   };
-  written_after(lod_on_disk, highest_lod, LodUri, &out.lod_after);
-  written_after(on_disk, highest, TileUri, &out.after);
+  written_after(lod_on_disk, highest_lod, {LodUri, LodTreeUri}, &out.lod_after);
+  written_after(on_disk, highest, {TileUri}, &out.after);
   return out;
 }
 

@@ -139,6 +139,7 @@ struct TilesStats {
   double seconds = 0.0;      // writing tiles and the tileset (exporter included)
   int64_t tileset_writes = 0;  // tileset.json versions written
   int64_t tileset_bytes = 0;   // summed over them
+  int64_t lod_tree_bytes = 0;  // the levels of detail's subtrees (tiles/lod_NNNNNN.json), each written once
   nlohmann::json origin;       // TilesOrigin::ToJson of the one used; null: not geo-referenced
   // Levels of detail (not in the counts above, which are the leaves').
   int64_t lod_tiles = 0;
@@ -232,6 +233,8 @@ class TileWriter {
   void FlushNodes(bool all);
   // `top`: the last node of the tree (at the end, none other waits).
   void FlushNode(const NodeKey& key, PendingNode& node, bool top);
+  void WriteLodTree(int index);
+  void MaybeWriteTileset();
   // A pending node holds (+1) or no longer holds (-1) vertex `key` with its span unknown; the
   // vertex's VertexCells goes when nothing needs it.
   void CountUnknownSpan(int64_t key, int delta);
@@ -258,10 +261,15 @@ class TileWriter {
   TilesStats stats_;
 };
 
-// The content uris of a tileset's tile and its descendants, in tree order (depth first). Throws
-// std::runtime_error saying where the tree is not one of tiles (a tile not an object, children
-// not an array, a content without a string uri), is deeper than 64 or has more than kMaxTiles.
-std::vector<std::string> TileContentUris(const nlohmann::json& tile);
+// The content uris of a tileset's tile and its descendants, in tree order (depth first), as paths
+// from the run folder `run`: the tiles and levels of detail, following the levels of detail's
+// subtrees (external tilesets tiles/lod_NNNNNN.json, read from `run` as `role`; each listed in
+// `subtrees` when given). Throws std::runtime_error saying where the tree is not one of tiles (a
+// tile not an object, children not an array, a content without a string uri, a tileset content
+// that is not imr's subtree or is named twice), is deeper than 64 or has more than kMaxTiles.
+std::vector<std::string> TileContentUris(const std::filesystem::path& run, const nlohmann::json& tile,
+                                         InputRole role = InputRole::kInput,
+                                         std::vector<std::string>* subtrees = nullptr);
 
 // A tileset.json read with bounds: a regular file of at most kMaxTilesetBytes, JSON. Throws
 // std::runtime_error naming the file and what it is instead.
@@ -278,9 +286,11 @@ struct RunTiles {
   // Levels of detail ("tiles/lod_NNNNNN.glb"): named, and written after the last tileset.json
   // (numbered on). Never merged: the leaves are the surface.
   std::vector<std::string> lod;
-  std::vector<std::string> lod_after;
+  std::vector<std::string> lod_trees;  // their subtrees' tilesets ("tiles/lod_NNNNNN.json") named
+  std::vector<std::string> lod_after;  // GLBs and subtrees
 };
-RunTiles ListRunTiles(const std::filesystem::path& run_folder, const nlohmann::json& tileset);
+RunTiles ListRunTiles(const std::filesystem::path& run_folder, const nlohmann::json& tileset,
+                      InputRole role = InputRole::kInput);
 
 // The local frame (TileWriter's root transform) from keyframe camera rotations (world -> camera,
 // row-major): the cameras' mean up (-y axis) becomes +Z, their mean viewing direction +Y;

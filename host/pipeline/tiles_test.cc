@@ -56,6 +56,26 @@ engine::EngineOptions StreetEngineOptions() {
   return eo;
 }
 
+// The tree with the levels of detail's subtrees (external tilesets, tiles/lod_NNNNNN.json) put
+// in place of the tiles that name them, their uris from the run folder; each such tile's bounding
+// volume and error are its subtree root's.
+json Inlined(const fs::path& run, json tile, const std::string& base = "") {
+  if (tile.contains("content")) {
+    const std::string uri = base + tile["content"]["uri"].get<std::string>();
+    if (uri.size() > 5 && uri.substr(uri.size() - 5) == ".json") {
+      const json tree = json::parse(std::ifstream(run / uri));
+      EXPECT_EQ(tree["root"]["geometricError"], tile["geometricError"]) << uri;
+      EXPECT_EQ(tree["root"]["boundingVolume"], tile["boundingVolume"]) << uri;
+      EXPECT_FALSE(tile.contains("children")) << uri;
+      return Inlined(run, tree["root"], "tiles/");
+    }
+    tile["content"]["uri"] = uri;
+  }
+  if (tile.contains("children"))
+    for (json& c : tile["children"]) c = Inlined(run, c, base);
+  return tile;
+}
+
 // imr-synth's street stream of `frames` frames through that engine, its boundary cut into 40
 // parts along the street as forgetting would hand them out (empty when the run failed).
 std::vector<engine::SurfacePart> StreetParts(int frames) {
@@ -126,7 +146,7 @@ TEST(TileWriterTest, PartsBecomeTilesAsTheyCome) {
   // The tileset: every tile once, in writing order, under nodes of at most 8.
   const json ts = json::parse(std::ifstream(dir / "tileset.json"));
   EXPECT_EQ(ts["asset"]["extras"]["imr"]["complete"], true);
-  const std::vector<std::string> uris = TileContentUris(ts["root"]);
+  const std::vector<std::string> uris = TileContentUris(dir.path(), ts["root"]);
   ASSERT_EQ(uris.size(), written.size());
   for (std::size_t i = 0; i < uris.size(); ++i) {
     char name[64];
@@ -159,6 +179,7 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
     json tileset;
     TilesStats stats;
     int64_t lod_during = 0;
+    int64_t named_in_tileset = 0;
   };
   auto run = [&](bool lod) {
     io::testing::TempDir dir("imr-tiles-lod");
@@ -182,11 +203,23 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
     writer.Finish();
     r.stats = writer.stats();
     r.tileset = json::parse(std::ifstream(dir / "tileset.json"));
+    // What tileset.json itself names: the tiles and nodes no written level of detail holds.
+    std::function<int64_t(const json&)> named = [&](const json& n) {
+      int64_t k = n.contains("content") ? 1 : 0;
+      for (const json& c : n.value("children", json::array())) k += named(c);
+      return k;
+    };
+    r.named_in_tileset = named(r.tileset["root"]);
+    r.tileset["root"] = Inlined(dir.path(), r.tileset["root"]);
     return r;
   };
   const Run with = run(true), without = run(false);
   ASSERT_GE(with.stats.tiles_per_level.size(), 3u) << "two levels of detail at least";
   EXPECT_GT(with.lod_during, 0) << "levels of detail written while the parts come";
+  // The written subtrees are external tilesets: tileset.json (rewritten as tiles come) names far
+  // fewer tiles than there are.
+  EXPECT_LT(with.named_in_tileset, (with.stats.tiles + with.stats.lod_tiles) / 3);
+  EXPECT_EQ(without.named_in_tileset, without.stats.tiles);
   EXPECT_EQ(with.tileset["asset"]["extras"]["imr"]["lod_tiles"], with.stats.lod_tiles);
   EXPECT_EQ(with.tileset["asset"]["extras"]["imr"]["tiles"], with.stats.tiles);
   // The leaves are the same tiles as without levels of detail.
@@ -374,12 +407,12 @@ TEST(TileWriterTest, TheTopOfTheTreeIsOneNodeHoweverSmall) {
   writer.Finish();
   ASSERT_EQ(writer.stats().tiles, 16);
   const json ts = json::parse(std::ifstream(dir / "tileset.json"));
-  const std::vector<std::string> top = TopTiles(ts["root"]);
+  const std::vector<std::string> top = TopTiles(Inlined(dir.path(), ts["root"]));
   ASSERT_EQ(top.size(), 1u) << ts["root"].dump(1);
   const TileMesh& t = tiles.at(top[0]);
   EXPECT_GT(t.level, 0);
   EXPECT_LT(static_cast<int64_t>(t.mesh.faces.size() / 3), kMinTileTriangles) << "the case this test is for";
-  EXPECT_EQ(TileContentUris(ts["root"]).size(), tiles.size()) << "every tile under it";
+  EXPECT_EQ(TileContentUris(dir.path(), ts["root"]).size(), tiles.size()) << "every tile under it";
 }
 
 // Issue 45: a vertex's lock is decided when the node holding it is flushed, not when its tile is
@@ -415,7 +448,7 @@ TEST(TileWriterTest, CompletionsThatComeLateGiveTheSameLevels) {
       writer.Add(p);
     }
     writer.Finish();  // the last `late` parts' completions: every vertex is complete at the end
-    return Run{writer.stats(), TopTiles(json::parse(std::ifstream(dir / "tileset.json"))["root"])};
+    return Run{writer.stats(), TopTiles(Inlined(dir.path(), json::parse(std::ifstream(dir / "tileset.json"))["root"]))};
   };
   const Run on_time = run(0);
   ASSERT_GE(on_time.stats.tiles_per_level.size(), 3u);
@@ -465,7 +498,10 @@ TEST(TileWriterTest, AStoppedRunsLevelsOfDetailAreItsOwn) {
   ASSERT_EQ(lod_written, 3);
   std::ofstream(dir / "tiles" / "lod_000009.glb") << "not the run's";
   const RunTiles tiles = ListRunTiles(dir.path(), json::parse(std::ifstream(dir / "tileset.json")));
-  EXPECT_EQ(tiles.lod.size() + tiles.lod_after.size(), 3u);
+  // Each level of detail is its GLB and its subtree's tileset.
+  EXPECT_EQ(tiles.lod.size() + tiles.lod_trees.size() + tiles.lod_after.size(), 6u);
+  for (const auto* list : {&tiles.lod, &tiles.lod_trees, &tiles.lod_after})
+    for (const std::string& uri : *list) EXPECT_TRUE(fs::exists(dir / uri)) << uri;
   EXPECT_EQ(tiles.named.size() + tiles.after.size(), static_cast<std::size_t>(leaves_written));
   EXPECT_EQ(tiles.other, std::vector<std::string>{"tiles/lod_000009.glb"});
   // A re-run replaces them all but the other file.
@@ -473,6 +509,7 @@ TEST(TileWriterTest, AStoppedRunsLevelsOfDetailAreItsOwn) {
   TileWriter again(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
                    [](const TileMesh&, const fs::path&, const std::string&) {});
   EXPECT_FALSE(fs::exists(dir / "tiles" / "lod_000001.glb"));
+  EXPECT_FALSE(fs::exists(dir / "tiles" / "lod_000001.json"));
   EXPECT_FALSE(fs::exists(dir / "tiles" / "tile_000001.glb"));
   EXPECT_TRUE(fs::exists(dir / "tiles" / "lod_000009.glb"));
 }
@@ -576,7 +613,7 @@ TEST(TileWriterTest, TheTilesetsRewriteCostIsBoundedPerTile) {
   EXPECT_EQ(writer.stats().tiles, kTiles);
   EXPECT_LE(writer.stats().tileset_writes, 40) << "every tile rewrote it";
   EXPECT_LE(writer.stats().tileset_bytes, static_cast<int64_t>(8 * last));
-  EXPECT_EQ(TileContentUris(json::parse(std::ifstream(dir / "tileset.json"))["root"]).size(),
+  EXPECT_EQ(TileContentUris(dir.path(), json::parse(std::ifstream(dir / "tileset.json"))["root"]).size(),
             static_cast<std::size_t>(kTiles));
 }
 
@@ -906,7 +943,7 @@ TEST(TileWriterTest, ATileIsNeverWrittenOverAFileItDidNotWrite) {
 TEST(TileWriterTest, ContentUrisOfATreeThatIsNotOneAreRefused) {
   auto error = [](const json& root) {
     try {
-      TileContentUris(root);
+      TileContentUris(fs::path("."), root);
     } catch (const std::exception& e) {
       return std::string(e.what());
     }
@@ -923,6 +960,34 @@ TEST(TileWriterTest, ContentUrisOfATreeThatIsNotOneAreRefused) {
   // The leaves and as many levels of detail at most.
   for (int64_t i = 0; i <= 2 * kMaxTiles; ++i) wide["children"].push_back({{"content", {{"uri", "tiles/tile_000001.glb"}}}});
   EXPECT_EQ(error(wide), "more than 200000 tiles (a run of imr writes at most 100000 and as many levels of detail)");
+
+  // External tilesets: only imr's subtrees (tiles/lod_NNNNNN.json) are followed, each once.
+  io::testing::TempDir dir("imr-tiles-subtrees");
+  fs::create_directories(dir / "tiles");
+  auto subtree_error = [&](const json& root) {
+    try {
+      TileContentUris(dir.path(), root);
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  auto named = [](const std::string& uri) { return json{{"children", {{{"content", {{"uri", uri}}}}}}}; };
+  EXPECT_EQ(subtree_error(named("../outside.json")),
+            "root.children[0].content: '../outside.json' is not a tileset of imr (a level of detail's "
+            "subtree is tiles/lod_NNNNNN.json)");
+  EXPECT_NE(subtree_error(named("tiles/lod_000001.json")).find("no such file"), std::string::npos)
+      << subtree_error(named("tiles/lod_000001.json"));
+  std::ofstream(dir / "tiles" / "lod_000001.json")
+      << json{{"root", {{"content", {{"uri", "lod_000001.glb"}}}, {"children", {{{"content", {{"uri", "lod_000001.json"}}}}}}}}}.dump();
+  EXPECT_EQ(subtree_error(named("tiles/lod_000001.json")),
+            "tiles/lod_000001.json: root.children[0].content: 'tiles/lod_000001.json' is named twice in the tree");
+  std::ofstream(dir / "tiles" / "lod_000001.json")
+      << json{{"root", {{"content", {{"uri", "lod_000001.glb"}}}, {"children", {{{"content", {{"uri", "tile_000002.glb"}}}}}}}}}.dump();
+  std::vector<std::string> subtrees;
+  EXPECT_EQ(TileContentUris(dir.path(), named("tiles/lod_000001.json"), InputRole::kInput, &subtrees),
+            (std::vector<std::string>{"tiles/lod_000001.glb", "tiles/tile_000002.glb"}));
+  EXPECT_EQ(subtrees, std::vector<std::string>{"tiles/lod_000001.json"});
 }
 
 // Issue 45 item 3: a drive with forgetting on, specks put into its parts as they come (a closed

@@ -26,24 +26,31 @@ const BASE = 'https://imr-tiles.invalid/';
                                           done: false, show: null, requested: [], nearLeaf: null };
   const say = (text) => { if (status) status.textContent = text; };
 
-  const waiting = {};  // "<n>/<path>" -> [resolve, reject]
+  const waiting = {};  // "<n>/<path>" -> [[resolve, reject], ...] (the renderer, nearLeaf)
   window.imrTileData = function (n, path, b64) {
     const key = n + '/' + path;
     const bin = atob(b64);
     const bytes = new Uint8Array(bin.length);
     for (let k = 0; k < bin.length; ++k) bytes[k] = bin.charCodeAt(k);
-    if (waiting[key]) { waiting[key][0](bytes); delete waiting[key]; }
+    if (waiting[key]) { for (const w of waiting[key]) w[0](bytes); delete waiting[key]; }
   };
   function embedded(n, path) {
     return new Promise((resolve, reject) => {
       const run = runs[n];
-      const name = path === 'tileset.json' ? 'tileset' : path.replace(/^tiles\//, '').replace(/\.glb$/, '');
-      if (!run || !/^(tileset|tile_[0-9]{6}|lod_[0-9]{6})$/.test(name)) { reject(new Error('not a tile of this page: ' + path)); return; }
-      waiting[n + '/' + path] = [resolve, reject];
+      // A level of detail's subtree (tiles/lod_NNNNNN.json) is in lod_NNNNNN_tree.js.
+      const name = path === 'tileset.json' ? 'tileset'
+        : path.replace(/^tiles\//, '').replace(/\.glb$/, '').replace(/^(lod_[0-9]{6})\.json$/, '$1_tree');
+      if (!run || !/^(tileset|tile_[0-9]{6}|lod_[0-9]{6}(_tree)?)$/.test(name)) { reject(new Error('not a tile of this page: ' + path)); return; }
+      const key = n + '/' + path;
+      if (waiting[key]) { waiting[key].push([resolve, reject]); return; }  // its script is on its way
+      waiting[key] = [[resolve, reject]];
       state.requested.push(path);
       const s = document.createElement('script');
       s.src = run.scripts + '/' + name + '.js';
-      s.onerror = () => reject(new Error('cannot load ' + s.src));
+      s.onerror = () => {
+        for (const w of waiting[key] || []) w[1](new Error('cannot load ' + s.src));
+        delete waiting[key];
+      };
       document.head.appendChild(s);
     });
   }
@@ -143,15 +150,30 @@ const BASE = 'https://imr-tiles.invalid/';
     quiet = 0;
     state.done = false;
   };
-  // The content uris drawn now.
-  state.visible = () => Array.from((tiles && tiles.visibleTiles) || [], (t) => t.content && t.content.uri).filter(Boolean);
-  state.nearLeaf = function () {
-    const find = (t) => {
-      if (t.content && t.content.uri.includes('tiles/tile_')) return t;
-      for (const c of t.children || []) { const f = find(c); if (f) return f; }
+  // The content drawn now, as paths in the run folder (uris in a level of detail's subtree are
+  // relative to tiles/).
+  const runPath = (t) => {
+    const prefix = BASE + state.shown + '/';
+    const u = new URL(t.content.uri, ((t.internal && t.internal.basePath) || BASE + state.shown) + '/').toString();
+    return u.startsWith(prefix) ? u.slice(prefix.length) : u;
+  };
+  state.visible = () => Array.from((tiles && tiles.visibleTiles) || [], (t) => t.content && t.content.uri && runPath(t)).filter(Boolean);
+  state.nearLeaf = async function () {
+    const n = state.shown;
+    // The first leaf in tree order; a level of detail's subtree (an external tileset) is walked
+    // as the renderer loaded it, or read when it has not.
+    const find = async (t, base) => {
+      const uri = t.content && t.content.uri;
+      if (uri && /(^|\/)tile_[0-9]{6}\.glb$/.test(uri)) return t;
+      let children = t.children || [];
+      if (uri && /\.json$/.test(uri)) {
+        if (!children.length) children = [JSON.parse(new TextDecoder().decode(await embedded(n, base + uri))).root];
+        base = (base + uri).replace(/[^/]*$/, '');
+      }
+      for (const c of children) { const f = await find(c, base); if (f) return f; }
       return null;
     };
-    const leaf = tiles && tiles.root && find(tiles.root);
+    const leaf = tiles && tiles.root && await find(tiles.root, '');
     if (!leaf) return false;
     // Its box (the tileset's, under the root's transform; not yet preprocessed by the renderer).
     const box = leaf.boundingVolume.box;

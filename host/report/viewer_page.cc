@@ -16,7 +16,9 @@
 #include <cstring>
 #include <ctime>
 #include <fstream>
+#include <list>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -495,29 +497,47 @@ fs::path CopyTilesViewer(const std::vector<Row>& rows, const fs::path& assets,
   return tiles_script;
 }
 
-// The content uris of a tileset, depth first as its children are listed.
-std::vector<std::string> TileUris(const json& ts) {
-  std::vector<std::string> uris;
-  std::vector<const json*> todo = {&ts.at("root")};
-  while (!todo.empty()) {
-    const json* t = todo.back();
-    todo.pop_back();
-    if (t->contains("content")) uris.push_back(t->at("content").at("uri").get<std::string>());
-    if (t->contains("children"))
-      for (const json& c : t->at("children")) todo.push_back(&c);
-  }
-  return uris;
-}
-
-// Only imr's tile names (a leaf, tile_NNNNNN.glb, or a level of detail, lod_NNNNNN.glb), inside
-// the run's tiles/ folder: the tileset is read, not trusted. The name without ".glb".
+// Only imr's tile names (a leaf, tile_NNNNNN.glb, or a level of detail, lod_NNNNNN.glb, and its
+// subtree's tileset, lod_NNNNNN.json), inside the run's tiles/ folder: the tileset is read, not
+// trusted. The name of its script: without ".glb", a subtree's with "_tree".
 std::string CheckTileUri(const std::string& u, const fs::path& tileset) {
   const std::string name = u.rfind("tiles/", 0) == 0 ? u.substr(6) : "";
   for (const std::string prefix : {"tile_", "lod_"})
-    if (name.size() == prefix.size() + 10 && name.rfind(prefix, 0) == 0 && name.substr(prefix.size() + 6) == ".glb" &&
-        name.substr(prefix.size(), 6).find_first_not_of("0123456789") == std::string::npos)
-      return name.substr(0, prefix.size() + 6);
+    for (const std::string ext : {".glb", ".json"}) {
+      if (ext == ".json" && prefix != "lod_") continue;
+      if (name.size() == prefix.size() + 6 + ext.size() && name.rfind(prefix, 0) == 0 &&
+          name.substr(prefix.size() + 6) == ext &&
+          name.substr(prefix.size(), 6).find_first_not_of("0123456789") == std::string::npos)
+        return name.substr(0, prefix.size() + 6) + (ext == ".json" ? "_tree" : "");
+    }
   throw std::runtime_error(tileset.string() + ": content uri '" + JsonText(u) + "' is not a tile of imr");
+}
+
+// The content uris of a tileset, depth first as its children are listed, as paths from the run's
+// output folder: tiles, levels of detail and their subtrees' tilesets (read from `output` and
+// followed: their uris are relative to tiles/).
+std::vector<std::string> TileUris(const json& ts, const fs::path& output, const fs::path& tileset) {
+  std::vector<std::string> uris;
+  std::list<json> trees;  // the subtrees read, while their tiles are walked
+  std::set<std::string> read;
+  std::vector<std::pair<const json*, std::string>> todo = {{&ts.at("root"), ""}};
+  while (!todo.empty()) {
+    const auto [t, base] = todo.back();
+    todo.pop_back();
+    if (t->contains("content")) {
+      const std::string u = base + t->at("content").at("uri").get<std::string>();
+      uris.push_back(u);
+      if (u.size() > 5 && u.compare(u.size() - 5, 5, ".json") == 0) {
+        CheckTileUri(u, tileset);
+        if (!read.insert(u).second) throw std::runtime_error(tileset.string() + ": " + u + " is named twice");
+        trees.push_back(json::parse(ReadBytes(output / u, "a tileset")));
+        todo.push_back({&trees.back().at("root"), "tiles/"});
+      }
+    }
+    if (t->contains("children"))
+      for (const json& c : t->at("children")) todo.push_back({&c, base});
+  }
+  return uris;
 }
 
 // Row i's tileset and tiles as scripts, and its entry in the page's tiles table (null, with a
@@ -526,7 +546,7 @@ json WriteTileScripts(const Row& r, std::size_t i, const fs::path& run_dir, cons
                       const ViewerPageOptions& options, ViewerPageResult& result) {
   try {
     const std::string text = ReadBytes(r.tileset, "a tileset");
-    const std::vector<std::string> uris = TileUris(json::parse(text));
+    const std::vector<std::string> uris = TileUris(json::parse(text), r.output, r.tileset);
     std::uintmax_t bytes = 0;
     for (const std::string& u : uris) {
       CheckTileUri(u, r.tileset);

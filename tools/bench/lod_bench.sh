@@ -4,7 +4,8 @@
 # Prints, from report.json and tileset.json: the leaves and the levels of detail per level, the
 # bytes a view from far loads (the first content down each branch of the tree: what
 # 3d-tiles-renderer asks for from 30 radii, tests/tiles_browser_test) over the leaves' bytes,
-# LOD's seconds and their share of the run's wall time, the coarse content held at most, and
+# LOD's seconds and their share of the run's wall time, the coarse content held at most, the
+# tileset's size and rewrite bytes per tile (finished subtrees are external tilesets), and
 # whether the merged tiles are the same bytes with and without LOD.
 #   tools/bench/lod_bench.sh [FRAMES (2000)] [IMR (build/bin/imr)]
 set -euo pipefail
@@ -29,10 +30,15 @@ done
 python3 - "$work" "$frames" <<'P'
 import json, os, sys, hashlib
 work, frames = sys.argv[1], sys.argv[2]
-def first(n):
-    if "content" in n: return [n["content"]["uri"]]
-    return [u for c in n.get("children", []) for u in first(c)]
 d = os.path.join(work, "true")
+# The first content down each branch: what a view from far draws. A level of detail's subtree
+# (an external tileset, tiles/lod_NNNNNN.json) stands for its root's content.
+def first(n, base=""):
+    if "content" in n:
+        u = base + n["content"]["uri"]
+        if u.endswith(".json"): return first(json.load(open(os.path.join(d, u)))["root"], os.path.dirname(u) + "/")
+        return [u]
+    return [u for c in n.get("children", []) for u in first(c, base)]
 r = json.load(open(os.path.join(d, "report.json")))["tiles"]
 ts = json.load(open(os.path.join(d, "tileset.json")))
 far = first(ts["root"])
@@ -47,6 +53,10 @@ print(f"  leaves {r['count']} tiles, {r['bytes']/1e6:.2f} MB, {r['triangles']} t
 print(f"  a view from far loads {len(far)} tile(s), {far_bytes} bytes: {100.0*far_bytes/r['bytes']:.1f} % of the leaves' bytes (target <= 10 %)")
 print(f"  LOD {lod['seconds']:.2f} s of the run's {wall['true']:.1f} s wall ({100.0*lod['seconds']/wall['true']:.1f} %, target <= 20 %); "
       f"the run without LOD {wall['false']:.1f} s; coarse content held at most {lod['pending_triangles_peak']} triangles")
+tiles = r["count"] + lod["count"]
+print(f"  tileset.json at the end {os.path.getsize(os.path.join(d, 'tileset.json'))} bytes; {r['tileset_writes']} versions, "
+      f"{r['tileset_bytes']} bytes in all ({r['tileset_bytes'] / max(1, tiles):.0f} per tile); subtrees "
+      f"{lod.get('subtree_bytes', 0)} bytes (written once)")
 print(f"  merged tiles with and without LOD: {'the same bytes' if md5['true'] == md5['false'] else 'DIFFER'} ({md5['true']})")
 P
 echo "(work folder: $work)"
