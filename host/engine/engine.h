@@ -120,6 +120,11 @@ struct EngineOptions {
                                       // new vertex at their centroid.
   int smoothing_iterations = 0;       // Export: Taubin lambda|mu smoothing steps (boundary
                                       // vertices fixed; topology unchanged); 0: none.
+  double min_component_area = 1.0;    // Export: a connected piece of the surface with less
+                                      // area than this many steiner_spacing^2 is dropped (specks
+                                      // stray points leave in free space); 0: keep every piece.
+                                      // Streamed: a piece is weighed once it is whole
+                                      // (SurfaceStream). Default measured: docs/benchmarks.md.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (keyframe update, step 3: insert)
                                       // when true; else they start at 0 and the point's own rays,
@@ -179,6 +184,8 @@ struct EngineOptions {
   // at steps, so a longer one keeps more of them: four steps held ~15-40 MB more on the dense
   // street for ~10 % less forgetting time).
   double ForgetStep() const;
+  // min_component_area in square metres: that many steiner_spacing^2.
+  double MinComponentArea() const;
   // Nodes of the Steiner grid one camera's rays can reach at most (rays in every direction): a
   // cube of 2 (max_ray_length + steiner_margin) / steiner_spacing + 2 nodes a side.
   double SteinerNodesPerCamera() const;
@@ -226,6 +233,14 @@ struct Mesh {
   std::vector<double> vertices;    // Packed xyz.
   std::vector<uint32_t> faces;     // 3 per triangle, oriented: normals toward free space (O).
   std::vector<int64_t> point_ids;  // Per vertex: the point id, -1 for a Steiner point.
+};
+
+// What the export dropped as pieces too small (EngineOptions::min_component_area).
+struct DroppedComponents {
+  int64_t components = 0;
+  int64_t faces = 0;
+  int64_t vertices = 0;
+  double area = 0.0;  // square metres
 };
 
 // A piece of the exported surface, handed out while the run goes on (EngineOptions::forget,
@@ -410,8 +425,9 @@ class Engine {
   // unknown camera or point id, ...) is refused as a whole before anything changes.
   Status ApplyUpdate(const KeyframeUpdate& update);
 
-  // The exported surface: dO filtered by options().steiner_export.
-  Mesh ExtractMesh() const;
+  // The exported surface: dO filtered by options().steiner_export, finished (FinishExportedMesh;
+  // `dropped`, optional, gets the small components it dropped).
+  Mesh ExtractMesh(DroppedComponents* dropped = nullptr) const;
   // dO itself, unfiltered (a closed 2-manifold).
   Mesh ExtractBoundary() const;
 
@@ -473,10 +489,15 @@ int FillSmallHoles(Mesh* mesh, double max_perimeter, int max_edges = 64);
 // is smoothed without the shrinking of plain Laplacian steps. Boundary vertices stay; faces and
 // topology are unchanged.
 void SmoothTaubin(Mesh* mesh, int iterations, double lambda = 0.5, double mu = -0.53);
+// Drops every connected component (triangles joined through a shared vertex) whose area is
+// under `min_area`, and the vertices no face names any more; the order of what stays is kept.
+// Whole components go, so a 2-manifold stays one. Adds what it dropped to `dropped` (optional).
+void DropSmallComponents(Mesh* mesh, double min_area, DroppedComponents* dropped = nullptr);
 
 // What ExtractMesh does after taking dO through the Steiner filter: pinched vertices split (unless
-// the rule is kNone), small holes filled and Taubin smoothing as the options say, canonical order.
-void FinishExportedMesh(Mesh* mesh, const EngineOptions& options);
+// the rule is kNone), small holes filled and Taubin smoothing as the options say, small components
+// dropped (`dropped`, optional, gets what went), canonical order.
+void FinishExportedMesh(Mesh* mesh, const EngineOptions& options, DroppedComponents* dropped = nullptr);
 // The union of a run's parts (SurfacePart) as one mesh, vertices merged by key, before
 // FinishExportedMesh. Empty string, or why the parts do not fit together (a key at two positions,
 // a face index out of range).

@@ -111,6 +111,8 @@ std::string EngineOptions::Check() const {
   if (!std::isfinite(fill_holes_perimeter) || fill_holes_perimeter < 0.0)
     e << "fill_holes_perimeter must be >= 0; ";
   if (smoothing_iterations < 0) e << "smoothing_iterations must be >= 0; ";
+  if (!std::isfinite(min_component_area) || min_component_area < 0.0)
+    e << "min_component_area must be >= 0 (x steiner_spacing^2; 0: keep every piece); ";
   if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";
   if (camera_path < 0 || camera_path > 100000) e << "camera_path must be in [0, 100000]; ";
   if (camera_path_repair < 0 || camera_path_repair > 64)
@@ -143,6 +145,10 @@ std::string EngineOptions::Check() const {
 double EngineOptions::ForgetDistance() const {
   if (forget_distance > 0.0) return forget_distance;
   return max_ray_length + steiner_margin + shrink_radius + steiner_spacing;
+}
+
+double EngineOptions::MinComponentArea() const {
+  return min_component_area * steiner_spacing * steiner_spacing;
 }
 
 double EngineOptions::ForgetStep() const {

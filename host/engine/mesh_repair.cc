@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numeric>
 #include <unordered_map>
 #include <vector>
 
 #include "host/engine/engine.h"
+#include "host/engine/mesh_topology.h"
 
 namespace imr::engine {
 namespace {
@@ -120,6 +122,78 @@ void SmoothTaubin(Mesh* m, int iterations, double lambda, double mu) {
   for (int i = 0; i < iterations; ++i) {
     step(lambda);
     step(mu);
+  }
+}
+
+double TriangleArea(const double* a, const double* b, const double* c) {
+  const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  return 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+}
+
+void DropSmallComponents(Mesh* m, double min_area, DroppedComponents* dropped) {
+  const size_t nv = m->point_ids.size(), nf = m->faces.size() / 3;
+  if (!(min_area > 0.0) || nf == 0) return;
+  // Union-find over vertices: a face joins its three.
+  std::vector<uint32_t> parent(nv);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](uint32_t v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (size_t f = 0; f < nf; ++f) {
+    const uint32_t a = find(m->faces[3 * f]);
+    for (int k = 1; k < 3; ++k) {
+      const uint32_t b = find(m->faces[3 * f + static_cast<size_t>(k)]);
+      if (a != b) parent[b] = a;
+    }
+  }
+  std::vector<double> area(nv, 0.0);  // per root
+  std::vector<int64_t> faces(nv, 0), vertices(nv, 0);
+  for (size_t v = 0; v < nv; ++v) ++vertices[find(static_cast<uint32_t>(v))];
+  for (size_t f = 0; f < nf; ++f) {
+    const uint32_t* t = &m->faces[3 * f];
+    const uint32_t r = find(t[0]);
+    area[r] += TriangleArea(&m->vertices[3 * size_t{t[0]}], &m->vertices[3 * size_t{t[1]}],
+                            &m->vertices[3 * size_t{t[2]}]);
+    ++faces[r];
+  }
+  DroppedComponents d;
+  for (size_t v = 0; v < nv; ++v)
+    if (faces[v] > 0 && area[v] < min_area) {
+      ++d.components;
+      d.faces += faces[v];
+      d.vertices += vertices[v];
+      d.area += area[v];
+    }
+  if (d.components == 0) return;
+  // What stays, in its order; vertices renumbered in theirs.
+  std::vector<uint32_t> new_index(nv, kNone);
+  std::vector<uint32_t> kept;
+  kept.reserve(m->faces.size());
+  for (size_t f = 0; f < nf; ++f) {
+    const uint32_t* t = &m->faces[3 * f];
+    const uint32_t r = find(t[0]);
+    if (area[r] < min_area) continue;
+    kept.insert(kept.end(), t, t + 3);
+    for (int k = 0; k < 3; ++k) new_index[t[k]] = 0;
+  }
+  Mesh out;
+  for (size_t v = 0; v < nv; ++v) {
+    if (new_index[v] == kNone) continue;
+    new_index[v] = static_cast<uint32_t>(out.point_ids.size());
+    out.vertices.insert(out.vertices.end(), &m->vertices[3 * v], &m->vertices[3 * v] + 3);
+    out.point_ids.push_back(m->point_ids[v]);
+  }
+  for (uint32_t& i : kept) i = new_index[i];
+  out.faces = std::move(kept);
+  *m = std::move(out);
+  if (dropped != nullptr) {
+    dropped->components += d.components;
+    dropped->faces += d.faces;
+    dropped->vertices += d.vertices;
+    dropped->area += d.area;
   }
 }
 

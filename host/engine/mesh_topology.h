@@ -11,6 +11,10 @@
 
 namespace imr::engine {
 
+// Half the length of (b - a) x (c - a): the one area both DropSmallComponents and SurfaceStream
+// sum, so the whole mesh and the stream weigh a piece alike.
+double TriangleArea(const double* a, const double* b, const double* c);
+
 // After dropping triangles from a closed 2-manifold, a vertex may keep several separate fans;
 // give each extra fan its own copy of the vertex so the result is a 2-manifold with boundary.
 void SplitPinchedVertices(Mesh* m);

@@ -119,10 +119,10 @@ SurfacePart Engine::FinishSurface() {
 
 SurfacePart Engine::LiveSurface() { return impl_->MakePart(impl_->LiveBoundary()); }
 
-Mesh Engine::ExtractMesh() const {
+Mesh Engine::ExtractMesh(DroppedComponents* dropped) const {
   const auto t0 = Clock::now();
   Mesh m = impl_->ToMesh(impl_->LiveBoundary(), impl_->s.opt.steiner_export);
-  FinishExportedMesh(&m, impl_->s.opt);
+  FinishExportedMesh(&m, impl_->s.opt, dropped);
   impl_->s.stats.time.extract += SecondsSince(t0);
   return m;
 }

@@ -9,7 +9,7 @@
 
 namespace imr::engine {
 
-void FinishExportedMesh(Mesh* m, const EngineOptions& o) {
+void FinishExportedMesh(Mesh* m, const EngineOptions& o, DroppedComponents* dropped) {
   if (o.steiner_export != SteinerExportRule::kNone) SplitPinchedVertices(m);
   CanonicalizeMesh(m);
   if (o.fill_holes_perimeter > 0.0 || o.smoothing_iterations > 0) {
@@ -17,6 +17,9 @@ void FinishExportedMesh(Mesh* m, const EngineOptions& o) {
     SmoothTaubin(m, o.smoothing_iterations);
     CanonicalizeMesh(m);
   }
+  // Last, on the finished pieces (a filled hole adds to its piece's area), as SurfaceStream
+  // weighs them; dropping whole components keeps the canonical order of the rest.
+  DropSmallComponents(m, o.MinComponentArea(), dropped);
 }
 
 std::string MergeSurfaceParts(const std::vector<SurfacePart>& parts, Mesh* merged) {

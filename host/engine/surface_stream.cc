@@ -6,9 +6,12 @@
 // it: the lowest face key of its fan, then its place in that face).
 #include "host/engine/surface_stream.h"
 
+#include "host/engine/mesh_topology.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <memory>
 #include <numeric>
 #include <tuple>
 #include <unordered_map>
@@ -22,6 +25,210 @@ namespace {
 using VertexKey = std::tuple<int64_t, double, double, double>;
 using FaceKey = std::array<VertexKey, 3>;
 
+// The small-component rule on what the fix-ups release (surface_stream.h): pieces are tracked by
+// union-find over the released vertices not completed yet; a piece's triangles are held while it
+// is open and under the threshold, released once it reaches it, dropped when it completes under it.
+class SmallPieceGate {
+ public:
+  explicit SmallPieceGate(double min_area) : min_area_(min_area) {}
+
+  SurfacePart Pass(SurfacePart in, SurfaceStreamStats* stats) {
+    if (!(min_area_ > 0.0)) return in;
+    const std::size_t nv = in.keys.size();
+    std::vector<uint32_t> label(nv);
+    for (std::size_t i = 0; i < nv; ++i) {
+      const auto [it, fresh] = open_.try_emplace(in.keys[i], 0u);
+      if (fresh) it->second = NewPiece();
+      label[i] = it->second;
+    }
+    for (std::size_t f = 0; f + 2 < in.faces.size(); f += 3) {
+      const uint32_t* t = &in.faces[f];
+      const uint32_t r = Union(label[t[0]], Union(label[t[1]], label[t[2]]));
+      Piece& p = pieces_.at(r);
+      p.area += TriangleArea(&in.vertices[3 * size_t{t[0]}], &in.vertices[3 * size_t{t[1]}],
+                             &in.vertices[3 * size_t{t[2]}]);
+      ++p.faces;
+    }
+    constexpr uint32_t kUnknown = 0xFFFFFFFFu;  // a completion of nothing released: passed on
+    std::vector<uint32_t> completed_piece(in.completed.size(), kUnknown);
+    for (std::size_t i = 0; i < in.completed.size(); ++i) {
+      const auto it = open_.find(in.completed[i]);
+      if (it == open_.end()) continue;
+      completed_piece[i] = it->second;
+      --pieces_.at(Find(it->second)).open;
+      open_.erase(it);
+    }
+    // The pieces this release touched, in the order it touched them.
+    std::vector<uint32_t> touched;
+    for (std::size_t f = 0; f + 2 < in.faces.size(); f += 3) touched.push_back(Find(label[in.faces[f]]));
+    for (uint32_t c : completed_piece)
+      if (c != kUnknown) touched.push_back(Find(c));
+    {
+      std::unordered_map<uint32_t, bool> seen;
+      std::vector<uint32_t> unique;
+      for (uint32_t r : touched)
+        if (seen.emplace(r, true).second) unique.push_back(r);
+      touched.swap(unique);
+    }
+    // Each one: reached the threshold (out), complete under it (dropped), or held.
+    enum State { kOut, kDropped, kHeld };
+    std::unordered_map<uint32_t, State> state;
+    for (uint32_t r : touched) {
+      Piece& p = pieces_.at(r);
+      if (p.area >= min_area_) p.big = true;
+      state[r] = p.big ? kOut : p.open == 0 ? kDropped : kHeld;
+    }
+    std::unordered_map<int64_t, std::array<double, 3>> position;  // this release's, by key
+    std::unordered_map<int64_t, int64_t> point_id;
+    for (std::size_t i = 0; i < nv; ++i) {
+      position[in.keys[i]] = {in.vertices[3 * i], in.vertices[3 * i + 1], in.vertices[3 * i + 2]};
+      point_id[in.keys[i]] = in.point_ids[i];
+    }
+    SurfacePart out;
+    out.update = in.update;
+    std::unordered_map<int64_t, uint32_t> out_index;
+    auto emit_vertex = [&](int64_t k, const std::array<double, 3>& p, int64_t id) {
+      const auto [it, fresh] = out_index.emplace(k, static_cast<uint32_t>(out.keys.size()));
+      if (fresh) {
+        out.vertices.insert(out.vertices.end(), p.begin(), p.end());
+        out.keys.push_back(k);
+        out.point_ids.push_back(id);
+      }
+      out.faces.push_back(it->second);
+    };
+    // What the pieces held first (their triangles came first): out, or dropped with the piece.
+    for (uint32_t r : touched) {
+      Piece& p = pieces_.at(r);
+      if (state[r] == kHeld) continue;
+      if (state[r] == kOut) {
+        for (int64_t k : p.held) {
+          const HeldVertex& v = held_vertices_.at(k);
+          emit_vertex(k, v.p, v.point_id);
+        }
+        out.completed.insert(out.completed.end(), p.held_completed.begin(), p.held_completed.end());
+      } else if (!p.counted) {  // dropped: counted once, now that it is whole
+        p.counted = true;
+        ++stats->dropped.components;
+        stats->dropped.faces += p.faces;
+        stats->dropped.vertices += p.vertices;
+        stats->dropped.area += p.area;
+        stats->triangles_released -= p.faces;  // released: what comes out
+      }
+      for (int64_t k : p.held) held_vertices_.erase(k);
+      held_triangles_ -= static_cast<int64_t>(p.held.size() / 3);
+      p.held.clear();
+      p.held.shrink_to_fit();
+      p.held_completed.clear();
+      p.held_completed.shrink_to_fit();
+    }
+    // Then this release, in its order.
+    for (std::size_t f = 0; f + 2 < in.faces.size(); f += 3) {
+      const uint32_t r = Find(label[in.faces[f]]);
+      const State st = state[r];
+      if (st == kDropped) continue;
+      for (int k = 0; k < 3; ++k) {
+        const int64_t key = in.keys[in.faces[f + static_cast<std::size_t>(k)]];
+        if (st == kOut) {
+          emit_vertex(key, position.at(key), point_id.at(key));
+        } else {
+          pieces_.at(r).held.push_back(key);
+          held_vertices_.try_emplace(key, HeldVertex{position.at(key), point_id.at(key)});
+        }
+      }
+      if (st == kHeld) ++held_triangles_;
+    }
+    for (std::size_t i = 0; i < in.completed.size(); ++i) {
+      if (completed_piece[i] == kUnknown) {
+        out.completed.push_back(in.completed[i]);
+        continue;
+      }
+      const uint32_t r = Find(completed_piece[i]);
+      if (state[r] == kOut) out.completed.push_back(in.completed[i]);
+      else if (state[r] == kHeld) pieces_.at(r).held_completed.push_back(in.completed[i]);
+    }
+    stats->held_small_triangles = held_triangles_;
+    stats->peak_held_small_triangles = std::max(stats->peak_held_small_triangles, held_triangles_);
+    Compact();
+    return out;
+  }
+
+  // Triangles held in pieces not complete yet (0 once every vertex was completed).
+  int64_t held_triangles() const { return held_triangles_; }
+
+ private:
+  struct Piece {
+    uint32_t parent = 0;
+    int64_t open = 0;    // its released vertices not completed yet
+    int64_t faces = 0;
+    int64_t vertices = 0;  // released
+    double area = 0.0;
+    bool big = false;    // reached min_area: released as it comes
+    bool counted = false;
+    std::vector<int64_t> held;            // 3 keys per held triangle
+    std::vector<int64_t> held_completed;  // completions of its vertices, held with them
+  };
+  struct HeldVertex {
+    std::array<double, 3> p{};
+    int64_t point_id = -1;
+  };
+
+  uint32_t NewPiece() {
+    Piece p;
+    p.parent = next_;
+    p.open = 1;
+    p.vertices = 1;
+    pieces_.emplace(next_, std::move(p));
+    return next_++;
+  }
+  uint32_t Find(uint32_t x) {
+    while (true) {
+      Piece& p = pieces_.at(x);
+      if (p.parent == x) return x;
+      p.parent = pieces_.at(p.parent).parent;  // path halving
+      x = p.parent;
+    }
+  }
+  uint32_t Union(uint32_t a, uint32_t b) {
+    a = Find(a);
+    b = Find(b);
+    if (a == b) return a;
+    Piece& pa = pieces_.at(a);
+    Piece& pb = pieces_.at(b);
+    if (pa.held.size() < pb.held.size()) {
+      std::swap(pa.held, pb.held);
+      std::swap(pa.held_completed, pb.held_completed);
+    }
+    pa.held.insert(pa.held.end(), pb.held.begin(), pb.held.end());
+    pa.held_completed.insert(pa.held_completed.end(), pb.held_completed.begin(), pb.held_completed.end());
+    pb.held.clear();
+    pb.held_completed.clear();
+    pa.open += pb.open;
+    pa.faces += pb.faces;
+    pa.vertices += pb.vertices;
+    pa.area += pb.area;
+    pa.big = pa.big || pb.big;
+    pb.parent = a;
+    return a;
+  }
+  // Keeps the pieces an open vertex still names, each as its root.
+  void Compact() {
+    if (pieces_.size() <= 2 * open_.size() + 1024) return;
+    std::unordered_map<uint32_t, Piece> kept;
+    for (auto& [key, label] : open_) {
+      label = Find(label);
+      if (!kept.count(label)) kept.emplace(label, std::move(pieces_.at(label)));
+    }
+    pieces_.swap(kept);
+  }
+
+  double min_area_;
+  std::unordered_map<uint32_t, Piece> pieces_;
+  std::unordered_map<int64_t, uint32_t> open_;  // released, not completed: its piece
+  std::unordered_map<int64_t, HeldVertex> held_vertices_;
+  uint32_t next_ = 0;
+  int64_t held_triangles_ = 0;
+};
+
 }  // namespace
 
 SurfaceStreamOptions SurfaceStreamOptions::FromEngine(const EngineOptions& o) {
@@ -29,6 +236,7 @@ SurfaceStreamOptions SurfaceStreamOptions::FromEngine(const EngineOptions& o) {
   s.split_pinched = o.steiner_export != SteinerExportRule::kNone;
   s.fill_holes_perimeter = o.fill_holes_perimeter;
   s.smoothing_iterations = o.smoothing_iterations;
+  s.min_component_area = o.MinComponentArea();
   return s;
 }
 
@@ -37,6 +245,8 @@ std::string SurfaceStreamOptions::Check() const {
     return "fill_holes_perimeter must be >= 0";
   if (fill_holes_max_edges < 0) return "fill_holes_max_edges must be >= 0";
   if (smoothing_iterations < 0) return "smoothing_iterations must be >= 0";
+  if (!std::isfinite(min_component_area) || min_component_area < 0.0)
+    return "min_component_area must be >= 0";
   return "";
 }
 
@@ -73,6 +283,7 @@ struct SurfaceStream::Impl {
 
   SurfaceStreamOptions o;
   SurfaceStreamStats stats;
+  std::unique_ptr<SmallPieceGate> gate;  // made with the first Add (o is set after construction)
   std::unordered_map<int64_t, Vertex> vertices;
   std::unordered_map<uint64_t, Triangle> triangles;
   std::unordered_map<int64_t, Copy> copies;
@@ -458,7 +669,7 @@ struct SurfaceStream::Impl {
     for (int64_t k : part.completed) Split(k);
     Emit();
     ++stats.parts;
-    stats.vertices_released = next_key;
+    stats.vertices_released = next_key - stats.dropped.vertices;
     stats.held_triangles = static_cast<int64_t>(triangles.size());
     stats.held_vertices = static_cast<int64_t>(vertices.size() + copies.size());
     stats.peak_held_triangles = std::max(stats.peak_held_triangles, stats.held_triangles);
@@ -492,11 +703,17 @@ SurfacePart SurfaceStream::TakeReleased() {
   impl_->out = SurfacePart();
   impl_->out_index.clear();
   p.update = impl_->stats.parts;
+  if (!impl_->gate) impl_->gate = std::make_unique<SmallPieceGate>(impl_->o.min_component_area);
+  p = impl_->gate->Pass(std::move(p), &impl_->stats);
+  impl_->stats.vertices_released = impl_->next_key - impl_->stats.dropped.vertices;
   return p;
 }
 
 std::string SurfaceStream::Finish() const {
   const Impl& s = *impl_;
+  if (s.gate && s.gate->held_triangles() > 0)
+    return std::to_string(s.gate->held_triangles()) +
+           " triangles of small pieces still held: a vertex was never completed";
   if (s.triangles.empty() && s.vertices.empty() && s.copies.empty()) return "";
   return std::to_string(s.triangles.size()) + " triangles and " +
          std::to_string(s.vertices.size() + s.copies.size()) +

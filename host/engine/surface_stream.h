@@ -14,6 +14,13 @@
 // The union of everything released (MergeSurfaceParts, then CanonicalizeMesh) is exactly
 // FinishExportedMesh(MergeSurfaceParts(parts)) without smoothing, for any cut into parts.
 //
+// Small components (min_component_area > 0): a piece is weighed once it is whole, all its vertices
+// completed. Until then the released triangles of a piece whose area so far is under the
+// threshold are held back (with their vertices' completions); once the piece reaches it they go
+// out with the next release, and a piece completed under it is dropped. The union of what is
+// released stays FinishExportedMesh's, dropped pieces included, for any cut into parts; what is
+// held is at most the open pieces under the threshold.
+//
 // Smoothing (smoothing_iterations > 0) is local to each Add: the triangles released by one part
 // are smoothed as one mesh whose boundary stays fixed (SmoothTaubin), so a vertex with triangles
 // released by an earlier part, or still held, keeps its position, and a vertex is written once
@@ -35,6 +42,8 @@ struct SurfaceStreamOptions {
   double fill_holes_perimeter = 16.0; // FillSmallHoles' max_perimeter (metres; 0: no filling).
   int fill_holes_max_edges = 64;      // FillSmallHoles' max_edges.
   int smoothing_iterations = 0;       // SmoothTaubin per released part (see above); 0: none.
+  double min_component_area = 0.0;    // DropSmallComponents' min_area (square metres; 0: keep
+                                      // every piece; see above).
 
   // What FinishExportedMesh does with these engine options.
   static SurfaceStreamOptions FromEngine(const EngineOptions& options);
@@ -53,6 +62,9 @@ struct SurfaceStreamStats {
   int64_t held_vertices = 0;       // vertices held now (of held triangles, open boundaries)
   int64_t peak_held_triangles = 0;
   int64_t peak_held_vertices = 0;
+  DroppedComponents dropped;       // small components dropped (min_component_area)
+  int64_t held_small_triangles = 0;  // released by the fix-ups, held now in pieces still small
+  int64_t peak_held_small_triangles = 0;
 };
 
 class SurfaceStream {

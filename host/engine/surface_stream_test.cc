@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
 #include <map>
 #include <string>
 
@@ -25,7 +26,8 @@ struct Street {
 const Street& StreetRun(const EngineOptions& eo) {
   static std::map<std::string, Street> cache;
   const std::string key = ToString(eo.steiner_export) + "/" + std::to_string(eo.fill_holes_perimeter) +
-                          "/" + std::to_string(eo.smoothing_iterations);
+                          "/" + std::to_string(eo.smoothing_iterations) + "/" +
+                          std::to_string(eo.min_component_area);
   auto it = cache.find(key);
   if (it != cache.end()) return it->second;
   synthetic::StreamOptions so;
@@ -184,6 +186,7 @@ TEST(SurfaceStreamTest, HandBuiltPinchAndHole) {
     for (int k = 0; k < 3; ++k) last[all.faces[3 * f + k]] = static_cast<int64_t>(f);
   EngineOptions eo = Options();
   eo.fill_holes_perimeter = 8.5;
+  eo.min_component_area = 0.0;  // the strip (5 m^2) is a piece of its own once split
   SurfaceStream stream(SurfaceStreamOptions::FromEngine(eo));
   std::vector<SurfacePart> released;
   for (std::size_t f = 0; f < nf; ++f) {
@@ -223,6 +226,174 @@ TEST(SurfaceStreamTest, HandBuiltPinchAndHole) {
   ASSERT_EQ(open.Add(one), "");
   EXPECT_EQ(open.stats().holes_filled, 0);
   EXPECT_EQ(open.TakeReleased().faces.size(), all.faces.size());
+}
+
+// A big piece (an 8 x 2 m grid at z 0) and closed specks (octahedra of 0.18 m^2 each).
+struct Pieces {
+  SurfacePart all;
+  uint32_t Vertex(double x, double y, double z) {
+    all.keys.push_back(static_cast<int64_t>(all.keys.size()) * 5 + 1);
+    all.point_ids.push_back(static_cast<int64_t>(all.point_ids.size()));
+    all.vertices.insert(all.vertices.end(), {x, y, z});
+    return static_cast<uint32_t>(all.keys.size() - 1);
+  }
+  void Grid(int nx, int ny) {
+    std::vector<uint32_t> v;
+    for (int y = 0; y <= ny; ++y)
+      for (int x = 0; x <= nx; ++x) v.push_back(Vertex(x, y, 0.0));
+    auto at = [&](int x, int y) { return v[static_cast<std::size_t>(y * (nx + 1) + x)]; };
+    for (int y = 0; y < ny; ++y)
+      for (int x = 0; x < nx; ++x)
+        all.faces.insert(all.faces.end(), {at(x, y), at(x + 1, y), at(x + 1, y + 1), at(x, y),
+                                           at(x + 1, y + 1), at(x, y + 1)});
+  }
+  void Speck(double cx, double cy, double cz, double r) {
+    const uint32_t px = Vertex(cx + r, cy, cz), nx = Vertex(cx - r, cy, cz), py = Vertex(cx, cy + r, cz),
+                   ny = Vertex(cx, cy - r, cz), pz = Vertex(cx, cy, cz + r), nz = Vertex(cx, cy, cz - r);
+    all.faces.insert(all.faces.end(), {px, py, pz, py, nx, pz, nx, ny, pz, ny, px, pz,
+                                       py, px, nz, nx, py, nz, ny, nx, nz, px, ny, nz});
+  }
+};
+
+// One triangle per part, in face order; each vertex completed with its last triangle.
+std::vector<SurfacePart> OneTrianglePerPart(const SurfacePart& all) {
+  const std::size_t nf = all.faces.size() / 3;
+  std::vector<int64_t> last(all.keys.size(), -1);
+  for (std::size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) last[all.faces[3 * f + static_cast<std::size_t>(k)]] = static_cast<int64_t>(f);
+  std::vector<SurfacePart> parts;
+  for (std::size_t f = 0; f < nf; ++f) {
+    SurfacePart p;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = all.faces[3 * f + static_cast<std::size_t>(k)];
+      p.keys.push_back(all.keys[v]);
+      p.point_ids.push_back(all.point_ids[v]);
+      p.vertices.insert(p.vertices.end(), &all.vertices[3 * v], &all.vertices[3 * v] + 3);
+      p.faces.push_back(static_cast<uint32_t>(k));
+    }
+    for (std::size_t v = 0; v < last.size(); ++v)
+      if (last[v] == static_cast<int64_t>(f)) p.completed.push_back(all.keys[v]);
+    parts.push_back(std::move(p));
+  }
+  return parts;
+}
+
+Mesh AsMesh(const SurfacePart& p) {
+  Mesh m;
+  m.vertices = p.vertices;
+  m.faces = p.faces;
+  m.point_ids = p.point_ids;
+  return m;
+}
+
+TEST(SmallComponentsTest, AMeshLosesItsSpecksAndKeepsItsBigPiece) {
+  Pieces p;
+  p.Speck(2.0, 1.0, 5.0, 0.3);
+  p.Grid(8, 2);
+  p.Speck(6.0, 1.0, 5.0, 0.3);
+  Mesh m = AsMesh(p.all);
+  DroppedComponents d;
+  DropSmallComponents(&m, 2.0, &d);
+  EXPECT_EQ(d.components, 2);
+  EXPECT_EQ(d.faces, 16);
+  EXPECT_NEAR(d.area, 2 * 8 * std::sqrt(3.0) / 4 * 0.18, 1e-9);  // 8 faces of side 0.3 sqrt 2
+  // The grid whole, its vertices in their order (the specks' gone: no face names them).
+  ASSERT_EQ(m.faces.size(), 3u * 32);
+  ASSERT_EQ(m.point_ids.size(), 27u);
+  for (std::size_t i = 0; i < 27; ++i) {
+    EXPECT_EQ(m.point_ids[i], static_cast<int64_t>(6 + i));
+    EXPECT_EQ(m.vertices[3 * i + 2], 0.0);
+  }
+  Mesh grid;
+  Pieces g;
+  g.Grid(8, 2);
+  grid = AsMesh(g.all);
+  for (std::size_t f = 0; f < m.faces.size(); ++f) EXPECT_EQ(m.faces[f], grid.faces[f]);
+  EXPECT_TRUE(CheckMesh(m, false).ok) << CheckMesh(m, false).message;
+  // Under a threshold below the specks' area, or 0, nothing goes.
+  for (double min_area : {0.0, 0.3}) {
+    Mesh all = AsMesh(p.all);
+    DroppedComponents none;
+    DropSmallComponents(&all, min_area, &none);
+    EXPECT_EQ(all.faces, p.all.faces);
+    EXPECT_EQ(none.components, 0);
+  }
+  // Above the grid's 16 m^2, everything goes.
+  Mesh all = AsMesh(p.all);
+  DropSmallComponents(&all, 16.5);
+  EXPECT_TRUE(all.faces.empty());
+  EXPECT_TRUE(all.vertices.empty());
+}
+
+// Handed out a triangle at a time, each vertex completed with its last triangle: the grid's first
+// triangles are a small piece until it grows (held, then released: a piece that crosses parts
+// is kept when it is big), the specks are small when whole (dropped, one of them across 8 parts);
+// what comes out is the whole mesh's export.
+TEST(SmallComponentsTest, TheStreamWeighsAPieceWhenItIsWhole) {
+  Pieces p;
+  p.Speck(2.0, 1.0, 5.0, 0.3);
+  p.Grid(8, 2);
+  p.Speck(6.0, 1.0, 5.0, 0.3);
+  // Threshold: 2 m^2 (min_component_area x steiner_spacing^2).
+  EngineOptions eo = Options();
+  eo.steiner_spacing = 1.0;
+  eo.min_component_area = 2.0;
+  for (bool one_part : {false, true}) {
+    SCOPED_TRACE(one_part ? "one part" : "a triangle per part");
+    const std::vector<SurfacePart> parts =
+        one_part ? std::vector<SurfacePart>{p.all} : OneTrianglePerPart(p.all);
+    std::vector<SurfacePart> in = parts;
+    if (one_part) in[0].completed = p.all.keys;
+    SurfaceStream stream(SurfaceStreamOptions::FromEngine(eo));
+    std::vector<SurfacePart> released;
+    for (const SurfacePart& part : in) {
+      ASSERT_EQ(stream.Add(part), "");
+      released.push_back(stream.TakeReleased());
+    }
+    EXPECT_EQ(stream.Finish(), "");
+    EXPECT_EQ(stream.stats().held_small_triangles, 0);
+    EXPECT_EQ(stream.stats().dropped.components, 2);
+    EXPECT_EQ(stream.stats().dropped.faces, 16);
+    if (!one_part) {
+      EXPECT_GT(stream.stats().peak_held_small_triangles, 0);
+    }
+    EXPECT_EQ(stream.stats().triangles_released, 32);
+    EXPECT_EQ(stream.stats().vertices_released, 27);
+    Mesh m;
+    ASSERT_EQ(MergeSurfaceParts(released, &m), "");
+    CanonicalizeMesh(&m);
+    Mesh whole;
+    ASSERT_EQ(MergeSurfaceParts({p.all}, &whole), "");
+    DroppedComponents d;
+    FinishExportedMesh(&whole, eo, &d);
+    EXPECT_EQ(d.components, 2);
+    ExpectSame(m, whole, "streamed vs whole");
+    EXPECT_EQ(m.faces.size(), 3u * 32);  // the grid, every triangle
+    EXPECT_EQ(m.point_ids.size(), 27u);
+    EXPECT_TRUE(CheckMesh(m, false).ok) << CheckMesh(m, false).message;
+  }
+}
+
+// The street, cut every way, under a threshold that drops some of its pieces: the stream drops the
+// same ones as the whole mesh's export.
+TEST(SmallComponentsTest, TheStreetsPiecesGoAlikeForEveryCut) {
+  EngineOptions eo = Options();
+  eo.min_component_area = 4.0;  // 100 m^2
+  const Street& street = StreetRun(eo);
+  EngineOptions keep = Options();
+  keep.min_component_area = 0.0;
+  const Street& all = StreetRun(keep);
+  ASSERT_LT(street.exported.faces.size(), all.exported.faces.size());  // some pieces went
+  for (CutOrder order : {CutOrder::kAlongY, CutOrder::kBackward, CutOrder::kShuffled})
+    for (int k : {1, 7, 40}) {
+      const std::string what = "order " + std::to_string(static_cast<int>(order)) + ", " +
+                               std::to_string(k) + " parts";
+      const std::vector<SurfacePart> parts = SliceIntoParts(street.boundary, eo.steiner_export, k, order);
+      SurfaceStreamStats stats;
+      ExpectSame(Streamed(parts, eo, &stats), street.exported, what);
+      EXPECT_GT(stats.dropped.components, 0) << what;
+      EXPECT_EQ(stats.held_small_triangles, 0) << what;
+    }
 }
 
 TEST(SurfaceStreamTest, RefusesPartsThatDoNotFit) {

@@ -117,6 +117,9 @@ std::vector<EngineOption> MakeTable() {
              "export: close holes with a perimeter up to this (0: none)"),
       Option("smoothing_iterations", &E::smoothing_iterations, Min(0), "steps",
              "export: Taubin smoothing steps, boundary fixed (0: none)"),
+      Option("min_component_area", &E::min_component_area, Min(0.0), "x steiner_spacing^2",
+             "export: connected pieces of the surface with less area are dropped (specks stray "
+             "points leave in free space; 0: keep every piece)"),
       Option("transfer_on_insert", &E::transfer_on_insert, kNone, "",
              "cells made by inserting a new point get weights from the policy; false: they "
              "start at 0 and the point's own rays weight them (measured: far better "

@@ -333,6 +333,10 @@ json MeshJson(const ReportInputs& in) {
                                   {"back_pixels", in.back_facing->back_pixels},
                                   {"share", in.back_facing->Share()}};
   }
+  // The pieces under engine.min_component_area the export dropped (whole components).
+  const engine::DroppedComponents& d =
+      in.streamed != nullptr ? in.streamed->stream.dropped : in.small_components_dropped;
+  mesh_json["small_components_dropped"] = {{"components", d.components}, {"faces", d.faces}, {"vertices", d.vertices}, {"area", d.area}};
   return mesh_json;
 }
 
@@ -346,6 +350,7 @@ json SurfacePartsJson(const StreamedSurfaceStats& ss) {
           {"vertices_split", ss.stream.vertices_split},
           {"peak_held_triangles", ss.stream.peak_held_triangles},
           {"peak_held_vertices", ss.stream.peak_held_vertices},
+          {"peak_held_small_triangles", ss.stream.peak_held_small_triangles},
           {"spool_bytes", ss.spool_bytes},
           {"peak_seam_vertices", ss.peak_seam_vertices},
           {"seconds", ss.seconds},

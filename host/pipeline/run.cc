@@ -651,7 +651,7 @@ const engine::Mesh& SequenceRun::WholeMesh() {
 
 // The mesh after the last keyframe; throws when dO or the mesh is not what it must be.
 engine::Mesh SequenceRun::CheckedMesh() {
-  engine::Mesh mesh = engine_->ExtractMesh();
+  engine::Mesh mesh = engine_->ExtractMesh(&report_.small_components_dropped);
   report_.engine_memory = engine_->Memory();
   report_.boundary_check = engine_->CheckInvariants();
   report_.mesh_check = engine::CheckMesh(mesh, /*closed=*/false);

@@ -422,7 +422,7 @@ void TileWriter::Add(const engine::SurfacePart& part) {
     for (int64_t k : part.completed)
       if (const auto c = vertex_cells_.find(k); c != vertex_cells_.end()) {
         c->second.completed = true;
-        if (c->second.open_tiles == 0) vertex_cells_.erase(c);
+        if (c->second.open_tiles == 0 && c->second.unknown_in_nodes == 0) vertex_cells_.erase(c);
       }
   for (auto it = open_.begin(); it != open_.end();) {
     if (parts_ - it->second.last_part >= options_.idle_parts) {
@@ -466,13 +466,15 @@ void TileWriter::Write(const Cell& cell, OpenTile& t) {
     // Only its simplified content stays, in the parent node.
     const auto start = std::chrono::steady_clock::now();
     // What is known of where each vertex's triangles are: a vertex not completed yet may have
-    // some in a cell no tile holds yet, and stays locked at every level.
+    // some in a cell no tile holds yet, and stays locked until a node holding it is flushed after
+    // its completion (completions may come parts after a tile is written).
     std::vector<int> spans(tile.keys.size(), kMaxLodLevel + 1);
     for (std::size_t v = 0; v < spans.size(); ++v) {
       const auto c = vertex_cells_.find(tile.keys[v]);
       if (c == vertex_cells_.end()) continue;
       if (c->second.completed) spans[v] = c->second.span;
-      if (--c->second.open_tiles == 0 && c->second.completed) vertex_cells_.erase(c);
+      if (--c->second.open_tiles == 0 && c->second.completed && c->second.unknown_in_nodes == 0)
+        vertex_cells_.erase(c);
     }
     PushUp(1, cell, tile.mesh, tile.keys, spans, {written}, static_cast<int64_t>(tile.mesh.faces.size() / 3), 0.0);
     const double s = SecondsSince(start);
@@ -569,11 +571,16 @@ void TileWriter::PushUp(int level, const Cell& cell, const engine::Mesh& mesh, c
   for (std::size_t v = 0; v < s.source.size(); ++v) {
     const int64_t k = keys[s.source[v]];
     const auto [it, fresh] = node.index.emplace(k, static_cast<uint32_t>(node.keys.size()));
+    const int span = spans[s.source[v]];
     if (fresh) {
       node.keys.push_back(k);
-      node.spans.push_back(spans[s.source[v]]);
+      node.spans.push_back(span);
       node.mesh.vertices.insert(node.mesh.vertices.end(), &s.mesh.vertices[3 * v], &s.mesh.vertices[3 * v] + 3);
       node.mesh.point_ids.push_back(s.mesh.point_ids[v]);
+      if (span > kMaxLodLevel) CountUnknownSpan(k, +1);
+    } else if (node.spans[it->second] > kMaxLodLevel && span <= kMaxLodLevel) {
+      node.spans[it->second] = span;  // known since (completed): the same for every copy
+      CountUnknownSpan(k, -1);
     }
     local[v] = it->second;
   }
@@ -594,13 +601,12 @@ void TileWriter::FlushNodes(bool all) {
   do {
     for (auto it = pending_.begin(); it != pending_.end();) {
       const auto [level, x, y, z] = it->first;
-      bool ready = all;
-      if (!ready) {
-        // The drive has left its region: no open tile in it or next to it, no node below it waiting.
+      bool ready = true;
+      if (!all) {
+        // The drive has left its region: no open tile in it or next to it.
         const int64_t span = int64_t{1} << level;  // its side in cells
         const int64_t lo[3] = {x * span - kLodOffset - 1, y * span - kLodOffset - 1, z * span - kLodOffset - 1};
         const int64_t hi[3] = {(x + 1) * span - kLodOffset, (y + 1) * span - kLodOffset, (z + 1) * span - kLodOffset};
-        ready = true;
         for (const auto& [c, t] : open_) {
           const int64_t p[3] = {std::get<0>(c), std::get<1>(c), std::get<2>(c)};
           if (p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1] && p[2] >= lo[2] && p[2] <= hi[2]) {
@@ -608,16 +614,19 @@ void TileWriter::FlushNodes(bool all) {
             break;
           }
         }
-        for (auto below = pending_.begin(); ready && below != it; ++below) {
-          const auto [l, a, b, c] = below->first;
-          if (l < level && (a >> (level - l)) == x && (b >> (level - l)) == y && (c >> (level - l)) == z) ready = false;
-        }
+      }
+      // No node below it waiting, at the end too: one flushed in this pass may have gone up into a
+      // node behind the loop's place, and flushed now this one would be a second node of its key.
+      for (auto below = pending_.begin(); ready && below != it; ++below) {
+        const auto [l, a, b, c] = below->first;
+        if (l < level && (a >> (level - l)) == x && (b >> (level - l)) == y && (c >> (level - l)) == z) ready = false;
       }
       if (ready) {
         PendingNode node = std::move(it->second);
         const NodeKey key = it->first;
         it = pending_.erase(it);
-        FlushNode(key, node);
+        // At the end, the last node waiting is the top of the tree: nothing comes above it.
+        FlushNode(key, node, all && pending_.empty());
       } else {
         ++it;
       }
@@ -628,8 +637,31 @@ void TileWriter::FlushNodes(bool all) {
   stats_.seconds = seconds_before + s;
 }
 
-void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
+void TileWriter::CountUnknownSpan(int64_t key, int delta) {
+  const auto c = vertex_cells_.find(key);
+  if (c == vertex_cells_.end()) return;
+  c->second.unknown_in_nodes += delta;
+  if (c->second.unknown_in_nodes == 0 && c->second.open_tiles == 0 && c->second.completed) vertex_cells_.erase(c);
+}
+
+void TileWriter::FlushNode(const NodeKey& key, PendingNode& node, bool top) {
   const auto [level, x, y, z] = key;
+  // Spans unknown when the content came up: known now if the vertex was completed since (its
+  // entry is kept while this node names it; released once the content has gone up).
+  std::vector<int64_t> unknown;
+  for (std::size_t v = 0; v < node.keys.size(); ++v) {
+    if (node.spans[v] <= kMaxLodLevel) continue;
+    unknown.push_back(node.keys[v]);
+    if (const auto c = vertex_cells_.find(node.keys[v]); c != vertex_cells_.end() && c->second.completed)
+      node.spans[v] = c->second.span;
+  }
+  struct Release {  // on every way out, after the content went up (PushUp counts its own)
+    TileWriter* w;
+    const std::vector<int64_t>& keys;
+    ~Release() {
+      for (int64_t k : keys) w->CountUnknownSpan(k, -1);
+    }
+  } release{this, unknown};
   // The seams between the children are inside now: only the node's own border stays locked.
   const int64_t target = std::max<int64_t>(1, node.child_triangles / 4);
   std::vector<char> locked = BorderVertices(node.mesh);
@@ -649,7 +681,11 @@ void TileWriter::FlushNode(const NodeKey& key, PendingNode& node) {
   const double share = static_cast<double>(triangles) / static_cast<double>(std::max<int64_t>(1, node.child_triangles));
   const bool worth = share <= kMaxLodShare ||
                      (static_cast<int>(node.children.size()) >= kLodManyChildren && share <= kMaxLodShareMany);
-  if (triangles < kMinTileTriangles || !worth) {
+  // The top node is written however small: gathered, its children would hang at the top of the
+  // tree and a view from far would ask for each of them (a simpler surface, e.g. without its
+  // specks, makes a smaller top).
+  const bool too_small = triangles < kMinTileTriangles && !(top && node.children.size() >= 2);
+  if (too_small || !worth) {
     // Too small a tile, or hardly simpler than its children: not written; its children hang
     // under the next node up and its content goes up in its place.
     ++stats_.lod_gathered;

@@ -98,7 +98,9 @@ inline constexpr int64_t kMinTileTriangles = 100;
 // when no open tile lies in or next to its region and no node below it waits; one whose content
 // would be under kMinTileTriangles, or not at most kMaxLodShare of its children's triangles (or
 // kMaxLodShareMany when it stands for kLodManyChildren tiles or more: one request for many), is
-// not written (its children are hung under the next node up, its content goes up in its place).
+// not written (its children are hung under the next node up, its content goes up in its place);
+// the top node with two children or more is written under kMinTileTriangles too (one request
+// from far, not one per child).
 inline constexpr int kMaxLodLevel = 20;
 inline constexpr double kMaxLodShare = 0.5;
 inline constexpr double kMaxLodShareMany = 0.8;
@@ -199,19 +201,23 @@ class TileWriter {
     std::vector<int> children;  // indices into written_ (a level of detail's)
     bool has_parent = false;
   };
-  // Where a vertex's triangles are, while a tile holding it is open or it is not completed: the
-  // level from which one node holds them all (a vertex is on the seam of nodes below it).
+  // Where a vertex's triangles are, while a tile holding it is open, it is not completed, or a
+  // node waiting holds it with its span unknown: the level from which one node holds them all (a
+  // vertex is on the seam of nodes below it).
   struct VertexCells {
     Cell first;
     int span = 0;
     int open_tiles = 0;
+    int unknown_in_nodes = 0;  // pending nodes holding it with span kMaxLodLevel + 1
     bool completed = false;
   };
   // A node of a level of detail waiting for its children: their content simplified, merged by key.
   struct PendingNode {
     engine::Mesh mesh;
     std::vector<int64_t> keys;
-    std::vector<int> spans;          // per vertex: VertexCells::span (kMaxLodLevel + 1: unknown)
+    std::vector<int> spans;          // per vertex: VertexCells::span (kMaxLodLevel + 1: unknown,
+                                     // not completed when last looked up: looked up again when
+                                     // the node is flushed)
     std::map<int64_t, uint32_t> index;
     std::vector<int> children;       // written tiles it will hold
     int64_t child_triangles = 0;     // of its children's content
@@ -225,9 +231,13 @@ class TileWriter {
               const std::vector<int>& spans, std::vector<int> children, int64_t triangles, double error);
   // Nodes whose region the drive has left (all when `all`), level by level upward.
   void FlushNodes(bool all);
-  void FlushNode(const NodeKey& key, PendingNode& node);
+  // `top`: the last node of the tree (at the end, none other waits).
+  void FlushNode(const NodeKey& key, PendingNode& node, bool top);
   void WriteLodTree(int index);
   void MaybeWriteTileset();
+  // A pending node holds (+1) or no longer holds (-1) vertex `key` with its span unknown; the
+  // vertex's VertexCells goes when nothing needs it.
+  void CountUnknownSpan(int64_t key, int delta);
   // state: "running", "complete" or "failed" (with error).
   void WriteTileset(const std::string& state, const std::string& error = "");
 

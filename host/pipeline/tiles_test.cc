@@ -5,6 +5,9 @@
 // thing through the imr executable.
 #include "host/pipeline/tiles.h"
 
+#include "host/eval/mesh_stats.h"
+#include "host/pipeline/streamed_surface.h"
+
 #include "host/engine/mesh_topology.h"
 #include "host/engine/simplify.h"
 #include "host/engine/surface_stream.h"
@@ -226,14 +229,19 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
   EXPECT_EQ(leaves_with, leaves_without);
   // Every node: its children's vertices within its geometric error of its content.
   int checked = 0;
-  std::function<void(const json&)> check = [&](const json& n) {
+  int tops = 0;
+  std::function<void(const json&, bool)> check = [&](const json& n, bool under_content) {
     const json children = n.value("children", json::array());
     if (n.contains("content")) {
       const TileMesh& parent = with.tiles.at(n["content"]["uri"].get<std::string>());
       EXPECT_EQ(n["geometricError"].get<double>(), parent.geometric_error);
+      tops += !under_content;
       if (parent.level > 0) {
         EXPECT_EQ(n["refine"], "REPLACE");
-        EXPECT_GE(static_cast<int64_t>(parent.mesh.faces.size() / 3), kMinTileTriangles);
+        // Never tiny, but for the top node (one request from far instead of one per child).
+        if (under_content || children.size() < 2) {
+          EXPECT_GE(static_cast<int64_t>(parent.mesh.faces.size() / 3), kMinTileTriangles);
+        }
         int64_t below = 0;
         for (const json& c : children) {
           const TileMesh& child = with.tiles.at(c["content"]["uri"].get<std::string>());
@@ -248,10 +256,11 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
                       static_cast<double>(below));
       }
     }
-    for (const json& c : children) check(c);
+    for (const json& c : children) check(c, under_content || n.contains("content"));
   };
-  check(with.tileset["root"]);
+  check(with.tileset["root"], false);
   EXPECT_GT(checked, 4);
+  EXPECT_EQ(tops, 1) << "one node at the top: a view from far asks for one tile";
   // Cut at each level and merged by key: a 2-manifold whose border is the leaves' border.
   auto merged_cut = [&](int level) {
     engine::Mesh m;
@@ -332,6 +341,128 @@ TEST(TileWriterTest, LevelsOfDetailCoverTheirChildrenWithinTheirErrorWithoutCrac
   std::printf("; leaf triangles %lld, lod %lld, held at most %lld, %.3f s\n",
               static_cast<long long>(with.stats.triangles), static_cast<long long>(with.stats.lod_triangles),
               static_cast<long long>(with.stats.lod_pending_triangles_peak), with.stats.lod_seconds);
+}
+
+// A flat strip 160 m long, 4 m wide, on a 1 m grid, handed out in parts of 10 m along x (a part
+// completes the vertices behind it): 16 leaves of 80 triangles.
+std::vector<engine::SurfacePart> StripParts() {
+  constexpr int kLength = 160, kWidth = 4;
+  auto key = [](int x, int y) { return int64_t{x} * (kWidth + 1) + y; };
+  std::vector<engine::SurfacePart> parts;
+  for (int x0 = 0; x0 < kLength; x0 += 10) {
+    engine::SurfacePart p;
+    std::map<int64_t, uint32_t> index;
+    auto vertex = [&](int x, int y) {
+      const auto [it, fresh] = index.emplace(key(x, y), static_cast<uint32_t>(p.keys.size()));
+      if (fresh) {
+        p.keys.push_back(key(x, y));
+        p.point_ids.push_back(-1);
+        p.vertices.insert(p.vertices.end(), {static_cast<double>(x), static_cast<double>(y), 0.0});
+      }
+      return it->second;
+    };
+    for (int x = x0; x < x0 + 10; ++x)
+      for (int y = 0; y < kWidth; ++y)
+        for (const uint32_t v : {vertex(x, y), vertex(x + 1, y), vertex(x + 1, y + 1), vertex(x, y),
+                                 vertex(x + 1, y + 1), vertex(x, y + 1)})
+          p.faces.push_back(v);
+    const int done = x0 + 10 == kLength ? kLength : x0 + 9;  // the last column waits for the next part
+    for (int x = x0; x <= done; ++x)
+      for (int y = 0; y <= kWidth; ++y) p.completed.push_back(key(x, y));
+    p.update = static_cast<int64_t>(parts.size()) + 1;
+    parts.push_back(std::move(p));
+  }
+  return parts;
+}
+
+// The tiles a view from far asks for: the first content down each branch from the root.
+std::vector<std::string> TopTiles(const json& root) {
+  std::vector<std::string> top;
+  std::function<void(const json&)> first_content = [&](const json& n) {
+    if (n.contains("content")) {
+      top.push_back(n["content"]["uri"].get<std::string>());
+      return;
+    }
+    for (const json& c : n.value("children", json::array())) first_content(c);
+  };
+  first_content(root);
+  return top;
+}
+
+// Issue 45: a surface whose top of the tree simplifies under kMinTileTriangles (here a flat strip;
+// on a street, the same street without its specks) still has one node at the top: gathered, its
+// 16 children would hang at the top of the tileset and a view from far would ask for each.
+TEST(TileWriterTest, TheTopOfTheTreeIsOneNodeHoweverSmall) {
+  io::testing::TempDir dir("imr-tiles-top");
+  std::map<std::string, TileMesh> tiles;
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 10.0;
+  TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "strip"}}, {},
+                    [&](const TileMesh& t, const fs::path& staging, const std::string& stem) {
+                      WriteStandInGlb(staging / (stem + ".glb"));
+                      tiles["tiles/" + stem + ".glb"] = t;
+                    });
+  for (const engine::SurfacePart& p : StripParts()) writer.Add(p);
+  writer.Finish();
+  ASSERT_EQ(writer.stats().tiles, 16);
+  const json ts = json::parse(std::ifstream(dir / "tileset.json"));
+  const std::vector<std::string> top = TopTiles(Inlined(dir.path(), ts["root"]));
+  ASSERT_EQ(top.size(), 1u) << ts["root"].dump(1);
+  const TileMesh& t = tiles.at(top[0]);
+  EXPECT_GT(t.level, 0);
+  EXPECT_LT(static_cast<int64_t>(t.mesh.faces.size() / 3), kMinTileTriangles) << "the case this test is for";
+  EXPECT_EQ(TileContentUris(dir.path(), ts["root"]).size(), tiles.size()) << "every tile under it";
+}
+
+// Issue 45: a vertex's lock is decided when the node holding it is flushed, not when its tile is
+// written: completions that come parts after the tiles (as when the stream holds a small piece's
+// completions) give the same levels as on time, and however late, the tree keeps one node at the
+// top (locked at every level, the nodes were not worth writing and the top was lost).
+TEST(TileWriterTest, CompletionsThatComeLateGiveTheSameLevels) {
+  const std::vector<engine::SurfacePart> parts = StreetParts(120);
+  ASSERT_FALSE(parts.empty());
+  std::vector<engine::SurfacePart> released;
+  engine::SurfaceStream surface(engine::SurfaceStreamOptions::FromEngine(StreetEngineOptions()));
+  for (const auto& part : parts) {
+    ASSERT_EQ(surface.Add(part), "");
+    released.push_back(surface.TakeReleased());
+  }
+  struct Run {
+    TilesStats stats;
+    std::vector<std::string> top;
+  };
+  auto run = [&](std::size_t late) {  // each part's completions handed `late` parts later
+    io::testing::TempDir dir("imr-tiles-late");
+    TilesOptions o;
+    o.enabled = true;
+    o.size = 10.0;
+    o.max_triangles = 400;
+    TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}}, {},
+                      [&](const TileMesh&, const fs::path& staging, const std::string& stem) {
+                        WriteStandInGlb(staging / (stem + ".glb"));
+                      });
+    for (std::size_t i = 0; i < released.size(); ++i) {
+      engine::SurfacePart p = released[i];
+      p.completed = i >= late ? released[i - late].completed : std::vector<int64_t>();
+      writer.Add(p);
+    }
+    writer.Finish();  // the last `late` parts' completions: every vertex is complete at the end
+    return Run{writer.stats(), TopTiles(Inlined(dir.path(), json::parse(std::ifstream(dir / "tileset.json"))["root"]))};
+  };
+  const Run on_time = run(0);
+  ASSERT_GE(on_time.stats.tiles_per_level.size(), 3u);
+  EXPECT_EQ(on_time.top.size(), 1u);
+  for (std::size_t late : {2, 3, 4}) {
+    const Run r = run(late);
+    EXPECT_EQ(r.stats.tiles_per_level, on_time.stats.tiles_per_level) << late << " parts late";
+    EXPECT_NEAR(static_cast<double>(r.stats.lod_triangles), static_cast<double>(on_time.stats.lod_triangles),
+                0.1 * static_cast<double>(on_time.stats.lod_triangles)) << late << " parts late";
+  }
+  // Later than the nodes are flushed (the drive has left): locked there, not above.
+  const Run very_late = run(12);
+  EXPECT_EQ(very_late.top.size(), 1u);
+  EXPECT_EQ(very_late.stats.tiles_per_level.size(), on_time.stats.tiles_per_level.size());
 }
 
 // A run stopped mid-way (the exporter throws): the levels of detail it wrote are the run's
@@ -857,6 +988,135 @@ TEST(TileWriterTest, ContentUrisOfATreeThatIsNotOneAreRefused) {
   EXPECT_EQ(TileContentUris(dir.path(), named("tiles/lod_000001.json"), InputRole::kInput, &subtrees),
             (std::vector<std::string>{"tiles/lod_000001.glb", "tiles/tile_000002.glb"}));
   EXPECT_EQ(subtrees, std::vector<std::string>{"tiles/lod_000001.json"});
+}
+
+// Issue 45 item 3: a drive with forgetting on, specks put into its parts as they come (a closed
+// octahedron of 1.7 m^2 whole in one part, another across two parts): neither reaches the single
+// mesh nor the tiles, which are the parts' own export (FinishExportedMesh of their union: no
+// piece under engine.min_component_area, a 2-manifold) and agree triangle for triangle.
+TEST(TileWriterTest, SpecksInAForgettingRunsPartsAreNotWritten) {
+  engine::EngineOptions eo = StreetEngineOptions();
+  eo.forget = engine::ForgetMode::kOn;
+  synthetic::StreamOptions so;
+  so.scene = synthetic::SceneKind::kStreet;
+  so.frames = 200;
+  so.points_per_keyframe = 150;
+  synthetic::SyntheticStream stream(so);
+  engine::Engine engine(eo, nullptr);
+  io::testing::TempDir dir("imr-tiles-specks");
+  fs::create_directories(dir / "spool");
+  std::vector<TileMesh> written;
+  TilesOptions o;
+  o.enabled = true;
+  o.size = 20.0;
+  o.max_triangles = 1000;
+  o.lod = false;
+  TileWriter writer(o, dir.path(), json{{"job", "/j.json"}, {"sequence", "street"}},
+                    [] { return TilesetFrame({}); },
+                    [&](const TileMesh& t, const fs::path& staging, const std::string& stem) {
+                      WriteStandInGlb(staging / (stem + ".glb"));
+                      if (t.level == 0) written.push_back(t);
+                    });
+  StreamedSurface surface(eo, dir / "spool", &writer);
+  // An octahedron of radius 0.5 at height 60 m, its keys far from the engine's.
+  int64_t next_key = int64_t{1} << 40;
+  auto speck = [&](double y, engine::SurfacePart* first, engine::SurfacePart* second) {
+    const double c[6][3] = {{0.5, 0, 0}, {-0.5, 0, 0}, {0, 0.5, 0}, {0, -0.5, 0}, {0, 0, 0.5}, {0, 0, -0.5}};
+    const int f[8][3] = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+    std::vector<int64_t> keys;
+    for (int i = 0; i < 6; ++i) keys.push_back(next_key++);
+    for (int t = 0; t < 8; ++t) {
+      engine::SurfacePart* p = t < 4 ? first : second;
+      for (int k = 0; k < 3; ++k) {
+        const int v = f[t][k];
+        p->faces.push_back(static_cast<uint32_t>(p->keys.size()));
+        p->keys.push_back(keys[static_cast<std::size_t>(v)]);
+        p->point_ids.push_back(-1);
+        p->vertices.insert(p->vertices.end(), {c[v][0], y + c[v][1], 60.0 + c[v][2]});
+      }
+    }
+    second->completed.insert(second->completed.end(), keys.begin(), keys.end());
+  };
+  std::vector<engine::SurfacePart> parts;  // as the stream got them
+  engine::SurfacePart pending_;            // the second speck's second half
+  surface.SetPartFilter([&](engine::SurfacePart* p) {
+    // A part names a vertex once: merge the speck's repeated corners by key.
+    auto dedup = [](engine::SurfacePart* q) {
+      std::map<int64_t, uint32_t> at;
+      engine::SurfacePart d = *q;
+      d.vertices.clear();
+      d.keys.clear();
+      d.point_ids.clear();
+      for (uint32_t& i : d.faces) {
+        const auto [it, fresh] = at.emplace(q->keys[i], static_cast<uint32_t>(d.keys.size()));
+        if (fresh) {
+          d.keys.push_back(q->keys[i]);
+          d.point_ids.push_back(q->point_ids[i]);
+          d.vertices.insert(d.vertices.end(), &q->vertices[3 * i], &q->vertices[3 * i] + 3);
+        }
+        i = it->second;
+      }
+      *q = std::move(d);
+    };
+    if (parts.size() == 2) speck(20.0, p, p);  // whole in this part
+    if (parts.size() == 3) {
+      engine::SurfacePart tail;
+      speck(40.0, p, &tail);  // half now, half (and its completion) with the next part
+      pending_ = std::move(tail);
+    } else if (parts.size() == 4) {
+      for (std::size_t i = 0; i < pending_.faces.size(); ++i) {
+        const uint32_t v = pending_.faces[i];
+        p->faces.push_back(static_cast<uint32_t>(p->keys.size()));
+        p->keys.push_back(pending_.keys[v]);
+        p->point_ids.push_back(pending_.point_ids[v]);
+        p->vertices.insert(p->vertices.end(), &pending_.vertices[3 * v], &pending_.vertices[3 * v] + 3);
+      }
+      p->completed.insert(p->completed.end(), pending_.completed.begin(), pending_.completed.end());
+    }
+    dedup(p);
+    parts.push_back(*p);
+  });
+  ASSERT_TRUE(engine::testing::RunStream(&stream, &engine, [&](const synthetic::StreamKeyframe&) {
+                surface.Take(engine);
+                return true;
+              }).ok());
+  ASSERT_GT(parts.size(), 5u) << "the drive should hand its surface out in parts";
+  surface.Finish(engine);
+  const engine::SurfaceStreamStats& st = surface.stats().stream;
+  EXPECT_GE(st.dropped.components, 2);
+  EXPECT_GE(st.dropped.faces, 16);
+  EXPECT_EQ(st.held_small_triangles, 0);
+  // The single mesh: the parts' export exactly, a manifold, no piece under the threshold.
+  EXPECT_TRUE(surface.mesh_check().ok) << surface.mesh_check().message;
+  const engine::Mesh mesh = surface.ReadMesh(/*canonical=*/true);
+  engine::Mesh whole;
+  ASSERT_EQ(engine::MergeSurfaceParts(parts, &whole), "");
+  engine::DroppedComponents d;
+  engine::FinishExportedMesh(&whole, eo, &d);
+  EXPECT_EQ(d.components, st.dropped.components);
+  EXPECT_EQ(mesh.faces, whole.faces);
+  EXPECT_EQ(mesh.vertices, whole.vertices);
+  EXPECT_EQ(static_cast<int64_t>(mesh.faces.size() / 3), st.triangles_released);
+  const eval::MeshStatistics ms = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces);
+  ASSERT_GT(ms.component_list.size(), 0u);
+  for (const eval::ComponentStatistics& c : ms.component_list) EXPECT_GE(c.area, eo.MinComponentArea());
+  EXPECT_EQ(ms.unused_vertices, 0);
+  for (std::size_t i = 2; i < mesh.vertices.size(); i += 3) EXPECT_LT(mesh.vertices[i], 59.0);
+  // The tiles: the same triangles (by their corners' positions), none of a speck.
+  // A triangle as its corners from the smallest (orientation kept).
+  auto corners = [](const engine::Mesh& m, std::size_t f) {
+    std::array<std::array<double, 3>, 3> c{};
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) c[k][a] = m.vertices[3 * m.faces[f + k] + a];
+    std::rotate(c.begin(), std::min_element(c.begin(), c.end()), c.end());
+    return c;
+  };
+  std::multiset<std::array<std::array<double, 3>, 3>> from_tiles, from_mesh;
+  for (const TileMesh& t : written)
+    for (std::size_t f = 0; f < t.mesh.faces.size(); f += 3) from_tiles.insert(corners(t.mesh, f));
+  for (std::size_t f = 0; f < mesh.faces.size(); f += 3) from_mesh.insert(corners(mesh, f));
+  EXPECT_EQ(from_tiles.size(), from_mesh.size());
+  EXPECT_TRUE(from_tiles == from_mesh);
 }
 
 }  // namespace
