@@ -1081,7 +1081,7 @@ TEST(TileWriterTest, SpecksInAForgettingRunsPartsAreNotWritten) {
                 return true;
               }).ok());
   ASSERT_GT(parts.size(), 5u) << "the drive should hand its surface out in parts";
-  surface.Finish(engine);
+  surface.Finish(engine.FinishSurface());
   const engine::SurfaceStreamStats& st = surface.stats().stream;
   EXPECT_GE(st.dropped.components, 2);
   EXPECT_GE(st.dropped.faces, 16);
