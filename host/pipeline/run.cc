@@ -104,6 +104,8 @@ class SequenceRun {
   void FinishStreamedSurface();
   const engine::Mesh& WholeMesh();
   const engine::EngineStats& EngineStats() const { return engine_ ? engine_->Stats() : engine_stats_; }
+  // Whether the engine forgot (engine.forget), kept too: a streamed run's ends after it is gone.
+  bool Forgot() const { return engine_ ? engine_->forgetting() : engine_forgot_; }
   void WarnAbout();
   void Warn(const std::string& warning);
   void Note(const std::string& line);
@@ -176,6 +178,7 @@ class SequenceRun {
   std::optional<StreamedSurface> streamed_;
   ExportImageStats tile_images_;          // summed over the tiles' exports
   engine::EngineStats engine_stats_;      // the engine's, kept when it is destroyed early
+  bool engine_forgot_ = false;            // the same
   // The last mesh in memory: ExtractMesh's, or the streamed surface's read back whole (WholeMesh)
   // when something needs it whole; a forgetting run's single mesh is otherwise exported in blocks
   // from the spool and never held (ExportStreamedMesh).
@@ -600,7 +603,7 @@ void SequenceRun::Finish() {
   WriteStreamExports();
   // A source that measures the mesh triangle by triangle reads it in blocks too.
   std::unique_ptr<io::BlockEvaluation> blocks;
-  const bool forgot = engine_->forgetting();
+  const bool forgot = Forgot();
   if (streamed_ && forgot && v_.evaluation.is_null() && !job_.output.formats.empty())
     blocks = source_->EvaluateInBlocks();
   if (streamed_ && (!forgot || (source_->CanEvaluate() && !blocks) ||
@@ -645,7 +648,7 @@ void SequenceRun::ReleaseFrontEnd() {
 }
 
 const engine::Mesh& SequenceRun::WholeMesh() {
-  if (!mesh_) mesh_ = streamed_->ReadMesh(/*canonical=*/!engine_->forgetting());
+  if (!mesh_) mesh_ = streamed_->ReadMesh(/*canonical=*/!Forgot());
   return *mesh_;
 }
 
@@ -683,6 +686,7 @@ void SequenceRun::FinishStreamedSurface() {
     throw std::runtime_error("invariant check failed after the last keyframe (" +
                              std::to_string(keyframes_) + "): " + report_.boundary_check.message);
   engine_stats_ = engine_->Stats();
+  engine_forgot_ = engine_->forgetting();
   report_.engine_memory = engine_->Memory();
   engine_.reset();
   if (refinement_) refinement_->FinishLive(std::move(*live), extract_seconds, export_context_, watch_);
