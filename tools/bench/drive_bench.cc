@@ -86,6 +86,10 @@ struct DriveTargets {
   bool default_same = true, default_flat = true;
   bool slam_flat = true, slam_peak_ok = true, slam_host_flat = true;
   bool image_flat = true, image_peak_ok = true, image_host_flat = true;
+  // The same during the drive (the trace's RSS at each keyframe, the end's exports left out),
+  // and what the host holds beyond the engine over the longest drive (last tenth / first).
+  bool slam_drive_flat = true, slam_drive_ok = true, slam_tenths_flat = true;
+  bool image_drive_flat = true, image_drive_ok = true, image_tenths_flat = true;
 };
 
 struct Run {
@@ -553,6 +557,8 @@ json Tenths(const Run& r) {
   const double final_rss = Get(r.report, {"memory", "final_rss_bytes"});
   const double peak = Get(r.report, {"memory", "peak_rss_bytes"});
   const double first_rss = s.rss.empty() ? NAN : s.rss.front();
+  const double drive_max = s.rss.empty() ? NAN : *std::max_element(s.rss.begin(), s.rss.end());
+  std::printf("the trace's largest RSS during the drive: %s\n", Mb(drive_max).c_str());
   std::printf("\nreport.json: engine bytes %s at the end, final RSS %s (%s beyond the engine), peak "
               "RSS %s; RSS %s after the first keyframe (the input opened); RSS - engine over the "
               "second half: %.1f kB per frame; wall %.1f s\n",
@@ -567,8 +573,18 @@ json Tenths(const Run& r) {
           {"engine_bytes_end", engine_end}, {"first_rss_bytes", first_rss},
           {"host_bytes_first_tenth", host_first}, {"host_bytes_last_tenth", host_last},
           {"host_slope_bytes_per_frame", slope}, {"tenths", tenths}, {"wall_seconds", r.wall},
+          {"drive_max_rss_bytes", drive_max},
           {"forget_on_from_update", Get(r.report, {"engine", "forget", "on_from_update"})},
           {"heap_allocated_end", heap_end}, {"heap_resident_end", heap_resident_end}};
+}
+
+// During the drive: the longest drive's largest RSS within 1.2 x the shortest's and 400 MB, and
+// what it holds beyond the engine's bytes at its last tenth within 1.2 x its first tenth's.
+void DuringTheDrive(const json& first, const json& last, bool* flat, bool* ok, bool* tenths_flat) {
+  const double longest = last["drive_max_rss_bytes"].get<double>();
+  *flat = longest <= 1.2 * first["drive_max_rss_bytes"].get<double>();
+  *ok = longest <= 400e6;
+  *tenths_flat = last["host_bytes_last_tenth"].get<double>() <= 1.2 * last["host_bytes_first_tenth"].get<double>();
 }
 
 // The SLAM JSON drives, shortest first, and their targets: the longest's peak RSS within 1.2 x
@@ -588,6 +604,7 @@ bool SlamDrives(const DriveArgs& a, DriveTargets* t, json* out) {
   t->slam_flat = last["peak_rss_bytes"].get<double>() <= 1.2 * first["peak_rss_bytes"].get<double>();
   t->slam_peak_ok = last["peak_rss_bytes"].get<double>() <= 400e6;
   t->slam_host_flat = host(last) <= 1.2 * host(first);
+  DuringTheDrive(first, last, &t->slam_drive_flat, &t->slam_drive_ok, &t->slam_tenths_flat);
   return true;
 }
 
@@ -637,6 +654,7 @@ bool ImageDrives(const DriveArgs& a, DriveTargets* t, json* out) {
   t->image_flat = last["peak_rss_bytes"].get<double>() <= 1.2 * first["peak_rss_bytes"].get<double>();
   t->image_peak_ok = last["peak_rss_bytes"].get<double>() <= 400e6;
   t->image_host_flat = host(last) <= 1.2 * host(first);
+  DuringTheDrive(first, last, &t->image_drive_flat, &t->image_drive_ok, &t->image_tenths_flat);
   return true;
 }
 
@@ -652,6 +670,9 @@ void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
     line(t.slam_peak_ok, "SLAM JSON: the longest drive's peak RSS <= 400 MB");
     line(t.slam_host_flat, ("SLAM JSON: RSS beyond the engine's bytes at the end <= 1.2 x the "
                             "shortest drive's (" + lengths + ")").c_str());
+    line(t.slam_drive_flat, ("SLAM JSON: during the drive, RSS <= 1.2 x the shortest drive's (" + lengths + ")").c_str());
+    line(t.slam_drive_ok, "SLAM JSON: during the longest drive, RSS <= 400 MB");
+    line(t.slam_tenths_flat, "SLAM JSON: the longest drive's RSS beyond the engine's bytes, last tenth <= 1.2 x first");
   }
   if (a.image) {
     const std::string lengths = Format("%d frames beside %d", *std::max_element(a.image_frames.begin(), a.image_frames.end()),
@@ -660,11 +681,17 @@ void PrintDriveTargets(const DriveArgs& a, const DriveTargets& t, json* out) {
     line(t.image_peak_ok, "images: the longest drive's peak RSS <= 400 MB");
     line(t.image_host_flat, ("images: RSS beyond the engine's bytes at the end <= 1.2 x the "
                              "shortest drive's (" + lengths + ")").c_str());
+    line(t.image_drive_flat, ("images: during the drive, RSS <= 1.2 x the shortest drive's (" + lengths + ")").c_str());
+    line(t.image_drive_ok, "images: during the longest drive, RSS <= 400 MB");
+    line(t.image_tenths_flat, "images: the longest drive's RSS beyond the engine's bytes, last tenth <= 1.2 x first");
   }
   if (a.slam_only) {
     (*out)["targets"] = {{"slam_flat", t.slam_flat}, {"slam_peak", t.slam_peak_ok},
                          {"slam_host_flat", t.slam_host_flat}, {"image_flat", t.image_flat},
-                         {"image_peak", t.image_peak_ok}, {"image_host_flat", t.image_host_flat}};
+                         {"image_peak", t.image_peak_ok}, {"image_host_flat", t.image_host_flat},
+                         {"slam_drive_flat", t.slam_drive_flat}, {"slam_drive", t.slam_drive_ok},
+                         {"slam_tenths_flat", t.slam_tenths_flat}, {"image_drive_flat", t.image_drive_flat},
+                         {"image_drive", t.image_drive_ok}, {"image_tenths_flat", t.image_tenths_flat}};
     return;
   }
   if (a.long_run) {
