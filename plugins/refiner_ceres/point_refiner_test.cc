@@ -1,6 +1,7 @@
 // The refiner's own state over a long drive (issue 46): what it holds follows the live tracks,
 // not the frames driven. Linked from source: the C ABI does not show what an instance holds.
 #include "point_refiner.hpp"
+#include "test_cameras.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,21 +14,12 @@
 namespace imr::ceres_refiner {
 namespace {
 
-constexpr double kFx = 718.856, kCx = 607.1928, kCy = 185.2157;
-constexpr int kWidth = 1242, kHeight = 375;
-
-imr_camera CameraAt(uint64_t frame) {
-  imr_camera c{};
-  c.id = frame;
-  const double K[9] = {kFx, 0, kCx, 0, kFx, kCy, 0, 0, 1};
-  const double R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-  std::copy(K, K + 9, c.K);
-  std::copy(R, R + 9, c.R);
-  c.t[2] = -static_cast<double>(frame);  // centre (0, 0, frame): forward 1 m a frame
-  c.width = kWidth;
-  c.height = kHeight;
-  return c;
-}
+using testing::CameraAt;
+using testing::kCx;
+using testing::kCy;
+using testing::kFx;
+using testing::kHeight;
+using testing::kWidth;
 
 TEST(IdRuns, MergesNeighboursAndKnowsWhatItHolds) {
   IdRuns r;

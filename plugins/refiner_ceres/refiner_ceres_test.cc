@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "plugins/refiner_ceres/test_cameras.hpp"
 #include "plugins/testing/plugin_fixture.h"
 
 #include <Eigen/Core>
@@ -24,23 +25,12 @@
 
 namespace {
 
-constexpr double kFx = 718.856, kCx = 607.1928, kCy = 185.2157;
-constexpr int kWidth = 1242, kHeight = 375;
-
-imr_camera CameraAt(uint64_t frame) {
-  imr_camera c{};
-  c.id = frame;
-  const double K[9] = {kFx, 0, kCx, 0, kFx, kCy, 0, 0, 1};
-  const double R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-  std::copy(K, K + 9, c.K);
-  std::copy(R, R + 9, c.R);
-  c.t[0] = 0.0;
-  c.t[1] = 0.0;
-  c.t[2] = -static_cast<double>(frame);  // centre (0, 0, frame): forward 1 m per frame
-  c.width = kWidth;
-  c.height = kHeight;
-  return c;
-}
+using imr::ceres_refiner::testing::CameraAt;
+using imr::ceres_refiner::testing::kCx;
+using imr::ceres_refiner::testing::kCy;
+using imr::ceres_refiner::testing::kFx;
+using imr::ceres_refiner::testing::kHeight;
+using imr::ceres_refiner::testing::kWidth;
 
 // Pixel of X in frame `frame` (camera looks down +z, y down); empty when not visible.
 std::optional<Eigen::Vector2d> Project(const Eigen::Vector3d& X, uint64_t frame) {
