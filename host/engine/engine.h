@@ -125,6 +125,11 @@ struct EngineOptions {
                                       // stray points leave in free space); 0: keep every piece.
                                       // Streamed: a piece is weighed once it is whole
                                       // (SurfaceStream). Default measured: docs/benchmarks.md.
+  double retriangulate_planes = 0.0;  // Export, after the mesh_refiner stage: regions whose
+                                      // vertices lie within this many median edge lengths of one
+                                      // plane are triangulated again on it, folds taken out,
+                                      // boundary and vertices kept (plane_retriangulation.h);
+                                      // streamed: per released piece. 0: off.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (keyframe update, step 3: insert)
                                       // when true; else they start at 0 and the point's own rays,

@@ -111,6 +111,8 @@ std::string EngineOptions::Check() const {
   if (!std::isfinite(fill_holes_perimeter) || fill_holes_perimeter < 0.0)
     e << "fill_holes_perimeter must be >= 0; ";
   if (smoothing_iterations < 0) e << "smoothing_iterations must be >= 0; ";
+  if (!std::isfinite(retriangulate_planes) || retriangulate_planes < 0.0)
+    e << "retriangulate_planes must be >= 0 (median edge lengths; 0: off); ";
   if (!std::isfinite(min_component_area) || min_component_area < 0.0)
     e << "min_component_area must be >= 0 (x steiner_spacing^2; 0: keep every piece); ";
   if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";

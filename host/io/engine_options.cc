@@ -120,6 +120,10 @@ std::vector<EngineOption> MakeTable() {
       Option("min_component_area", &E::min_component_area, Min(0.0), "x steiner_spacing^2",
              "export: connected pieces of the surface with less area are dropped (specks stray "
              "points leave in free space; 0: keep every piece)"),
+      Option("retriangulate_planes", &E::retriangulate_planes, Min(0.0), "x median edge",
+             "export, after the mesh_refiner: regions of the surface within this distance of one "
+             "plane are triangulated again on it (folds of the sheet taken out; boundary and "
+             "vertices kept); 0: off"),
       Option("transfer_on_insert", &E::transfer_on_insert, kNone, "",
              "cells made by inserting a new point get weights from the policy; false: they "
              "start at 0 and the point's own rays weight them (measured: far better "

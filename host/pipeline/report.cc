@@ -337,6 +337,13 @@ json MeshJson(const ReportInputs& in) {
   const engine::DroppedComponents& d =
       in.streamed != nullptr ? in.streamed->stream.dropped : in.small_components_dropped;
   mesh_json["small_components_dropped"] = {{"components", d.components}, {"faces", d.faces}, {"vertices", d.vertices}, {"area", d.area}};
+  // engine.retriangulate_planes: the planar regions triangulated again.
+  const engine::PlaneRetriangulationStats& pl = in.streamed != nullptr ? in.streamed->planes : in.planes;
+  mesh_json["planes_retriangulated"] = {{"regions", pl.regions},
+                                        {"faces", pl.faces},
+                                        {"vertices_moved", pl.vertices_moved},
+                                        {"regions_refused", pl.regions_refused},
+                                        {"max_move", pl.max_move}};
   return mesh_json;
 }
 

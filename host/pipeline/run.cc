@@ -598,6 +598,16 @@ void SequenceRun::Finish() {
     refinement_->Finish(&*mesh_, export_context_, watch_);
     report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
   }
+  if (!streamed_) {  // after the refinement, as a streamed run does per released piece
+    report_.planes = engine::RetriangulatePlanes(
+        &*mesh_, engine::PlaneRetriangulationOptions::FromEngine(engine_options_));
+    if (report_.planes.regions > 0) {
+      report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
+      if (!report_.mesh_check.ok)
+        throw std::runtime_error("the mesh with its planes triangulated again is not a manifold: " +
+                                 report_.mesh_check.message);
+    }
+  }
   if (mesh_ && !mesh_->faces.empty()) report_.back_facing = BackFacingInKeyframes(*mesh_, export_context_);
   WarnAbout();
   WriteStreamExports();

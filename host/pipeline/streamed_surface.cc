@@ -51,7 +51,10 @@ void ReadAt(const fs::path& file, uint64_t offset, void* out, std::size_t bytes)
 }  // namespace
 
 StreamedSurface::StreamedSurface(const engine::EngineOptions& options, fs::path spool, TileWriter* tiles)
-    : stream_(engine::SurfaceStreamOptions::FromEngine(options)), spool_dir_(std::move(spool)), tiles_(tiles) {
+    : stream_(engine::SurfaceStreamOptions::FromEngine(options)),
+      planes_(engine::PlaneRetriangulationOptions::FromEngine(options)),
+      spool_dir_(std::move(spool)),
+      tiles_(tiles) {
   if (spool_dir_.empty()) return;
   vertices_.open(spool_dir_ / kVertices, std::ios::binary | std::ios::trunc);
   faces_file_.open(spool_dir_ / kFaces, std::ios::binary | std::ios::trunc);
@@ -146,7 +149,10 @@ void StreamedSurface::Feed(const engine::SurfacePart& part) {
   ++stats_.engine_parts;
   if (const std::string e = stream_.Add(part); !e.empty())
     throw std::runtime_error("the surface handed out in parts does not fit together: " + e);
-  const engine::SurfacePart released = stream_.TakeReleased();
+  engine::SurfacePart released = stream_.TakeReleased();
+  // Planar regions of what was released, before the spool and the tiles write it: only vertices
+  // whose whole fan is in this piece move (a seam vertex was, or will be, written elsewhere).
+  stats_.planes += engine::RetriangulatePlanes(&released, planes_);
   if (!spool_dir_.empty()) Spool(released);
   if (tiles_ != nullptr) tiles_->Add(released);
   stats_.stream = stream_.stats();

@@ -14,6 +14,7 @@
 #pragma once
 
 #include "host/engine/engine.h"
+#include "host/engine/plane_retriangulation.h"
 #include "host/engine/surface_stream.h"
 #include "host/eval/mesh_stats.h"
 #include "host/pipeline/tiles.h"
@@ -38,6 +39,7 @@ struct StreamedSurfaceStats {
   int64_t peak_seam_vertices = 0;  // vertices released and not yet completed, at most
   double seconds = 0.0;            // in Take and Finish: the stream, the spool, the tiles
   double max_update_seconds = 0.0; // the longest Take (one keyframe's parts)
+  engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes, per released piece
 };
 
 class StreamedSurface {
@@ -107,6 +109,7 @@ class StreamedSurface {
   void Fail(const std::string& what);
 
   engine::SurfaceStream stream_;
+  engine::PlaneRetriangulationOptions planes_;
   std::function<void(engine::SurfacePart*)> filter_;
   std::filesystem::path spool_dir_;
   std::ofstream vertices_, faces_file_;

@@ -17,6 +17,7 @@ int RunDriveBench(int argc, char** argv);
 int RunEvaluateBench(int argc, char** argv);
 int RunPeersBench(int argc, char** argv);
 int RunQualityBench(int argc, char** argv);
+int RunPlanesBench(int argc, char** argv);
 int RunSpeedBench(int argc, char** argv);
 #endif
 #ifdef IMR_BENCH_TEXTURE
@@ -63,6 +64,10 @@ const std::vector<Subcommand>& Subcommands() {
        "surface quality per input (completeness, precision, F, distances,\n"
        "manifold, time, memory) beside the Piazza mesher and COLMAP",
        &RunQualityBench},
+      {"planes", "--mesh MESH --sequence IMR_SYNTH_SEQ [--tolerance 0,0.1,0.2] ...",
+       "engine.retriangulate_planes on one mesh per tolerance: regions, completeness,\n"
+       "precision, roughness on the true planes",
+       &RunPlanesBench},
       {"speed", "[--views-per-keyframe N] [--rounds N] [--work DIR]",
        "the engine on the street stream with every view a keyframe, one core\n"
        "and two, the fastest of N rounds each (issue 18's targets), with the\n"
