@@ -586,9 +586,9 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 // The last mesh, checked and with its warnings; then exports first (each whole or absent), the
 // evaluation, the mesh and the report. With the overlap (2 cores or more) the evaluation, which
 // only reads the mesh and the source, runs beside the mesh's export; its error still comes first.
-// A streamed run's mesh stays on disk unless the evaluation needs it whole (a source with ground
-// truth, the job's "evaluation"), or forgetting is off (tiles only: the single mesh in canonical
-// order, today's bytes).
+// A streamed run's mesh stays on disk unless the evaluation needs it whole (a source that cannot
+// measure it in blocks, the job's "evaluation"), an export does (colours, a texture, glTF/GLB),
+// or forgetting is off (tiles only: the single mesh in canonical order, today's bytes).
 void SequenceRun::Finish() {
   ReleaseFrontEnd();
   if (streamed_)
