@@ -218,6 +218,48 @@ TEST_F(FrontEnd, OverlapWithTheEngineChangesNoOutput) {
   EXPECT_EQ(report[1]["engine"]["keyframes"], 13);
 }
 
+// A forgetting run keeps its single mesh on disk (issue 46). With a plain export (no colours) it
+// is never read whole: the PLY is written, the synthetic truth measures it and the back-facing
+// share is drawn, all block by block from the spool, with the figures of the same mesh read back
+// whole (the job's "evaluation" asks for it whole: accuracy_known_scene), bit for bit, and the
+// same PLY vertex and face records.
+TEST_F(FrontEnd, ForgettingMeasuresTheKnownSceneInBlocks) {
+  json report[2];
+  std::string ply[2];
+  for (const bool whole : {false, true}) {
+    json job = ImageJob("kitti_odometry", {Sequence().string()});
+    job["engine"]["forget"] = true;
+    job["pipeline"][3]["params"] = {{"vertex_colors", false}, {"texture", false}};
+    const std::string name = whole ? "forget-whole" : "forget-blocks";
+    job["output"]["directory"] = (*dir_ / name / "{sequence}").string();
+    if (whole) job["evaluation"] = {{"truth", (Sequence() / "ground_truth/scene.ply").string()}};
+    const CommandResult r = RunJob(job, name);
+    ASSERT_EQ(r.status, 0) << r.err;
+    report[whole] = ReadJson(*dir_ / name / "street/report.json");
+    ply[whole] = ReadText(*dir_ / name / "street/mesh.ply");
+  }
+  ASSERT_TRUE(report[0]["engine"]["forget"].is_object()) << report[0]["engine"].dump();  // spooled
+  EXPECT_EQ(report[0]["mesh"]["written_in_blocks"], 1) << report[0]["mesh"].dump();
+  EXPECT_EQ(report[1]["mesh"]["written_in_blocks"], 0) << report[1]["mesh"].dump();
+  const json& blocks = report[0]["accuracy"];
+  const json& whole = report[1]["accuracy_known_scene"];
+  ASSERT_TRUE(whole.is_object()) << report[1].dump(2);
+  for (const char* key : {"mean_mesh_to_scene", "precision", "mean_truth_to_mesh", "completeness",
+                          "truth_samples", "tau", "reference"})
+    EXPECT_EQ(blocks[key], whole[key]) << key << ": " << blocks.dump() << " vs " << whole.dump();
+  EXPECT_GT(blocks["completeness"].get<double>(), 0.3) << blocks.dump();
+  EXPECT_GT(blocks["truth_samples"].get<int>(), 1000) << blocks.dump();
+  // The same surface: the records after the header (which names the writer) are the same bytes.
+  const auto body = [](const std::string& p) { return p.substr(p.find("end_header\n")); };
+  EXPECT_NE(ply[0].find("Written in blocks"), std::string::npos);
+  EXPECT_TRUE(body(ply[0]) == body(ply[1])) << "the same surface either way";
+  // The back-facing share too: drawn block by block, or from the mesh read whole.
+  const json& back = report[0]["mesh"]["back_facing"];
+  ASSERT_TRUE(back.is_object()) << report[0]["mesh"].dump();
+  EXPECT_EQ(back, report[1]["mesh"]["back_facing"]);
+  EXPECT_GT(back["pixels"].get<int64_t>(), 0);
+}
+
 // A short image set gets keyframes it can mesh unless the job chose keyframe_every (issue 37:
 // the Middlebury rings of 16 images made 4 keyframes and no surface); when the job did choose
 // and nothing is meshed, the message says what would change it.

@@ -57,12 +57,15 @@ class SyntheticSource : public KeyframeSource {
                                                 truth ? stream_.TruePoints() : std::vector<Vec3>{},
                                                 kTau));
   }
-  // Without the true points only mesh -> scene is measured: triangle by triangle, so in blocks.
+  // Mesh -> scene triangle by triangle; truth -> mesh as each true point's running minimum over
+  // the blocks (synthetic::MeshAccuracyInBlocks): Evaluate's figures without the mesh whole.
   std::unique_ptr<BlockEvaluation> EvaluateInBlocks() const override {
-    if (stream_.options().keep_truth) return nullptr;
     class Blocks : public BlockEvaluation {
      public:
-      explicit Blocks(const SyntheticSource& s) : source_(s), acc_(s.stream_.scene(), kTau) {}
+      explicit Blocks(const SyntheticSource& s)
+          : source_(s),
+            acc_(s.stream_.scene(),
+                 s.stream_.options().keep_truth ? s.stream_.TruePoints() : std::vector<Vec3>{}, kTau) {}
       void AddTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces) override {
         acc_.AddTriangles(vertices, faces);
       }
@@ -70,7 +73,7 @@ class SyntheticSource : public KeyframeSource {
 
      private:
       const SyntheticSource& source_;
-      synthetic::MeshToScene acc_;
+      synthetic::MeshAccuracyInBlocks acc_;
     };
     return std::make_unique<Blocks>(*this);
   }

@@ -392,16 +392,9 @@ json ImageFrontEndSource::Summary() const {
   return j;
 }
 
-json ImageFrontEndSource::Evaluate(const engine::Mesh& mesh) const {
-  if (!truth_) return nullptr;
-  // Mesh into the scene's frame, where the analytic distance lives.
-  std::vector<double> vertices(mesh.vertices.size());
-  for (std::size_t i = 0; i + 2 < mesh.vertices.size(); i += 3) {
-    const io::Vec3 s = truth_->ToScene({mesh.vertices[i], mesh.vertices[i + 1], mesh.vertices[i + 2]});
-    std::copy(s.begin(), s.end(), vertices.begin() + static_cast<std::ptrdiff_t>(i));
-  }
-  // True surface samples the keyframes saw: rays on a pixel grid, first hit within range.
-  std::vector<synthetic::Vec3> truth;
+std::vector<io::Vec3> ImageFrontEndSource::TruthSamples() const {
+  // Rays on a pixel grid from each keyframe, their first hit within range.
+  std::vector<io::Vec3> truth;
   const io::Mat3 scene_from_world = io::Transpose(truth_->rotation);
   for (std::size_t f = 0; f < next_frame_; ++f) {
     if (!IsKeyframe(static_cast<int>(f))) continue;
@@ -420,15 +413,57 @@ json ImageFrontEndSource::Evaluate(const engine::Mesh& mesh) const {
       }
     }
   }
-  const synthetic::MeshAccuracy a =
-      synthetic::EvaluateMesh(truth_->scene, vertices, mesh.faces, truth, options_.tau);
+  return truth;
+}
+
+json ImageFrontEndSource::AccuracyJson(const synthetic::MeshAccuracy& a, std::size_t samples) const {
   return {{"reference", "known synthetic scene (" + sequence_.synthetic_scene + ")"},
           {"tau", a.tau},
           {"mean_mesh_to_scene", a.mean_mesh_to_scene},
           {"precision", a.precision},
           {"mean_truth_to_mesh", a.mean_truth_to_mesh},
           {"completeness", a.completeness},
-          {"truth_samples", truth.size()}};
+          {"truth_samples", samples}};
+}
+
+namespace {
+
+// Packed xyz from the sequence's world frame into the scene's, where the analytic distance lives.
+std::vector<double> InScene(const SyntheticTruth& truth, const std::vector<double>& world) {
+  std::vector<double> scene(world.size());
+  for (std::size_t i = 0; i + 2 < world.size(); i += 3) {
+    const io::Vec3 s = truth.ToScene({world[i], world[i + 1], world[i + 2]});
+    std::copy(s.begin(), s.end(), scene.begin() + static_cast<std::ptrdiff_t>(i));
+  }
+  return scene;
+}
+
+}  // namespace
+
+json ImageFrontEndSource::Evaluate(const engine::Mesh& mesh) const {
+  if (!truth_) return nullptr;
+  const std::vector<io::Vec3> truth = TruthSamples();
+  const synthetic::MeshAccuracy a = synthetic::EvaluateMesh(
+      truth_->scene, InScene(*truth_, mesh.vertices), mesh.faces, truth, options_.tau);
+  return AccuracyJson(a, truth.size());
+}
+
+std::unique_ptr<io::BlockEvaluation> ImageFrontEndSource::EvaluateInBlocks() const {
+  if (!truth_) return nullptr;
+  class Blocks : public io::BlockEvaluation {
+   public:
+    explicit Blocks(const ImageFrontEndSource& s)
+        : source_(s), acc_(s.truth_->scene, s.TruthSamples(), s.options_.tau) {}
+    void AddTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces) override {
+      acc_.AddTriangles(InScene(*source_.truth_, vertices), faces);
+    }
+    json Finish() const override { return source_.AccuracyJson(acc_.Result(), acc_.truth_size()); }
+
+   private:
+    const ImageFrontEndSource& source_;
+    synthetic::MeshAccuracyInBlocks acc_;
+  };
+  return std::make_unique<Blocks>(*this);
 }
 
 }  // namespace imr::pipeline

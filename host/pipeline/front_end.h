@@ -26,6 +26,10 @@
 #include <unordered_map>
 #include <vector>
 
+namespace imr::synthetic {
+struct MeshAccuracy;
+}
+
 namespace imr::pipeline {
 
 // Keyframes `frames` frames make at `keyframe_every` (every k-th from frame 0, and the last).
@@ -92,6 +96,9 @@ class ImageFrontEndSource : public io::KeyframeSource {
   int KeyframeCount() const override;
   nlohmann::json Evaluate(const engine::Mesh& mesh) const override;
   bool CanEvaluate() const override { return truth_ != nullptr; }
+  // Evaluate's figures from a mesh read in blocks (a forgetting run's spool), bit for bit: holds
+  // the true surface samples and a distance each, never the mesh.
+  std::unique_ptr<io::BlockEvaluation> EvaluateInBlocks() const override;
   const io::CameraGeometry* Camera(uint64_t camera_id) const override;
   nlohmann::json Summary() const override;
 
@@ -140,6 +147,10 @@ class ImageFrontEndSource : public io::KeyframeSource {
   void TrackPointError(uint64_t id, const io::Vec3& position, bool is_new);
   // The frame to the dense stage; on a keyframe its points into `update`.
   void AddDensePoints(const TrackedFrame& tracked, engine::KeyframeUpdate* update);
+  // Synthetic truth only: the true surface samples the keyframes so far saw (scene frame), and
+  // the report's accuracy object from the figures over them.
+  std::vector<io::Vec3> TruthSamples() const;
+  nlohmann::json AccuracyJson(const synthetic::MeshAccuracy& a, std::size_t samples) const;
 
   io::ImageSequence sequence_;
   const imr::sdk::Instance& features_;

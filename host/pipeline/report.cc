@@ -327,12 +327,13 @@ json MeshJson(const ReportInputs& in) {
     mesh_json["export_origin"] = {origin[0], origin[1], origin[2]};
     // Topology of what was written: components, Euler characteristic, genus, boundary loops.
     mesh_json["stats"] = eval::ComputeMeshStatistics(mesh.vertices, mesh.faces).ToJson();
-    if (in.back_facing)
-      mesh_json["back_facing"] = {{"views", in.back_facing->views},
-                                  {"pixels", in.back_facing->pixels},
-                                  {"back_pixels", in.back_facing->back_pixels},
-                                  {"share", in.back_facing->Share()}};
   }
+  // Measured on the mesh in memory, or on the spooled one in blocks (run.cc).
+  if (in.back_facing && mesh_json.value("written", false))
+    mesh_json["back_facing"] = {{"views", in.back_facing->views},
+                                {"pixels", in.back_facing->pixels},
+                                {"back_pixels", in.back_facing->back_pixels},
+                                {"share", in.back_facing->Share()}};
   // The pieces under engine.min_component_area the export dropped (whole components).
   const engine::DroppedComponents& d =
       in.streamed != nullptr ? in.streamed->stream.dropped : in.small_components_dropped;

@@ -270,6 +270,7 @@ SequenceResult RunOneSequence(const ValidatedJob& v, const plugin::PluginRegistr
 namespace {
 
 std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh, const ExportContext& context);
+std::optional<render::BackFacing> BackFacingInKeyframes(const StreamedSurface& mesh, const ExportContext& context);
 
 // Creates one instance per stage of the job, each creation watched against its stage's timeout.
 void SequenceRun::InstantiateStages() {
@@ -585,9 +586,9 @@ bool SequenceRun::NextKeyframe(engine::KeyframeUpdate* update, io::KeyframeInfo*
 // The last mesh, checked and with its warnings; then exports first (each whole or absent), the
 // evaluation, the mesh and the report. With the overlap (2 cores or more) the evaluation, which
 // only reads the mesh and the source, runs beside the mesh's export; its error still comes first.
-// A streamed run's mesh stays on disk unless the evaluation needs it whole (a source with ground
-// truth, the job's "evaluation"), or forgetting is off (tiles only: the single mesh in canonical
-// order, today's bytes).
+// A streamed run's mesh stays on disk unless the evaluation needs it whole (a source that cannot
+// measure it in blocks, the job's "evaluation"), an export does (colours, a texture, glTF/GLB),
+// or forgetting is off (tiles only: the single mesh in canonical order, today's bytes).
 void SequenceRun::Finish() {
   ReleaseFrontEnd();
   if (streamed_)
@@ -608,7 +609,6 @@ void SequenceRun::Finish() {
                                  report_.mesh_check.message);
     }
   }
-  if (mesh_ && !mesh_->faces.empty()) report_.back_facing = BackFacingInKeyframes(*mesh_, export_context_);
   WarnAbout();
   WriteStreamExports();
   // A source that measures the mesh triangle by triangle reads it in blocks too.
@@ -619,6 +619,12 @@ void SequenceRun::Finish() {
   if (streamed_ && (!forgot || (source_->CanEvaluate() && !blocks) ||
                     !v_.evaluation.is_null()))
     WholeMesh();
+  // The back-facing share of the mesh in memory, else of the spooled one read in blocks (the
+  // same faces in the same order as read whole).
+  if (mesh_ && !mesh_->faces.empty())
+    report_.back_facing = BackFacingInKeyframes(*mesh_, export_context_);
+  else if (streamed_ && forgot && !job_.output.formats.empty() && streamed_->face_count() > 0)
+    report_.back_facing = BackFacingInKeyframes(*streamed_, export_context_);
   std::function<void()> evaluate;
   if (mesh_) {
     evaluate = [this] { EvaluateMesh(*mesh_); };
@@ -712,13 +718,12 @@ void SequenceRun::FinishStreamedSurface() {
 }
 
 // The share of what the keyframes see that faces away from them (report.json mesh.back_facing):
-// at most 60 keyframes spread over the run, each drawn at a quarter of its size. Nothing for
-// inputs without intrinsics.
-std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh, const ExportContext& context) {
+// at most 60 keyframes spread over the run, each drawn at a quarter of its size. None for inputs
+// without intrinsics.
+std::vector<render::Camera> BackFacingCameras(const ExportContext& context) {
   std::vector<const imr_camera*> usable;
   for (const imr_camera& c : context.keyframes)
     if (c.K[0] > 0.0 && c.K[4] > 0.0 && c.width > 0 && c.height > 0) usable.push_back(&c);
-  if (usable.empty()) return std::nullopt;
   constexpr std::size_t kViews = 60;
   std::vector<render::Camera> cameras;
   for (std::size_t i = 0; i < std::min(kViews, usable.size()); ++i) {
@@ -732,8 +737,24 @@ std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh
     }
     if (r.Check().empty()) cameras.push_back(r);
   }
+  return cameras;
+}
+constexpr double kBackFacingScale = 0.25;
+
+std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh, const ExportContext& context) {
+  const std::vector<render::Camera> cameras = BackFacingCameras(context);
   if (cameras.empty()) return std::nullopt;
-  return render::MeasureBackFacing(render::MeshRefOf(mesh.vertices, mesh.faces), cameras, 0.25);
+  return render::MeasureBackFacing(render::MeshRefOf(mesh.vertices, mesh.faces), cameras, kBackFacingScale);
+}
+
+std::optional<render::BackFacing> BackFacingInKeyframes(const StreamedSurface& mesh, const ExportContext& context) {
+  const std::vector<render::Camera> cameras = BackFacingCameras(context);
+  if (cameras.empty()) return std::nullopt;
+  render::BackFacingInBlocks blocks(cameras, kBackFacingScale);
+  mesh.ForEachTriangleBlock([&](const std::vector<double>& v, const std::vector<uint32_t>& f) {
+    blocks.AddTriangles(render::MeshRefOf(v, f));
+  });
+  return blocks.Result();
 }
 
 // Warnings: on stderr and in report.json (the summary lists them).

@@ -307,27 +307,106 @@ std::string TopDownOptions::Check() const {
   return "";
 }
 
-BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
+namespace {
+
+void DrawFaces(const MeshRef& mesh, const Camera& camera, const RenderOptions& options,
+               int32_t first_face, Target* target, std::vector<Rgb>* face_color, int64_t* behind,
+               int64_t* clipped);
+
+// A camera drawn at `scale` of its size: fx, fy, cx, cy and the image scaled, pixel centres kept.
+Camera ScaledCamera(const Camera& full, double scale) {
+  Camera c = full;
+  c.width = std::max(1, static_cast<int>(std::lround(full.width * scale)));
+  c.height = std::max(1, static_cast<int>(std::lround(full.height * scale)));
+  c.fx = full.fx * scale, c.fy = full.fy * scale;
+  c.cx = (full.cx + 0.5) * scale - 0.5, c.cy = (full.cy + 0.5) * scale - 0.5;
+  return c;
+}
+
+// Whether face f faces away from `center` (the right-hand rule over its vertex order).
+bool SeenFromBehind(const MeshRef& mesh, std::size_t f, const Vec3& center) {
+  return Dot(FaceNormal(mesh, f), Sub(center, FaceCentroid(mesh, f))) < 0.0;
+}
+
+void CheckScale(double scale) {
   if (!(scale > 0.0 && scale <= 1.0)) throw std::invalid_argument("back-facing share: scale must be in (0, 1]");
+}
+
+}  // namespace
+
+BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
+  CheckScale(scale);
   BackFacing out;
   RenderOptions o;
   o.opacity = 1.0;
   for (const Camera& full : cameras) {
-    Camera c = full;
-    c.width = std::max(1, static_cast<int>(std::lround(full.width * scale)));
-    c.height = std::max(1, static_cast<int>(std::lround(full.height * scale)));
-    c.fx = full.fx * scale, c.fy = full.fy * scale;
-    c.cx = (full.cx + 0.5) * scale - 0.5, c.cy = (full.cy + 0.5) * scale - 0.5;
+    const Camera c = ScaledCamera(full, scale);
     const Rendering r = RenderIntoCamera(mesh, c, nullptr, o);
     const Vec3 center = c.Center();
     std::vector<int8_t> back(mesh.face_count, -1);  // per face: unknown, front 0, back 1
     for (int32_t f : r.face) {
       if (f < 0) continue;
-      if (back[f] < 0)
-        back[f] = Dot(FaceNormal(mesh, static_cast<std::size_t>(f)),
-                      Sub(center, FaceCentroid(mesh, static_cast<std::size_t>(f)))) < 0.0 ? 1 : 0;
+      if (back[f] < 0) back[f] = SeenFromBehind(mesh, static_cast<std::size_t>(f), center) ? 1 : 0;
       ++out.pixels;
       out.back_pixels += back[f];
+    }
+    ++out.views;
+  }
+  return out;
+}
+
+// One camera's frame buffer over the blocks, and per pixel whether its face is seen from behind
+// (decided while the face's block is there).
+struct BackFacingInBlocks::View {
+  Camera camera;
+  Target target;
+  std::vector<int8_t> back;
+};
+
+BackFacingInBlocks::BackFacingInBlocks(const std::vector<Camera>& cameras, double scale) {
+  CheckScale(scale);
+  for (const Camera& full : cameras) {
+    const Camera c = ScaledCamera(full, scale);
+    if (const std::string p = c.Check(); !p.empty()) throw std::invalid_argument("camera: " + p);
+    views_.push_back(std::make_unique<View>(View{c, Target(c.width, c.height, /*perspective=*/true),
+                                                 std::vector<int8_t>(static_cast<std::size_t>(c.width) * static_cast<std::size_t>(c.height), 0)}));
+  }
+}
+
+BackFacingInBlocks::~BackFacingInBlocks() = default;
+
+void BackFacingInBlocks::AddTriangles(const MeshRef& block) {
+  CheckMesh(block);
+  if (faces_ + static_cast<int64_t>(block.face_count) > std::numeric_limits<int32_t>::max())
+    throw std::invalid_argument("back-facing share: more than 2^31 - 1 faces");
+  const auto first = static_cast<int32_t>(faces_);
+  RenderOptions o;
+  o.opacity = 1.0;
+  for (const auto& view : views_) {
+    int64_t behind = 0, clipped = 0;
+    DrawFaces(block, view->camera, o, first, &view->target, nullptr, &behind, &clipped);
+    // The pixels this block's faces won: their side now, while the block's vertices are here.
+    const Vec3 center = view->camera.Center();
+    std::vector<int8_t> side(block.face_count, -1);
+    const std::vector<int32_t>& face = view->target.face();
+    for (std::size_t i = 0; i < face.size(); ++i) {
+      if (face[i] < first) continue;
+      const auto f = static_cast<std::size_t>(face[i] - first);
+      if (side[f] < 0) side[f] = SeenFromBehind(block, f, center) ? 1 : 0;
+      view->back[i] = side[f];
+    }
+  }
+  faces_ += static_cast<int64_t>(block.face_count);
+}
+
+BackFacing BackFacingInBlocks::Result() const {
+  BackFacing out;
+  for (const auto& view : views_) {
+    const std::vector<int32_t>& face = view->target.face();
+    for (std::size_t i = 0; i < face.size(); ++i) {
+      if (face[i] < 0) continue;
+      ++out.pixels;
+      out.back_pixels += view->back[i];
     }
     ++out.views;
   }
@@ -340,6 +419,64 @@ double Rendering::Coverage() const {
   for (int32_t f : face) n += f >= 0 ? 1 : 0;
   return static_cast<double>(n) / static_cast<double>(face.size());
 }
+
+namespace {
+
+// Draws every face of `mesh` into `target` as face first_face + f, in face order (a later face
+// wins only a pixel it is strictly nearer at); face_color (optional) gets their shading.
+void DrawFaces(const MeshRef& mesh, const Camera& camera, const RenderOptions& options,
+               int32_t first_face, Target* target, std::vector<Rgb>* face_color, int64_t* behind,
+               int64_t* clipped) {
+  const Vec3 center = camera.Center();
+  for (std::size_t f = 0; f < mesh.face_count; ++f) {
+    Vec3 cam[3];
+    for (int k = 0; k < 3; ++k)
+      cam[k] = Add(Mul(camera.rotation, VertexOf(mesh, mesh.faces[3 * f + static_cast<std::size_t>(k)])),
+                   camera.translation);
+    const int in_front = (cam[0][2] >= options.near) + (cam[1][2] >= options.near) + (cam[2][2] >= options.near);
+    if (in_front == 0) {
+      ++*behind;
+      continue;
+    }
+    if (face_color != nullptr) {  // headlight: the light comes from the camera
+      const Vec3 to_viewer = Normalized(Sub(center, FaceCentroid(mesh, f)));
+      (*face_color)[f] = ShadeFace(FaceNormal(mesh, f), to_viewer, to_viewer, options);
+    }
+    // Clip the polygon to z >= near (Sutherland-Hodgman); remember which vertices are new.
+    Vec3 poly[4];
+    bool made[4];
+    int n = 0;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3& a = cam[k];
+      const Vec3& b = cam[(k + 1) % 3];
+      const bool a_in = a[2] >= options.near, b_in = b[2] >= options.near;
+      if (a_in) {
+        poly[n] = a;
+        made[n++] = false;
+      }
+      if (a_in != b_in) {
+        const double s = (options.near - a[2]) / (b[2] - a[2]);
+        poly[n] = Add(a, Scale(Sub(b, a), s));
+        poly[n][2] = options.near;
+        made[n++] = true;
+      }
+    }
+    if (in_front < 3) ++*clipped;
+    ScreenVertex sv[4];
+    for (int k = 0; k < n; ++k)
+      sv[k] = {camera.fx * poly[k][0] / poly[k][2] + camera.cx,
+               camera.fy * poly[k][1] / poly[k][2] + camera.cy, 1.0 / poly[k][2]};
+    // Fan triangulation; an edge of the polygon is a mesh edge unless clipping made both ends.
+    for (int k = 1; k + 1 < n; ++k) {
+      const ScreenVertex tri[3] = {sv[0], sv[k], sv[k + 1]};
+      const bool real[3] = {k == 1 && !(made[0] && made[1]), !(made[k] && made[k + 1]),
+                            k + 2 == n && !(made[k + 1] && made[0])};
+      target->Triangle(tri, first_face + static_cast<int32_t>(f), real);
+    }
+  }
+}
+
+}  // namespace
 
 Rendering RenderIntoCamera(const MeshRef& mesh, const Camera& camera, const io::Image* background,
                            const RenderOptions& options) {
@@ -368,53 +505,8 @@ Rendering RenderIntoCamera(const MeshRef& mesh, const Camera& camera, const io::
   }
 
   Target target(camera.width, camera.height, /*perspective=*/true);
-  const Vec3 center = camera.Center();
   std::vector<Rgb> face_color(mesh.face_count);
-  for (std::size_t f = 0; f < mesh.face_count; ++f) {
-    Vec3 cam[3];
-    for (int k = 0; k < 3; ++k)
-      cam[k] = Add(Mul(camera.rotation, VertexOf(mesh, mesh.faces[3 * f + static_cast<std::size_t>(k)])),
-                   camera.translation);
-    const int in_front = (cam[0][2] >= options.near) + (cam[1][2] >= options.near) + (cam[2][2] >= options.near);
-    if (in_front == 0) {
-      ++out.faces_behind;
-      continue;
-    }
-    // Headlight: the light comes from the camera.
-    const Vec3 to_viewer = Normalized(Sub(center, FaceCentroid(mesh, f)));
-    face_color[f] = ShadeFace(FaceNormal(mesh, f), to_viewer, to_viewer, options);
-    // Clip the polygon to z >= near (Sutherland-Hodgman); remember which vertices are new.
-    Vec3 poly[4];
-    bool made[4];
-    int n = 0;
-    for (int k = 0; k < 3; ++k) {
-      const Vec3& a = cam[k];
-      const Vec3& b = cam[(k + 1) % 3];
-      const bool a_in = a[2] >= options.near, b_in = b[2] >= options.near;
-      if (a_in) {
-        poly[n] = a;
-        made[n++] = false;
-      }
-      if (a_in != b_in) {
-        const double s = (options.near - a[2]) / (b[2] - a[2]);
-        poly[n] = Add(a, Scale(Sub(b, a), s));
-        poly[n][2] = options.near;
-        made[n++] = true;
-      }
-    }
-    if (in_front < 3) ++out.faces_clipped;
-    ScreenVertex sv[4];
-    for (int k = 0; k < n; ++k)
-      sv[k] = {camera.fx * poly[k][0] / poly[k][2] + camera.cx,
-               camera.fy * poly[k][1] / poly[k][2] + camera.cy, 1.0 / poly[k][2]};
-    // Fan triangulation; an edge of the polygon is a mesh edge unless clipping made both ends.
-    for (int k = 1; k + 1 < n; ++k) {
-      const ScreenVertex tri[3] = {sv[0], sv[k], sv[k + 1]};
-      const bool real[3] = {k == 1 && !(made[0] && made[1]), !(made[k] && made[k + 1]),
-                            k + 2 == n && !(made[k + 1] && made[0])};
-      target.Triangle(tri, static_cast<int32_t>(f), real);
-    }
-  }
+  DrawFaces(mesh, camera, options, 0, &target, &face_color, &out.faces_behind, &out.faces_clipped);
   Composite(target, face_color, options, options.opacity, &out.image);
   out.faces_drawn = FacesDrawn(target.face(), mesh.face_count);
   out.depth = std::move(target.depth());

@@ -26,6 +26,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -110,6 +111,26 @@ struct BackFacing {
 };
 // Throws as RenderIntoCamera does; `scale` in (0, 1].
 BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale);
+
+// MeasureBackFacing over a mesh given in blocks of triangles (a long drive's single mesh, read
+// back from disk), each camera's frame buffer kept across the blocks: the same figures as the
+// whole mesh when the blocks come in its face order. Holds per camera ~13 bytes a pixel.
+class BackFacingInBlocks {
+ public:
+  // Throws std::invalid_argument for an unusable camera or scale.
+  BackFacingInBlocks(const std::vector<Camera>& cameras, double scale);
+  ~BackFacingInBlocks();
+  BackFacingInBlocks(const BackFacingInBlocks&) = delete;
+  BackFacingInBlocks& operator=(const BackFacingInBlocks&) = delete;
+  // The next faces (indices into the block's own vertices); throws as RenderIntoCamera does.
+  void AddTriangles(const MeshRef& block);
+  BackFacing Result() const;
+
+ private:
+  struct View;
+  std::vector<std::unique_ptr<View>> views_;
+  int64_t faces_ = 0;
+};
 
 // The camera path of the top-down view: one entry per frame, in order.
 struct CameraPath {

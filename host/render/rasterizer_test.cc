@@ -122,6 +122,52 @@ TEST(Rasterizer, BackFacingShareCountsWhatTheCamerasSeeFromBehind) {
   EXPECT_THROW(MeasureBackFacing(m.ref(), cameras, 0.0), std::invalid_argument);
 }
 
+// The share over a mesh given in blocks (a long drive's spooled mesh): the whole mesh's figures,
+// with triangles overlapping across blocks, exact ties (the same triangle twice, flipped: the
+// first one drawn keeps its pixels) and triangles crossing the near plane.
+TEST(Rasterizer, BackFacingInBlocksIsTheWholeMeshFigures) {
+  Mesh m;
+  uint32_t seed = 12345;
+  auto uniform = [&seed](double lo, double hi) {  // a small LCG: the same soup everywhere
+    seed = seed * 1664525u + 1013904223u;
+    return lo + (hi - lo) * static_cast<double>(seed >> 8) / static_cast<double>(1u << 24);
+  };
+  for (uint32_t t = 0; t < 600; ++t) {
+    const Vec3 c = {uniform(0.5, 12.0), uniform(-2.0, 6.0), uniform(-1.5, 4.5)};
+    const auto base = static_cast<uint32_t>(m.xyz.size() / 3);
+    for (int k = 0; k < 3; ++k)
+      m.xyz.insert(m.xyz.end(), {c[0] + uniform(-1.0, 1.0), c[1] + uniform(-1.0, 1.0), c[2] + uniform(-1.0, 1.0)});
+    m.faces.insert(m.faces.end(), {base, base + 1, base + 2});
+    if (t % 7 == 0) m.faces.insert(m.faces.end(), {base, base + 2, base + 1});  // a tie, flipped
+  }
+  Camera other = TestCamera();
+  other.translation = {1.0, 1.0, 0.5};
+  const std::vector<Camera> cameras = {TestCamera(), other};
+  for (const double scale : {1.0, 0.5}) {
+    const BackFacing whole = MeasureBackFacing(m.ref(), cameras, scale);
+    BackFacingInBlocks blocks(cameras, scale);
+    int count = 0;
+    for (std::size_t first = 0, n = 5; first < m.faces.size() / 3; first += n, n = 2 * n + 3, ++count) {
+      const std::size_t k = std::min(n, m.faces.size() / 3 - first);
+      Mesh block;  // its own vertices, numbered from 0
+      for (std::size_t i = 3 * first; i < 3 * (first + k); ++i) {
+        block.faces.push_back(static_cast<uint32_t>(block.xyz.size() / 3));
+        const uint32_t v = m.faces[i];
+        block.xyz.insert(block.xyz.end(), {m.xyz[3 * v], m.xyz[3 * v + 1], m.xyz[3 * v + 2]});
+      }
+      blocks.AddTriangles(block.ref());
+    }
+    ASSERT_GT(count, 4);
+    const BackFacing b = blocks.Result();
+    EXPECT_EQ(b.views, whole.views);
+    EXPECT_EQ(b.pixels, whole.pixels) << scale;
+    EXPECT_EQ(b.back_pixels, whole.back_pixels) << scale;
+    EXPECT_GT(whole.back_pixels, 0);
+    EXPECT_LT(whole.back_pixels, whole.pixels);
+  }
+  EXPECT_THROW(BackFacingInBlocks(cameras, 0.0), std::invalid_argument);
+}
+
 TEST(Rasterizer, NearTriangleHidesFarOneWhateverTheOrder) {
   const Mesh near_fan = FanFacingCamera({4.0, 1.5, 1.0}, 0.2);   // depth 3
   const Mesh far_fan = FanFacingCamera({9.0, 1.5, 1.0}, 1.0);    // depth 8, larger

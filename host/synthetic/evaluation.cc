@@ -7,6 +7,7 @@
 #include <limits>
 #include <random>
 #include <unordered_map>
+#include <utility>
 
 namespace imr::synthetic {
 namespace {
@@ -18,6 +19,11 @@ void ForEachIndex(size_t n, Fn&& fn) {
     for (size_t i = begin; i < end; ++i) fn(i);
   }, 512);
 }
+
+// Truth -> mesh in EvaluateMesh: the grid's cells at least as large as the cap (so two rings at
+// most), a triangle over 64 cells along an axis left out.
+double TruthCell(double cap) { return std::max(cap, 1.0); }
+constexpr int64_t kMaxSpan = 64;
 
 }  // namespace
 
@@ -92,10 +98,15 @@ std::vector<Vec3> SampleRoadSurface(const Scene& scene, double density, uint64_t
   return out;
 }
 
-std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
-                                         const std::vector<uint32_t>& faces,
-                                         const std::vector<Vec3>& truth, double cap, double cell,
-                                         int64_t max_span) {
+namespace {
+
+// For each point i of `which` (every point when null): nearest[i] = min(nearest[i], its distance
+// to the nearest triangle), nearest[i] <= cap on entry. The hash grid and ring search of
+// TruthToMeshDistances; starting from nearest[i] only stops the search sooner (a triangle left
+// out is farther than what the point has), so the minimum is the same.
+void NearerTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces,
+                     const std::vector<Vec3>& truth, const std::vector<size_t>* which, double cap,
+                     double cell, int64_t max_span, std::vector<double>* nearest) {
   const size_t triangles = faces.size() / 3;
   auto vert = [&](uint32_t i) -> Vec3 {
     return {vertices[3 * i], vertices[3 * i + 1], vertices[3 * i + 2]};
@@ -128,8 +139,7 @@ std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
   }
   const int max_ring = static_cast<int>(std::ceil(cap / g)) + 1;
   const auto& cells = grid;  // read only from here on, by several threads
-  auto nearest = [&](const Vec3& p) {
-    double best = cap;
+  auto nearer = [&](const Vec3& p, double best) {
     const int64_t cx = cell_of(p[0]), cy = cell_of(p[1]), cz = cell_of(p[2]);
     for (int ring = 0; ring <= max_ring; ++ring) {
       for (int64_t x = cx - ring; x <= cx + ring; ++x)
@@ -149,8 +159,21 @@ std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
     return best;
   };
   // Each point's distance on its own: the result does not depend on the threads.
+  std::vector<double>& d = *nearest;
+  if (which == nullptr)
+    ForEachIndex(truth.size(), [&](size_t i) { d[i] = nearer(truth[i], d[i]); });
+  else
+    ForEachIndex(which->size(), [&](size_t k) { d[(*which)[k]] = nearer(truth[(*which)[k]], d[(*which)[k]]); });
+}
+
+}  // namespace
+
+std::vector<double> TruthToMeshDistances(const std::vector<double>& vertices,
+                                         const std::vector<uint32_t>& faces,
+                                         const std::vector<Vec3>& truth, double cap, double cell,
+                                         int64_t max_span) {
   std::vector<double> dist(truth.size(), cap);
-  ForEachIndex(truth.size(), [&](size_t i) { dist[i] = nearest(truth[i]); });
+  NearerTriangles(vertices, faces, truth, nullptr, cap, cell, max_span, &dist);
   return dist;
 }
 
@@ -164,7 +187,7 @@ MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertice
   if (truth.empty()) return r;
   double tsum = 0.0;
   size_t near = 0;
-  for (const double best : TruthToMeshDistances(vertices, faces, truth, cap, std::max(cap, 1.0), 64)) {
+  for (const double best : TruthToMeshDistances(vertices, faces, truth, cap, TruthCell(cap), kMaxSpan)) {
     tsum += best;
     if (best <= tau) ++near;
   }
@@ -219,6 +242,56 @@ MeshAccuracy MeshToScene::Result() const {
     r.mean_mesh_to_scene = sum_ / r.area;
     r.precision = within_ / r.area;
   }
+  return r;
+}
+
+}  // namespace imr::synthetic
+
+namespace imr::synthetic {
+
+MeshAccuracyInBlocks::MeshAccuracyInBlocks(const Scene& scene, std::vector<Vec3> truth, double tau,
+                                           double cap)
+    : mesh_to_scene_(scene, tau), truth_(std::move(truth)), nearest_(truth_.size(), cap), tau_(tau),
+      cap_(cap) {}
+
+void MeshAccuracyInBlocks::AddTriangles(const std::vector<double>& vertices,
+                                        const std::vector<uint32_t>& faces) {
+  mesh_to_scene_.AddTriangles(vertices, faces);
+  if (truth_.empty() || faces.empty()) return;
+  // Only the points within the cap of the block's box can come nearer (a margin over the cap for
+  // the distance's rounding); a long drive's block covers a short stretch of it.
+  double lo[3] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
+                  std::numeric_limits<double>::max()};
+  double hi[3] = {std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest(),
+                  std::numeric_limits<double>::lowest()};
+  for (const uint32_t v : faces)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], vertices[3 * v + d]);
+      hi[d] = std::max(hi[d], vertices[3 * v + d]);
+    }
+  const double reach = cap_ * (1.0 + 1e-9) + 1e-9;
+  std::vector<size_t> near;
+  for (size_t i = 0; i < truth_.size(); ++i) {
+    const Vec3& p = truth_[i];
+    if (p[0] >= lo[0] - reach && p[0] <= hi[0] + reach && p[1] >= lo[1] - reach &&
+        p[1] <= hi[1] + reach && p[2] >= lo[2] - reach && p[2] <= hi[2] + reach)
+      near.push_back(i);
+  }
+  if (!near.empty()) NearerTriangles(vertices, faces, truth_, &near, cap_, TruthCell(cap_), kMaxSpan, &nearest_);
+}
+
+MeshAccuracy MeshAccuracyInBlocks::Result() const {
+  MeshAccuracy r = mesh_to_scene_.Result();
+  if (truth_.empty()) return r;
+  // EvaluateMesh's sums, in point order.
+  double tsum = 0.0;
+  size_t near = 0;
+  for (const double best : nearest_) {
+    tsum += best;
+    if (best <= tau_) ++near;
+  }
+  r.mean_truth_to_mesh = tsum / truth_.size();
+  r.completeness = static_cast<double>(near) / truth_.size();
   return r;
 }
 

@@ -38,6 +38,26 @@ class MeshToScene {
   double sum_ = 0.0, within_ = 0.0, area_ = 0.0;
 };
 
+// EvaluateMesh over blocks of triangles, both directions, for a mesh never whole in memory: mesh
+// -> scene as MeshToScene, truth -> mesh as each true point's running minimum over the blocks
+// (the nearest triangle of the mesh is the nearest of the blocks' nearest), so the same figures
+// bit for bit as one EvaluateMesh call with the whole mesh, the blocks given in the mesh's order.
+// Holds the true points and a distance each; a block is searched from the points near its box.
+class MeshAccuracyInBlocks {
+ public:
+  MeshAccuracyInBlocks(const Scene& scene, std::vector<Vec3> truth, double tau, double cap = 5.0);
+  // vertices: packed xyz; faces: 3 indices into them per triangle.
+  void AddTriangles(const std::vector<double>& vertices, const std::vector<uint32_t>& faces);
+  MeshAccuracy Result() const;
+  size_t truth_size() const { return truth_.size(); }
+
+ private:
+  MeshToScene mesh_to_scene_;
+  std::vector<Vec3> truth_;
+  std::vector<double> nearest_;  // per true point: its distance to the blocks so far, <= cap_
+  double tau_, cap_;
+};
+
 // vertices: packed xyz; faces: 3 indices per triangle. Distances truth -> mesh are capped at `cap`.
 MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertices,
                           const std::vector<uint32_t>& faces, const std::vector<Vec3>& truth,

@@ -216,6 +216,60 @@ TEST(EvaluationTest, MeshAccuracyIsTheSerialSumOnAnyNumberOfThreads) {
   EXPECT_EQ(b.precision, a.precision);
 }
 
+// Both directions in blocks (a long drive's mesh read back from disk, the truth -> mesh distances
+// a running minimum per true point): EvaluateMesh's figures bit for bit, for blocks that each
+// cover a stretch of the street (most true points beyond a block's reach) or all of it.
+TEST(EvaluationTest, MeshAccuracyInBlocksIsTheWholeMeshFigures) {
+  const Scene street = Scene::StreetCanyon(100, 3);
+  std::mt19937_64 g(13);
+  std::uniform_real_distribution<double> x(-9.0, 9.0), y(0.0, 100.0), z(0.0, 6.0), small(-0.8, 0.8);
+  std::vector<Vec3> centres;
+  for (int t = 0; t < 4000; ++t) centres.push_back({x(g), y(g), z(g)});
+  std::vector<Vec3> truth;
+  for (int i = 0; i < 3000; ++i) truth.push_back({x(g), y(g), z(g)});
+  const double tau = 0.2, cap = 5.0;
+  for (const bool along_the_street : {true, false}) {
+    std::vector<Vec3> c = centres;
+    if (along_the_street)
+      std::sort(c.begin(), c.end(), [](const Vec3& a, const Vec3& b) { return a[1] < b[1]; });
+    std::vector<double> v;
+    std::vector<uint32_t> f;
+    for (uint32_t t = 0; t < c.size(); ++t) {
+      for (int k = 0; k < 3; ++k)
+        v.insert(v.end(), {c[t][0] + small(g), c[t][1] + small(g), c[t][2] + small(g)});
+      f.insert(f.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+    }
+    const MeshAccuracy a = EvaluateMesh(street, v, f, truth, tau, cap);
+    MeshAccuracyInBlocks blocks(street, truth, tau, cap);
+    int count = 0;
+    for (size_t first = 0, n = 7; first < f.size() / 3; first += n, n = n * 3 / 2 + 5, ++count) {
+      const size_t m = std::min(n, f.size() / 3 - first);
+      // Each block with its own vertices, numbered from 0, and one unused vertex first.
+      std::vector<double> bv = {1e6, 1e6, 1e6};
+      bv.insert(bv.end(), v.begin() + static_cast<std::ptrdiff_t>(9 * first),
+                v.begin() + static_cast<std::ptrdiff_t>(9 * (first + m)));
+      std::vector<uint32_t> bf;
+      for (uint32_t i = 0; i < 3 * m; ++i) bf.push_back(i + 1);
+      blocks.AddTriangles(bv, bf);
+    }
+    ASSERT_GT(count, 5);
+    const MeshAccuracy b = blocks.Result();
+    EXPECT_EQ(b.triangles, a.triangles);
+    EXPECT_EQ(b.area, a.area);
+    EXPECT_EQ(b.mean_mesh_to_scene, a.mean_mesh_to_scene);
+    EXPECT_EQ(b.precision, a.precision);
+    EXPECT_EQ(b.mean_truth_to_mesh, a.mean_truth_to_mesh) << along_the_street;
+    EXPECT_EQ(b.completeness, a.completeness) << along_the_street;
+    EXPECT_GT(a.completeness, 0.0);
+    EXPECT_LT(a.mean_truth_to_mesh, cap);
+  }
+  // No truth: mesh -> scene alone, as EvaluateMesh without true points.
+  MeshAccuracyInBlocks none(street, {}, tau, cap);
+  none.AddTriangles({0, 10, 0, 1, 10, 0, 0, 11, 0}, {0, 1, 2});
+  EXPECT_EQ(none.Result().completeness, 0.0);
+  EXPECT_EQ(none.Result().triangles, 1u);
+}
+
 TEST(SampleRoadSurfaceTest, GroundOnlyNotUnderBoxesDenseAndDeterministic) {
   Scene s;
   s.AddRect({{0, 10, 0}, {1, 0, 0}, {0, 1, 0}, 4, 10, Material::kGround});

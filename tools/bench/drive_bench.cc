@@ -558,7 +558,9 @@ json Tenths(const Run& r) {
   const double peak = Get(r.report, {"memory", "peak_rss_bytes"});
   const double first_rss = s.rss.empty() ? NAN : s.rss.front();
   const double drive_max = s.rss.empty() ? NAN : *std::max_element(s.rss.begin(), s.rss.end());
-  std::printf("the trace's largest RSS during the drive: %s\n", Mb(drive_max).c_str());
+  // The end (the last part, the single mesh's export and evaluation) against the drive itself.
+  std::printf("the trace's largest RSS during the drive: %s; the run's peak (the end): %s\n",
+              Mb(drive_max).c_str(), Mb(Get(r.report, {"memory", "peak_rss_bytes"})).c_str());
   std::printf("\nreport.json: engine bytes %s at the end, final RSS %s (%s beyond the engine), peak "
               "RSS %s; RSS %s after the first keyframe (the input opened); RSS - engine over the "
               "second half: %.1f kB per frame; wall %.1f s\n",
