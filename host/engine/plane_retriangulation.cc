@@ -347,6 +347,16 @@ class Retriangulator {
         }
       }
     }
+    // The region's loops pass each vertex once: where they touch at a vertex, the plane's order
+    // of its edges may pair its wedges otherwise than the surface does (its fan would not be one
+    // fan any more: seen on imr-synth's default job, across two parts), so the faces at that
+    // vertex leave the region.
+    {
+      std::unordered_map<uint32_t, int> leaving;
+      for (const auto& edge : boundary)
+        if (++leaving[edge.first] == 2) trouble->push_back(edge.first);
+      if (!trouble->empty()) return false;
+    }
     // A vertex inside the region moves onto the plane: its whole fan must be in the region.
     for (std::size_t i = 0; i < verts.size(); ++i) {
       if (on_boundary[i]) continue;
