@@ -399,8 +399,9 @@ nlohmann::json MeshJob(const MeshRequest& m, std::vector<std::string>* overrides
       {"output", {{"directory", "mesh"}, {"stem", m.out.stem().string()}, {"formats", {m.ext.substr(1)}}}}};
   if (m.f->needs_front_end) {
     // Images: the surface imr-bench quality found best (issue 45; docs/refinement.md): points
-    // from depth maps of the keyframes beside the tracked ones, and the surface refined from the
-    // images every 10 keyframes.
+    // from depth maps of the keyframes beside the tracked ones, the surface refined from the
+    // images every 10 keyframes, and its planar regions triangulated again (docs/engine.md).
+    job["engine"] = {{"retriangulate_planes", 0.1}};
     job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
     job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
     job["pipeline"].push_back({{"kind", "dense"}, {"plugin", "org.imr.dense.patchmatch"}});
