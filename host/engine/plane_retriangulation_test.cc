@@ -6,10 +6,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <map>
+#include <sstream>
+#include <string>
 #include <random>
 #include <set>
 #include <utility>
+
+#include "host/engine/mesh_topology.h"
 
 namespace imr::engine {
 namespace {
@@ -296,6 +301,80 @@ TEST(PlaneRetriangulationTest, PartsDoneOneByOneStillFitTogether) {
     ASSERT_EQ(Boundary(merged), Boundary(m)) << "trial " << trial;
   }
   EXPECT_GT(changed, 300);
+}
+
+// Two pieces of imr-synth's default job's surface stream (releases 25 and 26, cut around the
+// vertex in question): a region's loop passed a seam vertex twice, and in the plane the order of
+// its edges paired its wedges otherwise than the surface: each piece a manifold, the two together
+// not ("vertex 40321 is not one fan"). The random cuts above never made that shape (30,000 of
+// them tried without the rule).
+TEST(PlaneRetriangulationTest, ALoopThatPassesASeamVertexTwiceIsNotTriangulatedAcrossIt) {
+  std::ifstream in(std::string(IMR_SOURCE_DIR) + "/host/engine/testing/pinched_seam_parts.txt");
+  ASSERT_TRUE(in) << "host/engine/testing/pinched_seam_parts.txt";
+  std::vector<SurfacePart> parts;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream head(line);
+    std::string word;
+    std::size_t nv = 0, nf = 0;
+    head >> word >> nv >> nf;
+    ASSERT_EQ(word, "part");
+    SurfacePart p;
+    for (std::size_t i = 0; i < nv; ++i) {
+      int64_t key = 0, id = 0;
+      double x = 0, y = 0, z = 0;
+      in >> key >> id >> x >> y >> z;
+      p.keys.push_back(key);
+      p.point_ids.push_back(id);
+      p.vertices.insert(p.vertices.end(), {x, y, z});
+    }
+    for (std::size_t i = 0; i < 3 * nf; ++i) {
+      uint32_t v = 0;
+      in >> v;
+      p.faces.push_back(v);
+    }
+    std::getline(in, line);
+    parts.push_back(std::move(p));
+  }
+  ASSERT_EQ(parts.size(), 2u);
+  // The two pieces alone are not a closed-up surface (their neighbours are missing), so the test
+  // is per vertex: every vertex whose faces in the two make one fan still does, and no directed
+  // edge repeats.
+  auto shapes = [](const std::vector<SurfacePart>& ps) {
+    Mesh m;
+    EXPECT_EQ(MergeSurfaceParts(ps, &m), "");
+    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> links(m.point_ids.size());
+    std::set<std::pair<uint32_t, uint32_t>> directed;
+    for (std::size_t f = 0; f < m.faces.size(); f += 3)
+      for (int k = 0; k < 3; ++k) {
+        links[m.faces[f + k]].emplace_back(m.faces[f + (k + 1) % 3], m.faces[f + (k + 2) % 3]);
+        EXPECT_TRUE(directed.emplace(m.faces[f + k], m.faces[f + (k + 1) % 3]).second);
+      }
+    std::vector<std::pair<uint32_t, uint32_t>> by_first;
+    std::vector<uint32_t> seconds;
+    std::map<int64_t, LinkShape> shape;  // by key
+    std::map<int64_t, uint32_t> index;
+    for (const SurfacePart& p : ps)
+      for (std::size_t i = 0; i < p.keys.size(); ++i) index.emplace(p.keys[i], static_cast<uint32_t>(index.size()));
+    for (const auto& [key, v] : index)
+      if (!links[v].empty()) shape[key] = CheckLink(links[v].data(), links[v].size(), &by_first, &seconds);
+    return shape;
+  };
+  const std::map<int64_t, LinkShape> before = shapes(parts);
+  PlaneRetriangulationOptions o;
+  o.tolerance = 0.1;  // the default job's
+  int64_t regions = 0;
+  for (SurfacePart& p : parts) regions += RetriangulatePlanes(&p, o).regions;
+  EXPECT_GT(regions, 0);
+  const std::map<int64_t, LinkShape> after = shapes(parts);
+  int64_t one_fan = 0;
+  for (const auto& [key, shape] : before) {
+    if (shape == LinkShape::kNotOneFan) continue;
+    ++one_fan;
+    EXPECT_NE(after.at(key), LinkShape::kNotOneFan) << "vertex key " << key;
+  }
+  EXPECT_GT(one_fan, 1000);
 }
 
 TEST(PlaneRetriangulationTest, OptionsAreChecked) {
