@@ -161,8 +161,12 @@ class Retriangulator {
 
     // Seeds: faces whose neighbourhood (every face at one of its vertices) is flat, flattest
     // first, so that a region starts where the plane is surest.
-    std::vector<std::pair<double, uint32_t>> seeds;
-    std::vector<Plane> seed_plane(nf);
+    struct Seed {
+      double worst;  // the largest distance of its neighbourhood from the plane
+      uint32_t face;
+      Plane plane;
+    };
+    std::vector<Seed> seeds;
     std::vector<uint32_t> ids;
     for (uint32_t f = 0; f < nf; ++f) {
       ids.clear();
@@ -174,20 +178,20 @@ class Retriangulator {
       std::sort(ids.begin(), ids.end());
       ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
       const auto [plane, worst] = FitPlane(xyz_, ids);
-      if (worst <= tol_) {
-        seeds.emplace_back(worst, f);
-        seed_plane[f] = plane;
-      }
+      if (worst <= tol_) seeds.push_back({worst, f, plane});
     }
-    std::sort(seeds.begin(), seeds.end());
+    std::sort(seeds.begin(), seeds.end(), [](const Seed& a, const Seed& b) {
+      return a.worst < b.worst || (a.worst == b.worst && a.face < b.face);
+    });
 
-    region_of_.assign(nf, kFree);
+    taken_.assign(nf, 0);
     tested_.assign(nf, 0);
     uint32_t stamp = 0;
     std::vector<uint32_t> region;
-    for (const auto& [worst, seed] : seeds) {
-      if (region_of_[seed] != kFree) continue;
-      const Plane& plane = seed_plane[seed];
+    for (const Seed& s : seeds) {
+      const uint32_t seed = s.face;
+      if (taken_[seed]) continue;
+      const Plane& plane = s.plane;
       ++stamp;
       region.assign(1, seed);
       tested_[seed] = stamp;
@@ -195,7 +199,7 @@ class Retriangulator {
         const uint32_t f = region[r];
         for (int k = 0; k < 3; ++k) {
           const int64_t g = Across(f, k);
-          if (g < 0 || region_of_[g] != kFree || tested_[g] == stamp) continue;
+          if (g < 0 || taken_[g] || tested_[g] == stamp) continue;
           tested_[g] = stamp;
           if (Within(static_cast<uint32_t>(g), plane)) region.push_back(static_cast<uint32_t>(g));
           if (region.size() >= std::size_t(o_.max_faces)) break;
@@ -212,21 +216,18 @@ class Retriangulator {
         DropFacesAt(trouble, &region);
       }
       if (replaced) {
-        for (uint32_t f : region) region_of_[f] = kDone;
         ++stats_.regions;
         stats_.faces += static_cast<int64_t>(region.size());
       } else if (grown.size() >= std::size_t(std::max(o_.min_faces, 1))) {
         ++stats_.regions_refused;
       }
-      // Faces of the region not replaced are no seeds any more, nor taken by a later region.
-      for (uint32_t f : grown)
-        if (region_of_[f] == kFree) region_of_[f] = kRefused;
+      // Its faces, replaced or not, are no seeds any more, nor taken by a later region.
+      for (uint32_t f : grown) taken_[f] = 1;
     }
     return stats_;
   }
 
  private:
-  static constexpr uint8_t kFree = 0, kDone = 1, kRefused = 2;
   static constexpr int kRetries = 8;
 
   // The region without its faces at the vertices `at`.
@@ -479,7 +480,7 @@ class Retriangulator {
   std::unordered_map<uint64_t, EdgeFaces> edges_;
   std::vector<uint32_t> fan_start_, fan_;  // faces at each vertex (CSR)
   std::vector<uint8_t> closed_;
-  std::vector<uint8_t> region_of_;
+  std::vector<uint8_t> taken_;  // per face: in a region already (replaced or refused)
   std::vector<uint32_t> tested_;
 };
 

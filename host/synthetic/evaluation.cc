@@ -25,6 +25,18 @@ void ForEachIndex(size_t n, Fn&& fn) {
 double TruthCell(double cap) { return std::max(cap, 1.0); }
 constexpr int64_t kMaxSpan = 64;
 
+// Truth -> mesh figures from each true point's distance to the mesh, summed in point order.
+void AddTruthFigures(const std::vector<double>& distances, double tau, MeshAccuracy* r) {
+  double tsum = 0.0;
+  size_t near = 0;
+  for (const double best : distances) {
+    tsum += best;
+    if (best <= tau) ++near;
+  }
+  r->mean_truth_to_mesh = tsum / static_cast<double>(distances.size());
+  r->completeness = static_cast<double>(near) / static_cast<double>(distances.size());
+}
+
 }  // namespace
 
 // Closest point on a triangle (Ericson, Real-Time Collision Detection, 5.1.5).
@@ -185,14 +197,7 @@ MeshAccuracy EvaluateMesh(const Scene& scene, const std::vector<double>& vertice
   MeshAccuracy r = mesh_to_scene.Result();
   // Truth -> mesh: the grid's cells at least as large as the cap (so two rings at most).
   if (truth.empty()) return r;
-  double tsum = 0.0;
-  size_t near = 0;
-  for (const double best : TruthToMeshDistances(vertices, faces, truth, cap, TruthCell(cap), kMaxSpan)) {
-    tsum += best;
-    if (best <= tau) ++near;
-  }
-  r.mean_truth_to_mesh = tsum / truth.size();
-  r.completeness = static_cast<double>(near) / truth.size();
+  AddTruthFigures(TruthToMeshDistances(vertices, faces, truth, cap, TruthCell(cap), kMaxSpan), tau, &r);
   return r;
 }
 
@@ -245,10 +250,6 @@ MeshAccuracy MeshToScene::Result() const {
   return r;
 }
 
-}  // namespace imr::synthetic
-
-namespace imr::synthetic {
-
 MeshAccuracyInBlocks::MeshAccuracyInBlocks(const Scene& scene, std::vector<Vec3> truth, double tau,
                                            double cap)
     : mesh_to_scene_(scene, tau), truth_(std::move(truth)), nearest_(truth_.size(), cap), tau_(tau),
@@ -283,15 +284,7 @@ void MeshAccuracyInBlocks::AddTriangles(const std::vector<double>& vertices,
 MeshAccuracy MeshAccuracyInBlocks::Result() const {
   MeshAccuracy r = mesh_to_scene_.Result();
   if (truth_.empty()) return r;
-  // EvaluateMesh's sums, in point order.
-  double tsum = 0.0;
-  size_t near = 0;
-  for (const double best : nearest_) {
-    tsum += best;
-    if (best <= tau_) ++near;
-  }
-  r.mean_truth_to_mesh = tsum / truth_.size();
-  r.completeness = static_cast<double>(near) / truth_.size();
+  AddTruthFigures(nearest_, tau_, &r);  // EvaluateMesh's sums
   return r;
 }
 
