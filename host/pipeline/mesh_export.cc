@@ -97,7 +97,12 @@ ExportImageStats ExportFormats(const ExportContext& context, const std::vector<s
       }
       written.insert(mesh_format);
       if (!taken && left != nullptr) left->push_back(mesh_format);
-      if (images) images->ReleaseAll();  // holds end with the call (plugin.h)
+      // Holds end with the call (plugin.h); the decoded images go too: the default job's 128 MiB
+      // of them stayed through its other formats' writing, the end's peak (issue 46).
+      if (images) {
+        images->ReleaseAll();
+        images->DropDecoded();
+      }
     }
   }
   ExportImageStats stats;

@@ -109,6 +109,11 @@ void KeyframeImageStore::ReleaseAll() {
   EvictLocked(0);
 }
 
+void KeyframeImageStore::DropDecoded() {
+  std::lock_guard lock(mutex_);
+  EvictLocked(options_.budget_bytes);  // every released image
+}
+
 void KeyframeImageStore::EvictLocked(uint64_t need) {
   while (!lru_.empty() && bytes_ + need > options_.budget_bytes) {
     Entry& e = entries_[lru_.front()];

@@ -26,7 +26,8 @@ struct KeyframeImageStoreOptions {
   // 128 MiB: ~90 KITTI-sized colour images. The whole drive's images stayed decoded at the final
   // export within 512 MiB (281 MB at 1,000 imr-synth frames: the drive's peak, issue 46); a
   // one-pass export (vertex colours) decodes each once whatever the budget, a textured one
-  // decodes again only the views that fell out before its atlas pass, which goes last to first.
+  // decodes again the views that fell out before each atlas page asks for them (the pages go
+  // last to first, then first to last, ...: the default job, 101 views and 4 pages, 170 decodes).
   uint64_t budget_bytes = uint64_t{128} << 20;
 
   // Empty when usable, else which field and why.
@@ -58,6 +59,9 @@ class KeyframeImageStore {
   void Release(uint64_t index);
   // Drops every hold (the end of an export call); decoded images stay cached within the budget.
   void ReleaseAll();
+  // Frees every decoded image no plugin holds (between two export calls: an exporter that needs
+  // the images for several formats keeps what it made of them, as org.imr.exporter.assimp does).
+  void DropDecoded();
 
   KeyframeImageStoreStats stats() const;
   uint64_t cached_bytes() const;

@@ -77,6 +77,26 @@ TEST_F(KeyframeImages, EvictsReleasedImagesToStayWithinTheBudget) {
   EXPECT_EQ(store.stats().decodes, 3);
 }
 
+// Between two export calls the host frees what no plugin holds; a held image stays.
+TEST_F(KeyframeImages, DropDecodedFreesReleasedImagesOnly) {
+  KeyframeImageStore store(paths_);
+  std::string error;
+  imr_image_view v{};
+  ASSERT_EQ(store.Acquire(0, &v, &error), IMR_OK) << error;  // 32 bytes, released below
+  ASSERT_EQ(store.Acquire(1, &v, &error), IMR_OK) << error;  // 90 bytes, still held
+  store.Release(0);
+  EXPECT_EQ(store.cached_bytes(), 32u + 90u);
+  store.DropDecoded();
+  EXPECT_EQ(store.cached_bytes(), 90u);
+  EXPECT_EQ(v.pixels[4], 10 + 4);  // the held one untouched
+  store.ReleaseAll();
+  store.DropDecoded();
+  EXPECT_EQ(store.cached_bytes(), 0u);
+  ASSERT_EQ(store.Acquire(1, &v, &error), IMR_OK) << error;  // decoded again
+  EXPECT_EQ(store.stats().decodes, 3);
+  EXPECT_EQ(store.stats().evictions, 2);
+}
+
 TEST_F(KeyframeImages, OutOfRangeAndUndecodableAreClearErrors) {
   std::vector<std::string> paths = paths_;
   paths.push_back((dir_ / "missing.png").string());

@@ -680,9 +680,16 @@ class AssimpExporter : public imr::sdk::Exporter {
     TexturingOptions o = texturing_;
     o.texture = atlas;
     cache_atlas_ = atlas;
+    // Each page encoded as soon as it is whole and its pixels freed: one page's pixels held at a
+    // time (the default job's three 4096^2 pages took 150 MB at once, the end's peak).
     cache_ = ColorAndTexture(
         mesh, request.keyframes,
-        [&](uint64_t i) { return host_.GetKeyframeImage(i); }, o, [&] { host_.CheckCancelled(); });
+        [&](uint64_t i) { return host_.GetKeyframeImage(i); }, o, [&] { host_.CheckCancelled(); },
+        [&](std::size_t index, AtlasPage& page) {
+          if (encoded_.size() <= index) encoded_.resize(index + 1);
+          encoded_[index] = EncodePage(page, atlas_format_, jpeg_quality_);
+          std::vector<uint8_t>().swap(page.rgb);
+        });
     cache_key_ = key;
     const TexturingStats& s = cache_->stats;
     host_.Info("texturing: " + std::to_string(s.views) + " keyframes, " +
@@ -696,10 +703,8 @@ class AssimpExporter : public imr::sdk::Exporter {
     return &*cache_;
   }
 
-  const std::vector<uint8_t>& EncodedPage(std::size_t page) {
-    if (encoded_.size() != cache_->pages.size()) encoded_.assign(cache_->pages.size(), {});
-    if (encoded_[page].empty()) encoded_[page] = EncodePage(cache_->pages[page], atlas_format_, jpeg_quality_);
-    return encoded_[page];
+  const std::vector<uint8_t>& EncodedPage(std::size_t page) const {
+    return encoded_.at(page);  // every page was encoded when whole (Texturing)
   }
 
   imr::sdk::Host host_;
@@ -712,7 +717,7 @@ class AssimpExporter : public imr::sdk::Exporter {
   std::optional<TexturedMesh> cache_;
   uint64_t cache_key_ = 0;
   bool cache_atlas_ = false;  // the cached result has the atlas
-  std::vector<std::vector<uint8_t>> encoded_;  // per page, encoded once for all formats
+  std::vector<std::vector<uint8_t>> encoded_;  // per page, encoded once for all formats (its pixels gone)
 };
 
 }  // namespace

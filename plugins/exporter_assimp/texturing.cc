@@ -779,10 +779,9 @@ void PackPatches(std::vector<Patch>& patches, int limit, TexturedMesh& out) {
     out.stats.patch_pixels += static_cast<int64_t>(p.width) * p.height;
   }
   for (const auto& [w, h] : used) {
-    AtlasPage pg;
+    AtlasPage pg;  // its pixels come in CopyPatches, one page at a time
     pg.width = (w + 3) / 4 * 4;  // rows of whole 4-byte groups: friendlier to every decoder
     pg.height = (h + 3) / 4 * 4;
-    pg.rgb.assign(static_cast<std::size_t>(pg.width) * pg.height * 3, 0);
     out.stats.atlas_pixels += static_cast<int64_t>(pg.width) * pg.height;
     out.pages.push_back(std::move(pg));
   }
@@ -836,34 +835,46 @@ std::vector<Patch> LayOutAtlas(const imr::sdk::MeshView& mesh, const std::vector
   return patches;
 }
 
-// Pass 2: copy each patch's rectangle from its view's image (BGR or gray) into its page (RGB).
+// Pass 2: copy each patch's rectangle from its view's image (BGR or gray) into its page (RGB),
+// page by page, each handed to `page_done` when whole: with a sink that encodes and frees it, one
+// page's pixels (48 MiB at 4096^2) are held at a time, not every page's.
 void CopyPatches(const std::vector<Patch>& patches, const std::vector<View>& views,
                  const KeyframeImageFetch& fetch, const std::function<void()>& check_cancelled,
-                 TexturedMesh& out) {
-  std::vector<std::vector<std::size_t>> by_view(views.size());
-  for (std::size_t i = 0; i < patches.size(); ++i) by_view[static_cast<std::size_t>(patches[i].view)].push_back(i);
-  // Last view first: pass 1 went first to last, so the host's cache (least recently used out,
-  // plugin/keyframe_images.h) still holds the last ones when the images do not all fit.
-  for (std::size_t vi = views.size(); vi-- > 0;) {
-    if (by_view[vi].empty()) continue;
-    if (check_cancelled) check_cancelled();
-    const imr::sdk::KeyframeImage image = fetch(static_cast<uint64_t>(views[vi].index));
-    const int ch = image.channels();
-    for (std::size_t i : by_view[vi]) {
-      const Patch& p = patches[i];
-      AtlasPage& pg = out.pages[static_cast<std::size_t>(p.page)];
-      for (int y = 0; y < p.height; ++y) {
-        const uint8_t* src = image.Row(p.y0 + y) + static_cast<std::ptrdiff_t>(p.x0) * ch;
-        uint8_t* dst = pg.rgb.data() + (static_cast<std::size_t>(p.py + y) * pg.width + p.px) * 3;
-        for (int x = 0; x < p.width; ++x, src += ch, dst += 3) {
-          if (ch == 1) {
-            dst[0] = dst[1] = dst[2] = src[0];
-          } else {
-            dst[0] = src[2], dst[1] = src[1], dst[2] = src[0];
+                 const AtlasPageSink& page_done, TexturedMesh& out) {
+  std::vector<std::vector<std::vector<std::size_t>>> by_page_view(
+      out.pages.size(), std::vector<std::vector<std::size_t>>(views.size()));
+  for (std::size_t i = 0; i < patches.size(); ++i)
+    by_page_view[static_cast<std::size_t>(patches[i].page)][static_cast<std::size_t>(patches[i].view)].push_back(i);
+  for (std::size_t page = 0; page < out.pages.size(); ++page) {
+    AtlasPage& pg = out.pages[page];
+    pg.rgb.assign(static_cast<std::size_t>(pg.width) * pg.height * 3, 0);
+    const std::vector<std::vector<std::size_t>>& by_view = by_page_view[page];
+    // The views in turn last to first, then first to last, ...: pass 1 went first to last, so
+    // the host's cache (least recently used out, plugin/keyframe_images.h) still holds the views
+    // each page starts with when the images do not all fit.
+    const bool backwards = page % 2 == 0;
+    for (std::size_t k = 0; k < views.size(); ++k) {
+      const std::size_t vi = backwards ? views.size() - 1 - k : k;
+      if (by_view[vi].empty()) continue;
+      if (check_cancelled) check_cancelled();
+      const imr::sdk::KeyframeImage image = fetch(static_cast<uint64_t>(views[vi].index));
+      const int ch = image.channels();
+      for (std::size_t i : by_view[vi]) {
+        const Patch& p = patches[i];
+        for (int y = 0; y < p.height; ++y) {
+          const uint8_t* src = image.Row(p.y0 + y) + static_cast<std::ptrdiff_t>(p.x0) * ch;
+          uint8_t* dst = pg.rgb.data() + (static_cast<std::size_t>(p.py + y) * pg.width + p.px) * 3;
+          for (int x = 0; x < p.width; ++x, src += ch, dst += 3) {
+            if (ch == 1) {
+              dst[0] = dst[1] = dst[2] = src[0];
+            } else {
+              dst[0] = src[2], dst[1] = src[1], dst[2] = src[0];
+            }
           }
         }
       }
     }
+    if (page_done) page_done(page, pg);
   }
 }
 
@@ -871,7 +882,8 @@ void CopyPatches(const std::vector<Patch>& patches, const std::vector<View>& vie
 
 TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr_camera> keyframes,
                              const KeyframeImageFetch& fetch, const TexturingOptions& options,
-                             const std::function<void()>& check_cancelled) {
+                             const std::function<void()>& check_cancelled,
+                             const AtlasPageSink& page_done) {
   if (const std::string e = options.Check(); !e.empty()) throw std::invalid_argument(e);
   const auto start = Clock::now();
   const std::size_t nf = mesh.face_count();
@@ -906,7 +918,7 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr
   out.stats.seconds_labelling = Since(t0);
 
   t0 = Clock::now();
-  CopyPatches(patches, views, fetch, check_cancelled, out);
+  CopyPatches(patches, views, fetch, check_cancelled, page_done, out);
   out.stats.seconds_atlas = Since(t0);
   out.stats.seconds_total = Since(start);
   return out;

@@ -21,8 +21,8 @@
 // image's own resolution. Faces that no view sees whole keep no texture (their vertex colours).
 //
 // Images come through a callback (the host's keyframe-image service): each selected view is
-// asked for twice at most (visibility and colours, then the atlas pixels) and held only while it
-// is used.
+// asked for once for visibility and colours, then once per atlas page that holds one of its
+// patches (the pages are filled one at a time), and held only while it is used.
 #pragma once
 
 #include <imr/sdk/plugin.hpp>
@@ -88,14 +88,19 @@ struct TexturedMesh {
 
 // The image of keyframe i, held while the returned object lives.
 using KeyframeImageFetch = std::function<imr::sdk::KeyframeImage(uint64_t keyframe)>;
+// Called once per atlas page, in order, as soon as its pixels are whole; it may take them (move
+// `page.rgb` out, or clear it: width and height must stay).
+using AtlasPageSink = std::function<void(std::size_t index, AtlasPage& page)>;
 
 // Colours (and, with options.texture, the atlas) for `mesh` from `keyframes`. `fetch` gives the
-// images; `check_cancelled` is called between views (it may throw to stop). Throws
+// images; `check_cancelled` is called between views (it may throw to stop); `page_done` sees each
+// atlas page when it is whole (the pages are filled one after the other). Throws
 // std::invalid_argument for bad options.
 TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh,
                              std::span<const imr_camera> keyframes, const KeyframeImageFetch& fetch,
                              const TexturingOptions& options,
-                             const std::function<void()>& check_cancelled = {});
+                             const std::function<void()>& check_cancelled = {},
+                             const AtlasPageSink& page_done = {});
 
 // A face that a view sees whole, with its quality there (projected area in pixels).
 struct ViewCandidate {

@@ -160,7 +160,9 @@ typedef struct imr_host_services {
    * decoded by the host: 8-bit gray or BGR, the size of the keyframe's imr_camera. `*out` stays
    * valid until release_keyframe_image(index) or the end of the export_mesh (refine) call, whichever comes
    * first. The host decodes an image once and keeps it while it is held or while its cache has
-   * room (a bounded budget): release what you no longer need. Fails with IMR_INVALID_ARGUMENT
+   * room (a bounded budget), within one call (imr frees the decoded images between calls: an
+   * exporter asked for several formats keeps what it made of them): release what you no longer
+   * need. Fails with IMR_INVALID_ARGUMENT
    * (an index out of range, no export call in progress) or IMR_ERROR (the file cannot be
    * decoded, the budget is exhausted by held images), with a message in `error`. */
   imr_status (*keyframe_image)(void* host_data, uint64_t index, imr_image_view* out,
