@@ -260,6 +260,31 @@ TEST_F(FrontEnd, ForgettingMeasuresTheKnownSceneInBlocks) {
   EXPECT_GT(back["pixels"].get<int64_t>(), 0);
 }
 
+// engine.flip_edges on the image pipeline's surface, whole (forgetting off: after the final
+// refinement) and streamed (per released piece): edges flipped, the mean angle between
+// neighbouring faces lower, still a manifold, in report.json as REPORT.md says.
+TEST_F(FrontEnd, EdgesAreFlippedWholeAndStreamed) {
+  for (const bool forget : {false, true}) {
+    json job = ImageJob("kitti_odometry", {Sequence().string()});
+    job["engine"]["forget"] = forget;
+    job["engine"]["flip_edges"] = true;
+    job["pipeline"][3]["params"] = {{"vertex_colors", false}, {"texture", false}};
+    const std::string name = forget ? "flips-streamed" : "flips-whole";
+    job["output"]["directory"] = (*dir_ / name / "{sequence}").string();
+    const CommandResult r = RunJob(job, name);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json report = ReadJson(*dir_ / name / "street/report.json");
+    EXPECT_EQ(report.contains("surface_parts"), forget) << name << ": the surface in parts or whole";
+    const json& flips = report["mesh"]["edges_flipped"];
+    ASSERT_TRUE(flips.is_object()) << report["mesh"].dump();
+    EXPECT_GT(flips["flips"].get<int64_t>(), 10) << name << ": " << flips.dump();
+    EXPECT_GT(flips["edges"].get<int64_t>(), flips["flips"].get<int64_t>()) << name;
+    EXPECT_LT(flips["mean_angle_after"].get<double>(), flips["mean_angle_before"].get<double>() - 1.0)
+        << name << ": " << flips.dump();
+    EXPECT_EQ(report["mesh"]["manifold"], true) << name;
+  }
+}
+
 // A short image set gets keyframes it can mesh unless the job chose keyframe_every (issue 37:
 // the Middlebury rings of 16 images made 4 keyframes and no surface); when the job did choose
 // and nothing is meshed, the message says what would change it.

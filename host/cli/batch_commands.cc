@@ -400,8 +400,9 @@ nlohmann::json MeshJob(const MeshRequest& m, std::vector<std::string>* overrides
   if (m.f->needs_front_end) {
     // Images: the surface imr-bench quality found best (issue 45; docs/refinement.md): points
     // from depth maps of the keyframes beside the tracked ones, the surface refined from the
-    // images every 10 keyframes, and its planar regions triangulated again (docs/engine.md).
-    job["engine"] = {{"retriangulate_planes", 0.1}};
+    // images every 10 keyframes, its planar regions triangulated again and its edges flipped
+    // where the other diagonal lies smoother (docs/engine.md).
+    job["engine"] = {{"retriangulate_planes", 0.1}, {"flip_edges", true}};
     job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
     job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
     job["pipeline"].push_back({{"kind", "dense"}, {"plugin", "org.imr.dense.patchmatch"}});

@@ -130,6 +130,10 @@ struct EngineOptions {
                                       // plane are triangulated again on it, folds taken out,
                                       // boundary and vertices kept (plane_retriangulation.h);
                                       // streamed: per released piece. 0: off.
+  bool flip_edges = false;            // Export, after retriangulate_planes: interior edges flipped
+                                      // where the other diagonal lowers the angles between
+                                      // neighbouring faces (edge_flips.h); vertices and boundary
+                                      // kept; streamed: per released piece.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (keyframe update, step 3: insert)
                                       // when true; else they start at 0 and the point's own rays,

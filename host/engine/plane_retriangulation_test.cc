@@ -6,15 +6,14 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 #include <random>
 #include <set>
 #include <utility>
 
 #include "host/engine/mesh_topology.h"
+#include "host/engine/testing/surface_checks.h"
 
 namespace imr::engine {
 namespace {
@@ -38,48 +37,9 @@ Mesh Grid(int n, Place place) {
   return m;
 }
 
-std::array<double, 3> Normal(const Mesh& m, std::size_t f) {
-  const double* a = &m.vertices[3 * m.faces[3 * f]];
-  const double* b = &m.vertices[3 * m.faces[3 * f + 1]];
-  const double* c = &m.vertices[3 * m.faces[3 * f + 2]];
-  const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  const double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-  std::array<double, 3> n = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-  const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  for (double& x : n) x /= l;
-  return n;
-}
-
-// Mean angle (degrees) between the normals of faces sharing an edge.
-double Roughness(const Mesh& m) {
-  std::map<std::pair<uint32_t, uint32_t>, std::vector<std::size_t>> edges;
-  for (std::size_t f = 0; f < m.faces.size() / 3; ++f)
-    for (int k = 0; k < 3; ++k) {
-      uint32_t a = m.faces[3 * f + k], b = m.faces[3 * f + (k + 1) % 3];
-      edges[{std::min(a, b), std::max(a, b)}].push_back(f);
-    }
-  double sum = 0.0;
-  int count = 0;
-  for (const auto& [e, fs] : edges) {
-    if (fs.size() != 2) continue;
-    const auto n = Normal(m, fs[0]), o = Normal(m, fs[1]);
-    const double d = std::clamp(n[0] * o[0] + n[1] * o[1] + n[2] * o[2], -1.0, 1.0);
-    sum += std::acos(d) * 180.0 / M_PI;
-    ++count;
-  }
-  return count ? sum / count : 0.0;
-}
-
-// The directed boundary edges (one face).
-std::set<std::pair<uint32_t, uint32_t>> Boundary(const Mesh& m) {
-  std::set<std::pair<uint32_t, uint32_t>> directed;
-  for (std::size_t f = 0; f < m.faces.size() / 3; ++f)
-    for (int k = 0; k < 3; ++k) directed.emplace(m.faces[3 * f + k], m.faces[3 * f + (k + 1) % 3]);
-  std::set<std::pair<uint32_t, uint32_t>> boundary;
-  for (const auto& [a, b] : directed)
-    if (!directed.count({b, a})) boundary.emplace(a, b);
-  return boundary;
-}
+using testing::Boundary;
+using testing::Roughness;
+constexpr auto Normal = &testing::FaceNormal;
 
 // A vertex's fan folded over: it moves past its neighbour along x, so its faces overlap theirs.
 void Fold(Mesh* m, int n, int i, int j, double by) { m->vertices[3 * (j * n + i)] += by; }
@@ -271,17 +231,7 @@ TEST(PlaneRetriangulationTest, PartsDoneOneByOneStillFitTogether) {
     }
     // Two parts cut by a random line through the grid (faces by their first vertex).
     const double angle = M_PI * u(rng), c = 0.5 * n * (1.0 + 0.5 * u(rng));
-    std::vector<SurfacePart> parts(2);
-    for (SurfacePart& p : parts) {
-      p.vertices = m.vertices;
-      p.point_ids = m.point_ids;
-      for (std::size_t v = 0; v < m.point_ids.size(); ++v) p.keys.push_back(static_cast<int64_t>(v));
-    }
-    for (std::size_t f = 0; f < m.faces.size() / 3; ++f) {
-      const double* a = &m.vertices[3 * m.faces[3 * f]];
-      const int side = a[0] * std::cos(angle) + a[1] * std::sin(angle) < c ? 0 : 1;
-      parts[side].faces.insert(parts[side].faces.end(), &m.faces[3 * f], &m.faces[3 * f] + 3);
-    }
+    std::vector<SurfacePart> parts = testing::CutInTwo(m, angle, c);
     PlaneRetriangulationOptions o;
     o.tolerance = 0.1 + 0.3 * (1.0 + u(rng));
     o.min_faces = 2;
@@ -309,56 +259,16 @@ TEST(PlaneRetriangulationTest, PartsDoneOneByOneStillFitTogether) {
 // not ("vertex 40321 is not one fan"). The random cuts above never made that shape (30,000 of
 // them tried without the rule).
 TEST(PlaneRetriangulationTest, ALoopThatPassesASeamVertexTwiceIsNotTriangulatedAcrossIt) {
-  std::ifstream in(std::string(IMR_SOURCE_DIR) + "/host/engine/testing/pinched_seam_parts.txt");
-  ASSERT_TRUE(in) << "host/engine/testing/pinched_seam_parts.txt";
-  std::vector<SurfacePart> parts;
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream head(line);
-    std::string word;
-    std::size_t nv = 0, nf = 0;
-    head >> word >> nv >> nf;
-    ASSERT_EQ(word, "part");
-    SurfacePart p;
-    for (std::size_t i = 0; i < nv; ++i) {
-      int64_t key = 0, id = 0;
-      double x = 0, y = 0, z = 0;
-      in >> key >> id >> x >> y >> z;
-      p.keys.push_back(key);
-      p.point_ids.push_back(id);
-      p.vertices.insert(p.vertices.end(), {x, y, z});
-    }
-    for (std::size_t i = 0; i < 3 * nf; ++i) {
-      uint32_t v = 0;
-      in >> v;
-      p.faces.push_back(v);
-    }
-    std::getline(in, line);
-    parts.push_back(std::move(p));
-  }
+  std::vector<SurfacePart> parts =
+      testing::ReadSurfaceParts(std::string(IMR_SOURCE_DIR) + "/host/engine/testing/pinched_seam_parts.txt");
   ASSERT_EQ(parts.size(), 2u);
   // The two pieces alone are not a closed-up surface (their neighbours are missing), so the test
   // is per vertex: every vertex whose faces in the two make one fan still does, and no directed
   // edge repeats.
   auto shapes = [](const std::vector<SurfacePart>& ps) {
-    Mesh m;
-    EXPECT_EQ(MergeSurfaceParts(ps, &m), "");
-    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> links(m.point_ids.size());
-    std::set<std::pair<uint32_t, uint32_t>> directed;
-    for (std::size_t f = 0; f < m.faces.size(); f += 3)
-      for (int k = 0; k < 3; ++k) {
-        links[m.faces[f + k]].emplace_back(m.faces[f + (k + 1) % 3], m.faces[f + (k + 2) % 3]);
-        EXPECT_TRUE(directed.emplace(m.faces[f + k], m.faces[f + (k + 1) % 3]).second);
-      }
-    std::vector<std::pair<uint32_t, uint32_t>> by_first;
-    std::vector<uint32_t> seconds;
-    std::map<int64_t, LinkShape> shape;  // by key
-    std::map<int64_t, uint32_t> index;
-    for (const SurfacePart& p : ps)
-      for (std::size_t i = 0; i < p.keys.size(); ++i) index.emplace(p.keys[i], static_cast<uint32_t>(index.size()));
-    for (const auto& [key, v] : index)
-      if (!links[v].empty()) shape[key] = CheckLink(links[v].data(), links[v].size(), &by_first, &seconds);
+    std::string error;
+    const std::map<int64_t, LinkShape> shape = testing::LinkShapesByKey(ps, &error);
+    EXPECT_EQ(error, "");
     return shape;
   };
   const std::map<int64_t, LinkShape> before = shapes(parts);

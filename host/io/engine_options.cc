@@ -124,6 +124,10 @@ std::vector<EngineOption> MakeTable() {
              "export, after the mesh_refiner: regions of the surface within this distance of one "
              "plane are triangulated again on it (folds of the sheet taken out; boundary and "
              "vertices kept); 0: off"),
+      Option("flip_edges", &E::flip_edges, kNone, "",
+             "export, after retriangulate_planes: interior edges flipped where the other "
+             "diagonal of their two triangles lowers the angles between neighbouring faces "
+             "(folds and ridges between sparse points; vertices and boundary kept)"),
       Option("transfer_on_insert", &E::transfer_on_insert, kNone, "",
              "cells made by inserting a new point get weights from the policy; false: they "
              "start at 0 and the point's own rays weight them (measured: far better "

@@ -345,6 +345,13 @@ json MeshJson(const ReportInputs& in) {
                                         {"vertices_moved", pl.vertices_moved},
                                         {"regions_refused", pl.regions_refused},
                                         {"max_move", pl.max_move}};
+  // engine.flip_edges: the mean angle between neighbouring faces before and after.
+  const engine::EdgeFlipStats& fl = in.streamed != nullptr ? in.streamed->flips : in.flips;
+  const auto mean = [&](double sum) { return fl.edges > 0 ? sum / static_cast<double>(fl.edges) : 0.0; };
+  mesh_json["edges_flipped"] = {{"flips", fl.flips},
+                                {"edges", fl.edges},
+                                {"mean_angle_before", mean(fl.degrees_sum_before)},
+                                {"mean_angle_after", mean(fl.degrees_sum_after)}};
   return mesh_json;
 }
 

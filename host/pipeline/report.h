@@ -84,6 +84,7 @@ struct ReportInputs {
   engine::ManifoldCheckResult boundary_check, mesh_check;
   engine::DroppedComponents small_components_dropped;  // by ExtractMesh (a streamed run: its stats)
   engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes (a streamed run: its stats)
+  engine::EdgeFlipStats flips;               // engine.flip_edges (a streamed run: its stats)
   nlohmann::json accuracy, accuracy_known_scene;  // null: none
   double engine_seconds = 0.0, export_seconds = 0.0, evaluation_seconds = 0.0;
   ExportImageStats export_images;

@@ -608,6 +608,13 @@ void SequenceRun::Finish() {
         throw std::runtime_error("the mesh with its planes triangulated again is not a manifold: " +
                                  report_.mesh_check.message);
     }
+    report_.flips = engine::FlipEdges(&*mesh_, engine::EdgeFlipOptions::FromEngine(engine_options_));
+    if (report_.flips.flips > 0) {
+      report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
+      if (!report_.mesh_check.ok)
+        throw std::runtime_error("the mesh with its edges flipped is not a manifold: " +
+                                 report_.mesh_check.message);
+    }
   }
   WarnAbout();
   WriteStreamExports();

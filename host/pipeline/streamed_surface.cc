@@ -53,6 +53,7 @@ void ReadAt(const fs::path& file, uint64_t offset, void* out, std::size_t bytes)
 StreamedSurface::StreamedSurface(const engine::EngineOptions& options, fs::path spool, TileWriter* tiles)
     : stream_(engine::SurfaceStreamOptions::FromEngine(options)),
       planes_(engine::PlaneRetriangulationOptions::FromEngine(options)),
+      flips_(engine::EdgeFlipOptions::FromEngine(options)),
       spool_dir_(std::move(spool)),
       tiles_(tiles) {
   if (spool_dir_.empty()) return;
@@ -153,6 +154,7 @@ void StreamedSurface::Feed(const engine::SurfacePart& part) {
   // Planar regions of what was released, before the spool and the tiles write it: only vertices
   // whose whole fan is in this piece move (a seam vertex was, or will be, written elsewhere).
   stats_.planes += engine::RetriangulatePlanes(&released, planes_);
+  stats_.flips += engine::FlipEdges(&released, flips_);
   if (!spool_dir_.empty()) Spool(released);
   if (tiles_ != nullptr) tiles_->Add(released);
   stats_.stream = stream_.stats();

@@ -14,6 +14,7 @@
 #pragma once
 
 #include "host/engine/engine.h"
+#include "host/engine/edge_flips.h"
 #include "host/engine/plane_retriangulation.h"
 #include "host/engine/surface_stream.h"
 #include "host/eval/mesh_stats.h"
@@ -40,6 +41,7 @@ struct StreamedSurfaceStats {
   double seconds = 0.0;            // in Take and Finish: the stream, the spool, the tiles
   double max_update_seconds = 0.0; // the longest Take (one keyframe's parts)
   engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes, per released piece
+  engine::EdgeFlipStats flips;               // engine.flip_edges, per released piece
 };
 
 class StreamedSurface {
@@ -110,6 +112,7 @@ class StreamedSurface {
 
   engine::SurfaceStream stream_;
   engine::PlaneRetriangulationOptions planes_;
+  engine::EdgeFlipOptions flips_;
   std::function<void(engine::SurfacePart*)> filter_;
   std::filesystem::path spool_dir_;
   std::ofstream vertices_, faces_file_;

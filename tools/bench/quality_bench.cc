@@ -56,6 +56,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "host/engine/edge_flips.h"
 #include "host/engine/plane_retriangulation.h"
 #include "host/eval/distance.h"
 #include "host/eval/evaluate.h"
@@ -1243,11 +1244,20 @@ int RunPlanesBench(int argc, char** argv) {
   std::string mesh_file, sequence, out = "/tmp/imr-planes";
   std::vector<std::string> tolerances = {"0", "0.1", "0.2", "0.4"};
   int min_faces = engine::PlaneRetriangulationOptions().min_faces;
+  bool flips = false;
+  engine::EdgeFlipOptions fo;
   Options o("imr-bench planes",
             "usage: imr-bench planes --mesh MESH --sequence IMR_SYNTH_SEQ [--tolerance 0,0.1,0.2]\n"
-            "       [--min-faces N] [--out DIR]\n");
+            "       [--min-faces N] [--flips [--flip-gain DEG] [--flip-min-angle DEG]] [--out DIR]\n"
+            "       [--colmap MODEL_DIR]\n"
+            "  --flips: engine.flip_edges after the planes (each row)\n"
+            "  --colmap: the run's --export-colmap model: the share seen from behind over every\n"
+            "            10th keyframe (default: SEQUENCE/colmap-model when it is there)\n");
+  std::string colmap;
   o.String("--mesh", &mesh_file).String("--sequence", &sequence).String("--out", &out);
-  o.List("--tolerance", &tolerances).Int("--min-faces", &min_faces);
+  o.String("--colmap", &colmap);
+  o.List("--tolerance", &tolerances).Int("--min-faces", &min_faces).Flag("--flips", &flips);
+  o.Double("--flip-gain", &fo.min_gain_degrees).Double("--flip-min-angle", &fo.min_angle_degrees);
   if (int status = 0; !o.Parse(argc, argv, &status)) return status;
   if (mesh_file.empty() || sequence.empty()) {
     std::fprintf(stderr, "imr-bench planes: --mesh and --sequence are required\n");
@@ -1260,9 +1270,10 @@ int RunPlanesBench(int argc, char** argv) {
   truth.sequence = sequence;
   SurfaceContext surface;
   surface.planes = SyntheticPlanes(eval::ReadSyntheticTruth((fs::path(sequence) / "ground_truth/scene.json").string()), 0.2);
-  std::printf("| tolerance (median edges) | regions | refused | faces in regions | vertices moved | "
-              "seconds | compl. 0.2 m | prec. 0.2 m | F | roughness ° | on the true planes ° |\n"
-              "|---|---|---|---|---|---|---|---|---|---|---|\n");
+  surface.model = colmap.empty() ? fs::path(sequence) / "colmap-model" : fs::path(colmap);
+  std::printf("| tolerance (median edges) | regions | refused | faces in regions | vertices moved | flips | "
+              "seconds | compl. 0.2 m | prec. 0.2 m | F | roughness ° | on the true planes ° | seen from behind |\n"
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const std::string& t : tolerances) {
     engine::Mesh m;
     for (const auto& v : read.vertices) m.vertices.insert(m.vertices.end(), v.begin(), v.end());
@@ -1273,6 +1284,9 @@ int RunPlanesBench(int argc, char** argv) {
     po.min_faces = min_faces;
     const auto start = std::chrono::steady_clock::now();
     const engine::PlaneRetriangulationStats s = engine::RetriangulatePlanes(&m, po);
+    fo.enabled = flips;
+
+    const engine::EdgeFlipStats fs = engine::FlipEdges(&m, fo);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const fs::path file = fs::path(out) / ("planes-" + t + ".off");
     {
@@ -1286,11 +1300,14 @@ int RunPlanesBench(int argc, char** argv) {
     }
     Row row;
     Evaluate(file, truth, truth, &row, &surface);
-    std::printf("| %s | %lld | %lld | %lld | %lld | %.2f | %.4f | %.4f | %.4f | %.1f | %.1f |\n", t.c_str(),
+    char behind[32] = "";
+    if (row.behind) std::snprintf(behind, sizeof(behind), "%.2f %%", 100.0 * *row.behind);
+    std::printf("| %s | %lld | %lld | %lld | %lld | %lld | %.2f | %.4f | %.4f | %.4f | %.1f | %.1f | %s |\n", t.c_str(),
                 static_cast<long long>(s.regions), static_cast<long long>(s.regions_refused),
-                static_cast<long long>(s.faces), static_cast<long long>(s.vertices_moved), seconds,
+                static_cast<long long>(s.faces), static_cast<long long>(s.vertices_moved),
+                static_cast<long long>(fs.flips), seconds,
                 row.c2, row.p2, F(row.c2, row.p2), row.roughness,
-                row.plane_roughness ? row.plane_roughness->degrees : 0.0);
+                row.plane_roughness ? row.plane_roughness->degrees : 0.0, behind);
     std::fflush(stdout);
   }
   std::printf("meshes: %s/planes-*.off\n", out.c_str());
