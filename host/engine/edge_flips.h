@@ -29,7 +29,7 @@ namespace imr::engine {
 
 struct EdgeFlipOptions {
   bool enabled = false;
-  double min_gain_degrees = 1.0;   // A flip must lower the sum of the five angles by this much.
+  double min_gain_degrees = 20.0;  // A flip must lower the sum of the five angles by this much.
   double min_angle_degrees = 2.0;  // No new triangle with a smaller angle (unless the old pair
                                    // had one as small).
   int max_flips_per_face = 8;      // Bounds the work: at most this many flips per face.
