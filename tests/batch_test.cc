@@ -326,7 +326,9 @@ TEST_F(Batch, ReportWhileARunHoldsTheFolderWritesNothing) {
 
 TEST_F(Batch, ProgressBarOnATerminal) {
   if (RunShell("command -v script").status != 0) GTEST_SKIP() << "no `script` to make a terminal";
-  const fs::path job = WriteJob(Job(20, {"street"}));
+  // 60 frames (~0.5 s): the bar redraws at most 10 times a second, and a 20-frame run (0.2 s) on a
+  // loaded machine could end before any redraw saw a keyframe of it (2 of 25 runs failed so).
+  const fs::path job = WriteJob(Job(60, {"street"}));
   auto r = RunShell("script -qec " + Quote(Quote(kImr) + " run " + Quote(job.string())) + " /dev/null");
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("\r\033[K["), std::string::npos) << r.out;
