@@ -1244,8 +1244,8 @@ int RunPlanesBench(int argc, char** argv) {
   std::string mesh_file, sequence, out = "/tmp/imr-planes";
   std::vector<std::string> tolerances = {"0", "0.1", "0.2", "0.4"};
   int min_faces = engine::PlaneRetriangulationOptions().min_faces;
-  bool flips = false;
-  engine::EdgeFlipOptions fo;
+  engine::EdgeFlipOptions fo;  // --flips: fo.enabled
+  std::string colmap;
   Options o("imr-bench planes",
             "usage: imr-bench planes --mesh MESH --sequence IMR_SYNTH_SEQ [--tolerance 0,0.1,0.2]\n"
             "       [--min-faces N] [--flips [--flip-gain DEG] [--flip-min-angle DEG]] [--out DIR]\n"
@@ -1253,10 +1253,9 @@ int RunPlanesBench(int argc, char** argv) {
             "  --flips: engine.flip_edges after the planes (each row)\n"
             "  --colmap: the run's --export-colmap model: the share seen from behind over every\n"
             "            10th keyframe (default: SEQUENCE/colmap-model when it is there)\n");
-  std::string colmap;
   o.String("--mesh", &mesh_file).String("--sequence", &sequence).String("--out", &out);
   o.String("--colmap", &colmap);
-  o.List("--tolerance", &tolerances).Int("--min-faces", &min_faces).Flag("--flips", &flips);
+  o.List("--tolerance", &tolerances).Int("--min-faces", &min_faces).Flag("--flips", &fo.enabled);
   o.Double("--flip-gain", &fo.min_gain_degrees).Double("--flip-min-angle", &fo.min_angle_degrees);
   if (int status = 0; !o.Parse(argc, argv, &status)) return status;
   if (mesh_file.empty() || sequence.empty()) {
@@ -1284,7 +1283,6 @@ int RunPlanesBench(int argc, char** argv) {
     po.min_faces = min_faces;
     const auto start = std::chrono::steady_clock::now();
     const engine::PlaneRetriangulationStats s = engine::RetriangulatePlanes(&m, po);
-    fo.enabled = flips;
 
     const engine::EdgeFlipStats fs = engine::FlipEdges(&m, fo);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
