@@ -260,6 +260,48 @@ TEST_F(FrontEnd, ForgettingMeasuresTheKnownSceneInBlocks) {
   EXPECT_GT(back["pixels"].get<int64_t>(), 0);
 }
 
+// With colours (the exporter's default) too: the PLY's vertex colours are made block by block from
+// the spool (written_in_blocks 1), the same vertices and faces as the mesh read back whole, and the
+// same colour wherever a keyframe sees the vertex (those no keyframe sees take their neighbours'
+// within a block's piece: most of them the same too).
+TEST_F(FrontEnd, ForgettingColoursThePlyInBlocks) {
+  json report[2];
+  std::string ply[2];
+  for (const bool whole : {false, true}) {
+    json job = ImageJob("kitti_odometry", {Sequence().string()});
+    job["engine"]["forget"] = true;
+    const std::string name = whole ? "colour-whole" : "colour-blocks";
+    job["output"]["directory"] = (*dir_ / name / "{sequence}").string();
+    if (whole) job["evaluation"] = {{"truth", (Sequence() / "ground_truth/scene.ply").string()}};
+    const CommandResult r = RunJob(job, name);
+    ASSERT_EQ(r.status, 0) << r.err;
+    report[whole] = ReadJson(*dir_ / name / "street/report.json");
+    ply[whole] = ReadText(*dir_ / name / "street/mesh.ply");
+  }
+  EXPECT_EQ(report[0]["mesh"]["written_in_blocks"], 1) << report[0]["mesh"].dump();
+  EXPECT_EQ(report[1]["mesh"]["written_in_blocks"], 0) << report[1]["mesh"].dump();
+  EXPECT_NE(ply[0].find("Written in blocks"), std::string::npos);
+  const std::size_t body[2] = {ply[0].find("end_header\n") + 11, ply[1].find("end_header\n") + 11};
+  for (const std::string& p : ply)
+    EXPECT_NE(p.find("property int point_id\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"),
+              std::string::npos) << p.substr(0, 600);
+  const int64_t nv = report[0]["mesh"]["vertices"].get<int64_t>();
+  ASSERT_EQ(nv, report[1]["mesh"]["vertices"].get<int64_t>());
+  constexpr std::size_t kRecord = 6 * 4 + 4 + 3;  // x y z nx ny nz, point_id, red green blue
+  ASSERT_EQ(ply[0].size() - body[0], ply[1].size() - body[1]);
+  int64_t same_colour = 0;
+  for (int64_t i = 0; i < nv; ++i) {
+    const std::size_t at[2] = {body[0] + static_cast<std::size_t>(i) * kRecord, body[1] + static_cast<std::size_t>(i) * kRecord};
+    ASSERT_EQ(ply[0].compare(at[0], kRecord - 3, ply[1], at[1], kRecord - 3), 0) << "vertex " << i;
+    same_colour += ply[0].compare(at[0] + kRecord - 3, 3, ply[1], at[1] + kRecord - 3, 3) == 0;
+  }
+  const std::size_t faces_at = static_cast<std::size_t>(nv) * kRecord;
+  EXPECT_TRUE(ply[0].compare(body[0] + faces_at, std::string::npos, ply[1], body[1] + faces_at) == 0)
+      << "the same faces";
+  std::cout << same_colour << " of " << nv << " vertices with the whole mesh's colour\n";
+  EXPECT_GE(static_cast<double>(same_colour), 0.95 * static_cast<double>(nv));
+}
+
 // engine.flip_edges on the image pipeline's surface, whole (forgetting off: after the final
 // refinement) and streamed (per released piece): edges flipped, the mean angle between
 // neighbouring faces lower, still a manifold, in report.json as REPORT.md says.

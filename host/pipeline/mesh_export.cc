@@ -202,9 +202,12 @@ ExportImageStats ExportStreamedMesh(const StreamedSurface& mesh, const ExportCon
   stream.context = const_cast<StreamedSurface*>(&mesh);
   stream.read_vertices = &ReadStreamVertices;
   stream.read_faces = &ReadStreamFaces;
+  // Once a format needs the mesh whole it is read back, and the formats after it go with it:
+  // in blocks they would save no memory, and a PLY coloured block by block takes longer than the
+  // colours the exporter makes once for every format of the whole mesh.
   return ExportFormats(context, formats, exporters, directory, stem, watch, stage_timeout, nullptr,
                        [&](const plugin::LoadedInstance& inst, imr_export_request* req) {
-                         return inst.instance.ExportMeshStream(req, &stream);
+                         return left->empty() && inst.instance.ExportMeshStream(req, &stream);
                        },
                        left);
 }

@@ -76,8 +76,9 @@ class StreamedSurface;  // streamed_surface.h
 
 // ExportMesh for the single mesh of a streamed run, which stays on disk: each format through
 // its first exporter stage as an SDK 1.3 mesh stream, read in blocks. The formats whose stage
-// cannot take a stream (no such call, or a request it writes from the whole mesh only: colours,
-// a texture) go to `left`, nothing of theirs written: ExportMesh with the whole mesh writes them.
+// cannot take a stream (no such call, or a request it writes from the whole mesh only: glTF, a
+// texture) go to `left`, nothing of theirs written, and so do the formats after the first such
+// (the mesh is read whole for it anyway): ExportMesh with the whole mesh writes them.
 ExportImageStats ExportStreamedMesh(const StreamedSurface& mesh, const ExportContext& context,
                                     const std::vector<std::string>& formats,
                                     const Exporters& exporters, const std::filesystem::path& directory,

@@ -32,6 +32,7 @@
 
 #include "obj_writer.hpp"
 #include "page_encoder.hpp"
+#include "streamed_colours.hpp"
 #include "streamed_writers.hpp"
 #include "point_id_channel.hpp"
 #include "texturing.hpp"
@@ -57,6 +58,9 @@ using imr::exporter_assimp::ObjNeedsMtl;
 using imr::exporter_assimp::ObjText;
 using imr::exporter_assimp::WriteStreamedObj;
 using imr::exporter_assimp::WriteStreamedPly;
+using imr::exporter_assimp::StreamedVertexColours;
+using imr::exporter_assimp::ColourFrameOf;
+using imr::exporter_assimp::VertexColourBlock;
 using imr::exporter_assimp::SetUprightNode;
 using imr::exporter_assimp::TexturedMesh;
 using imr::exporter_assimp::TexturingOptions;
@@ -627,16 +631,20 @@ class AssimpExporter : public imr::sdk::Exporter {
                          : ""));
   }
 
-  // A long drive's single mesh in blocks (SDK 1.3): PLY and OBJ of a plain mesh, written as
-  // they are read (streamed_writers.hpp); glTF/GLB, colours and a texture need the whole mesh.
+  // A long drive's single mesh in blocks (SDK 1.3): PLY (vertex colours included, made block by
+  // block: streamed_colours.hpp) and OBJ of a plain mesh, written as they are read
+  // (streamed_writers.hpp); glTF/GLB, a coloured OBJ and a texture need the whole mesh.
   bool ExportMeshStream(const imr::sdk::ExportRequest& request, const imr::sdk::MeshStream& mesh) override {
     const Format& f = FindFormat(request.format);
     const std::string& stem = request.stem;
     CheckStem(stem);
-    const bool coloured = (vertex_colors_ || texturing_.texture) && request.keyframe_images &&
-                          !request.keyframes.empty();
+    const bool images = request.keyframe_images && !request.keyframes.empty();
     const std::string name = f.name;
-    if ((name != "ply" && name != "obj") || coloured) return false;
+    if (name != "ply" && name != "obj") return false;
+    if (name == "obj" && images && (vertex_colors_ || texturing_.texture)) return false;
+    // As the whole mesh's: colours when some keyframe can give them.
+    const bool coloured = name == "ply" && images && vertex_colors_ &&
+                          !ColourFrameOf(request.keyframes, texturing_, 0.0).views.empty();
     if (mesh.face_count() == 0) throw InvalidArgument("mesh has no faces: nothing to export");
     if (mesh.vertex_count() > std::numeric_limits<uint32_t>::max())
       throw InvalidArgument("mesh has " + std::to_string(mesh.vertex_count()) + " vertices, more than 2^32 - 1");
@@ -658,10 +666,27 @@ class AssimpExporter : public imr::sdk::Exporter {
         const double corners[6] = {b[0], b[1], b[2], b[3], b[4], b[5]};
         origin = ExportOrigin(corners, 2);
       }
-      WriteStreamedPly(mesh, path, point_ids_, f.max_point_id, origin, poll);
+      std::optional<StreamedVertexColours> colours;
+      if (coloured)
+        colours.emplace(mesh, request.keyframes, [&](uint64_t i) { return host_.GetKeyframeImage(i); },
+                        texturing_, poll);
+      WriteStreamedPly(mesh, path, point_ids_, f.max_point_id, origin, poll,
+                       colours ? VertexColourBlock([&](std::size_t first, std::size_t count, uint8_t* rgb) {
+                         colours->Colour(first, count, rgb);
+                       })
+                               : VertexColourBlock());
+      if (colours) {
+        const auto& s = colours->stats();
+        host_.Info("vertex colours in blocks: " + std::to_string(s.blocks) + " blocks, pieces of " +
+                   std::to_string(s.piece_faces / std::max<int64_t>(s.blocks, 1)) + " faces on average (" +
+                   std::to_string(s.max_piece_faces) + " at most), " +
+                   std::to_string(s.views / std::max<int64_t>(s.blocks, 1)) + " views per block, " +
+                   std::to_string(s.seconds) + " s");
+      }
     }
     host_.Debug("wrote " + path.string() + " in blocks: " + std::to_string(mesh.vertex_count()) +
-                " vertices, " + std::to_string(mesh.face_count()) + " triangles");
+                " vertices, " + std::to_string(mesh.face_count()) + " triangles" +
+                (coloured ? ", vertex colours" : ""));
     return true;
   }
 

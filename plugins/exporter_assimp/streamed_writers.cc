@@ -57,7 +57,7 @@ std::array<float, 3> UnitNormal(const double* sum) {
 
 void WriteStreamedPly(const imr::sdk::MeshStream& mesh, const fs::path& path, bool point_ids,
                       int64_t max_point_id, const std::array<double, 3>& origin,
-                      const std::function<void()>& poll) {
+                      const std::function<void()>& poll, const VertexColourBlock& colours) {
   const std::size_t nv = mesh.vertex_count(), nf = mesh.face_count();
   std::ostringstream h;
   h << "ply\nformat binary_little_endian 1.0\n";
@@ -72,17 +72,21 @@ void WriteStreamedPly(const imr::sdk::MeshStream& mesh, const fs::path& path, bo
     << "property float x\nproperty float y\nproperty float z\n"
     << "property float nx\nproperty float ny\nproperty float nz\n";
   if (point_ids) h << "property int point_id\n";
+  if (colours) h << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   h << "element face " << nf << "\nproperty list uchar int vertex_index\nend_header\n";
   Output out(path);
   out.Write(h.str());
 
-  const std::size_t record = 6 * sizeof(float) + (point_ids ? sizeof(int32_t) : 0);
+  const std::size_t id_at = 6 * sizeof(float), rgb_at = id_at + (point_ids ? sizeof(int32_t) : 0);
+  const std::size_t record = rgb_at + (colours ? 3 : 0);
   std::vector<double> xyz(3 * kBlock), sums(3 * kBlock);
   std::vector<int64_t> ids(kBlock);
+  std::vector<uint8_t> rgb(colours ? 3 * kBlock : 0);
   std::vector<unsigned char> bytes;
   for (std::size_t first = 0; first < nv; first += kBlock) {
     const std::size_t n = std::min(kBlock, nv - first);
     mesh.ReadVertices(first, n, xyz.data(), point_ids ? ids.data() : nullptr, sums.data());
+    if (colours) colours(first, n, rgb.data());
     bytes.resize(n * record);
     for (std::size_t i = 0; i < n; ++i) {
       float f[6];
@@ -98,8 +102,9 @@ void WriteStreamedPly(const imr::sdk::MeshStream& mesh, const fs::path& path, bo
               ": ply holds ids -1 (Steiner) .. " + std::to_string(max_point_id) +
               " exactly (export without point ids: \"point_ids\": false)");
         const auto id = static_cast<int32_t>(ids[i]);
-        std::memcpy(r + sizeof(f), &id, sizeof(id));
+        std::memcpy(r + id_at, &id, sizeof(id));
       }
+      if (colours) std::memcpy(r + rgb_at, &rgb[3 * i], 3);
     }
     out.Write(bytes.data(), bytes.size());
     poll();

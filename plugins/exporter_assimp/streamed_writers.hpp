@@ -16,14 +16,18 @@
 
 namespace imr::exporter_assimp {
 
-// Binary little-endian PLY: x y z nx ny nz (float) [int point_id], faces as uchar 3 + 3 int.
-// `origin` non-zero: "comment imr_origin" and positions relative to it. Throws
-// std::runtime_error naming the file when a write fails, imr::sdk::InvalidArgument naming the
-// vertex when a point id is outside -1 .. max_point_id (the host discards what was written).
-// `poll` runs between blocks.
+// The colours of vertices [first, first + count), 3 bytes (RGB) each into rgb.
+using VertexColourBlock = std::function<void(std::size_t first, std::size_t count, uint8_t* rgb)>;
+
+// Binary little-endian PLY: x y z nx ny nz (float) [int point_id] [uchar red green blue], faces
+// as uchar 3 + 3 int (the whole-mesh path's layout). `origin` non-zero: "comment imr_origin" and
+// positions relative to it. Throws std::runtime_error naming the file when a write fails,
+// imr::sdk::InvalidArgument naming the vertex when a point id is outside -1 .. max_point_id (the
+// host discards what was written). `poll` runs between blocks; `colours`, when set, is asked for
+// each block of vertices in order.
 void WriteStreamedPly(const imr::sdk::MeshStream& mesh, const std::filesystem::path& path,
                       bool point_ids, int64_t max_point_id, const std::array<double, 3>& origin,
-                      const std::function<void()>& poll);
+                      const std::function<void()>& poll, const VertexColourBlock& colours = {});
 
 // OBJ as ObjText writes a mesh with one untextured group named `name`.
 void WriteStreamedObj(const imr::sdk::MeshStream& mesh, const std::filesystem::path& path,

@@ -1,9 +1,13 @@
-// Helpers shared by the exporter's tests: raw file reading, a small glTF loader (JSON + buffer)
-// and the Khronos glTF validator (node, tools/node). Test code only.
+// Helpers shared by the exporter's tests: raw file reading, a small glTF loader (JSON + buffer),
+// the Khronos glTF validator (node, tools/node) and a mesh behind the SDK's mesh stream. Test
+// code only.
 #pragma once
 
+#include <imr/sdk/plugin.h>
 #include <sys/wait.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -117,5 +121,71 @@ inline void ExpectValidGltf(const fs::path& file) {
   EXPECT_NE(v.output.find("summary: 0 errors"), std::string::npos) << v.output;
   std::cout << v.output;  // warnings and infos, for the record
 }
+
+// A mesh in memory behind imr_mesh_stream, as the host serves a long drive's spool: normal sums as
+// plugin.h defines them (face order, (b - a) x (c - a)); every read counted.
+struct StreamedTestMesh {
+  const std::vector<double>* vertices = nullptr;
+  const std::vector<uint32_t>* faces = nullptr;
+  const std::vector<int64_t>* ids = nullptr;  // empty: no point ids
+  std::vector<double> sums;
+  int reads = 0;
+  std::size_t largest_read = 0;
+  std::size_t claimed_faces = 0;  // non-zero: the face count the stream claims
+
+  StreamedTestMesh(const std::vector<double>& v, const std::vector<uint32_t>& f,
+                   const std::vector<int64_t>& point_ids)
+      : vertices(&v), faces(&f), ids(&point_ids), sums(v.size(), 0.0) {
+    for (std::size_t t = 0; t + 2 < f.size(); t += 3) {
+      const uint32_t a = f[t], b = f[t + 1], c = f[t + 2];
+      const double u[3] = {v[3 * b] - v[3 * a], v[3 * b + 1] - v[3 * a + 1], v[3 * b + 2] - v[3 * a + 2]};
+      const double w[3] = {v[3 * c] - v[3 * a], v[3 * c + 1] - v[3 * a + 1], v[3 * c + 2] - v[3 * a + 2]};
+      const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+      for (uint32_t i : {a, b, c})
+        for (int k = 0; k < 3; ++k) sums[3 * i + k] += n[k];
+    }
+  }
+  imr_mesh_stream Stream() {
+    imr_mesh_stream s{};
+    s.struct_size = sizeof(s);
+    s.vertex_count = (*vertices).size() / 3;
+    s.face_count = claimed_faces != 0 ? claimed_faces : (*faces).size() / 3;
+    for (int k = 0; k < 3; ++k) {
+      s.bounds[k] = s.bounds[3 + k] = (*vertices)[k];
+      for (std::size_t i = 0; i < s.vertex_count; ++i) {
+        s.bounds[k] = std::min(s.bounds[k], (*vertices)[3 * i + k]);
+        s.bounds[3 + k] = std::max(s.bounds[3 + k], (*vertices)[3 * i + k]);
+      }
+    }
+    s.context = this;
+    s.read_vertices = [](void* c, uint64_t first, uint64_t count, double* xyz, int64_t* out_ids,
+                         double* normal_sums, imr_error*) -> imr_status {
+      auto* self = static_cast<StreamedTestMesh*>(c);
+      ++self->reads;
+      self->largest_read = std::max<std::size_t>(self->largest_read, count);
+      for (uint64_t i = first; i < first + count; ++i) {
+        for (int k = 0; k < 3; ++k) {
+          if (xyz) xyz[3 * (i - first) + k] = (*self->vertices)[3 * i + k];
+          if (normal_sums) normal_sums[3 * (i - first) + k] = self->sums[3 * i + k];
+        }
+        if (out_ids) out_ids[i - first] = (*self->ids).empty() ? -1 : (*self->ids)[i];
+      }
+      return IMR_OK;
+    };
+    s.read_faces = [](void* c, uint64_t first, uint64_t count, uint32_t* out_faces, imr_error* e) -> imr_status {
+      auto* self = static_cast<StreamedTestMesh*>(c);
+      ++self->reads;
+      if (first + count > (*self->faces).size() / 3) {
+        std::snprintf(e->message, sizeof(e->message), "faces %llu.. beyond the mesh",
+                      static_cast<unsigned long long>(first));
+        return IMR_ERROR;
+      }
+      std::copy_n((*self->faces).begin() + static_cast<std::ptrdiff_t>(3 * first), 3 * count, out_faces);
+      return IMR_OK;
+    };
+    return s;
+  }
+};
+
 
 }  // namespace imr::exporter_assimp::testing

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "host/synthetic/stream.h"
+#include "streamed_colours.hpp"
 #include "test_helpers.hpp"
 #include "texturing.hpp"
 #include "tools/synth/raycaster.h"
@@ -574,6 +575,136 @@ TEST(Texturing, PagesAreHandedOverOneAtATimeAndWhole) {
   }
   EXPECT_EQ(handed.face_uv, whole.face_uv);
   EXPECT_EQ(handed.vertex_rgb, whole.vertex_rgb);
+}
+
+// Vertex colours made block by block from a mesh read in blocks (a long drive's single mesh) are
+// the whole mesh's where a keyframe sees the vertex: each block's piece holds every face that can
+// hide its vertices.
+TEST(Texturing, VertexColoursInBlocksAreTheWholeMeshs) {
+  const KnownScene& s = Scene();
+  TexturingOptions o;
+  o.texture = false;
+  FakeHost host(s.images);
+  const imr::sdk::Host h(&host.services);
+  const auto fetch = [&](uint64_t i) { return h.GetKeyframeImage(i); };
+  const TexturedMesh whole = ColorAndTexture(s.View(), s.cameras, fetch, o);
+  StreamedTestMesh stream(s.vertices, s.faces, s.ids);
+  const imr_mesh_stream raw = stream.Stream();
+  const imr::sdk::MeshStream mesh(raw);
+  StreamedVertexColours blocks(mesh, s.cameras, fetch, o);
+  const std::size_t nv = s.vertices.size() / 3;
+  std::vector<uint8_t> rgb(3 * nv, 0);
+  constexpr std::size_t kBlockVertices = 257;
+  for (std::size_t first = 0; first < nv; first += kBlockVertices)
+    blocks.Colour(first, std::min(kBlockVertices, nv - first), &rgb[3 * first]);
+  ASSERT_EQ(whole.vertex_rgb.size(), rgb.size());
+  ASSERT_EQ(whole.vertex_seen.size(), nv);
+  // Every vertex a keyframe sees has the whole mesh's colour; one none sees takes its neighbours'
+  // within its block's piece (the whole mesh's can come from farther: here the street behind the
+  // first keyframe, 40 m of ground no view sees, takes the colour of the nearest ground seen).
+  std::size_t seen = 0, seen_same = 0, unseen_same = 0;
+  for (std::size_t i = 0; i < nv; ++i) {
+    const bool same = std::equal(&rgb[3 * i], &rgb[3 * i] + 3, &whole.vertex_rgb[3 * i]);
+    if (whole.vertex_seen[i]) ++seen, seen_same += same;
+    else unseen_same += same;
+  }
+  EXPECT_GT(seen, nv / 3);
+  EXPECT_EQ(seen_same, seen);
+  const StreamedColourStats& st = blocks.stats();
+  std::cout << "vertex colours in blocks: " << seen << " of " << nv << " vertices seen, all the same; "
+            << unseen_same << " of the others the same; " << st.blocks << " blocks, pieces of "
+            << st.max_piece_faces << " faces at most of " << s.faces.size() / 3 << "\n";
+  EXPECT_EQ(host.Held(), 0);
+}
+
+// A 1.5 km road with a wall beside it and fins on the wall, seen by a camera driving along it
+// every 5 m (each keyframe's image one flat colour): the blocks' colours are the whole mesh's, and
+// a block needs only the road and keyframes within the colour reach (40 steps: 200 m) of it.
+TEST(Texturing, VertexColoursInBlocksOfALongRoadNeedOnlyWhatIsNearThem) {
+  constexpr double kLength = 1500.0, kStep = 5.0, kCellSize = 2.0;
+  std::vector<double> vertices;
+  std::vector<uint32_t> faces;
+  // A grid from `o` along u (nu cells) and v (nv cells), counter-clockwise seen from u x v.
+  auto grid = [&](const Vec3& o, const Vec3& u, const Vec3& v, int nu, int nv) {
+    const auto base = static_cast<uint32_t>(vertices.size() / 3);
+    for (int j = 0; j <= nv; ++j)
+      for (int i = 0; i <= nu; ++i)
+        for (int k = 0; k < 3; ++k) vertices.push_back(o[k] + i * u[k] + j * v[k]);
+    for (int j = 0; j < nv; ++j)
+      for (int i = 0; i < nu; ++i) {
+        const uint32_t a = base + static_cast<uint32_t>(j * (nu + 1) + i), b = a + 1,
+                       c = a + static_cast<uint32_t>(nu + 2), d = a + static_cast<uint32_t>(nu + 1);
+        faces.insert(faces.end(), {a, b, c, a, c, d});
+      }
+  };
+  const int cells = static_cast<int>(kLength / kCellSize);
+  grid({-4, 0, 0}, {kCellSize, 0, 0}, {0, kCellSize, 0}, 4, cells);   // the road, facing up
+  grid({-4, 0, 0}, {0, kCellSize, 0}, {0, 0, kCellSize}, cells, 3);   // the wall, facing +x
+  for (double y = 30; y < kLength; y += 30)                             // fins facing -y
+    grid({-4, y, 0}, {3, 0, 0}, {0, 0, 3}, 1, 1);
+  // Faces along the road, vertices numbered as the faces first name them (a spool's order).
+  std::vector<std::size_t> order(faces.size() / 3);
+  std::iota(order.begin(), order.end(), 0);
+  auto y_of = [&](std::size_t f) {
+    return vertices[3 * faces[3 * f] + 1] + vertices[3 * faces[3 * f + 1] + 1] + vertices[3 * faces[3 * f + 2] + 1];
+  };
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return y_of(a) < y_of(b); });
+  std::vector<double> v2;
+  std::vector<uint32_t> f2, index(vertices.size() / 3, UINT32_MAX);
+  for (std::size_t f : order)
+    for (int k = 0; k < 3; ++k) {
+      uint32_t& i = index[faces[3 * f + static_cast<std::size_t>(k)]];
+      if (i == UINT32_MAX) {
+        i = static_cast<uint32_t>(v2.size() / 3);
+        v2.insert(v2.end(), &vertices[3 * faces[3 * f + static_cast<std::size_t>(k)]],
+                  &vertices[3 * faces[3 * f + static_cast<std::size_t>(k)]] + 3);
+      }
+      f2.push_back(i);
+    }
+  std::vector<imr_camera> cameras;
+  std::vector<cv::Mat> images;
+  for (double y = 0; y <= kLength; y += kStep) {
+    imr_camera c{};
+    const double R[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0};  // x = X, y = -Z, z = Y: looking along the road
+    const double centre[3] = {0.0, y, 1.5};
+    std::copy(R, R + 9, c.R);
+    for (int r = 0; r < 3; ++r) c.t[r] = -(R[3 * r] * centre[0] + R[3 * r + 1] * centre[1] + R[3 * r + 2] * centre[2]);
+    const double K[9] = {100, 0, 80, 0, 100, 60, 0, 0, 1};
+    std::copy(K, K + 9, c.K);
+    c.width = 160;
+    c.height = 120;
+    cameras.push_back(c);
+    const auto k = static_cast<int>(images.size());
+    images.emplace_back(120, 160, CV_8UC3, cv::Scalar((k * 53) % 256, (k * 97) % 256, (k * 151) % 256));
+  }
+  TexturingOptions o;
+  o.texture = false;
+  FakeHost host(images);
+  const imr::sdk::Host h(&host.services);
+  const auto fetch = [&](uint64_t i) { return h.GetKeyframeImage(i); };
+  const std::vector<int64_t> no_ids;
+  const imr::sdk::MeshView view{{v2.data(), v2.size()}, {f2.data(), f2.size()}, {}, {}, {}};
+  const TexturedMesh whole = ColorAndTexture(view, cameras, fetch, o);
+  StreamedTestMesh stream(v2, f2, no_ids);
+  const imr_mesh_stream raw = stream.Stream();
+  const imr::sdk::MeshStream mesh(raw);
+  StreamedVertexColours blocks(mesh, cameras, fetch, o);
+  const std::size_t nv = v2.size() / 3, nf = f2.size() / 3;
+  std::vector<uint8_t> rgb(3 * nv, 0);
+  constexpr std::size_t kBlockVertices = 1000;
+  for (std::size_t first = 0; first < nv; first += kBlockVertices)
+    blocks.Colour(first, std::min(kBlockVertices, nv - first), &rgb[3 * first]);
+  std::size_t same = 0;
+  for (std::size_t i = 0; i < nv; ++i)
+    same += std::equal(&rgb[3 * i], &rgb[3 * i] + 3, &whole.vertex_rgb[3 * i]);
+  EXPECT_EQ(same, nv);
+  const StreamedColourStats& st = blocks.stats();
+  std::cout << "a long road: " << st.blocks << " blocks, pieces of " << st.max_piece_faces
+            << " faces at most of " << nf << ", " << st.views / st.blocks << " of " << cameras.size()
+            << " keyframes per block\n";
+  EXPECT_LT(st.max_piece_faces, static_cast<int64_t>(nf) / 3);
+  EXPECT_LT(st.views / st.blocks, static_cast<int64_t>(cameras.size()) / 3);
+  EXPECT_EQ(host.Held(), 0);
 }
 
 TEST_F(TexturedFiles, OptionsTextureOffAndKeyframeStep) {

@@ -30,6 +30,12 @@ double Norm(const Vec3& a) { return std::sqrt(Dot(a, a)); }
 constexpr double kMinOwnPixelsArea = 16.0;
 constexpr double kMinOwnPixelsShare = 0.5;
 constexpr double kNearRelative = 1e-6;
+// A keyframe adds to the colour of the vertices within this many steps of the keyframe path (the
+// median distance between consecutive views): a drive's view 40 steps away weighs (1/40)^2 of a
+// near one ((cos / depth)^2), which changes no byte one can see, and the bound lets a long
+// drive's colours be made block by block (StreamedVertexColours) with the same result. An
+// object ring's views stand a few steps from everything they see: no bound there.
+constexpr double kColourReachSteps = 40.0;
 
 // One keyframe as the rasteriser sees it: x_cam = R X + t, pixel = (fx x/z + cx, fy y/z + cy).
 struct View {
@@ -528,13 +534,28 @@ std::vector<View> TexturingViews(std::span<const imr_camera> keyframes, const Te
   return views;
 }
 
-// The near plane (the clipping of faces through a camera), from the scene's extent.
+// The near plane (the clipping of faces through a camera), from the scene's extent: the largest
+// absolute coordinate of a vertex (`extent`) or a view's centre.
+double NearPlane(double extent, const std::vector<View>& views) {
+  for (const View& v : views) extent = std::max({extent, std::fabs(v.center[0]), std::fabs(v.center[1]), std::fabs(v.center[2])});
+  return std::max(extent, 1.0) * kNearRelative;
+}
 double NearPlane(const imr::sdk::MeshView& mesh, const std::vector<View>& views) {
   const double* X = mesh.vertices.data();
   double extent = 0.0;
   for (std::size_t i = 0; i < 3 * mesh.vertex_count(); ++i) extent = std::max(extent, std::fabs(X[i]));
-  for (const View& v : views) extent = std::max({extent, std::fabs(v.center[0]), std::fabs(v.center[1]), std::fabs(v.center[2])});
-  return std::max(extent, 1.0) * kNearRelative;
+  return NearPlane(extent, views);
+}
+
+// How far a view adds to a vertex's colour: kColourReachSteps times the median distance between
+// consecutive views (infinite for fewer than two views or no step).
+double ColourReachOf(const std::vector<View>& views) {
+  std::vector<double> steps;
+  for (std::size_t i = 1; i < views.size(); ++i) steps.push_back(Norm(Sub(views[i].center, views[i - 1].center)));
+  if (steps.empty()) return std::numeric_limits<double>::infinity();
+  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+  const double step = steps[steps.size() / 2];
+  return step > 0.0 && std::isfinite(step) ? kColourReachSteps * step : std::numeric_limits<double>::infinity();
 }
 
 void Project(const View& view, const Vec3& p, double* u, double* v) {
@@ -545,9 +566,9 @@ void Project(const View& view, const Vec3& p, double* u, double* v) {
 // Pass 1: per view, the z-buffer, the vertex colour samples and the faces it sees whole.
 class VisibilityPass {
  public:
-  VisibilityPass(const imr::sdk::MeshView& mesh, double near, bool texture)
+  VisibilityPass(const imr::sdk::MeshView& mesh, double near, double reach, bool texture)
       : mesh_(mesh), X_(mesh.vertices.data()), nv_(mesh.vertex_count()), nf_(mesh.face_count()),
-        near_(near), texture_(texture), normals_(VertexNormals(mesh)), face_normal_(nf_),
+        near_(near), reach_(reach), texture_(texture), normals_(VertexNormals(mesh)), face_normal_(nf_),
         centroid_(nf_), color_sum_(3 * nv_, 0.0), weight_sum_(nv_, 0.0), cam_(nv_), own_pixels_(nf_) {
     for (std::size_t f = 0; f < nf_; ++f) {
       const double* a = X_ + 3 * mesh.faces[3 * f];
@@ -585,12 +606,13 @@ class VisibilityPass {
     for (std::size_t i = 0; i < nv_; ++i) {
       const Vec3& p = cam_[i];
       if (!(p[2] > near_)) continue;
+      const Vec3 ray = Sub(view.center, {X_[3 * i], X_[3 * i + 1], X_[3 * i + 2]});
+      if (Norm(ray) > reach_) continue;
       double u, v;
       Project(view, p, &u, &v);
       if (!(u >= 0 && v >= 0 && u <= umax && v <= vmax) ||
           !VertexSeen(zb_, mesh_, u, v, static_cast<uint32_t>(i)))
         continue;
-      const Vec3 ray = Sub(view.center, {X_[3 * i], X_[3 * i + 1], X_[3 * i + 2]});
       const Vec3 n = {normals_[3 * i], normals_[3 * i + 1], normals_[3 * i + 2]};
       double cosine = 1.0;
       if (Dot(n, n) > 0.0) {
@@ -634,6 +656,7 @@ class VisibilityPass {
   const double* X_;
   std::size_t nv_, nf_;
   double near_;
+  double reach_;  // a view adds to the colours of the vertices within this distance only
   bool texture_;
   std::vector<double> normals_;
   std::vector<Vec3> face_normal_, centroid_;
@@ -650,11 +673,13 @@ void VertexColours(const imr::sdk::MeshView& mesh, const VisibilityPass& pass, T
   const std::vector<double>& color_sum = pass.color_sum();
   const std::vector<double>& weight_sum = pass.weight_sum();
   out.vertex_rgb.assign(3 * nv, 128);
+  out.vertex_seen.assign(nv, 0);
   std::vector<uint8_t> known(nv, 0);
   for (std::size_t i = 0; i < nv; ++i) {
     if (!(weight_sum[i] > 0.0)) continue;
     for (int k = 0; k < 3; ++k) out.vertex_rgb[3 * i + k] = Byte(color_sum[3 * i + k] / weight_sum[i]);
     known[i] = 1;
+    out.vertex_seen[i] = 1;
     ++out.stats.vertices_seen;
   }
   // Rings of neighbours: each round colours the unknown vertices next to known ones.
@@ -901,7 +926,7 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr
   }
 
   auto t0 = Clock::now();
-  VisibilityPass pass(mesh, NearPlane(mesh, views), options.texture);
+  VisibilityPass pass(mesh, NearPlane(mesh, views), ColourReachOf(views), options.texture);
   for (std::size_t vi = 0; vi < views.size(); ++vi) {
     if (check_cancelled) check_cancelled();
     pass.See(vi, views[vi], fetch(static_cast<uint64_t>(views[vi].index)));
@@ -922,6 +947,43 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh, std::span<const imr
   out.stats.seconds_atlas = Since(t0);
   out.stats.seconds_total = Since(start);
   return out;
+}
+
+ColourFrame ColourFrameOf(std::span<const imr_camera> keyframes, const TexturingOptions& options,
+                          double extent) {
+  if (const std::string e = options.Check(); !e.empty()) throw std::invalid_argument(e);
+  const std::vector<View> views = TexturingViews(keyframes, options);
+  ColourFrame frame;
+  for (const View& v : views) {
+    frame.views.push_back(v.index);
+    frame.centres.push_back(v.center);
+  }
+  frame.near = NearPlane(extent, views);
+  frame.reach = ColourReachOf(views);
+  return frame;
+}
+
+std::vector<uint8_t> ColourPiece(const imr::sdk::MeshView& mesh, std::span<const imr_camera> keyframes,
+                                 std::span<const int> views, const KeyframeImageFetch& fetch,
+                                 double near, double reach, const std::function<void()>& check_cancelled) {
+  std::vector<View> piece_views;
+  for (const int i : views) {
+    if (i < 0 || static_cast<std::size_t>(i) >= keyframes.size() || !View::Usable(keyframes[static_cast<std::size_t>(i)]))
+      throw std::invalid_argument("ColourPiece: keyframe " + std::to_string(i) + " is not a usable view");
+    piece_views.emplace_back(i, keyframes[static_cast<std::size_t>(i)]);
+  }
+  TexturedMesh out;
+  if (mesh.face_count() == 0) {
+    out.vertex_rgb.assign(3 * mesh.vertex_count(), 128);
+    return std::move(out.vertex_rgb);
+  }
+  VisibilityPass pass(mesh, near, reach, /*texture=*/false);
+  for (std::size_t vi = 0; vi < piece_views.size(); ++vi) {
+    if (check_cancelled) check_cancelled();
+    pass.See(vi, piece_views[vi], fetch(static_cast<uint64_t>(piece_views[vi].index)));
+  }
+  VertexColours(mesh, pass, out);
+  return std::move(out.vertex_rgb);
 }
 
 }  // namespace imr::exporter_assimp

@@ -3,7 +3,8 @@
 // Vertex colours: every keyframe that sees a vertex (z-buffer visibility against the mesh itself,
 // the vertex in front of its own surface) contributes its bilinear image sample with weight
 // (cos(angle between the vertex normal and the viewing ray) / depth)^2, i.e. by the surface
-// resolution it gives; vertices nobody sees take their neighbours' colours.
+// resolution it gives, when it stands within the colour reach of the vertex (40 steps of the
+// camera path: ColourFrame); vertices nobody sees take their neighbours' colours.
 //
 // Texture atlas (after Waechter, Moehrle and Goesele, "Let there be color!", ECCV 2014): each
 // triangle gets one view, a label, minimising a data term plus a Potts smoothness term over the
@@ -27,6 +28,7 @@
 
 #include <imr/sdk/plugin.hpp>
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -75,6 +77,7 @@ struct TexturedMesh {
   // 3 per input vertex (RGB): from the images, neighbours' for vertices nobody saw, else the
   // fallback; empty when no view was usable.
   std::vector<uint8_t> vertex_rgb;
+  std::vector<uint8_t> vertex_seen;  // per input vertex: 1 when some view saw it (else filled)
   // Per face: its atlas page (-1: no texture), its view (keyframe index, -1: none), and 6
   // texture coordinates (u, v per corner, in [0, 1] of its page, origin at the top-left corner,
   // v down: glTF's convention).
@@ -101,6 +104,31 @@ TexturedMesh ColorAndTexture(const imr::sdk::MeshView& mesh,
                              const TexturingOptions& options,
                              const std::function<void()>& check_cancelled = {},
                              const AtlasPageSink& page_done = {});
+
+// What colouring a piece of a larger mesh as the whole is coloured needs from the whole: the
+// keyframes ColorAndTexture takes its views from (indices into `keyframes`: every
+// keyframe_step-th and the last, usable ones), their centres, the near plane and the reach (a view
+// adds to the colours of the vertices within this distance of it only: 40 times the median step
+// between consecutive views; infinity when they do not move). `extent`: the largest absolute
+// coordinate of a vertex of the whole.
+struct ColourFrame {
+  std::vector<int> views;
+  std::vector<std::array<double, 3>> centres;  // per entry of `views`
+  double near = 0.0;
+  double reach = 0.0;
+};
+ColourFrame ColourFrameOf(std::span<const imr_camera> keyframes, const TexturingOptions& options,
+                          double extent);
+
+// The vertex colours of `mesh`, a piece of a larger one, from the keyframes `views` (indices into
+// `keyframes`) with the whole's near plane and reach (ColourFrame): a vertex gets the colour
+// ColorAndTexture gives it in the whole when the piece holds its faces and every face between it
+// and those views that lie within the reach, and those are all the views within the reach that
+// see it. Vertices no view sees take their neighbours' colours within the piece. 3 per vertex.
+std::vector<uint8_t> ColourPiece(const imr::sdk::MeshView& mesh, std::span<const imr_camera> keyframes,
+                                 std::span<const int> views, const KeyframeImageFetch& fetch,
+                                 double near, double reach,
+                                 const std::function<void()>& check_cancelled = {});
 
 // A face that a view sees whole, with its quality there (projected area in pixels).
 struct ViewCandidate {
