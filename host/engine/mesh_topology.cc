@@ -225,4 +225,77 @@ LinkShape CheckLink(const std::pair<uint32_t, uint32_t>* l, std::size_t n,
   return starts == 1 ? LinkShape::kPath : LinkShape::kCycle;
 }
 
+namespace {
+
+// A vertex's link as its open paths (first, last) in order and its count of cycles; false when a
+// neighbour comes twice as a first or as a second (not a union of paths and cycles).
+bool LinkPaths(std::vector<std::pair<uint32_t, uint32_t>>& link,
+               std::vector<std::pair<uint32_t, uint32_t>>* paths, int* cycles) {
+  std::sort(link.begin(), link.end());
+  std::vector<uint32_t> seconds;
+  for (const auto& e : link) seconds.push_back(e.second);
+  std::sort(seconds.begin(), seconds.end());
+  if (std::adjacent_find(seconds.begin(), seconds.end()) != seconds.end()) return false;
+  for (std::size_t i = 1; i < link.size(); ++i)
+    if (link[i].first == link[i - 1].first) return false;
+  std::vector<uint8_t> seen(link.size(), 0);
+  auto at = [&](uint32_t a) -> std::ptrdiff_t {
+    const auto it = std::lower_bound(link.begin(), link.end(), std::make_pair(a, uint32_t{0}));
+    return it != link.end() && it->first == a ? it - link.begin() : -1;
+  };
+  paths->clear();
+  *cycles = 0;
+  for (std::size_t i = 0; i < link.size(); ++i) {
+    if (std::binary_search(seconds.begin(), seconds.end(), link[i].first)) continue;  // not a start
+    std::ptrdiff_t j = static_cast<std::ptrdiff_t>(i);
+    uint32_t last = link[i].first;
+    while (j >= 0 && !seen[static_cast<std::size_t>(j)]) {
+      seen[static_cast<std::size_t>(j)] = 1;
+      last = link[static_cast<std::size_t>(j)].second;
+      j = at(last);
+    }
+    paths->emplace_back(link[i].first, last);
+  }
+  for (std::size_t i = 0; i < link.size(); ++i) {
+    if (seen[i]) continue;
+    ++*cycles;
+    for (std::ptrdiff_t j = static_cast<std::ptrdiff_t>(i); j >= 0 && !seen[static_cast<std::size_t>(j)];
+         j = at(link[static_cast<std::size_t>(j)].second))
+      seen[static_cast<std::size_t>(j)] = 1;
+  }
+  std::sort(paths->begin(), paths->end());
+  return true;
+}
+
+std::vector<std::vector<std::pair<uint32_t, uint32_t>>> Links(const std::vector<uint32_t>& faces,
+                                                              std::size_t vertex_count) {
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> links(vertex_count);
+  for (std::size_t f = 0; f + 2 < faces.size(); f += 3)
+    for (std::size_t k = 0; k < 3; ++k)
+      if (faces[f + k] < vertex_count)
+        links[faces[f + k]].emplace_back(faces[f + (k + 1) % 3], faces[f + (k + 2) % 3]);
+  return links;
+}
+
+}  // namespace
+
+std::string SameVertexLinks(const std::vector<uint32_t>& before, const std::vector<uint32_t>& after,
+                            std::size_t vertex_count) {
+  for (const uint32_t v : after)
+    if (v >= vertex_count) return "a face names vertex " + std::to_string(v) + " of " + std::to_string(vertex_count);
+  auto a = Links(before, vertex_count), b = Links(after, vertex_count);
+  std::vector<std::pair<uint32_t, uint32_t>> pa, pb;
+  int ca = 0, cb = 0;
+  for (std::size_t v = 0; v < vertex_count; ++v) {
+    if (!LinkPaths(b[v], &pb, &cb))
+      return "vertex " + std::to_string(v) + ": a neighbour twice in its faces";
+    if (!LinkPaths(a[v], &pa, &ca)) continue;  // it was not a union of fans before either
+    if (pa != pb || ca != cb)
+      return "vertex " + std::to_string(v) + ": its fans changed (" + std::to_string(pa.size()) + " open, " +
+             std::to_string(ca) + " closed -> " + std::to_string(pb.size()) + " open, " + std::to_string(cb) +
+             " closed, or other ends)";
+  }
+  return {};
+}
+
 }  // namespace imr::engine

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -30,5 +31,13 @@ enum class LinkShape { kCycle, kPath, kNotOneFan };
 LinkShape CheckLink(const std::pair<uint32_t, uint32_t>* link, std::size_t n,
                     std::vector<std::pair<uint32_t, uint32_t>>* by_first,
                     std::vector<uint32_t>* seconds);
+
+// Whether the faces `after` may stand in for `before` (triangles over the same `vertex_count`
+// vertices, e.g. a part of a streamed surface that a pass changed in place) wherever they meet
+// faces not given: every vertex's link the same open paths (their ends, the part's open edges at
+// the vertex) and as many closed cycles, no neighbour twice. Empty when so, else the first vertex
+// that differs and how.
+std::string SameVertexLinks(const std::vector<uint32_t>& before, const std::vector<uint32_t>& after,
+                            std::size_t vertex_count);
 
 }  // namespace imr::engine

@@ -429,14 +429,30 @@ class Retriangulator {
     // elsewhere (two faces of it across the region would make it non-manifold), nor, in a part,
     // one between two vertices on its boundary: their other faces come in other parts, which
     // may hold that edge.
-    std::unordered_set<uint64_t> directed;
+    std::unordered_map<uint64_t, int> directed;  // uses of each directed edge
     for (std::size_t i = 0; i < next.size(); i += 3)
-      for (int k = 0; k < 3; ++k) directed.insert((uint64_t{next[i + k]} << 32) | next[i + (k + 1) % 3]);
+      for (int k = 0; k < 3; ++k) ++directed[(uint64_t{next[i + k]} << 32) | next[i + (k + 1) % 3]];
     for (const auto& [from, to] : boundary)
       if (!directed.count((uint64_t{from} << 32) | to)) {
         trouble->insert(trouble->end(), {from, to});
         return false;
       }
+    // ... and the new faces a surface with that boundary: each boundary edge once and never the
+    // other way, every other edge once each way. A loop folded over in the plane can give both
+    // sides of one of its edges a face (seen on imr-synth's default job with max_ray_length 60:
+    // a part's edge, whose other face is in the next part, got a second face here).
+    std::unordered_set<uint64_t> boundary_directed;
+    for (const auto& [from, to] : boundary) boundary_directed.insert((uint64_t{from} << 32) | to);
+    for (const auto& [edge, uses] : directed) {
+      const uint64_t reverse = (edge << 32) | (edge >> 32);
+      const bool ok = uses == 1 && (boundary_directed.count(edge) ? !directed.count(reverse)
+                                                                  : !boundary_directed.count(reverse) &&
+                                                                        directed.count(reverse));
+      if (!ok) {
+        trouble->insert(trouble->end(), {static_cast<uint32_t>(edge >> 32), static_cast<uint32_t>(edge)});
+        return false;
+      }
+    }
     for (std::size_t i = 0; i < next.size(); i += 3)
       for (int k = 0; k < 3; ++k) {
         const uint64_t key = EdgeKey(next[i + k], next[i + (k + 1) % 3]);

@@ -352,6 +352,10 @@ json MeshJson(const ReportInputs& in) {
                                 {"edges", fl.edges},
                                 {"mean_angle_before", mean(fl.degrees_sum_before)},
                                 {"mean_angle_after", mean(fl.degrees_sum_after)}};
+  // The two passes undone where they broke the surface (a whole mesh: 1; streamed: its pieces).
+  const int64_t undone = in.streamed != nullptr ? in.streamed->pieces_undone : in.pieces_undone;
+  mesh_json["passes_undone"] = {{"pieces", undone},
+                                {"why", in.streamed != nullptr ? in.streamed->undone_why : in.undone_why}};
   return mesh_json;
 }
 

@@ -85,6 +85,9 @@ struct ReportInputs {
   engine::DroppedComponents small_components_dropped;  // by ExtractMesh (a streamed run: its stats)
   engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes (a streamed run: its stats)
   engine::EdgeFlipStats flips;               // engine.flip_edges (a streamed run: its stats)
+  // The mesh (or, streamed, the pieces) written without a pass that broke it; the first why.
+  int64_t pieces_undone = 0;
+  std::string undone_why;
   nlohmann::json accuracy, accuracy_known_scene;  // null: none
   double engine_seconds = 0.0, export_seconds = 0.0, evaluation_seconds = 0.0;
   ExportImageStats export_images;

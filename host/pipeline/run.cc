@@ -600,20 +600,29 @@ void SequenceRun::Finish() {
     report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
   }
   if (!streamed_) {  // after the refinement, as a streamed run does per released piece
-    report_.planes = engine::RetriangulatePlanes(
-        &*mesh_, engine::PlaneRetriangulationOptions::FromEngine(engine_options_));
-    if (report_.planes.regions > 0) {
+    // A pass that leaves the mesh no manifold (a case its own rules missed) is undone with a
+    // warning: the surface before it is written.
+    const auto undo_unless_manifold = [&](engine::Mesh& before, const std::string& pass) {
       report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
-      if (!report_.mesh_check.ok)
-        throw std::runtime_error("the mesh with its planes triangulated again is not a manifold: " +
-                                 report_.mesh_check.message);
+      if (report_.mesh_check.ok) return false;
+      Warn(pass + " undone: the mesh was no manifold after it (" + report_.mesh_check.message + ")");
+      if (report_.pieces_undone++ == 0) report_.undone_why = pass + ": " + report_.mesh_check.message;
+      *mesh_ = std::move(before);
+      report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
+      return true;
+    };
+    const auto planes = engine::PlaneRetriangulationOptions::FromEngine(engine_options_);
+    if (planes.enabled()) {
+      engine::Mesh before = *mesh_;
+      report_.planes = engine::RetriangulatePlanes(&*mesh_, planes);
+      if (report_.planes.regions > 0 && undo_unless_manifold(before, "engine.retriangulate_planes"))
+        report_.planes = {};
     }
-    report_.flips = engine::FlipEdges(&*mesh_, engine::EdgeFlipOptions::FromEngine(engine_options_));
-    if (report_.flips.flips > 0) {
-      report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
-      if (!report_.mesh_check.ok)
-        throw std::runtime_error("the mesh with its edges flipped is not a manifold: " +
-                                 report_.mesh_check.message);
+    const auto flips = engine::EdgeFlipOptions::FromEngine(engine_options_);
+    if (flips.enabled) {
+      engine::Mesh before = *mesh_;
+      report_.flips = engine::FlipEdges(&*mesh_, flips);
+      if (report_.flips.flips > 0 && undo_unless_manifold(before, "engine.flip_edges")) report_.flips = {};
     }
   }
   WarnAbout();
@@ -799,6 +808,12 @@ void SequenceRun::WarnAbout() {
   if (2 * in_front_.behind() > in_front_.checked() && in_front_.checked() > 0)
     throw std::runtime_error(in_front_.Message());
   if (20 * in_front_.behind() > in_front_.checked()) Warn(in_front_.Message());
+  // Pieces of a streamed surface that the planes and flips passes would have broken.
+  if (streamed_ && streamed_->stats().pieces_undone > 0)
+    Warn("engine.retriangulate_planes and flip_edges undone on " +
+         std::to_string(streamed_->stats().pieces_undone) +
+         " released piece(s): they changed the piece's fans where other pieces meet it (" +
+         streamed_->stats().undone_why + ")");
   // Rays longer than max_ray_length are not cast: most of them skipped usually means the
   // scene is not in metres (or is much larger or smaller than the defaults assume).
   const engine::EngineStats& stats = EngineStats();

@@ -153,8 +153,22 @@ void StreamedSurface::Feed(const engine::SurfacePart& part) {
   engine::SurfacePart released = stream_.TakeReleased();
   // Planar regions of what was released, before the spool and the tiles write it: only vertices
   // whose whole fan is in this piece move (a seam vertex was, or will be, written elsewhere).
-  stats_.planes += engine::RetriangulatePlanes(&released, planes_);
-  stats_.flips += engine::FlipEdges(&released, flips_);
+  // Then the flips. A piece whose fans the passes changed where other pieces meet it (a case
+  // their own rules missed) is written as it came: it would fail the run at the seam.
+  if (planes_.enabled() || flips_.enabled) {
+    std::vector<uint32_t> faces = released.faces;
+    std::vector<double> xyz = released.vertices;
+    const engine::PlaneRetriangulationStats planes = engine::RetriangulatePlanes(&released, planes_);
+    const engine::EdgeFlipStats flips = engine::FlipEdges(&released, flips_);
+    if (const std::string e = engine::SameVertexLinks(faces, released.faces, released.keys.size()); !e.empty()) {
+      released.faces.swap(faces);
+      released.vertices.swap(xyz);
+      if (stats_.pieces_undone++ == 0) stats_.undone_why = e;
+    } else {
+      stats_.planes += planes;
+      stats_.flips += flips;
+    }
+  }
   if (!spool_dir_.empty()) Spool(released);
   if (tiles_ != nullptr) tiles_->Add(released);
   stats_.stream = stream_.stats();

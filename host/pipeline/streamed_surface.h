@@ -42,6 +42,10 @@ struct StreamedSurfaceStats {
   double max_update_seconds = 0.0; // the longest Take (one keyframe's parts)
   engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes, per released piece
   engine::EdgeFlipStats flips;               // engine.flip_edges, per released piece
+  // Pieces written without the two passes: they changed the piece's fans where other pieces meet
+  // it (SameVertexLinks); the first one's message.
+  int64_t pieces_undone = 0;
+  std::string undone_why;
 };
 
 class StreamedSurface {
