@@ -6,10 +6,11 @@
 // A block's vertices are seen by the views within the colour reach (texturing.hpp, ColourFrame)
 // of the box of their faces; every face that can stand between such a view and one of them lies in
 // the box around that box and the views' centres (widened by a few pixels' footprint): the piece is
-// the faces that meet it. Within it a vertex that some view sees gets the colour ColorAndTexture
-// gives it in the whole mesh (up to the order of float sums); one no view sees takes its
-// neighbours' colours within the piece. The memory is the piece's: along a drive, the block and
-// twice the reach of road, however long the drive.
+// the faces that meet it. Within it a vertex that some view within the reach sees gets the colour
+// ColorAndTexture gives it in the whole mesh (up to the order of float sums); one no such view
+// sees takes what the piece's views beyond the reach, then its neighbours within the piece, give
+// it. The memory is the piece's: along a drive, the block and twice the reach of road, however
+// long the drive.
 #pragma once
 
 #include "texturing.hpp"

@@ -605,7 +605,7 @@ TEST(Texturing, VertexColoursInBlocksAreTheWholeMeshs) {
   std::size_t seen = 0, seen_same = 0, unseen_same = 0;
   for (std::size_t i = 0; i < nv; ++i) {
     const bool same = std::equal(&rgb[3 * i], &rgb[3 * i] + 3, &whole.vertex_rgb[3 * i]);
-    if (whole.vertex_seen[i]) ++seen, seen_same += same;
+    if (whole.vertex_seen[i] == 1) ++seen, seen_same += same;
     else unseen_same += same;
   }
   EXPECT_GT(seen, nv / 3);
@@ -705,6 +705,49 @@ TEST(Texturing, VertexColoursInBlocksOfALongRoadNeedOnlyWhatIsNearThem) {
   EXPECT_LT(st.max_piece_faces, static_cast<int64_t>(nf) / 3);
   EXPECT_LT(st.views / st.blocks, static_cast<int64_t>(cameras.size()) / 3);
   EXPECT_EQ(host.Held(), 0);
+}
+
+// A camera creeping toward a wall 60 m ahead (keyframes 0.1 m apart: a colour reach of 4 m): no
+// keyframe is within the reach of the wall, and the wall takes its colours from those beyond it
+// rather than none.
+TEST(Texturing, VerticesNoKeyframeWithinTheReachSeesTakeThoseBeyondIt) {
+  std::vector<double> vertices;
+  std::vector<uint32_t> faces;
+  for (int j = 0; j <= 10; ++j)
+    for (int i = 0; i <= 10; ++i) vertices.insert(vertices.end(), {-5.0 + i, 60.0, -2.0 + j});
+  for (uint32_t j = 0; j < 10; ++j)
+    for (uint32_t i = 0; i < 10; ++i) {
+      const uint32_t a = j * 11 + i, b = a + 1, c = a + 12, d = a + 11;
+      faces.insert(faces.end(), {a, b, c, a, c, d});  // facing -y, toward the cameras
+    }
+  std::vector<imr_camera> cameras;
+  std::vector<cv::Mat> images;
+  for (int k = 0; k < 10; ++k) {
+    imr_camera c{};
+    const double R[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0};
+    const double centre[3] = {0.0, 0.1 * k, 1.5};
+    std::copy(R, R + 9, c.R);
+    for (int r = 0; r < 3; ++r) c.t[r] = -(R[3 * r] * centre[0] + R[3 * r + 1] * centre[1] + R[3 * r + 2] * centre[2]);
+    const double K[9] = {400, 0, 80, 0, 400, 60, 0, 0, 1};
+    std::copy(K, K + 9, c.K);
+    c.width = 160;
+    c.height = 120;
+    cameras.push_back(c);
+    images.emplace_back(120, 160, CV_8UC3, cv::Scalar(50, 100, 200));  // BGR
+  }
+  TexturingOptions o;
+  o.texture = false;
+  FakeHost host(images);
+  const imr::sdk::Host h(&host.services);
+  const imr::sdk::MeshView view{{vertices.data(), vertices.size()}, {faces.data(), faces.size()}, {}, {}, {}};
+  const TexturedMesh m = ColorAndTexture(view, cameras, [&](uint64_t i) { return h.GetKeyframeImage(i); }, o);
+  const std::size_t nv = vertices.size() / 3;
+  EXPECT_EQ(std::count(m.vertex_seen.begin(), m.vertex_seen.end(), 2), static_cast<long>(nv));
+  for (std::size_t i = 0; i < nv; ++i) {
+    EXPECT_EQ(m.vertex_rgb[3 * i], 200) << i;
+    EXPECT_EQ(m.vertex_rgb[3 * i + 1], 100) << i;
+    EXPECT_EQ(m.vertex_rgb[3 * i + 2], 50) << i;
+  }
 }
 
 TEST_F(TexturedFiles, OptionsTextureOffAndKeyframeStep) {

@@ -569,7 +569,8 @@ class VisibilityPass {
   VisibilityPass(const imr::sdk::MeshView& mesh, double near, double reach, bool texture)
       : mesh_(mesh), X_(mesh.vertices.data()), nv_(mesh.vertex_count()), nf_(mesh.face_count()),
         near_(near), reach_(reach), texture_(texture), normals_(VertexNormals(mesh)), face_normal_(nf_),
-        centroid_(nf_), color_sum_(3 * nv_, 0.0), weight_sum_(nv_, 0.0), cam_(nv_), own_pixels_(nf_) {
+        centroid_(nf_), color_sum_(3 * nv_, 0.0), weight_sum_(nv_, 0.0), far_color_sum_(3 * nv_, 0.0),
+        far_weight_sum_(nv_, 0.0), cam_(nv_), own_pixels_(nf_) {
     for (std::size_t f = 0; f < nf_; ++f) {
       const double* a = X_ + 3 * mesh.faces[3 * f];
       const double* b = X_ + 3 * mesh.faces[3 * f + 1];
@@ -595,8 +596,9 @@ class VisibilityPass {
     if (texture_) AddFaceCandidates(vi, view);
   }
 
-  const std::vector<double>& color_sum() const { return color_sum_; }
-  const std::vector<double>& weight_sum() const { return weight_sum_; }
+  // Within the reach, and beyond it (what a vertex no view within the reach sees takes).
+  const std::vector<double>& color_sum(bool far) const { return far ? far_color_sum_ : color_sum_; }
+  const std::vector<double>& weight_sum(bool far) const { return far ? far_weight_sum_ : weight_sum_; }
   std::vector<Candidate>& candidates() { return candidates_; }
 
  private:
@@ -607,7 +609,7 @@ class VisibilityPass {
       const Vec3& p = cam_[i];
       if (!(p[2] > near_)) continue;
       const Vec3 ray = Sub(view.center, {X_[3 * i], X_[3 * i + 1], X_[3 * i + 2]});
-      if (Norm(ray) > reach_) continue;
+      const bool far = Norm(ray) > reach_;
       double u, v;
       Project(view, p, &u, &v);
       if (!(u >= 0 && v >= 0 && u <= umax && v <= vmax) ||
@@ -621,8 +623,8 @@ class VisibilityPass {
       }
       const double w = (cosine / p[2]) * (cosine / p[2]);
       const std::array<double, 3> rgb = Sample(image, u, v);
-      for (int k = 0; k < 3; ++k) color_sum_[3 * i + k] += w * rgb[k];
-      weight_sum_[i] += w;
+      for (int k = 0; k < 3; ++k) (far ? far_color_sum_ : color_sum_)[3 * i + k] += w * rgb[k];
+      (far ? far_weight_sum_ : weight_sum_)[i] += w;
     }
   }
 
@@ -660,7 +662,7 @@ class VisibilityPass {
   bool texture_;
   std::vector<double> normals_;
   std::vector<Vec3> face_normal_, centroid_;
-  std::vector<double> color_sum_, weight_sum_;
+  std::vector<double> color_sum_, weight_sum_, far_color_sum_, far_weight_sum_;
   std::vector<Candidate> candidates_;
   std::vector<Vec3> cam_;  // the vertices in the current view's camera frame
   std::vector<uint32_t> own_pixels_;
@@ -670,16 +672,23 @@ class VisibilityPass {
 // Vertex colours: the weighted means, then vertices nobody saw from their neighbours.
 void VertexColours(const imr::sdk::MeshView& mesh, const VisibilityPass& pass, TexturedMesh& out) {
   const std::size_t nv = mesh.vertex_count(), nf = mesh.face_count();
-  const std::vector<double>& color_sum = pass.color_sum();
-  const std::vector<double>& weight_sum = pass.weight_sum();
+  const std::vector<double>& color_sum = pass.color_sum(false);
+  const std::vector<double>& weight_sum = pass.weight_sum(false);
+  const std::vector<double>& far_color_sum = pass.color_sum(true);
+  const std::vector<double>& far_weight_sum = pass.weight_sum(true);
   out.vertex_rgb.assign(3 * nv, 128);
   out.vertex_seen.assign(nv, 0);
   std::vector<uint8_t> known(nv, 0);
   for (std::size_t i = 0; i < nv; ++i) {
-    if (!(weight_sum[i] > 0.0)) continue;
-    for (int k = 0; k < 3; ++k) out.vertex_rgb[3 * i + k] = Byte(color_sum[3 * i + k] / weight_sum[i]);
+    // The views within the reach; a vertex none of them sees takes those beyond it (a camera
+    // creeping along, or standing, far from what it looks at).
+    const bool near = weight_sum[i] > 0.0;
+    const std::vector<double>& c = near ? color_sum : far_color_sum;
+    const double w = near ? weight_sum[i] : far_weight_sum[i];
+    if (!(w > 0.0)) continue;
+    for (int k = 0; k < 3; ++k) out.vertex_rgb[3 * i + k] = Byte(c[3 * i + k] / w);
     known[i] = 1;
-    out.vertex_seen[i] = 1;
+    out.vertex_seen[i] = near ? 1 : 2;
     ++out.stats.vertices_seen;
   }
   // Rings of neighbours: each round colours the unknown vertices next to known ones.

@@ -4,7 +4,8 @@
 // the vertex in front of its own surface) contributes its bilinear image sample with weight
 // (cos(angle between the vertex normal and the viewing ray) / depth)^2, i.e. by the surface
 // resolution it gives, when it stands within the colour reach of the vertex (40 steps of the
-// camera path: ColourFrame); vertices nobody sees take their neighbours' colours.
+// camera path: ColourFrame; a vertex no keyframe within the reach sees takes those beyond it);
+// vertices nobody sees take their neighbours' colours.
 //
 // Texture atlas (after Waechter, Moehrle and Goesele, "Let there be color!", ECCV 2014): each
 // triangle gets one view, a label, minimising a data term plus a Potts smoothness term over the
@@ -77,7 +78,9 @@ struct TexturedMesh {
   // 3 per input vertex (RGB): from the images, neighbours' for vertices nobody saw, else the
   // fallback; empty when no view was usable.
   std::vector<uint8_t> vertex_rgb;
-  std::vector<uint8_t> vertex_seen;  // per input vertex: 1 when some view saw it (else filled)
+  // Per input vertex: 1 when some view within the colour reach saw it, 2 when only views beyond
+  // it did, 0 when none (its colour filled from its neighbours').
+  std::vector<uint8_t> vertex_seen;
   // Per face: its atlas page (-1: no texture), its view (keyframe index, -1: none), and 6
   // texture coordinates (u, v per corner, in [0, 1] of its page, origin at the top-left corner,
   // v down: glTF's convention).
@@ -123,8 +126,9 @@ ColourFrame ColourFrameOf(std::span<const imr_camera> keyframes, const Texturing
 // The vertex colours of `mesh`, a piece of a larger one, from the keyframes `views` (indices into
 // `keyframes`) with the whole's near plane and reach (ColourFrame): a vertex gets the colour
 // ColorAndTexture gives it in the whole when the piece holds its faces and every face between it
-// and those views that lie within the reach, and those are all the views within the reach that
-// see it. Vertices no view sees take their neighbours' colours within the piece. 3 per vertex.
+// and those views that lie within the reach, those are all the views within the reach that see
+// it, and one of them does. Vertices no view within the reach sees take the piece's views beyond
+// it, then their neighbours' colours within the piece. 3 per vertex.
 std::vector<uint8_t> ColourPiece(const imr::sdk::MeshView& mesh, std::span<const imr_camera> keyframes,
                                  std::span<const int> views, const KeyframeImageFetch& fetch,
                                  double near, double reach,
