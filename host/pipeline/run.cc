@@ -602,27 +602,32 @@ void SequenceRun::Finish() {
   if (!streamed_) {  // after the refinement, as a streamed run does per released piece
     // A pass that leaves the mesh no manifold (a case its own rules missed) is undone with a
     // warning: the surface before it is written.
-    const auto undo_unless_manifold = [&](engine::Mesh& before, const std::string& pass) {
+    // (What the passes change is kept aside: the planes move vertices and change faces, the flips
+    // change faces only.)
+    const auto undo_unless_manifold = [&](std::vector<double>* xyz, std::vector<uint32_t>& faces,
+                                          const std::string& pass) {
       report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
       if (report_.mesh_check.ok) return false;
       Warn(pass + " undone: the mesh was no manifold after it (" + report_.mesh_check.message + ")");
       if (report_.pieces_undone++ == 0) report_.undone_why = pass + ": " + report_.mesh_check.message;
-      *mesh_ = std::move(before);
+      if (xyz != nullptr) mesh_->vertices.swap(*xyz);
+      mesh_->faces.swap(faces);
       report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
       return true;
     };
     const auto planes = engine::PlaneRetriangulationOptions::FromEngine(engine_options_);
     if (planes.enabled()) {
-      engine::Mesh before = *mesh_;
+      std::vector<double> xyz = mesh_->vertices;
+      std::vector<uint32_t> faces = mesh_->faces;
       report_.planes = engine::RetriangulatePlanes(&*mesh_, planes);
-      if (report_.planes.regions > 0 && undo_unless_manifold(before, "engine.retriangulate_planes"))
+      if (report_.planes.regions > 0 && undo_unless_manifold(&xyz, faces, "engine.retriangulate_planes"))
         report_.planes = {};
     }
     const auto flips = engine::EdgeFlipOptions::FromEngine(engine_options_);
     if (flips.enabled) {
-      engine::Mesh before = *mesh_;
+      std::vector<uint32_t> faces = mesh_->faces;
       report_.flips = engine::FlipEdges(&*mesh_, flips);
-      if (report_.flips.flips > 0 && undo_unless_manifold(before, "engine.flip_edges")) report_.flips = {};
+      if (report_.flips.flips > 0 && undo_unless_manifold(nullptr, faces, "engine.flip_edges")) report_.flips = {};
     }
   }
   WarnAbout();
