@@ -73,6 +73,24 @@ class FrontEnd : public ::testing::Test {
     WriteText(p, job.dump(2));
     return RunShell(Quote(kImr) + " run " + Quote(p.string()));
   }
+  // A forgetting run of the street ([0]: its single mesh written in blocks from the spool) and the
+  // same with the mesh read back whole ([1]: the job's evaluation asks for it whole), the exporter
+  // with `exporter_params`: their reports and PLY files.
+  static void RunInBlocksAndWhole(const std::string& name, const json& exporter_params, json report[2],
+                                  std::string ply[2]) {
+    for (const bool whole : {false, true}) {
+      json job = ImageJob("kitti_odometry", {Sequence().string()});
+      job["engine"]["forget"] = true;
+      if (!exporter_params.empty()) job["pipeline"][3]["params"] = exporter_params;
+      const std::string run = name + (whole ? "-whole" : "-blocks");
+      job["output"]["directory"] = (*dir_ / run / "{sequence}").string();
+      if (whole) job["evaluation"] = {{"truth", (Sequence() / "ground_truth/scene.ply").string()}};
+      const CommandResult r = RunJob(job, run);
+      ASSERT_EQ(r.status, 0) << r.err;
+      report[whole] = ReadJson(*dir_ / run / "street/report.json");
+      ply[whole] = ReadText(*dir_ / run / "street/mesh.ply");
+    }
+  }
   static ScratchDir* dir_;
 };
 ScratchDir* FrontEnd::dir_ = nullptr;
@@ -226,18 +244,8 @@ TEST_F(FrontEnd, OverlapWithTheEngineChangesNoOutput) {
 TEST_F(FrontEnd, ForgettingMeasuresTheKnownSceneInBlocks) {
   json report[2];
   std::string ply[2];
-  for (const bool whole : {false, true}) {
-    json job = ImageJob("kitti_odometry", {Sequence().string()});
-    job["engine"]["forget"] = true;
-    job["pipeline"][3]["params"] = {{"vertex_colors", false}, {"texture", false}};
-    const std::string name = whole ? "forget-whole" : "forget-blocks";
-    job["output"]["directory"] = (*dir_ / name / "{sequence}").string();
-    if (whole) job["evaluation"] = {{"truth", (Sequence() / "ground_truth/scene.ply").string()}};
-    const CommandResult r = RunJob(job, name);
-    ASSERT_EQ(r.status, 0) << r.err;
-    report[whole] = ReadJson(*dir_ / name / "street/report.json");
-    ply[whole] = ReadText(*dir_ / name / "street/mesh.ply");
-  }
+  RunInBlocksAndWhole("forget", {{"vertex_colors", false}, {"texture", false}}, report, ply);
+  if (HasFatalFailure()) return;
   ASSERT_TRUE(report[0]["engine"]["forget"].is_object()) << report[0]["engine"].dump();  // spooled
   EXPECT_EQ(report[0]["mesh"]["written_in_blocks"], 1) << report[0]["mesh"].dump();
   EXPECT_EQ(report[1]["mesh"]["written_in_blocks"], 0) << report[1]["mesh"].dump();
@@ -267,17 +275,8 @@ TEST_F(FrontEnd, ForgettingMeasuresTheKnownSceneInBlocks) {
 TEST_F(FrontEnd, ForgettingColoursThePlyInBlocks) {
   json report[2];
   std::string ply[2];
-  for (const bool whole : {false, true}) {
-    json job = ImageJob("kitti_odometry", {Sequence().string()});
-    job["engine"]["forget"] = true;
-    const std::string name = whole ? "colour-whole" : "colour-blocks";
-    job["output"]["directory"] = (*dir_ / name / "{sequence}").string();
-    if (whole) job["evaluation"] = {{"truth", (Sequence() / "ground_truth/scene.ply").string()}};
-    const CommandResult r = RunJob(job, name);
-    ASSERT_EQ(r.status, 0) << r.err;
-    report[whole] = ReadJson(*dir_ / name / "street/report.json");
-    ply[whole] = ReadText(*dir_ / name / "street/mesh.ply");
-  }
+  RunInBlocksAndWhole("colour", json::object(), report, ply);
+  if (HasFatalFailure()) return;
   EXPECT_EQ(report[0]["mesh"]["written_in_blocks"], 1) << report[0]["mesh"].dump();
   EXPECT_EQ(report[1]["mesh"]["written_in_blocks"], 0) << report[1]["mesh"].dump();
   EXPECT_NE(ply[0].find("Written in blocks"), std::string::npos);

@@ -577,6 +577,20 @@ TEST(Texturing, PagesAreHandedOverOneAtATimeAndWhole) {
   EXPECT_EQ(handed.vertex_rgb, whole.vertex_rgb);
 }
 
+// A keyframe at (0, y, 1.5) looking along +y (x = X, y = -Z, z = Y), 160 x 120 pixels.
+imr_camera AlongTheRoad(double y, double focal) {
+  imr_camera c{};
+  const double R[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0};
+  const double centre[3] = {0.0, y, 1.5};
+  std::copy(R, R + 9, c.R);
+  for (int r = 0; r < 3; ++r) c.t[r] = -(R[3 * r] * centre[0] + R[3 * r + 1] * centre[1] + R[3 * r + 2] * centre[2]);
+  const double K[9] = {focal, 0, 80, 0, focal, 60, 0, 0, 1};
+  std::copy(K, K + 9, c.K);
+  c.width = 160;
+  c.height = 120;
+  return c;
+}
+
 // Vertex colours made block by block from a mesh read in blocks (a long drive's single mesh) are
 // the whole mesh's where a keyframe sees the vertex: each block's piece holds every face that can
 // hide its vertices.
@@ -664,16 +678,7 @@ TEST(Texturing, VertexColoursInBlocksOfALongRoadNeedOnlyWhatIsNearThem) {
   std::vector<imr_camera> cameras;
   std::vector<cv::Mat> images;
   for (double y = 0; y <= kLength; y += kStep) {
-    imr_camera c{};
-    const double R[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0};  // x = X, y = -Z, z = Y: looking along the road
-    const double centre[3] = {0.0, y, 1.5};
-    std::copy(R, R + 9, c.R);
-    for (int r = 0; r < 3; ++r) c.t[r] = -(R[3 * r] * centre[0] + R[3 * r + 1] * centre[1] + R[3 * r + 2] * centre[2]);
-    const double K[9] = {100, 0, 80, 0, 100, 60, 0, 0, 1};
-    std::copy(K, K + 9, c.K);
-    c.width = 160;
-    c.height = 120;
-    cameras.push_back(c);
+    cameras.push_back(AlongTheRoad(y, 100));
     const auto k = static_cast<int>(images.size());
     images.emplace_back(120, 160, CV_8UC3, cv::Scalar((k * 53) % 256, (k * 97) % 256, (k * 151) % 256));
   }
@@ -723,16 +728,7 @@ TEST(Texturing, VerticesNoKeyframeWithinTheReachSeesTakeThoseBeyondIt) {
   std::vector<imr_camera> cameras;
   std::vector<cv::Mat> images;
   for (int k = 0; k < 10; ++k) {
-    imr_camera c{};
-    const double R[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0};
-    const double centre[3] = {0.0, 0.1 * k, 1.5};
-    std::copy(R, R + 9, c.R);
-    for (int r = 0; r < 3; ++r) c.t[r] = -(R[3 * r] * centre[0] + R[3 * r + 1] * centre[1] + R[3 * r + 2] * centre[2]);
-    const double K[9] = {400, 0, 80, 0, 400, 60, 0, 0, 1};
-    std::copy(K, K + 9, c.K);
-    c.width = 160;
-    c.height = 120;
-    cameras.push_back(c);
+    cameras.push_back(AlongTheRoad(0.1 * k, 400));
     images.emplace_back(120, 160, CV_8UC3, cv::Scalar(50, 100, 200));  // BGR
   }
   TexturingOptions o;
