@@ -18,25 +18,7 @@
 namespace imr::engine {
 namespace {
 
-// An n x n grid of vertices, two triangles per square, oriented as (i, j) -> x, y gives +z.
-// `place(i, j)` gives vertex (i, j)'s position.
-template <typename Place>
-Mesh Grid(int n, Place place) {
-  Mesh m;
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const std::array<double, 3> p = place(i, j);
-      m.vertices.insert(m.vertices.end(), p.begin(), p.end());
-      m.point_ids.push_back(j * n + i);
-    }
-  for (int j = 0; j + 1 < n; ++j)
-    for (int i = 0; i + 1 < n; ++i) {
-      const uint32_t a = j * n + i, b = a + 1, c = a + n, d = c + 1;
-      m.faces.insert(m.faces.end(), {a, b, d, a, d, c});
-    }
-  return m;
-}
-
+using testing::Grid;
 using testing::Boundary;
 using testing::Roughness;
 constexpr auto Normal = &testing::FaceNormal;
@@ -206,7 +188,6 @@ TEST(PlaneRetriangulationTest, AnyInputStaysAManifoldWithTheSameBoundary) {
     }
   }
   EXPECT_GT(changed, 300);  // the property is tested where the pass did something
-  EXPECT_GT(changed, 300);  // the property is tested where the pass did something
 }
 
 // A streamed surface is retriangulated part by part: two parts, each done alone, still make a
@@ -254,31 +235,19 @@ TEST(PlaneRetriangulationTest, PartsDoneOneByOneStillFitTogether) {
 }
 
 // Parts of a stream cut around a vertex (host/engine/testing/): every vertex whose faces in them
-// make one fan still does after the pass on each part, and no directed edge repeats. (The pieces
-// alone are not a closed-up surface, their neighbours are missing: so the test is per vertex.)
+// make one fan still does after the pass on each part, and no directed edge repeats.
 void ExpectEachFanKeptInParts(const std::string& fixture, int64_t min_fans) {
   std::vector<SurfacePart> parts = testing::ReadSurfaceParts(std::string(IMR_SOURCE_DIR) + "/host/engine/testing/" + fixture);
   ASSERT_EQ(parts.size(), 2u);
-  auto shapes = [](const std::vector<SurfacePart>& ps) {
-    std::string error;
-    const std::map<int64_t, LinkShape> shape = testing::LinkShapesByKey(ps, &error);
-    EXPECT_EQ(error, "");
-    return shape;
-  };
-  const std::map<int64_t, LinkShape> before = shapes(parts);
   PlaneRetriangulationOptions o;
   o.tolerance = 0.1;  // the default job's
   int64_t regions = 0;
-  for (SurfacePart& p : parts) regions += RetriangulatePlanes(&p, o).regions;
+  const testing::FansAfterPass fans =
+      testing::FansAfter(parts, [&](SurfacePart* p) { regions += RetriangulatePlanes(p, o).regions; });
   EXPECT_GT(regions, 0);
-  const std::map<int64_t, LinkShape> after = shapes(parts);
-  int64_t one_fan = 0;
-  for (const auto& [key, shape] : before) {
-    if (shape == LinkShape::kNotOneFan) continue;
-    ++one_fan;
-    EXPECT_NE(after.at(key), LinkShape::kNotOneFan) << "vertex key " << key;
-  }
-  EXPECT_GT(one_fan, min_fans);
+  EXPECT_EQ(fans.error, "");
+  EXPECT_EQ(fans.broken, std::vector<int64_t>{}) << "vertex keys no longer one fan";
+  EXPECT_GT(fans.one_fan, min_fans);
 }
 
 // Two pieces of imr-synth's default job's surface stream (releases 25 and 26, cut around the

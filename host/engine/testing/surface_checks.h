@@ -1,7 +1,7 @@
 // Test support for the passes that change an exported surface's triangles (plane_retriangulation,
-// edge_flips): face normals, roughness, the directed boundary, and the real seam fixture
+// edge_flips): grids, face normals, roughness, the directed boundary, and the real seam fixture
 // (pinched_seam_parts.txt: two released pieces of imr-synth's default job) with each vertex's
-// fan shape across the pieces.
+// fan shape across the pieces, before and after a pass.
 #pragma once
 
 #include <algorithm>
@@ -21,6 +21,33 @@
 #include "host/engine/mesh_topology.h"
 
 namespace imr::engine::testing {
+
+// An n x n grid of vertices placed by `place(i, j)` (point id j * n + i), two triangles per
+// square, oriented +z for a flat grid; `along(i, j)`: the square's diagonal from (i, j) to
+// (i + 1, j + 1), else the other.
+template <typename Place, typename Along>
+Mesh Grid(int n, Place place, Along along) {
+  Mesh m;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const std::array<double, 3> p = place(i, j);
+      m.vertices.insert(m.vertices.end(), p.begin(), p.end());
+      m.point_ids.push_back(j * n + i);
+    }
+  for (int j = 0; j + 1 < n; ++j)
+    for (int i = 0; i + 1 < n; ++i) {
+      const uint32_t a = j * n + i, b = a + 1, c = a + n, d = c + 1;
+      if (along(i, j))
+        m.faces.insert(m.faces.end(), {a, b, d, a, d, c});
+      else
+        m.faces.insert(m.faces.end(), {a, b, c, b, d, c});
+    }
+  return m;
+}
+template <typename Place>
+Mesh Grid(int n, Place place) {
+  return Grid(n, place, [](int, int) { return true; });
+}
 
 // The unit normal of face f (counter-clockwise).
 inline std::array<double, 3> FaceNormal(const Mesh& m, std::size_t f) {
@@ -139,6 +166,32 @@ inline std::map<int64_t, LinkShape> LinkShapesByKey(const std::vector<SurfacePar
   for (const auto& [key, v] : index)
     if (v < links.size() && !links[v].empty()) shape[key] = CheckLink(links[v].data(), links[v].size(), &by_first, &seconds);
   return shape;
+}
+
+// Parts of a stream cut around a vertex, each put through `pass` alone (fn(SurfacePart*)): the
+// vertex keys whose faces made one fan across the parts before and do not after, how many made
+// one fan before, and LinkShapesByKey's message before or after. (The pieces alone are not a
+// closed-up surface, their neighbours are missing: so the check is per vertex.)
+struct FansAfterPass {
+  int64_t one_fan = 0;
+  std::vector<int64_t> broken;
+  std::string error;
+};
+template <typename Pass>
+FansAfterPass FansAfter(std::vector<SurfacePart>& parts, Pass pass) {
+  FansAfterPass out;
+  std::string error;
+  const std::map<int64_t, LinkShape> before = LinkShapesByKey(parts, &error);
+  if (!error.empty()) out.error = "before: " + error;
+  for (SurfacePart& p : parts) pass(&p);
+  const std::map<int64_t, LinkShape> after = LinkShapesByKey(parts, &error);
+  if (!error.empty() && out.error.empty()) out.error = "after: " + error;
+  for (const auto& [key, shape] : before) {
+    if (shape == LinkShape::kNotOneFan) continue;
+    ++out.one_fan;
+    if (after.at(key) == LinkShape::kNotOneFan) out.broken.push_back(key);
+  }
+  return out;
 }
 
 }  // namespace imr::engine::testing
