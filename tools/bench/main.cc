@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "tools/bench/common/subprocess.h"
+
 namespace imr::bench {
 int RunEngineBench(int argc, char** argv);
 int RunPipelineBench(int argc, char** argv);
@@ -104,6 +106,7 @@ bool IsHelp(const char* arg) { return !std::strcmp(arg, "--help") || !std::strcm
 }  // namespace
 
 int main(int argc, char** argv) {
+  imr::bench::ExeDir();  // resolved before anything can relink the binary (subprocess.h)
   if (argc < 2 || IsHelp(argv[1])) {
     Usage(argc < 2 ? stderr : stdout);
     return argc < 2 ? 2 : 0;

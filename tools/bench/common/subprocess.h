@@ -26,9 +26,12 @@
 
 namespace imr::bench {
 
-// The folder of the running executable (imr-bench sits beside imr and imr-synth).
-inline std::filesystem::path ExeDir() {
-  return std::filesystem::canonical("/proc/self/exe").parent_path();
+// The folder of the running executable (imr-bench sits beside imr and imr-synth), resolved once:
+// main asks first, so a rebuild that relinks the binary during a long benchmark (then
+// /proc/self/exe names a deleted file) no longer aborts it at its next subprocess.
+inline const std::filesystem::path& ExeDir() {
+  static const std::filesystem::path dir = std::filesystem::canonical("/proc/self/exe").parent_path();
+  return dir;
 }
 
 // `s` as one word for /bin/sh.
