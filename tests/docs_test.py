@@ -35,7 +35,7 @@ NOT_OPTIONS = {
     # PLY face properties (docs/interop.md: what OpenMVS reads)
     "vertex_index", "vertex_indices",
     # the SDK's structs and fields (docs/plugins.md, docs/tiles.md), glTF extras
-    "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "imr_upright",
+    "imr_mesh_view", "imr_export_request", "vertex_keys", "gltf_rotation", "texel_size", "imr_upright",
     "local_transform",  # tileset.json asset.extras.imr (docs/tiles.md)
     "lod_tiles", "tiles_per_level", "pending_triangles_peak", "subtree_bytes", "tileset_writes", "tileset_bytes",  # tileset.json, report.json tiles.lod
     "engine_bytes",  # report.json memory, imr run --trace records (benchmarks.md, reliability.md)

@@ -88,6 +88,7 @@ ExportImageStats ExportFormats(const ExportContext& context, const std::vector<s
       if (tile != nullptr) {
         req.origin = tile->origin.data();
         req.gltf_rotation = tile->gltf_rotation.data();
+        req.texel_size = tile->texel_size;
       }
       const WatchedStage watched = WatchedStageOf(*stage, stage_timeout);
       bool taken = false;

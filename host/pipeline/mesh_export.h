@@ -60,6 +60,7 @@ struct TileExportExtras {
   const std::vector<int64_t>* vertex_keys = nullptr;  // per vertex
   std::array<double, 3> origin{};                     // vertices written relative to it
   std::array<double, 9> gltf_rotation{};              // the glTF root's, row-major
+  double texel_size = 0.0;  // a level of detail's texel (ABI 1.6); 0: the images' resolution
 };
 
 // Writes `mesh` into `directory` as stem.<format> for every format, each through the first

@@ -479,6 +479,10 @@ void SequenceRun::WriteTile(const TileMesh& t, const fs::path& dir, const std::s
   extras.vertex_keys = &t.keys;
   extras.origin = t.origin;
   extras.gltf_rotation = TileGltfRotation();
+  // A level of detail is shown only from afar: a texel of its geometric error / 16 is about a
+  // screen pixel where the viewer turns to its children (their geometric error is smaller), so
+  // its atlas need not be as large as theirs together (it was: the images' resolution).
+  if (t.level > 0) extras.texel_size = t.geometric_error / kLodTexelsPerError;
   try {
     const ExportImageStats s = ExportMesh(t.mesh, seeing, {"glb"}, exporters_, dir, stem, watch_,
                                           options_.stage_timeout, &extras);

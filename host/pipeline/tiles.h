@@ -105,6 +105,10 @@ inline constexpr int kMaxLodLevel = 20;
 inline constexpr double kMaxLodShare = 0.5;
 inline constexpr double kMaxLodShareMany = 0.8;
 inline constexpr int kLodManyChildren = 4;
+// A level of detail's texture: a texel of its geometric error / this (ABI 1.6 texel_size). A
+// viewer turns to the children when the error would cover its screen-space error target (16
+// pixels in 3d-tiles-renderer and CesiumJS by default), so a texel is about a screen pixel there.
+inline constexpr double kLodTexelsPerError = 16.0;
 // What a run may write and `imr tiles merge` reads: at most this many tiles (about 40 MiB of
 // tileset.json) and a tileset.json of at most this many bytes.
 inline constexpr int64_t kMaxTiles = 100000;

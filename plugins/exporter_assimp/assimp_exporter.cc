@@ -434,8 +434,10 @@ std::unique_ptr<aiScene> BuildScene(const imr::sdk::MeshView& mesh, const std::s
   return scene;
 }
 
-// An atlas page encoded as PNG or JPEG (page_encoder.hpp).
-std::vector<uint8_t> EncodePage(const AtlasPage& page, const std::string& format, int jpeg_quality) {
+// An atlas page encoded as PNG or JPEG (page_encoder.hpp), its pixels consumed: turned to BGR
+// in place for the encoder (a converted copy was a second page's bytes at the end's peak).
+std::vector<uint8_t> EncodePage(AtlasPage& page, const std::string& format, int jpeg_quality) {
+  for (std::size_t i = 0; i + 2 < page.rgb.size(); i += 3) std::swap(page.rgb[i], page.rgb[i + 2]);
   return imr::exporter_assimp::EncodeAtlasPage(page.rgb.data(), page.width, page.height, format,
                                                jpeg_quality);
 }
@@ -699,11 +701,13 @@ class AssimpExporter : public imr::sdk::Exporter {
     key = Hash(key, mesh.vertices.data(), mesh.vertices.size() * sizeof(double));
     key = Hash(key, mesh.faces.data(), mesh.faces.size() * sizeof(uint32_t));
     key = Hash(key, request.keyframes.data(), request.keyframes.size() * sizeof(imr_camera));
+    key = Hash(key, &request.texel_size, sizeof(double));
     if (cache_ && cache_key_ == key && (cache_atlas_ || !atlas)) return &*cache_;
     cache_.reset();
     encoded_.clear();
     TexturingOptions o = texturing_;
     o.texture = atlas;
+    o.texel_size = request.texel_size;  // a level of detail's coarser texture (ABI 1.6)
     cache_atlas_ = atlas;
     // Each page encoded as soon as it is whole and its pixels freed: one page's pixels held at a
     // time (the default job's three 4096^2 pages took 150 MB at once, the end's peak).

@@ -6,21 +6,18 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include <exception>
 
 extern "C" __attribute__((visibility("default"))) bool imr_assimp_encode_page(
-    const uint8_t* rgb, int width, int height, const char* format, int jpeg_quality,
+    const uint8_t* bgr, int width, int height, const char* format, int jpeg_quality,
     std::vector<uint8_t>* out, std::string* error) {
   try {
-    cv::Mat page(height, width, CV_8UC3, const_cast<uint8_t*>(rgb));
-    cv::Mat bgr;
-    cv::cvtColor(page, bgr, cv::COLOR_RGB2BGR);
+    const cv::Mat page(height, width, CV_8UC3, const_cast<uint8_t*>(bgr));
     const std::string f = format;
     const std::vector<int> params = f == "png" ? std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 3}
                                                : std::vector<int>{cv::IMWRITE_JPEG_QUALITY, jpeg_quality};
-    if (cv::imencode("." + f, bgr, *out, params)) return true;
+    if (cv::imencode("." + f, page, *out, params)) return true;
     *error = "imencode failed";
   } catch (const std::exception& e) {
     *error = e.what();

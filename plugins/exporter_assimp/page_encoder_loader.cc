@@ -10,7 +10,7 @@ namespace imr::exporter_assimp {
 namespace fs = std::filesystem;
 
 // The encoder module beside this plugin (page_encoder.hpp), loaded on first use.
-std::vector<uint8_t> EncodeAtlasPage(const uint8_t* rgb, int width, int height, const std::string& format,
+std::vector<uint8_t> EncodeAtlasPage(const uint8_t* bgr, int width, int height, const std::string& format,
                                      int jpeg_quality) {
   using Encode = decltype(imr_assimp_encode_page);
   static Encode* const encode = [] {
@@ -26,7 +26,7 @@ std::vector<uint8_t> EncodeAtlasPage(const uint8_t* rgb, int width, int height, 
   }();
   std::vector<uint8_t> bytes;
   std::string error;
-  if (!encode(rgb, width, height, format.c_str(), jpeg_quality, &bytes, &error))
+  if (!encode(bgr, width, height, format.c_str(), jpeg_quality, &bytes, &error))
     throw std::runtime_error("cannot encode a " + std::to_string(width) + "x" +
                              std::to_string(height) + " atlas page as " + format + ": " + error);
   return bytes;

@@ -306,6 +306,63 @@ TEST(Texturing, AtlasAndVertexColoursMatchTheScenesOwnTexture) {
   EXPECT_GE(colours.Share(), kShare);
 }
 
+// A level of detail's request (ABI 1.6 texel_size): each patch takes one texel per n x n pixels,
+// n the whole pixels its view sees within the texel at its faces. The same views, an atlas of a
+// fraction of the pixels, and the texture still the scene's; a texel smaller than every pixel
+// changes nothing.
+TEST(Texturing, ALevelOfDetailsCoarserTexelsStillShowTheScene) {
+  const KnownScene& s = Scene();
+  TexturingOptions o;
+  o.atlas_size = 2048;
+  auto texture = [&](double texel_size) {
+    FakeHost host(s.images);
+    const imr::sdk::Host h(&host.services);
+    TexturingOptions with = o;
+    with.texel_size = texel_size;
+    return ColorAndTexture(s.View(), s.cameras, [&](uint64_t i) { return h.GetKeyframeImage(i); }, with);
+  };
+  const TexturedMesh full = texture(0.0);
+  const TexturedMesh fine = texture(1e-6);  // under a pixel everywhere: step 1
+  EXPECT_EQ(fine.face_uv, full.face_uv);
+  ASSERT_EQ(fine.pages.size(), full.pages.size());
+  for (std::size_t p = 0; p < full.pages.size(); ++p) EXPECT_TRUE(fine.pages[p].rgb == full.pages[p].rgb);
+
+  const TexturedMesh coarse = texture(0.1);  // 10 cm: ~3 pixels at 10 m here
+  std::cout << "atlas: " << full.stats.atlas_pixels << " px at the images' resolution, "
+            << coarse.stats.atlas_pixels << " px with 10 cm texels (" << full.stats.patches << " and "
+            << coarse.stats.patches << " patches)\n";
+  EXPECT_EQ(coarse.face_view, full.face_view);
+  EXPECT_GE(coarse.stats.patches, full.stats.patches);  // split where the step changes
+  EXPECT_EQ(coarse.stats.faces_textured, full.stats.faces_textured);
+  // Far faces (the street runs to 50 m, where a pixel is 14 cm) keep their pixels.
+  EXPECT_LT(coarse.stats.atlas_pixels, full.stats.atlas_pixels / 2);
+  const TexturedMesh coarser = texture(0.4);
+  std::cout << "atlas with 40 cm texels: " << coarser.stats.atlas_pixels << " px\n";
+  EXPECT_LT(coarser.stats.atlas_pixels, full.stats.atlas_pixels / 8);
+
+  std::vector<cv::Mat> pages;
+  for (const AtlasPage& p : coarse.pages) {
+    cv::Mat rgb(p.height, p.width, CV_8UC3, const_cast<uint8_t*>(p.rgb.data())), bgr;
+    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    pages.push_back(bgr);
+  }
+  Agreement agreement;
+  for (std::size_t f = 0; f < s.faces.size() / 3; ++f) {
+    if (coarse.face_page[f] < 0) continue;
+    double u = 0, v = 0;
+    for (int k = 0; k < 3; ++k) {
+      const float cu = coarse.face_uv[6 * f + 2 * k], cv = coarse.face_uv[6 * f + 2 * k + 1];
+      ASSERT_TRUE(cu >= 0.0f && cu <= 1.0f && cv >= 0.0f && cv <= 1.0f) << "face " << f;
+      u += cu / 3, v += cv / 3;
+    }
+    const double want = s.TrueGrey(static_cast<std::size_t>(coarse.face_view[f]), s.Centroid(f), s.face_rect[f]);
+    agreement.Add(AtlasGrey(pages[static_cast<std::size_t>(coarse.face_page[f])], u, v), want);
+  }
+  std::cout << "coarse texture: " << agreement.within << " of " << agreement.compared
+            << " centroids within " << kGreyLevels << " grey levels\n";
+  EXPECT_GE(agreement.Share(), kShare);
+}
+
 // The smoothness term on a 40 x 40 grid of quads seen by two views: where their qualities are
 // equal up to noise (the best view flips at random from face to face), the labelling joins the
 // faces into one view; where one view is clearly better (left half: view 0, right half: view 1),
@@ -366,9 +423,11 @@ class TexturedFiles : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
 
   // Exports the known scene in `formats` with one instance (as the host does); the main files.
+  // `texel_size` goes in the request (ABI 1.6); `struct_size` (non-zero): the request as a host
+  // of an older minor sends it, shorter than this SDK's.
   std::vector<fs::path> Export(FakeHost* host, const std::vector<std::string>& formats,
                                const std::string& params = "{}", const uint8_t* colors = nullptr,
-                               bool images = true) {
+                               bool images = true, double texel_size = 0.0, uint32_t struct_size = 0) {
     const KnownScene& s = Scene();
     imr::sdk::Instance inst(descriptor_, params, &host->services);
     imr_mesh_view view{};
@@ -390,7 +449,14 @@ class TexturedFiles : public ::testing::Test {
       req.keyframes = s.cameras.data();
       req.keyframe_count = s.cameras.size();
       req.keyframe_images = images ? 1 : 0;
-      inst.ExportMesh(&req);
+      req.texel_size = texel_size;
+      if (struct_size == 0) {
+        inst.ExportMesh(&req);
+      } else {
+        req.struct_size = struct_size;
+        imr_error e{};
+        EXPECT_EQ(descriptor_->exporter->export_mesh(inst.handle(), &req, &e), IMR_OK) << e.message;
+      }
       files.push_back(dir_ / (stem + "." + format));
     }
     return files;
@@ -446,6 +512,40 @@ Agreement GltfTextureAgreement(const fs::path& file) {
     }
   }
   return a;
+}
+
+// Texels of a glTF's atlas pages.
+int64_t AtlasTexels(const fs::path& file) {
+  const Gltf g = LoadGltf(file);
+  int64_t texels = 0;
+  for (const json& image : g.doc["images"]) {
+    const json& bv = g.doc["bufferViews"][image["bufferView"].get<std::size_t>()];
+    const std::vector<uint8_t> bytes(g.bin.begin() + bv.value("byteOffset", 0),
+                                     g.bin.begin() + bv.value("byteOffset", 0) + bv["byteLength"].get<long>());
+    const cv::Mat atlas = cv::imdecode(bytes, cv::IMREAD_COLOR);
+    texels += static_cast<int64_t>(atlas.cols) * atlas.rows;
+  }
+  return texels;
+}
+
+// The request's texel_size (ABI 1.6, a level of detail's) through the plugin: a coarser atlas
+// that still shows the scene; a 1.2-1.5 host's request, which ends before the field, is read
+// without it whatever lies beyond (the images' resolution, as before).
+TEST_F(TexturedFiles, ALevelOfDetailsTexelSizeAndAnOlderHostsRequest) {
+  const KnownScene& s = Scene();
+  FakeHost host(s.images);
+  const int64_t full = AtlasTexels(Export(&host, {"glb"})[0]);
+  const fs::path coarse = Export(&host, {"glb"}, "{}", nullptr, true, 0.2)[0];
+  ExpectValidGltf(coarse);
+  const int64_t coarse_texels = AtlasTexels(coarse);
+  const Agreement a = GltfTextureAgreement(coarse);
+  std::cout << "atlas " << full << " texels, with 20 cm texels " << coarse_texels << "; " << a.within
+            << " of " << a.compared << " centroids within " << kGreyLevels << " grey levels\n";
+  EXPECT_LT(coarse_texels, full / 3);  // 29 %: the far street keeps its pixels (texture_test above)
+  EXPECT_GE(a.Share(), kShare);
+  const fs::path older = Export(&host, {"glb"}, "{}", nullptr, true, 0.2, IMR_EXPORT_REQUEST_SIZE_1_2)[0];
+  EXPECT_EQ(AtlasTexels(older), full);
+  EXPECT_EQ(host.Held(), 0);
 }
 
 TEST_F(TexturedFiles, GltfGlbObjAndPlyCarryTheTextureAndColours) {

@@ -263,8 +263,11 @@ using Candidate = ViewCandidate;
 struct Patch {
   int view = 0;             // position in the views list
   int x0 = 0, y0 = 0;       // image pixel of the rectangle's top-left corner
-  int width = 0, height = 0;
+  int width = 0, height = 0;  // in image pixels
+  int step = 1;             // image pixels per texel on each axis (TexturingOptions::texel_size)
   int page = 0, px = 0, py = 0;  // where it goes in the atlas
+  int texels_x() const { return (width + step - 1) / step; }
+  int texels_y() const { return (height + step - 1) / step; }
 };
 
 // Maximum flow (Dinic) on a small graph with real capacities: the min cut of one expansion move.
@@ -462,6 +465,7 @@ std::string TexturingOptions::Check() const {
   if (keyframe_step < 1) return "keyframe_step: expected >= 1";
   if (!(seam_penalty >= 0.0 && std::isfinite(seam_penalty))) return "seam_penalty: expected >= 0";
   if (padding < 0 || 2 * padding + 8 > atlas_size) return "padding: expected 0 .. (atlas_size - 8) / 2";
+  if (!(texel_size >= 0.0 && std::isfinite(texel_size))) return "texel_size: expected >= 0";
   return {};
 }
 
@@ -719,29 +723,41 @@ void VertexColours(const imr::sdk::MeshView& mesh, const VisibilityPass& pass, T
   }
 }
 
-// Each labelled face's corners in its view's image (u, v per corner).
+// Each labelled face's corners in its view's image (u, v per corner), and its farthest corner's
+// depth there (`depth`, for the texel size).
 std::vector<double> ImageCorners(const imr::sdk::MeshView& mesh, const std::vector<View>& views,
-                                 const std::vector<int32_t>& label) {
+                                 const std::vector<int32_t>& label, std::vector<double>* depth) {
   const std::size_t nf = mesh.face_count();
   const double* X = mesh.vertices.data();
   std::vector<double> img_uv(6 * nf, 0.0);
+  depth->assign(nf, 0.0);
   for (std::size_t f = 0; f < nf; ++f) {
     if (label[f] < 0) continue;
     const View& view = views[static_cast<std::size_t>(label[f])];
     for (int k = 0; k < 3; ++k) {
       const Vec3 p = view.ToCamera(X + 3 * mesh.faces[3 * f + k]);
       Project(view, p, &img_uv[6 * f + 2 * k], &img_uv[6 * f + 2 * k + 1]);
+      (*depth)[f] = std::max((*depth)[f], p[2]);
     }
   }
   return img_uv;
+}
+
+// Image pixels per texel for a face whose farthest corner lies `depth` from `view`: the largest
+// whole number of pixels (of the larger of the two focal lengths' footprints) within texel_size.
+int TexelStep(const View& view, double depth, double texel_size) {
+  const double pixel = depth / std::max(view.fx, view.fy);
+  if (!(texel_size > 0.0) || !(pixel > 0.0)) return 1;
+  return static_cast<int>(std::clamp(std::floor(texel_size / pixel), 1.0, 1024.0));
 }
 
 // The patch grown from `seed`: connected faces with its label, breadth-first while the
 // rectangle they need (with padding) still fits a page; false when the seed alone is larger than
 // a page (left untextured). Marks its faces in out.face_patch.
 bool GrowPatch(std::size_t seed, int32_t id, const Adjacency& adjacency, const std::vector<int32_t>& label,
-               const std::vector<double>& img_uv, const std::vector<View>& views,
-               const TexturingOptions& options, TexturedMesh& out, Patch* patch) {
+               const std::vector<double>& img_uv, const std::vector<double>& face_depth,
+               const std::vector<View>& views, const TexturingOptions& options, TexturedMesh& out,
+               Patch* patch) {
   const int pad = options.padding, limit = options.atlas_size;
   double lo[2] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
   double hi[2] = {-lo[0], -lo[1]};
@@ -756,6 +772,12 @@ bool GrowPatch(std::size_t seed, int32_t id, const Adjacency& adjacency, const s
     }
     return true;
   };
+  // With a texel size (a level of detail), a patch takes the step its seed allows and only faces
+  // that allow it and less than twice it: none sampled coarser than the texel asked for, none
+  // more than twice finer on each axis (a patch down a street spans 10 to 50 m).
+  const View& view = views[static_cast<std::size_t>(label[seed])];
+  auto step_of = [&](std::size_t f) { return TexelStep(view, face_depth[f], options.texel_size); };
+  const int step = step_of(seed);
   double nlo[2], nhi[2];
   if (!fits(seed, nlo, nhi)) return false;
   std::copy(nlo, nlo + 2, lo);
@@ -767,19 +789,21 @@ bool GrowPatch(std::size_t seed, int32_t id, const Adjacency& adjacency, const s
     for (uint32_t a = adjacency.begin[f]; a < adjacency.begin[f + 1]; ++a) {
       const uint32_t g = adjacency.adj[a];
       if (label[g] != label[seed] || out.face_patch[g] >= 0 || !fits(g, nlo, nhi)) continue;
+      if (const int s = step_of(g); s < step || s >= 2 * step) continue;
       std::copy(nlo, nlo + 2, lo);
       std::copy(nhi, nhi + 2, hi);
       out.face_patch[g] = id;
       queue.push_back(g);
     }
   }
-  const View& view = views[static_cast<std::size_t>(label[seed])];
   Patch& p = *patch;
   p.view = label[seed];
-  p.x0 = std::max(0, static_cast<int>(std::floor(lo[0])) - pad);
-  p.y0 = std::max(0, static_cast<int>(std::floor(lo[1])) - pad);
-  p.width = std::min(view.width - 1, static_cast<int>(std::ceil(hi[0])) + pad) - p.x0 + 1;
-  p.height = std::min(view.height - 1, static_cast<int>(std::ceil(hi[1])) + pad) - p.y0 + 1;
+  p.step = step;  // grown in image pixels (a page holds it at any step); the padding in texels
+  const int margin = pad * p.step;
+  p.x0 = std::max(0, static_cast<int>(std::floor(lo[0])) - margin);
+  p.y0 = std::max(0, static_cast<int>(std::floor(lo[1])) - margin);
+  p.width = std::min(view.width - 1, static_cast<int>(std::ceil(hi[0])) + margin) - p.x0 + 1;
+  p.height = std::min(view.height - 1, static_cast<int>(std::ceil(hi[1])) + margin) - p.y0 + 1;
   return true;
 }
 
@@ -788,29 +812,30 @@ void PackPatches(std::vector<Patch>& patches, int limit, TexturedMesh& out) {
   std::vector<std::size_t> order(patches.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return patches[a].height > patches[b].height ||
-           (patches[a].height == patches[b].height && (patches[a].width > patches[b].width ||
-                                                       (patches[a].width == patches[b].width && a < b)));
+    const int ha = patches[a].texels_y(), hb = patches[b].texels_y();
+    const int wa = patches[a].texels_x(), wb = patches[b].texels_x();
+    return ha > hb || (ha == hb && (wa > wb || (wa == wb && a < b)));
   });
   int page = -1, x = 0, shelf_y = 0, shelf_h = 0;
   std::vector<std::array<int, 2>> used;
   for (std::size_t i : order) {
     Patch& p = patches[i];
-    if (page < 0 || x + p.width > limit) {  // next shelf
+    const int w = p.texels_x(), h = p.texels_y();
+    if (page < 0 || x + w > limit) {  // next shelf
       shelf_y += shelf_h;
       x = 0;
-      shelf_h = p.height;
+      shelf_h = h;
     }
-    if (page < 0 || shelf_y + p.height > limit) {  // next page
+    if (page < 0 || shelf_y + h > limit) {  // next page
       ++page;
       used.push_back({0, 0});
-      x = 0, shelf_y = 0, shelf_h = p.height;
+      x = 0, shelf_y = 0, shelf_h = h;
     }
     p.page = page, p.px = x, p.py = shelf_y;
-    x += p.width;
+    x += w;
     used[static_cast<std::size_t>(page)][0] = std::max(used[static_cast<std::size_t>(page)][0], x);
-    used[static_cast<std::size_t>(page)][1] = std::max(used[static_cast<std::size_t>(page)][1], shelf_y + p.height);
-    out.stats.patch_pixels += static_cast<int64_t>(p.width) * p.height;
+    used[static_cast<std::size_t>(page)][1] = std::max(used[static_cast<std::size_t>(page)][1], shelf_y + h);
+    out.stats.patch_pixels += static_cast<int64_t>(w) * h;
   }
   for (const auto& [w, h] : used) {
     AtlasPage pg;  // its pixels come in CopyPatches, one page at a time
@@ -821,8 +846,8 @@ void PackPatches(std::vector<Patch>& patches, int limit, TexturedMesh& out) {
   }
 }
 
-// Texture coordinates: image pixel (x, y) lands on texel (x - x0 + px, y - y0 + py), whose
-// centre is at +0.5 in texture space.
+// Texture coordinates: image pixel (x, y) lands on texel ((x - x0) / step + px, (y - y0) / step
+// + py), whose centre is at +0.5 in texture space (a texel of n x n pixels: their centre).
 void TextureCoordinates(const std::vector<Patch>& patches, const std::vector<View>& views,
                         const std::vector<double>& img_uv, std::vector<int32_t>& label, TexturedMesh& out) {
   for (std::size_t f = 0; f < label.size(); ++f) {
@@ -836,9 +861,9 @@ void TextureCoordinates(const std::vector<Patch>& patches, const std::vector<Vie
     out.face_view[f] = views[static_cast<std::size_t>(p.view)].index;
     for (int k = 0; k < 3; ++k) {
       out.face_uv[6 * f + 2 * k] =
-          static_cast<float>((img_uv[6 * f + 2 * k] - p.x0 + p.px + 0.5) / pg.width);
+          static_cast<float>(((img_uv[6 * f + 2 * k] - p.x0 + 0.5) / p.step + p.px) / pg.width);
       out.face_uv[6 * f + 2 * k + 1] =
-          static_cast<float>((img_uv[6 * f + 2 * k + 1] - p.y0 + p.py + 0.5) / pg.height);
+          static_cast<float>(((img_uv[6 * f + 2 * k + 1] - p.y0 + 0.5) / p.step + p.py) / pg.height);
     }
     ++out.stats.faces_textured;
   }
@@ -855,18 +880,47 @@ std::vector<Patch> LayOutAtlas(const imr::sdk::MeshView& mesh, const std::vector
   std::vector<int32_t> label =
       SelectViewsOn(adjacency, nf, std::move(candidates), static_cast<int>(views.size()),
                     options.seam_penalty, &out.stats);
-  const std::vector<double> img_uv = ImageCorners(mesh, views, label);
+  std::vector<double> face_depth;
+  const std::vector<double> img_uv = ImageCorners(mesh, views, label, &face_depth);
   std::vector<Patch> patches;
   for (std::size_t seed = 0; seed < nf; ++seed) {
     if (label[seed] < 0 || out.face_patch[seed] >= 0) continue;
     Patch p;
-    if (GrowPatch(seed, static_cast<int32_t>(patches.size()), adjacency, label, img_uv, views, options, out, &p))
+    if (GrowPatch(seed, static_cast<int32_t>(patches.size()), adjacency, label, img_uv, face_depth, views,
+                  options, out, &p))
       patches.push_back(p);
   }
   out.stats.patches = static_cast<int64_t>(patches.size());
   PackPatches(patches, options.atlas_size, out);
   TextureCoordinates(patches, views, img_uv, label, out);
   return patches;
+}
+
+// A patch of step n: each texel the mean of its n x n pixels (those within the patch's rectangle).
+void CopyMeans(const Patch& p, const imr::sdk::KeyframeImage& image, AtlasPage& pg) {
+  const int ch = image.channels();
+  std::vector<uint32_t> sum(3 * static_cast<std::size_t>(p.texels_x()));
+  for (int ty = 0; ty < p.texels_y(); ++ty) {
+    std::fill(sum.begin(), sum.end(), 0u);
+    const int y_end = std::min(p.height, (ty + 1) * p.step);
+    for (int y = ty * p.step; y < y_end; ++y) {
+      const uint8_t* src = image.Row(p.y0 + y) + static_cast<std::ptrdiff_t>(p.x0) * ch;
+      for (int x = 0; x < p.width; ++x, src += ch) {
+        uint32_t* s = &sum[3 * static_cast<std::size_t>(x / p.step)];
+        if (ch == 1) {
+          s[0] += src[0], s[1] += src[0], s[2] += src[0];
+        } else {
+          s[0] += src[2], s[1] += src[1], s[2] += src[0];
+        }
+      }
+    }
+    uint8_t* dst = pg.rgb.data() + (static_cast<std::size_t>(p.py + ty) * pg.width + p.px) * 3;
+    for (int tx = 0; tx < p.texels_x(); ++tx, dst += 3) {
+      const uint32_t n = static_cast<uint32_t>((std::min(p.width, (tx + 1) * p.step) - tx * p.step) *
+                                               (y_end - ty * p.step));
+      for (int c = 0; c < 3; ++c) dst[c] = static_cast<uint8_t>((sum[3 * tx + c] + n / 2) / n);
+    }
+  }
 }
 
 // Pass 2: copy each patch's rectangle from its view's image (BGR or gray) into its page (RGB),
@@ -895,6 +949,10 @@ void CopyPatches(const std::vector<Patch>& patches, const std::vector<View>& vie
       const int ch = image.channels();
       for (std::size_t i : by_view[vi]) {
         const Patch& p = patches[i];
+        if (p.step > 1) {
+          CopyMeans(p, image, pg);
+          continue;
+        }
         for (int y = 0; y < p.height; ++y) {
           const uint8_t* src = image.Row(p.y0 + y) + static_cast<std::ptrdiff_t>(p.x0) * ch;
           uint8_t* dst = pg.rgb.data() + (static_cast<std::size_t>(p.py + y) * pg.width + p.px) * 3;

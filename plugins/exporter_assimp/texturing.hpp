@@ -43,7 +43,12 @@ struct TexturingOptions {
   int atlas_size = 4096;      // pixels on a side of an atlas page (64 .. 16384)
   int keyframe_step = 1;      // use keyframes 0, n, 2n, ... (and the last one)
   double seam_penalty = 1.0;  // Potts weight per pair of adjacent faces with different views
-  int padding = 2;            // image pixels kept around each patch (bilinear filtering, mipmaps)
+  int padding = 2;            // texels kept around each patch (bilinear filtering, mipmaps)
+  // The world length of one texel the content needs (the request's, ABI 1.6: a level of detail
+  // seen from afar); 0: the images' own resolution. Where a view sees pixels smaller than this,
+  // a patch takes one texel per n x n pixels (their mean), n the largest whole number of pixels
+  // within it at the patch's first face's farthest corner; its other faces allow n to 2n - 1.
+  double texel_size = 0.0;
 
   // Empty when usable, else which field and why.
   std::string Check() const;

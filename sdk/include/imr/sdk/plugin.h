@@ -91,7 +91,7 @@ extern "C" {
  * or newer than its own) and reads only the fields their struct_size covers, and a plugin does
  * the same with what the host passes. */
 #define IMR_ABI_MAJOR 1
-#define IMR_ABI_MINOR 5
+#define IMR_ABI_MINOR 6
 
 #define IMR_ENTRY_SYMBOL "imr_plugin_entry"
 
@@ -280,6 +280,12 @@ typedef struct imr_export_request { /* growing; filled by the host */
    * instead of one the exporter picks (an upright view from the keyframes). The host sets it for
    * 3D Tiles content, which is y-up glTF in a z-up tileset: (x, y, z) -> (x, z, -y). */
   const double* gltf_rotation;
+  /* --- since ABI 1.6: read only when struct_size covers it --- */
+  /* 0, or the world length of one texel the content needs (in the vertices' units): the host
+   * sets it for a 3D Tiles level of detail, which a viewer shows only from afar (its geometric
+   * error / 16: a texel about a screen pixel where the viewer turns to its children). An exporter
+   * may then sample the images that coarsely instead of at their own resolution. */
+  double texel_size;
 } imr_export_request;
 
 /* Since ABI 1.3: a mesh too large to hand over whole (the single mesh of a long drive, which the
@@ -594,6 +600,7 @@ typedef const imr_plugin_descriptor* (*imr_plugin_entry_fn)(uint32_t index);
 #define IMR_DESCRIPTOR_SIZE_1_5 112 /* up to dense: what a dense plugin's needs */
 #define IMR_DENSE_REQUEST_SIZE_1_5 32
 #define IMR_DENSE_API_SIZE_1_5 16
+#define IMR_EXPORT_REQUEST_SIZE_1_2 80 /* up to gltf_rotation */
 
 /* Pin the layout: these offsets are the ABI. Changing one is an ABI major bump. Checked by C11
  * and C++ compilers alike. */
@@ -617,6 +624,8 @@ IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, dense) == IMR_DESCRIPTOR_SIZE_
 IMR_STATIC_ASSERT(offsetof(imr_plugin_descriptor, reserved) == IMR_DESCRIPTOR_SIZE_1_5,
                   "ABI: descriptor 1.5");
 IMR_STATIC_ASSERT(sizeof(imr_dense_request) == IMR_DENSE_REQUEST_SIZE_1_5, "ABI: dense request");
+IMR_STATIC_ASSERT(offsetof(imr_export_request, texel_size) == IMR_EXPORT_REQUEST_SIZE_1_2,
+                  "ABI: export request 1.6");
 IMR_STATIC_ASSERT(sizeof(imr_dense_api) == IMR_DENSE_API_SIZE_1_5, "ABI: dense table");
 IMR_STATIC_ASSERT(sizeof(imr_refine_request) == IMR_REFINE_REQUEST_SIZE_1_4, "ABI: refine request");
 IMR_STATIC_ASSERT(sizeof(imr_refine_result) == IMR_REFINE_RESULT_SIZE_1_4, "ABI: refine result");
@@ -634,7 +643,7 @@ IMR_STATIC_ASSERT(offsetof(imr_mesh_view, vertex_colors) == IMR_MESH_VIEW_SIZE_1
                   "ABI: mesh view 1.1");
 IMR_STATIC_ASSERT(offsetof(imr_mesh_view, vertex_keys) == IMR_MESH_VIEW_SIZE_1_1,
                   "ABI: mesh view 1.2");
-IMR_STATIC_ASSERT(sizeof(imr_export_request) == 80, "ABI: export request");
+IMR_STATIC_ASSERT(sizeof(imr_export_request) == 88, "ABI: export request");
 IMR_STATIC_ASSERT(offsetof(imr_export_request, keyframes) == IMR_EXPORT_REQUEST_SIZE_1_0,
                   "ABI: export request 1.1");
 IMR_STATIC_ASSERT(offsetof(imr_export_request, origin) == IMR_EXPORT_REQUEST_SIZE_1_1,

@@ -268,6 +268,9 @@ struct ExportRequest {
   // them (3D Tiles).
   std::optional<std::array<double, 3>> origin;
   std::optional<std::array<double, 9>> gltf_rotation;
+  // Since 1.6: the world length of one texel the content needs (a 3D Tiles level of detail,
+  // seen only from afar), or 0: the images' own resolution.
+  double texel_size = 0.0;
 };
 
 // Since 1.3 (plugin.h, imr_mesh_stream): a mesh read in blocks, the same vertices and faces in
@@ -554,6 +557,9 @@ inline ExportRequest RequestOf(const imr_export_request* r) {
       req.gltf_rotation = rotation;
     }
   }
+  if (r->struct_size >= offsetof(imr_export_request, texel_size) + sizeof(double) &&
+      std::isfinite(r->texel_size) && r->texel_size > 0.0)
+    req.texel_size = r->texel_size;
   return req;
 }
 
