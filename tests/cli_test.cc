@@ -69,6 +69,20 @@ TEST_F(Cli, VersionAndHelp) {
   EXPECT_EQ(noarg.err.find("the option '--job' is required"), std::string::npos) << noarg.err;
 }
 
+// imr under jemalloc gives freed pages back within about a second (host/cli/main.cc): its
+// options are the ones jemalloc reads from the executable.
+TEST_F(Cli, JemallocGivesFreedPagesBack) {
+#ifndef IMR_TEST_JEMALLOC_CONF
+  GTEST_SKIP() << "imr is built without jemalloc";
+#else
+  const auto r = RunShell("MALLOC_CONF=confirm_conf:true " + kImr + " --version");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.err.find("global variable malloc_conf): \"background_thread:true,dirty_decay_ms:1000\""),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("Set conf value: dirty_decay_ms:1000"), std::string::npos) << r.err;
+#endif
+}
+
 // The children's flags are read strictly: a garbled value names its flag, nothing becomes 0.
 TEST_F(Cli, TheChildCommandRefusesGarbledValues) {
   for (const auto& [flag, value] : {std::pair{"--stage-timeout", "abc"},
