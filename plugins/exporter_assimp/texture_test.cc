@@ -225,6 +225,31 @@ struct Agreement {
   }
 };
 
+// The atlas at each textured triangle's centroid against the scene seen from the triangle's view
+// (every texture coordinate within its page, every centroid within its view's image).
+Agreement AtlasAgreement(const KnownScene& s, const TexturedMesh& t) {
+  std::vector<cv::Mat> pages;
+  for (const AtlasPage& p : t.pages) {
+    cv::Mat rgb(p.height, p.width, CV_8UC3, const_cast<uint8_t*>(p.rgb.data())), bgr;
+    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    pages.push_back(bgr);
+  }
+  Agreement agreement;
+  for (std::size_t f = 0; f < s.faces.size() / 3; ++f) {
+    if (t.face_page[f] < 0) continue;
+    const double want = s.TrueGrey(static_cast<std::size_t>(t.face_view[f]), s.Centroid(f), s.face_rect[f]);
+    EXPECT_GE(want, 0) << "face " << f << ": outside its view's image";
+    double u = 0, v = 0;
+    for (int k = 0; k < 3; ++k) {
+      const float cu = t.face_uv[6 * f + 2 * k], cv = t.face_uv[6 * f + 2 * k + 1];
+      EXPECT_TRUE(cu >= 0.0f && cu <= 1.0f && cv >= 0.0f && cv <= 1.0f) << "face " << f;
+      u += cu / 3, v += cv / 3;
+    }
+    if (want >= 0) agreement.Add(AtlasGrey(pages[static_cast<std::size_t>(t.face_page[f])], u, v), want);
+  }
+  return agreement;
+}
+
 TEST(Texturing, AtlasAndVertexColoursMatchTheScenesOwnTexture) {
   const KnownScene& s = Scene();
   FakeHost host(s.images);
@@ -253,21 +278,7 @@ TEST(Texturing, AtlasAndVertexColoursMatchTheScenesOwnTexture) {
   EXPECT_LE(st.seams, st.seams_best_view);
 
   // The texture at each textured triangle's centroid against the scene seen from that view.
-  std::vector<cv::Mat> pages;
-  for (const AtlasPage& p : t.pages) {
-    cv::Mat rgb(p.height, p.width, CV_8UC3, const_cast<uint8_t*>(p.rgb.data())), bgr;
-    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-    pages.push_back(bgr);
-  }
-  Agreement texture;
-  for (std::size_t f = 0; f < s.faces.size() / 3; ++f) {
-    if (t.face_page[f] < 0) continue;
-    const double want = s.TrueGrey(static_cast<std::size_t>(t.face_view[f]), s.Centroid(f), s.face_rect[f]);
-    ASSERT_GE(want, 0) << "face " << f << ": outside its view's image";
-    double u = 0, v = 0;
-    for (int k = 0; k < 3; ++k) u += t.face_uv[6 * f + 2 * k] / 3, v += t.face_uv[6 * f + 2 * k + 1] / 3;
-    texture.Add(AtlasGrey(pages[static_cast<std::size_t>(t.face_page[f])], u, v), want);
-  }
+  const Agreement texture = AtlasAgreement(s, t);
   std::cout << "texture: " << texture.within << " of " << texture.compared << " centroids within "
             << kGreyLevels << " grey levels\n";
   EXPECT_GE(texture.Share(), kShare);
@@ -340,24 +351,7 @@ TEST(Texturing, ALevelOfDetailsCoarserTexelsStillShowTheScene) {
   std::cout << "atlas with 40 cm texels: " << coarser.stats.atlas_pixels << " px\n";
   EXPECT_LT(coarser.stats.atlas_pixels, full.stats.atlas_pixels / 8);
 
-  std::vector<cv::Mat> pages;
-  for (const AtlasPage& p : coarse.pages) {
-    cv::Mat rgb(p.height, p.width, CV_8UC3, const_cast<uint8_t*>(p.rgb.data())), bgr;
-    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-    pages.push_back(bgr);
-  }
-  Agreement agreement;
-  for (std::size_t f = 0; f < s.faces.size() / 3; ++f) {
-    if (coarse.face_page[f] < 0) continue;
-    double u = 0, v = 0;
-    for (int k = 0; k < 3; ++k) {
-      const float cu = coarse.face_uv[6 * f + 2 * k], cv = coarse.face_uv[6 * f + 2 * k + 1];
-      ASSERT_TRUE(cu >= 0.0f && cu <= 1.0f && cv >= 0.0f && cv <= 1.0f) << "face " << f;
-      u += cu / 3, v += cv / 3;
-    }
-    const double want = s.TrueGrey(static_cast<std::size_t>(coarse.face_view[f]), s.Centroid(f), s.face_rect[f]);
-    agreement.Add(AtlasGrey(pages[static_cast<std::size_t>(coarse.face_page[f])], u, v), want);
-  }
+  const Agreement agreement = AtlasAgreement(s, coarse);
   std::cout << "coarse texture: " << agreement.within << " of " << agreement.compared
             << " centroids within " << kGreyLevels << " grey levels\n";
   EXPECT_GE(agreement.Share(), kShare);
