@@ -1,6 +1,8 @@
 // Keyframes of an image sequence (front_end.h): how many keyframe_every gives, and what a job
-// that did not choose it gets for a short image set.
+// that did not choose it gets for a short image set; the keyframes a level of detail's texture
+// takes (mesh_export.h).
 #include "host/pipeline/front_end.h"
+#include "host/pipeline/mesh_export.h"
 
 #include <gtest/gtest.h>
 
@@ -27,6 +29,32 @@ TEST(KeyframeCount, ShortSetsGetEnoughKeyframes) {
   // Fewer frames than kMinKeyframes: every frame, no lower.
   EXPECT_EQ(ShortSequenceKeyframeEvery(3, 5), 1);
   EXPECT_GE(KeyframeCount(30, ShortSequenceKeyframeEvery(30, 5)), kMinKeyframes);
+}
+
+// A level of detail takes every n-th keyframe that may see it, the last too, with its image.
+TEST(KeyframeCount, EveryNthKeyframeKeepsTheFirstTheLastAndTheirImages) {
+  ExportContext c;
+  for (int i = 0; i < 10; ++i) {
+    imr_camera cam{};
+    cam.t[0] = i;
+    c.keyframes.push_back(cam);
+    c.image_paths.push_back("image" + std::to_string(i) + ".png");
+  }
+  auto kept = [](const ExportContext& e) {
+    std::vector<int> t;
+    for (std::size_t i = 0; i < e.keyframes.size(); ++i) {
+      t.push_back(static_cast<int>(e.keyframes[i].t[0]));
+      EXPECT_EQ(e.image_paths[i], "image" + std::to_string(t.back()) + ".png");
+    }
+    return t;
+  };
+  EXPECT_EQ(kept(EveryNthKeyframe(c, 1)), std::vector<int>({0, 1, 2, 3, 4, 5, 6, 7, 8, 9}));
+  EXPECT_EQ(kept(EveryNthKeyframe(c, 4)), std::vector<int>({0, 4, 8, 9}));
+  EXPECT_EQ(kept(EveryNthKeyframe(c, 3)), std::vector<int>({0, 3, 6, 9}));
+  EXPECT_EQ(kept(EveryNthKeyframe(c, 64)), std::vector<int>({0, 9}));
+  c.image_paths.clear();  // engine-only inputs: no images
+  EXPECT_TRUE(EveryNthKeyframe(c, 2).image_paths.empty());
+  EXPECT_EQ(EveryNthKeyframe(c, 2).keyframes.size(), 6u);
 }
 
 }  // namespace

@@ -257,4 +257,16 @@ ExportContext KeyframesSeeing(const ExportContext& context, const std::array<dou
   return out;
 }
 
+ExportContext EveryNthKeyframe(const ExportContext& context, std::size_t n) {
+  ExportContext out;
+  out.source = context.source;
+  const std::size_t count = context.keyframes.size();
+  for (std::size_t i = 0; i < count; ++i) {
+    if (n > 1 && i % n != 0 && i + 1 != count) continue;
+    out.keyframes.push_back(context.keyframes[i]);
+    if (!context.image_paths.empty()) out.image_paths.push_back(context.image_paths[i]);
+  }
+  return out;
+}
+
 }  // namespace imr::pipeline

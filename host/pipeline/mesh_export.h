@@ -92,4 +92,7 @@ ExportImageStats ExportStreamedMesh(const StreamedSurface& mesh, const ExportCon
 ExportContext KeyframesSeeing(const ExportContext& context, const std::array<double, 6>& box,
                               double max_distance);
 
+// Every n-th keyframe of `context` (with its image), the first and the last among them.
+ExportContext EveryNthKeyframe(const ExportContext& context, std::size_t n);
+
 }  // namespace imr::pipeline
