@@ -22,6 +22,7 @@ namespace {
 
 using testing::Grid;
 using testing::Boundary;
+using testing::RandomSheet;
 using testing::Roughness;
 constexpr auto Normal = &testing::FaceNormal;
 
@@ -78,35 +79,6 @@ TEST(EdgeFlipsTest, ACornerStaysACorner) {
   // Within the floor and the wall a flip gains nothing (both diagonals lie flat).
   EXPECT_EQ(s.flips, 0);
   EXPECT_EQ(m.faces, before.faces);
-}
-
-// A random sheet: noise, spikes, folds, holes, bends. Returns false for an input that is not a
-// manifold (skipped).
-Mesh RandomSheet(std::mt19937& rng, int n) {
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double amplitude = 0.2 * (1.0 + u(rng));
-  const double bend = (rng() % 3 == 0) ? 0.0 : 0.75 * (1.0 + u(rng));
-  Mesh m = Grid(
-      n,
-      [&](int i, int j) {
-        const double x = i, y = j;
-        return std::array<double, 3>{x, y, amplitude * u(rng) + (x > n / 2 ? bend * (x - n / 2) : 0.0)};
-      },
-      [&](int, int) { return rng() % 2 == 0; });
-  for (int f = 0, folds = static_cast<int>(rng() % 4); f < folds; ++f) {
-    const int i = 1 + static_cast<int>(rng() % (n - 2)), j = 1 + static_cast<int>(rng() % (n - 2));
-    m.vertices[3 * (j * n + i)] += u(rng) * 2.0;
-    m.vertices[3 * (j * n + i) + 1] += u(rng) * 2.0;
-  }
-  for (int k = 0, spikes = static_cast<int>(rng() % 6); k < spikes; ++k) {
-    const int i = 1 + static_cast<int>(rng() % (n - 2)), j = 1 + static_cast<int>(rng() % (n - 2));
-    m.vertices[3 * (j * n + i) + 2] += 3.0 * u(rng);
-  }
-  for (int h = 0, holes = static_cast<int>(rng() % 4) * static_cast<int>(rng() % 2); h < holes && m.faces.size() > 6; ++h) {
-    const std::size_t f = rng() % (m.faces.size() / 3);
-    m.faces.erase(m.faces.begin() + 3 * static_cast<std::ptrdiff_t>(f), m.faces.begin() + 3 * static_cast<std::ptrdiff_t>(f) + 3);
-  }
-  return m;
 }
 
 // The property: on 1,000 random perturbations the result is a manifold with the same

@@ -134,6 +134,14 @@ struct EngineOptions {
                                       // where the other diagonal lowers the angles between
                                       // neighbouring faces (edge_flips.h); vertices and boundary
                                       // kept; streamed: per released piece.
+  int filter_normals = 0;             // Export, after flip_edges: rounds of bilateral normal
+                                      // filtering (faces' normals filtered, vertices moved to fit
+                                      // them; corners kept; normal_filter.h); boundary, faces and
+                                      // seam vertices kept; streamed: per released piece. 0: off.
+  double filter_normals_spatial = 1.0;  // filter_normals: the spatial Gaussian's sigma on the
+                                        // distance between face centroids, x median edge length.
+  double filter_normals_range = 0.35;   // filter_normals: the range Gaussian's sigma on the
+                                        // difference of two unit normals (90 degrees: 1.41).
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (keyframe update, step 3: insert)
                                       // when true; else they start at 0 and the point's own rays,

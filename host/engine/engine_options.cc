@@ -113,6 +113,11 @@ std::string EngineOptions::Check() const {
   if (smoothing_iterations < 0) e << "smoothing_iterations must be >= 0; ";
   if (!std::isfinite(retriangulate_planes) || retriangulate_planes < 0.0)
     e << "retriangulate_planes must be >= 0 (median edge lengths; 0: off); ";
+  if (filter_normals < 0) e << "filter_normals must be >= 0; ";
+  if (!std::isfinite(filter_normals_spatial) || !(filter_normals_spatial > 0.0))
+    e << "filter_normals_spatial must be > 0 (median edge lengths); ";
+  if (!std::isfinite(filter_normals_range) || !(filter_normals_range > 0.0))
+    e << "filter_normals_range must be > 0; ";
   if (!std::isfinite(min_component_area) || min_component_area < 0.0)
     e << "min_component_area must be >= 0 (x steiner_spacing^2; 0: keep every piece); ";
   if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";

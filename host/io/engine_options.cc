@@ -128,6 +128,16 @@ std::vector<EngineOption> MakeTable() {
              "export, after retriangulate_planes: interior edges flipped where the other "
              "diagonal of their two triangles lowers the angles between neighbouring faces "
              "(folds and ridges between sparse points; vertices and boundary kept)"),
+      Option("filter_normals", &E::filter_normals, Min(0), "rounds",
+             "export, after flip_edges: rounds of bilateral normal filtering (each face's normal "
+             "the weighted mean of its neighbours' with similar normals, then the vertices moved "
+             "to fit them: roughness taken out, corners kept; boundary and faces kept); 0: off"),
+      Option("filter_normals_spatial", &E::filter_normals_spatial, Min(1e-9),
+             "x median edge", "filter_normals: sigma of the Gaussian on the distance between two "
+             "faces' centroids"),
+      Option("filter_normals_range", &E::filter_normals_range, Min(1e-9), "",
+             "filter_normals: sigma of the Gaussian on the difference of two faces' unit normals "
+             "(0 .. 2; 1.41 at a right angle): smaller keeps more edges"),
       Option("transfer_on_insert", &E::transfer_on_insert, kNone, "",
              "cells made by inserting a new point get weights from the policy; false: they "
              "start at 0 and the point's own rays weight them (measured: far better "

@@ -352,7 +352,17 @@ json MeshJson(const ReportInputs& in) {
                                 {"edges", fl.edges},
                                 {"mean_angle_before", mean(fl.degrees_sum_before)},
                                 {"mean_angle_after", mean(fl.degrees_sum_after)}};
-  // The two passes undone where they broke the surface (a whole mesh: 1; streamed: its pieces).
+  // engine.filter_normals: the vertices it moved, and the mean angle between neighbouring faces.
+  const engine::NormalFilterStats& nfs = in.streamed != nullptr ? in.streamed->normal_filter : in.normal_filter;
+  const auto mean_nf = [&](double sum) { return nfs.edges > 0 ? sum / static_cast<double>(nfs.edges) : 0.0; };
+  mesh_json["normal_filter"] = {{"iterations", nfs.iterations},
+                                {"vertices_moved", nfs.vertices_moved},
+                                {"moves_reverted", nfs.moves_reverted},
+                                {"max_move", nfs.max_move},
+                                {"edges", nfs.edges},
+                                {"mean_angle_before", mean_nf(nfs.degrees_sum_before)},
+                                {"mean_angle_after", mean_nf(nfs.degrees_sum_after)}};
+  // The passes undone where they broke the surface (a whole mesh: 1; streamed: its pieces).
   const int64_t undone = in.streamed != nullptr ? in.streamed->pieces_undone : in.pieces_undone;
   mesh_json["passes_undone"] = {{"pieces", undone},
                                 {"why", in.streamed != nullptr ? in.streamed->undone_why : in.undone_why}};

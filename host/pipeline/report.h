@@ -85,6 +85,7 @@ struct ReportInputs {
   engine::DroppedComponents small_components_dropped;  // by ExtractMesh (a streamed run: its stats)
   engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes (a streamed run: its stats)
   engine::EdgeFlipStats flips;               // engine.flip_edges (a streamed run: its stats)
+  engine::NormalFilterStats normal_filter;   // engine.filter_normals (a streamed run: its stats)
   // The mesh (or, streamed, the pieces) written without a pass that broke it; the first why.
   int64_t pieces_undone = 0;
   std::string undone_why;

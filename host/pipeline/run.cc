@@ -611,7 +611,7 @@ void SequenceRun::Finish() {
     // A pass that leaves the mesh no manifold (a case its own rules missed) is undone with a
     // warning: the surface before it is written.
     // (What the passes change is kept aside: the planes move vertices and change faces, the flips
-    // change faces only.)
+    // change faces only, the normal filter moves vertices only.)
     const auto undo_unless_manifold = [&](std::vector<double>* xyz, std::vector<uint32_t>& faces,
                                           const std::string& pass) {
       report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
@@ -636,6 +636,14 @@ void SequenceRun::Finish() {
       std::vector<uint32_t> faces = mesh_->faces;
       report_.flips = engine::FlipEdges(&*mesh_, flips);
       if (report_.flips.flips > 0 && undo_unless_manifold(nullptr, faces, "engine.flip_edges")) report_.flips = {};
+    }
+    const auto normals = engine::NormalFilterOptions::FromEngine(engine_options_);
+    if (normals.enabled()) {
+      std::vector<double> xyz = mesh_->vertices;
+      std::vector<uint32_t> faces = mesh_->faces;
+      report_.normal_filter = engine::FilterNormals(&*mesh_, normals);
+      if (report_.normal_filter.vertices_moved > 0 && undo_unless_manifold(&xyz, faces, "engine.filter_normals"))
+        report_.normal_filter = {};
     }
   }
   WarnAbout();
@@ -821,9 +829,9 @@ void SequenceRun::WarnAbout() {
   if (2 * in_front_.behind() > in_front_.checked() && in_front_.checked() > 0)
     throw std::runtime_error(in_front_.Message());
   if (20 * in_front_.behind() > in_front_.checked()) Warn(in_front_.Message());
-  // Pieces of a streamed surface that the planes and flips passes would have broken.
+  // Pieces of a streamed surface that the planes, flips and normal filter passes would have broken.
   if (streamed_ && streamed_->stats().pieces_undone > 0)
-    Warn("engine.retriangulate_planes and flip_edges undone on " +
+    Warn("engine.retriangulate_planes, flip_edges and filter_normals undone on " +
          std::to_string(streamed_->stats().pieces_undone) +
          " released piece(s): they changed the piece's fans where other pieces meet it (" +
          streamed_->stats().undone_why + ")");

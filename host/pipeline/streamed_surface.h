@@ -15,6 +15,7 @@
 
 #include "host/engine/engine.h"
 #include "host/engine/edge_flips.h"
+#include "host/engine/normal_filter.h"
 #include "host/engine/plane_retriangulation.h"
 #include "host/engine/surface_stream.h"
 #include "host/eval/mesh_stats.h"
@@ -42,7 +43,8 @@ struct StreamedSurfaceStats {
   double max_update_seconds = 0.0; // the longest Take (one keyframe's parts)
   engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes, per released piece
   engine::EdgeFlipStats flips;               // engine.flip_edges, per released piece
-  // Pieces written without the two passes: they changed the piece's fans where other pieces meet
+  engine::NormalFilterStats normal_filter;   // engine.filter_normals, per released piece
+  // Pieces written without the passes: they changed the piece's fans where other pieces meet
   // it (SameVertexLinks); the first one's message.
   int64_t pieces_undone = 0;
   std::string undone_why;
@@ -117,6 +119,7 @@ class StreamedSurface {
   engine::SurfaceStream stream_;
   engine::PlaneRetriangulationOptions planes_;
   engine::EdgeFlipOptions flips_;
+  engine::NormalFilterOptions normal_filter_;
   std::function<void(engine::SurfacePart*)> filter_;
   std::filesystem::path spool_dir_;
   std::ofstream vertices_, faces_file_;

@@ -57,6 +57,7 @@
 #include <nlohmann/json.hpp>
 
 #include "host/engine/edge_flips.h"
+#include "host/engine/normal_filter.h"
 #include "host/engine/plane_retriangulation.h"
 #include "host/eval/distance.h"
 #include "host/eval/evaluate.h"
@@ -1245,18 +1246,24 @@ int RunPlanesBench(int argc, char** argv) {
   std::vector<std::string> tolerances = {"0", "0.1", "0.2", "0.4"};
   int min_faces = engine::PlaneRetriangulationOptions().min_faces;
   engine::EdgeFlipOptions fo;  // --flips: fo.enabled
+  engine::NormalFilterOptions nfo;  // --filter-normals N: nfo.iterations
   std::string colmap;
   Options o("imr-bench planes",
             "usage: imr-bench planes --mesh MESH --sequence IMR_SYNTH_SEQ [--tolerance 0,0.1,0.2]\n"
             "       [--min-faces N] [--flips [--flip-gain DEG] [--flip-min-angle DEG]] [--out DIR]\n"
-            "       [--colmap MODEL_DIR]\n"
+            "       [--filter-normals N [--filter-range R] [--filter-spatial S] [--filter-passes N]\n"
+            "        [--filter-steps N] [--filter-max-turn DEG]] [--colmap MODEL_DIR]\n"
             "  --flips: engine.flip_edges after the planes (each row)\n"
+            "  --filter-normals: engine.filter_normals after the flips (each row)\n"
             "  --colmap: the run's --export-colmap model: the share seen from behind over every\n"
             "            10th keyframe (default: SEQUENCE/colmap-model when it is there)\n");
   o.String("--mesh", &mesh_file).String("--sequence", &sequence).String("--out", &out);
   o.String("--colmap", &colmap);
   o.List("--tolerance", &tolerances).Int("--min-faces", &min_faces).Flag("--flips", &fo.enabled);
   o.Double("--flip-gain", &fo.min_gain_degrees).Double("--flip-min-angle", &fo.min_angle_degrees);
+  o.Int("--filter-normals", &nfo.iterations).Double("--filter-range", &nfo.sigma_range);
+  o.Double("--filter-spatial", &nfo.sigma_spatial).Int("--filter-passes", &nfo.normal_passes);
+  o.Int("--filter-steps", &nfo.vertex_steps).Double("--filter-max-turn", &nfo.max_turn_degrees);
   if (int status = 0; !o.Parse(argc, argv, &status)) return status;
   if (mesh_file.empty() || sequence.empty()) {
     std::fprintf(stderr, "imr-bench planes: --mesh and --sequence are required\n");
@@ -1285,6 +1292,10 @@ int RunPlanesBench(int argc, char** argv) {
     const engine::PlaneRetriangulationStats s = engine::RetriangulatePlanes(&m, po);
 
     const engine::EdgeFlipStats fs = engine::FlipEdges(&m, fo);
+    const engine::NormalFilterStats ns = engine::FilterNormals(&m, nfo);
+    if (nfo.enabled())
+      std::fprintf(stderr, "filter_normals: %lld vertices moved, %lld moves reverted, max move %.3f\n",
+                   static_cast<long long>(ns.vertices_moved), static_cast<long long>(ns.moves_reverted), ns.max_move);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const fs::path file = fs::path(out) / ("planes-" + t + ".off");
     {

@@ -1,7 +1,8 @@
-// Test support for the passes that change an exported surface's triangles (plane_retriangulation,
-// edge_flips): grids, face normals, roughness, the directed boundary, and the real seam fixture
-// (pinched_seam_parts.txt: two released pieces of imr-synth's default job) with each vertex's
-// fan shape across the pieces, before and after a pass.
+// Test support for the passes that change an exported surface (plane_retriangulation,
+// edge_flips, normal_filter): grids, random sheets, face normals, roughness, the directed
+// boundary, and the real seam fixture (pinched_seam_parts.txt: two released pieces of
+// imr-synth's default job) with each vertex's fan shape across the pieces, before and after a
+// pass.
 #pragma once
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <cstdint>
 #include <fstream>
 #include <map>
+#include <random>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -47,6 +49,35 @@ Mesh Grid(int n, Place place, Along along) {
 template <typename Place>
 Mesh Grid(int n, Place place) {
   return Grid(n, place, [](int, int) { return true; });
+}
+
+// A random n x n sheet: noise, spikes, folds, holes, bends; not always a manifold (callers skip
+// those: CheckMesh).
+inline Mesh RandomSheet(std::mt19937& rng, int n) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double amplitude = 0.2 * (1.0 + u(rng));
+  const double bend = (rng() % 3 == 0) ? 0.0 : 0.75 * (1.0 + u(rng));
+  Mesh m = Grid(
+      n,
+      [&](int i, int j) {
+        const double x = i, y = j;
+        return std::array<double, 3>{x, y, amplitude * u(rng) + (x > n / 2 ? bend * (x - n / 2) : 0.0)};
+      },
+      [&](int, int) { return rng() % 2 == 0; });
+  for (int f = 0, folds = static_cast<int>(rng() % 4); f < folds; ++f) {
+    const int i = 1 + static_cast<int>(rng() % (n - 2)), j = 1 + static_cast<int>(rng() % (n - 2));
+    m.vertices[3 * (j * n + i)] += u(rng) * 2.0;
+    m.vertices[3 * (j * n + i) + 1] += u(rng) * 2.0;
+  }
+  for (int k = 0, spikes = static_cast<int>(rng() % 6); k < spikes; ++k) {
+    const int i = 1 + static_cast<int>(rng() % (n - 2)), j = 1 + static_cast<int>(rng() % (n - 2));
+    m.vertices[3 * (j * n + i) + 2] += 3.0 * u(rng);
+  }
+  for (int h = 0, holes = static_cast<int>(rng() % 4) * static_cast<int>(rng() % 2); h < holes && m.faces.size() > 6; ++h) {
+    const std::size_t f = rng() % (m.faces.size() / 3);
+    m.faces.erase(m.faces.begin() + 3 * static_cast<std::ptrdiff_t>(f), m.faces.begin() + 3 * static_cast<std::ptrdiff_t>(f) + 3);
+  }
+  return m;
 }
 
 // The unit normal of face f (counter-clockwise).
