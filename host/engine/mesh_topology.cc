@@ -298,4 +298,15 @@ std::string SameVertexLinks(const std::vector<uint32_t>& before, const std::vect
   return {};
 }
 
+void VertexFans(const std::vector<uint32_t>& faces, std::size_t vertex_count, std::vector<uint32_t>* start,
+                std::vector<uint32_t>* fan) {
+  start->assign(vertex_count + 1, 0);
+  for (uint32_t v : faces) ++(*start)[v + 1];
+  for (std::size_t v = 0; v < vertex_count; ++v) (*start)[v + 1] += (*start)[v];
+  fan->resize(faces.size());
+  std::vector<uint32_t> fill(start->begin(), start->end() - 1);
+  for (std::size_t f = 0; 3 * f + 2 < faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) (*fan)[fill[faces[3 * f + static_cast<std::size_t>(k)]]++] = static_cast<uint32_t>(f);
+}
+
 }  // namespace imr::engine

@@ -32,6 +32,11 @@ LinkShape CheckLink(const std::pair<uint32_t, uint32_t>* link, std::size_t n,
                     std::vector<std::pair<uint32_t, uint32_t>>* by_first,
                     std::vector<uint32_t>* seconds);
 
+// The faces at each vertex of `faces` (3 indices each, below `vertex_count`), in face order:
+// those at v are fan[start[v]] .. fan[start[v + 1] - 1] (compressed rows).
+void VertexFans(const std::vector<uint32_t>& faces, std::size_t vertex_count, std::vector<uint32_t>* start,
+                std::vector<uint32_t>* fan);
+
 // Whether the faces `after` may stand in for `before` (triangles over the same `vertex_count`
 // vertices, e.g. a part of a streamed surface that a pass changed in place) wherever they meet
 // faces not given: every vertex's link the same open paths (their ends, the part's open edges at

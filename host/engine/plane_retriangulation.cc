@@ -242,13 +242,7 @@ class Retriangulator {
   }
 
   void BuildTopology(std::size_t nv, std::size_t nf) {
-    fan_start_.assign(nv + 1, 0);
-    for (uint32_t v : faces_) ++fan_start_[v + 1];
-    for (std::size_t v = 0; v < nv; ++v) fan_start_[v + 1] += fan_start_[v];
-    fan_.resize(faces_.size());
-    std::vector<uint32_t> fill(fan_start_.begin(), fan_start_.end() - 1);
-    for (uint32_t f = 0; f < nf; ++f)
-      for (int k = 0; k < 3; ++k) fan_[fill[faces_[3 * size_t{f} + k]]++] = f;
+    VertexFans(faces_, nv, &fan_start_, &fan_);
     edges_.reserve(faces_.size());
     for (uint32_t f = 0; f < nf; ++f)
       for (int k = 0; k < 3; ++k) AddEdge(f, k);
