@@ -264,6 +264,7 @@ EngineMemory Engine::Memory() const {
         r.cameras.capacity() * sizeof(uint32_t) + r.ray_state.capacity() * sizeof(uint32_t) +
         r.ray_end.capacity() * sizeof(PointRecord::RayEnd) +
         r.ray_list.capacity() * sizeof(PointRecord::RayList));
+  m.points += impl_->forgetting.retired().MemoryBytes();
   for (const auto& l : s.list_cells)
     m.ray_batch_lists += static_cast<int64_t>(l.capacity() * sizeof(detail::Cell_handle));
   for (const auto& [key, cells] : s.list_extra)

@@ -406,7 +406,8 @@ struct EngineMemory {
   int64_t ray_entries = 0;       // kExact, kRays: the cells' ray lists (capacity).
   int64_t ray_entries_used = 0;  // Of those, entries held (live or stale).
   int64_t ray_entries_live = 0;  // kExact: of those, the current casts of their rays.
-  int64_t points = 0;            // Point records with their per-ray vectors, and the id index.
+  int64_t points = 0;            // Point records with their per-ray vectors, the id index and
+                                 // the ids of points forgotten.
   int64_t ray_batch_lists = 0;   // kExact: the last cast batch's cell lists (un-cast next).
   int64_t steiner_nodes = 0;     // The Steiner grid's placed nodes.
   int64_t cameras = 0;           // Cameras and their index.

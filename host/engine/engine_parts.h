@@ -23,6 +23,7 @@
 
 #include "host/engine/engine.h"
 #include "host/engine/engine_internal.h"
+#include "host/engine/retired_ids.h"
 #include "host/util/clock.h"
 #include "host/util/thread_pool.h"
 
@@ -920,19 +921,6 @@ struct Stopped : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// -------------------------------------------------------------------------------------------------
-// The external ids of points forgotten (Forgetting): an update may still name them (a late move
-// of a point far behind), which is then ignored, not an error. Kept as runs of consecutive ids:
-// a stream's ids mostly come in order, so this stays small however long the drive.
-class RetiredIds {
- public:
-  void Add(uint64_t id);
-  bool Contains(uint64_t id) const;
-  size_t runs() const { return runs_.size(); }
-
- private:
-  std::map<uint64_t, uint64_t> runs_;  // first id -> last id of each run
-};
 
 // Long drives (EngineOptions::forget, DESIGN.md section 10). At each step, the cells that no live
 // change can reach any more become final: those lying forget_distance (ForgetDistance) from

@@ -11,34 +11,6 @@
 
 namespace imr::engine::detail {
 
-void RetiredIds::Add(uint64_t id) {
-  auto next = runs_.upper_bound(id);  // the first run starting after id
-  if (next != runs_.begin()) {
-    auto prev = std::prev(next);
-    if (id <= prev->second) return;  // already in
-    if (id == prev->second + 1) {    // extends the run before it, maybe up to the next one
-      prev->second = id;
-      if (next != runs_.end() && next->first == id + 1) {
-        prev->second = next->second;
-        runs_.erase(next);
-      }
-      return;
-    }
-  }
-  if (next != runs_.end() && next->first == id + 1) {  // extends the run after it
-    const uint64_t last = next->second;
-    runs_.erase(next);
-    runs_.emplace(id, last);
-    return;
-  }
-  runs_.emplace(id, id);
-}
-
-bool RetiredIds::Contains(uint64_t id) const {
-  auto next = runs_.upper_bound(id);
-  return next != runs_.begin() && id <= std::prev(next)->second;
-}
-
 uint64_t Forgetting::Voxel(const Point& p, double size) {
   // Through int64_t: a negative coordinate's cell, converted straight to unsigned, is undefined.
   auto axis = [&](double x) {
@@ -544,7 +516,7 @@ using detail::Triangle;
 // Forgetting's entry in the keyframe: the update without what it says of retired points, and a
 // step (what became final handed out as a part, then maybe a rebuild).
 std::unique_ptr<KeyframeUpdate> Engine::Impl::WithoutRetired(const KeyframeUpdate& u) {
-  if (!s.forgetting || forgetting.retired().runs() == 0) return nullptr;
+  if (!s.forgetting || forgetting.retired().empty()) return nullptr;
   auto retired = [&](uint64_t id) { return !s.point_index.count(id); };  // Validate: retired
   const int64_t moves = std::count_if(u.moved_points.begin(), u.moved_points.end(),
                                       [&](const MovedPoint& m) { return retired(m.id); });
