@@ -309,4 +309,23 @@ void VertexFans(const std::vector<uint32_t>& faces, std::size_t vertex_count, st
     for (int k = 0; k < 3; ++k) (*fan)[fill[faces[3 * f + static_cast<std::size_t>(k)]]++] = static_cast<uint32_t>(f);
 }
 
+std::vector<uint8_t> ClosedFans(const std::vector<uint32_t>& faces, const std::vector<uint32_t>& start,
+                                const std::vector<uint32_t>& fan) {
+  const std::size_t nv = start.empty() ? 0 : start.size() - 1;
+  std::vector<uint8_t> closed(nv, 0);
+  std::vector<std::pair<uint32_t, uint32_t>> link, by_first;
+  std::vector<uint32_t> seconds;
+  for (uint32_t v = 0; v < nv; ++v) {
+    link.clear();
+    for (uint32_t i = start[v]; i < start[v + 1]; ++i) {
+      const uint32_t* t = &faces[3 * std::size_t{fan[i]}];
+      const int at = t[0] == v ? 0 : t[1] == v ? 1 : 2;
+      link.emplace_back(t[(at + 1) % 3], t[(at + 2) % 3]);
+    }
+    closed[v] = !link.empty() &&
+                CheckLink(link.data(), link.size(), &by_first, &seconds) == LinkShape::kCycle;
+  }
+  return closed;
+}
+
 }  // namespace imr::engine

@@ -37,6 +37,11 @@ LinkShape CheckLink(const std::pair<uint32_t, uint32_t>* link, std::size_t n,
 void VertexFans(const std::vector<uint32_t>& faces, std::size_t vertex_count, std::vector<uint32_t>* start,
                 std::vector<uint32_t>* fan);
 
+// Per vertex, 1 when its faces (VertexFans' rows) make one closed cycle of consistently
+// oriented faces around it (an inner vertex of a manifold: it may move), else 0.
+std::vector<uint8_t> ClosedFans(const std::vector<uint32_t>& faces, const std::vector<uint32_t>& start,
+                                const std::vector<uint32_t>& fan);
+
 // Whether the faces `after` may stand in for `before` (triangles over the same `vertex_count`
 // vertices, e.g. a part of a streamed surface that a pass changed in place) wherever they meet
 // faces not given: every vertex's link the same open paths (their ends, the part's open edges at

@@ -49,5 +49,28 @@ TEST(SameVertexLinks, FansThatOtherPiecesCouldNotMeetAreNamed) {
   EXPECT_NE(SameVertexLinks({0, 1, 2}, twice, 4).find("a neighbour twice"), std::string::npos);
 }
 
+// An octahedron is closed: every vertex's fan is a cycle. Without one face the three vertices
+// of its hole are on the boundary; a face turned over breaks its vertices' cycles.
+TEST(ClosedFans, InnerVerticesOfAManifoldOnly) {
+  std::vector<uint32_t> octahedron = {0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4,
+                                      2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5};
+  std::vector<uint32_t> start, fan;
+  VertexFans(octahedron, 6, &start, &fan);
+  EXPECT_EQ(ClosedFans(octahedron, start, fan), std::vector<uint8_t>(6, 1));
+
+  std::vector<uint32_t> holed(octahedron.begin() + 3, octahedron.end());  // without 0 2 4
+  VertexFans(holed, 6, &start, &fan);
+  EXPECT_EQ(ClosedFans(holed, start, fan), (std::vector<uint8_t>{0, 1, 0, 1, 0, 1}));
+
+  std::vector<uint32_t> turned = octahedron;
+  std::swap(turned[0], turned[1]);  // 2 0 4
+  VertexFans(turned, 6, &start, &fan);
+  EXPECT_EQ(ClosedFans(turned, start, fan), (std::vector<uint8_t>{0, 1, 0, 1, 0, 1}));
+
+  // A vertex no face holds.
+  VertexFans(octahedron, 7, &start, &fan);
+  EXPECT_EQ(ClosedFans(octahedron, start, fan), (std::vector<uint8_t>{1, 1, 1, 1, 1, 1, 0}));
+}
+
 }  // namespace
 }  // namespace imr::engine

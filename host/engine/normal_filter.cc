@@ -89,19 +89,7 @@ class Filter {
     VertexFans(faces_, nv, &fan_start_, &fan_);
     // A vertex may move when its fan is one closed cycle of consistently oriented faces (on a
     // whole mesh: not on the boundary; in a part: its whole fan is in the part).
-    movable_.assign(nv, 0);
-    std::vector<std::pair<uint32_t, uint32_t>> link, by_first;
-    std::vector<uint32_t> seconds;
-    for (uint32_t v = 0; v < nv; ++v) {
-      link.clear();
-      for (uint32_t i = fan_start_[v]; i < fan_start_[v + 1]; ++i) {
-        const uint32_t* t = Face(fan_[i]);
-        const int at = t[0] == v ? 0 : t[1] == v ? 1 : 2;
-        link.emplace_back(t[(at + 1) % 3], t[(at + 2) % 3]);
-      }
-      movable_[v] = !link.empty() &&
-                    CheckLink(link.data(), link.size(), &by_first, &seconds) == LinkShape::kCycle;
-    }
+    movable_ = ClosedFans(faces_, fan_start_, fan_);
     // Interior edges: the pairs of faces on either side (each edge once).
     std::unordered_map<uint64_t, int64_t> directed;  // (from, to) -> face, -1: repeated
     directed.reserve(faces_.size());

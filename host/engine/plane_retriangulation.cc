@@ -247,19 +247,7 @@ class Retriangulator {
     for (uint32_t f = 0; f < nf; ++f)
       for (int k = 0; k < 3; ++k) AddEdge(f, k);
     // A vertex may move when its fan is one closed cycle of consistently oriented faces.
-    closed_.assign(nv, 0);
-    std::vector<std::pair<uint32_t, uint32_t>> link, by_first;
-    std::vector<uint32_t> seconds;
-    for (uint32_t v = 0; v < nv; ++v) {
-      link.clear();
-      for (uint32_t i = fan_start_[v]; i < fan_start_[v + 1]; ++i) {
-        const uint32_t* t = &faces_[3 * size_t{fan_[i]}];
-        const int at = t[0] == v ? 0 : t[1] == v ? 1 : 2;
-        link.emplace_back(t[(at + 1) % 3], t[(at + 2) % 3]);
-      }
-      closed_[v] = !link.empty() &&
-                   CheckLink(link.data(), link.size(), &by_first, &seconds) == LinkShape::kCycle;
-    }
+    closed_ = ClosedFans(faces_, fan_start_, fan_);
   }
 
   void AddEdge(uint32_t f, int k) {
