@@ -187,7 +187,14 @@ class DensePatchMatch : public imr::sdk::Dense {
     if (!(o.max_depth > o.min_depth)) o.max_depth = 100.0 * o.min_depth;
     o.seed = rk.id + 1;
     const DepthMap m = imr::dense::ComputeDepthMap(rk.view, nbs, o, [this] { return host_.IsCancelled(); });
-    ToPoints(rk, nbs, nb_ids, m, update);
+    const Funnel f = ToPoints(rk, nbs, nb_ids, m, update);
+    // Where a keyframe's depth goes (imr run -v): which step keeps too little on an input.
+    host_.Debug("dense: keyframe " + std::to_string(rk.id) + " against " +
+                std::to_string(nbs.size()) + " frames (baseline " + std::to_string(baseline) +
+                "): " + std::to_string(m.kept) + " of " + std::to_string(m.depth.total()) +
+                " pixels kept, " + std::to_string(f.candidates) + " candidates, " +
+                std::to_string(f.consistent) + " consistent, " + std::to_string(f.seen) +
+                " seen wide enough, " + std::to_string(f.inserted) + " in new cells");
     previous_ = Previous{rk.id, rk.view, m.depth};
     // The cells no map made from near here reaches (twice the farthest depth searched: a point
     // lies at most ~1.4 depths from its camera at the image's corners) go.
@@ -195,8 +202,13 @@ class DensePatchMatch : public imr::sdk::Dense {
     cells_.Forget(rk.view.Center(), reach_);
   }
 
-  void ToPoints(const Frame& rk, const std::vector<View>& nbs, const std::vector<uint64_t>& nb_ids,
-                const DepthMap& m, imr::sdk::RefinerUpdate* update) {
+  // How many candidate points each check kept.
+  struct Funnel {
+    int64_t candidates = 0, consistent = 0, seen = 0, inserted = 0;
+  };
+  Funnel ToPoints(const Frame& rk, const std::vector<View>& nbs, const std::vector<uint64_t>& nb_ids,
+                  const DepthMap& m, imr::sdk::RefinerUpdate* update) {
+    Funnel f;
     const View& v = rk.view;
     const Eigen::Matrix3d Kinv = v.K.inverse();
     const Eigen::Matrix3d Rt = v.R.transpose();
@@ -206,7 +218,7 @@ class DensePatchMatch : public imr::sdk::Dense {
       for (int y = 0; y < m.depth.rows; ++y)
         for (int x = 0; x < m.depth.cols; ++x)
           if (m.depth.at<float>(y, x) > 0.0f) depths.push_back(m.depth.at<float>(y, x));
-      if (depths.size() < 16) return;  // too little to choose a spacing from
+      if (depths.size() < 16) return f;  // too little to choose a spacing from
       std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
       spacing_ = spacing_ratio_ * depths[depths.size() / 2];
       cells_.SetSpacing(spacing_);
@@ -225,6 +237,7 @@ class DensePatchMatch : public imr::sdk::Dense {
               by = y;
             }
         if (bx < 0) continue;
+        ++f.candidates;
         const double z = m.depth.at<float>(by, bx);
         const Eigen::Vector3d X = Rt * (z * (Kinv * Eigen::Vector3d(bx, by, 1.0)) - v.t);
         if (!X.allFinite()) continue;
@@ -237,13 +250,16 @@ class DensePatchMatch : public imr::sdk::Dense {
           if (!Consistent(*previous_, X)) continue;
           cams.push_back(previous_->id);
         }
+        ++f.consistent;
         for (std::size_t k = 0; k < nbs.size(); ++k) {
           if (!(mask & (1 << k))) continue;
           const Eigen::Vector3d a = (c - X).normalized(), b = (nbs[k].Center() - X).normalized();
           if (std::acos(std::clamp(a.dot(b), -1.0, 1.0)) >= min_angle_) cams.push_back(nb_ids[k]);
         }
         if (static_cast<int>(cams.size()) - 1 < o_.min_views) continue;
+        ++f.seen;
         if (!cells_.Insert(X)) continue;  // this part of the surface has a point
+        ++f.inserted;
         std::sort(cams.begin(), cams.end());
         imr_point_estimate p{};
         p.id = next_id_++;
@@ -257,6 +273,7 @@ class DensePatchMatch : public imr::sdk::Dense {
       }
     if (next_id_ >= (uint64_t{1} << 23))
       throw std::runtime_error("more than 2^23 dense points: raise spacing");
+    return f;
   }
 
   struct Previous {
