@@ -95,6 +95,27 @@ class FrontEnd : public ::testing::Test {
 };
 ScratchDir* FrontEnd::dir_ = nullptr;
 
+// `imr mesh` on an image sequence runs what the README's default job runs (issue 45 item 5: the
+// surface the bench found best): the same engine options and the same stages with the same
+// parameters, but for the refiner's max_distance (the default job's street is 30 m wide; a
+// sequence of another scene keeps the plugin's default) and the exporter's point ids.
+TEST_F(FrontEnd, MeshOnImagesRunsTheDefaultJobsStages) {
+  const fs::path out = *dir_ / "mesh-cli/street.ply";
+  fs::create_directories(out.parent_path());
+  const CommandResult r = RunShell(Quote(kImr) + " mesh -q --input " + Quote(Sequence().string()) +
+                                   " --format kitti_odometry --out " + Quote(out.string()) +
+                                   " --set input.options.frame_count=16");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_TRUE(fs::exists(out));
+  const json job = ReadJson(*dir_ / "mesh-cli/street.imr/job.json");
+  json expected = ReadJson(fs::path(IMR_SOURCE_DIR) / "configs/default.json");
+  EXPECT_EQ(job["engine"], expected["engine"]) << job["engine"].dump();
+  ASSERT_EQ(job["pipeline"].size(), expected["pipeline"].size()) << job["pipeline"].dump();
+  expected["pipeline"][1]["params"].erase("max_distance");
+  expected["pipeline"].back().erase("params");
+  EXPECT_EQ(job["pipeline"], expected["pipeline"]) << job["pipeline"].dump(1);
+}
+
 TEST_F(FrontEnd, SyntheticSequenceBecomesAnAccurateManifoldMesh) {
   json job = ImageJob("kitti_odometry", {Sequence().string()});
   job["output"]["directory"] = (*dir_ / "runs/{sequence}").string();

@@ -398,13 +398,20 @@ nlohmann::json MeshJob(const MeshRequest& m, std::vector<std::string>* overrides
       {"pipeline", nlohmann::json::array()},
       {"output", {{"directory", "mesh"}, {"stem", m.out.stem().string()}, {"formats", {m.ext.substr(1)}}}}};
   if (m.f->needs_front_end) {
-    // Images: the surface imr-bench quality found best (issue 45; docs/refinement.md): points
-    // from depth maps of the keyframes beside the tracked ones, the surface refined from the
-    // images every 10 keyframes, its planar regions triangulated again and its edges flipped
-    // where the other diagonal lies smoother (docs/engine.md).
-    job["engine"] = {{"retriangulate_planes", 0.1}, {"flip_edges", true}};
+    // Images: the surface imr-bench quality found best, as in the README's default job (issue
+    // 45; docs/refinement.md): a track a point from its first keyframe on, points from depth
+    // maps of the keyframes beside the tracked ones, a 4 m Steiner grid to carve between them,
+    // the surface refined from the images every 10 keyframes, its planar regions triangulated
+    // again and its edges flipped where the other diagonal lies smoother (docs/engine.md).
+    job["engine"] = {{"window", 15},
+                     {"steiner_spacing", 4.0},
+                     {"steiner_export", "any_steiner"},
+                     {"retriangulate_planes", 0.1},
+                     {"flip_edges", true}};
     job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
-    job["pipeline"].push_back({{"kind", "refiner"}, {"plugin", "org.imr.refiner.ceres"}});
+    job["pipeline"].push_back({{"kind", "refiner"},
+                               {"plugin", "org.imr.refiner.ceres"},
+                               {"params", {{"min_keyframes", 1}}}});
     job["pipeline"].push_back({{"kind", "dense"}, {"plugin", "org.imr.dense.patchmatch"}});
     job["pipeline"].push_back(
         {{"kind", "mesh_refiner"}, {"plugin", "org.imr.refine.photometric"}, {"every_keyframes", 10}});
