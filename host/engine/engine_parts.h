@@ -921,7 +921,7 @@ struct Stopped : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-
+// -------------------------------------------------------------------------------------------------
 // Long drives (EngineOptions::forget, DESIGN.md section 10). At each step, the cells that no live
 // change can reach any more become final: those lying forget_distance (ForgetDistance) from
 // every one of the last `window` cameras and behind the newest camera (on the side it came

@@ -5,8 +5,8 @@
 // warnings, exports, evaluation, the mesh through mesh_export.h, the report of report.h).
 #include "host/pipeline/run.h"
 
-#include "host/io/input_formats.h"
 #include "host/engine/mesh_passes.h"
+#include "host/io/input_formats.h"
 #include "host/io/slam_json.h"
 #include "host/pipeline/front_end.h"
 #include "host/pipeline/in_front_check.h"
