@@ -1141,6 +1141,25 @@ TEST(SyntheticInput, TrackedOptionsSummaryAndEvaluationWithoutTruth) {
   // The block model (track_frames 0) says so; options only their combination breaks are refused
   // naming them.
   EXPECT_EQ(Open("synthetic", "street", {{"frames", 10}})->Summary()["model"], "block");
+  // Both models keep the cameras a point may still name, not one per frame of the drive (issue
+  // 46): every point's cameras known when it comes, the first frames' gone at the end.
+  for (int track_frames : {0, 17}) {
+    SCOPED_TRACE(track_frames);
+    auto s = Open("synthetic", "street",
+                  {{"frames", 400}, {"track_frames", track_frames}, {"max_range", 40.0}});
+    engine::KeyframeUpdate u;
+    KeyframeInfo info;
+    uint64_t last = 0;
+    while (s->Next(&u, &info)) {
+      for (const auto& p : u.new_points)
+        for (uint64_t c : p.camera_ids) ASSERT_NE(s->Camera(c), nullptr) << c;
+      for (const auto& p : u.moved_points)
+        for (uint64_t c : p.camera_ids) ASSERT_NE(s->Camera(c), nullptr) << c;
+      last = u.cameras.back().id;
+    }
+    EXPECT_NE(s->Camera(last), nullptr);
+    for (uint64_t c = 0; c < 300; ++c) EXPECT_EQ(s->Camera(c), nullptr) << c;
+  }
   const InputFormat* f = FindInputFormat("synthetic");
   const json too_long = WithDefaults(f->options_schema, {{"frames", 150000}, {"speed", 2.0}});
   ASSERT_TRUE(f->check);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -13,7 +14,8 @@ namespace {
 
 class SyntheticSource : public KeyframeSource {
  public:
-  explicit SyntheticSource(const synthetic::StreamOptions& o) : stream_(o) {
+  explicit SyntheticSource(const synthetic::StreamOptions& o)
+      : stream_(o), reach_(2 * (std::max(o.track_frames, 0) + o.keyframe_every)) {
     // A pinhole with the stream's horizontal field of view, 1000 pixels wide (for exports).
     const double kPi = 3.14159265358979323846;
     intrinsics_.source_model = "pinhole";
@@ -34,6 +36,12 @@ class SyntheticSource : public KeyframeSource {
       u->cameras.push_back({c.id, c.center});
       AddGeometry(c);
     }
+    // A point names the frames that observed it: a block's (the update's own cameras) or a
+    // track's (at most track_frames back). Older cameras' geometry goes: a record per camera
+    // would grow with the drive (issue 46).
+    if (!kf.cameras.empty())
+      while (!cameras_.empty() && cameras_.begin()->first + reach_ < kf.cameras.front().id)
+        cameras_.erase(cameras_.begin());
     for (const auto& p : kf.new_points) u->new_points.push_back({p.id, p.position, p.camera_ids});
     for (const auto& p : kf.moved_points)
       u->moved_points.push_back({p.id, p.position, p.camera_ids});
@@ -161,7 +169,8 @@ class SyntheticSource : public KeyframeSource {
 
   synthetic::SyntheticStream stream_;
   Intrinsics intrinsics_;
-  std::unordered_map<uint64_t, CameraGeometry> cameras_;
+  uint64_t reach_;  // frames back a point may still name
+  std::map<uint64_t, CameraGeometry> cameras_;  // the cameras within reach_ of the newest
 };
 
 }  // namespace
