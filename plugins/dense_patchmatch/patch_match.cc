@@ -305,11 +305,20 @@ class Solver {
     return sum / best_;
   }
 
-  void Try(int x, int y, const Plane& p) {
+  // Tries plane p at pixel (x, y): kept when it costs less. A plane equal to the pixel's own or
+  // to one `tried` already in this update (a converged neighbourhood hands the same plane back
+  // from several sides) has a known cost and is not measured again: the same map, faster.
+  void Try(int x, int y, const Plane& p, std::vector<Plane>* tried = nullptr) {
     if (!(p.depth > 0.0f)) return;
+    const std::size_t i = Index(x, y);
+    auto same = [&p](const Plane& q) { return p.depth == q.depth && p.n == q.n; };
+    if (same(planes_[i])) return;
+    if (tried != nullptr) {
+      if (std::any_of(tried->begin(), tried->end(), same)) return;
+      tried->push_back(p);
+    }
     if (!Facing(p.n, Ray(x, y))) return;
     const float c = Cost(x, y, p, nullptr);
-    const std::size_t i = Index(x, y);
     if (c < cost_[i]) {
       cost_[i] = c;
       planes_[i] = p;
@@ -319,12 +328,14 @@ class Solver {
   void Update(int x, int y, int iteration) {
     // Propagation: the planes of pixels of the other colour, near and a little further.
     static const int kOffsets[8][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}, {-5, 0}, {5, 0}, {0, -5}, {0, 5}};
+    thread_local std::vector<Plane> tried;
+    tried.clear();
     for (const auto& d : kOffsets) {
       const int px = x + d[0], py = y + d[1];
       if (px < 0 || py < 0 || px >= w_ || py >= h_) continue;
       Plane q = planes_[Index(px, py)];
       q.depth = DepthAt(q, px, py, x, y);
-      Try(x, y, q);
+      Try(x, y, q, &tried);
     }
     // Refinement: the plane's depth and normal changed at random, less each iteration.
     Random rnd{Mix(o_.seed * 7919 + (static_cast<uint64_t>(iteration) << 48) +
