@@ -402,12 +402,15 @@ nlohmann::json MeshJob(const MeshRequest& m, std::vector<std::string>* overrides
     // 45; docs/refinement.md): a track a point from its first keyframe on, points from depth
     // maps of the keyframes beside the tracked ones, a 4 m Steiner grid to carve between them,
     // the surface refined from the images every 10 keyframes, its planar regions triangulated
-    // again and its edges flipped where the other diagonal lies smoother (docs/engine.md).
+    // again, its edges flipped where the other diagonal lies smoother and its face normals
+    // filtered, the three in turn three times (docs/engine.md).
     job["engine"] = {{"window", 15},
                      {"steiner_spacing", 4.0},
                      {"steiner_export", "any_steiner"},
                      {"retriangulate_planes", 0.1},
-                     {"flip_edges", true}};
+                     {"flip_edges", true},
+                     {"filter_normals", 3},
+                     {"mesh_pass_rounds", 3}};
     job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
     job["pipeline"].push_back({{"kind", "refiner"},
                                {"plugin", "org.imr.refiner.ceres"},

@@ -142,6 +142,9 @@ struct EngineOptions {
                                         // distance between face centroids, x median edge length.
   double filter_normals_range = 0.35;   // filter_normals: the range Gaussian's sigma on the
                                         // difference of two unit normals (90 degrees: 1.41).
+  int mesh_pass_rounds = 1;           // Export: times retriangulate_planes, flip_edges and
+                                      // filter_normals run in turn (a later round triangulates
+                                      // again what the filter flattened); streamed: per piece.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (keyframe update, step 3: insert)
                                       // when true; else they start at 0 and the point's own rays,

@@ -114,6 +114,7 @@ std::string EngineOptions::Check() const {
   if (!std::isfinite(retriangulate_planes) || retriangulate_planes < 0.0)
     e << "retriangulate_planes must be >= 0 (median edge lengths; 0: off); ";
   if (filter_normals < 0) e << "filter_normals must be >= 0; ";
+  if (mesh_pass_rounds < 1 || mesh_pass_rounds > 16) e << "mesh_pass_rounds must be in [1, 16]; ";
   if (!std::isfinite(filter_normals_spatial) || !(filter_normals_spatial > 0.0))
     e << "filter_normals_spatial must be > 0 (median edge lengths); ";
   if (!std::isfinite(filter_normals_range) || !(filter_normals_range > 0.0))

@@ -1,35 +1,78 @@
 #include "host/engine/mesh_passes.h"
 
+#include <algorithm>
+#include <memory>
+#include <string>
 #include <utility>
 
 namespace imr::engine {
 
+namespace {
+
+// The figures of a later round of a pass on the same mesh: its counts add; the angles are the
+// mesh's before the first round that ran and after this one (the same edges: a pass keeps the
+// vertices and the boundary, so a triangulation of them has as many edges).
+template <class Stats>
+void AddAngles(Stats* total, const Stats& round) {
+  if (total->edges == 0) {
+    *total = round;
+    return;
+  }
+  const double before = total->degrees_sum_before;
+  *total += round;
+  total->edges = round.edges;
+  total->degrees_sum_before = before;
+  total->degrees_sum_after = round.degrees_sum_after;
+}
+
+}  // namespace
+
+void AddRound(PlaneRetriangulationStats* total, const PlaneRetriangulationStats& round) { *total += round; }
+void AddRound(EdgeFlipStats* total, const EdgeFlipStats& round) { AddAngles(total, round); }
+void AddRound(NormalFilterStats* total, const NormalFilterStats& round) { AddAngles(total, round); }
+
 std::vector<MeshPass> MeshPasses(const EngineOptions& options, MeshPassesStats* stats) {
   std::vector<MeshPass> passes;
   const auto planes = PlaneRetriangulationOptions::FromEngine(options);
-  if (planes.enabled())
-    passes.push_back({"engine.retriangulate_planes", true, true,
-                      [planes, stats](Mesh* m) {
-                        stats->planes = RetriangulatePlanes(m, planes);
-                        return stats->planes.regions > 0;
-                      },
-                      [stats] { stats->planes = {}; }});
   const auto flips = EdgeFlipOptions::FromEngine(options);
-  if (flips.enabled)
-    passes.push_back({"engine.flip_edges", false, true,
-                      [flips, stats](Mesh* m) {
-                        stats->flips = FlipEdges(m, flips);
-                        return stats->flips.flips > 0;
-                      },
-                      [stats] { stats->flips = {}; }});
   const auto normals = NormalFilterOptions::FromEngine(options);
-  if (normals.enabled())
-    passes.push_back({"engine.filter_normals", true, false,
-                      [normals, stats](Mesh* m) {
-                        stats->normal_filter = FilterNormals(m, normals);
-                        return stats->normal_filter.vertices_moved > 0;
-                      },
-                      [stats] { stats->normal_filter = {}; }});
+  // A pass's figures add up over the rounds; undone, they are what they were before it ran.
+  for (int round = 1; round <= std::max(1, options.mesh_pass_rounds); ++round) {
+    const std::string suffix = round == 1 ? "" : " (round " + std::to_string(round) + ")";
+    if (planes.enabled()) {
+      auto kept = std::make_shared<PlaneRetriangulationStats>();
+      passes.push_back({"engine.retriangulate_planes" + suffix, true, true,
+                        [planes, stats, kept](Mesh* m) {
+                          *kept = stats->planes;
+                          const PlaneRetriangulationStats s = RetriangulatePlanes(m, planes);
+                          AddRound(&stats->planes, s);
+                          return s.regions > 0;
+                        },
+                        [stats, kept] { stats->planes = *kept; }});
+    }
+    if (flips.enabled) {
+      auto kept = std::make_shared<EdgeFlipStats>();
+      passes.push_back({"engine.flip_edges" + suffix, false, true,
+                        [flips, stats, kept](Mesh* m) {
+                          *kept = stats->flips;
+                          const EdgeFlipStats s = FlipEdges(m, flips);
+                          AddRound(&stats->flips, s);
+                          return s.flips > 0;
+                        },
+                        [stats, kept] { stats->flips = *kept; }});
+    }
+    if (normals.enabled()) {
+      auto kept = std::make_shared<NormalFilterStats>();
+      passes.push_back({"engine.filter_normals" + suffix, true, false,
+                        [normals, stats, kept](Mesh* m) {
+                          *kept = stats->normal_filter;
+                          const NormalFilterStats s = FilterNormals(m, normals);
+                          AddRound(&stats->normal_filter, s);
+                          return s.vertices_moved > 0;
+                        },
+                        [stats, kept] { stats->normal_filter = *kept; }});
+    }
+  }
   return passes;
 }
 

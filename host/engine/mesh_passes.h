@@ -1,6 +1,6 @@
 // The passes over an exported surface (engine.retriangulate_planes, flip_edges, filter_normals),
-// in that order, on a whole mesh, each undone when the mesh is no manifold after it (no CGAL
-// here). A streamed run applies the same passes per released piece (host/pipeline/
+// in that order, mesh_pass_rounds times, on a whole mesh, each undone when the mesh is no manifold
+// after it (no CGAL here). A streamed run applies the same passes per released piece (host/pipeline/
 // streamed_surface.cc), where a piece that no longer meets its neighbours is written as it came.
 #pragma once
 
@@ -32,7 +32,14 @@ struct MeshPassesStats {
   std::string undone_why;   // the first one's name and the check's message
 };
 
-// The passes the engine options ask for, their figures into `stats` (reset when undone).
+// The figures of one more round of a pass on the same mesh or piece (EngineOptions::
+// mesh_pass_rounds): counts add; the angles are the mesh's before the first round and after this.
+void AddRound(PlaneRetriangulationStats* total, const PlaneRetriangulationStats& round);
+void AddRound(EdgeFlipStats* total, const EdgeFlipStats& round);
+void AddRound(NormalFilterStats* total, const NormalFilterStats& round);
+
+// The passes the engine options ask for, mesh_pass_rounds times in turn, their figures into
+// `stats` (a pass undone: as they were before it).
 std::vector<MeshPass> MeshPasses(const EngineOptions& options, MeshPassesStats* stats);
 
 // Runs `passes` on `mesh` in order. A pass that changed the mesh and left it no manifold (a case

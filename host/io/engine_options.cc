@@ -138,6 +138,9 @@ std::vector<EngineOption> MakeTable() {
       Option("filter_normals_range", &E::filter_normals_range, Min(1e-9), "",
              "filter_normals: sigma of the Gaussian on the difference of two faces' unit normals "
              "(0 .. 2; 1.41 at a right angle): smaller keeps more edges"),
+      Option("mesh_pass_rounds", &E::mesh_pass_rounds, {{"minimum", 1}, {"maximum", 16}}, "rounds",
+             "export: times retriangulate_planes, flip_edges and filter_normals run in turn (a "
+             "second round triangulates again the planes the normal filter flattened)"),
       Option("transfer_on_insert", &E::transfer_on_insert, kNone, "",
              "cells made by inserting a new point get weights from the policy; false: they "
              "start at 0 and the point's own rays weight them (measured: far better "

@@ -55,6 +55,7 @@ StreamedSurface::StreamedSurface(const engine::EngineOptions& options, fs::path 
       planes_(engine::PlaneRetriangulationOptions::FromEngine(options)),
       flips_(engine::EdgeFlipOptions::FromEngine(options)),
       normal_filter_(engine::NormalFilterOptions::FromEngine(options)),
+      pass_rounds_(std::max(1, options.mesh_pass_rounds)),
       spool_dir_(std::move(spool)),
       tiles_(tiles) {
   if (spool_dir_.empty()) return;
@@ -154,15 +155,20 @@ void StreamedSurface::Feed(const engine::SurfacePart& part) {
   engine::SurfacePart released = stream_.TakeReleased();
   // Planar regions of what was released, before the spool and the tiles write it: only vertices
   // whose whole fan is in this piece move (a seam vertex was, or will be, written elsewhere).
-  // Then the flips, then the normal filter (its seam vertices stay too). A piece whose fans the
-  // passes changed where other pieces meet it (a case their own rules missed) is written as it
-  // came: it would fail the run at the seam.
+  // Then the flips, then the normal filter (its seam vertices stay too), mesh_pass_rounds times.
+  // A piece whose fans the passes changed where other pieces meet it (a case their own rules
+  // missed) is written as it came: it would fail the run at the seam.
   if (planes_.enabled() || flips_.enabled || normal_filter_.enabled()) {
     std::vector<uint32_t> faces = released.faces;
     std::vector<double> xyz = released.vertices;
-    const engine::PlaneRetriangulationStats planes = engine::RetriangulatePlanes(&released, planes_);
-    const engine::EdgeFlipStats flips = engine::FlipEdges(&released, flips_);
-    const engine::NormalFilterStats normals = engine::FilterNormals(&released, normal_filter_);
+    engine::PlaneRetriangulationStats planes;
+    engine::EdgeFlipStats flips;
+    engine::NormalFilterStats normals;
+    for (int round = 0; round < pass_rounds_; ++round) {
+      engine::AddRound(&planes, engine::RetriangulatePlanes(&released, planes_));
+      engine::AddRound(&flips, engine::FlipEdges(&released, flips_));
+      engine::AddRound(&normals, engine::FilterNormals(&released, normal_filter_));
+    }
     if (const std::string e = engine::SameVertexLinks(faces, released.faces, released.keys.size()); !e.empty()) {
       released.faces.swap(faces);
       released.vertices.swap(xyz);

@@ -15,6 +15,7 @@
 
 #include "host/engine/engine.h"
 #include "host/engine/edge_flips.h"
+#include "host/engine/mesh_passes.h"
 #include "host/engine/normal_filter.h"
 #include "host/engine/plane_retriangulation.h"
 #include "host/engine/surface_stream.h"
@@ -120,6 +121,7 @@ class StreamedSurface {
   engine::PlaneRetriangulationOptions planes_;
   engine::EdgeFlipOptions flips_;
   engine::NormalFilterOptions normal_filter_;
+  int pass_rounds_ = 1;  // EngineOptions::mesh_pass_rounds
   std::function<void(engine::SurfacePart*)> filter_;
   std::filesystem::path spool_dir_;
   std::ofstream vertices_, faces_file_;
