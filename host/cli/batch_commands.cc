@@ -10,6 +10,7 @@
 #include "host/io/batch_folder.h"
 #include "host/io/colmap_model.h"
 #include "host/io/input_formats.h"
+#include "host/pipeline/scale.h"
 #include "host/report/viewer_page.h"
 #include "host/util/atomic_file.h"
 #include "host/util/input_file.h"
@@ -403,14 +404,19 @@ nlohmann::json MeshJob(const MeshRequest& m, std::vector<std::string>* overrides
     // maps of the keyframes beside the tracked ones, a 4 m Steiner grid to carve between them,
     // the surface refined from the images every 10 keyframes, its planar regions triangulated
     // again, its edges flipped where the other diagonal lies smoother and its face normals
-    // filtered, the three in turn three times (docs/engine.md).
+    // filtered, the three in turn three times, faces the keyframes see from behind dropped
+    // (docs/engine.md).
     job["engine"] = {{"window", 15},
-                     {"steiner_spacing", 4.0},
                      {"steiner_export", "any_steiner"},
                      {"retriangulate_planes", 0.1},
                      {"flip_edges", true},
                      {"filter_normals", 3},
-                     {"mesh_pass_rounds", 3}};
+                     {"mesh_pass_rounds", 3},
+                     {"drop_back_faces", true}};
+    // The 4 m grid is the street's (metres); a model in its own units (the Middlebury rings:
+    // centimetres of a statue) keeps the grid engine.scale auto chooses.
+    if (pipeline::ScaleModeOf(nlohmann::json::object(), m.format) == pipeline::ScaleMode::kMetric)
+      job["engine"]["steiner_spacing"] = 4.0;
     job["pipeline"].push_back({{"kind", "features"}, {"plugin", "org.imr.features.edge_klt"}});
     job["pipeline"].push_back({{"kind", "refiner"},
                                {"plugin", "org.imr.refiner.ceres"},

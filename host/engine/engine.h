@@ -145,6 +145,10 @@ struct EngineOptions {
   int mesh_pass_rounds = 1;           // Export: times retriangulate_planes, flip_edges and
                                       // filter_normals run in turn (a later round triangulates
                                       // again what the filter flattened); streamed: per piece.
+  bool drop_back_faces = false;       // Export of a whole mesh (no forgetting), after the passes:
+                                      // faces the keyframes see from behind more than from the
+                                      // front are dropped (the run's pipeline draws them;
+                                      // host/pipeline/run.cc). Streamed: off.
   bool transfer_on_insert = false;    // Cells created by inserting a NEW point (or a Steiner
                                       // point) get weights through the policy (keyframe update, step 3: insert)
                                       // when true; else they start at 0 and the point's own rays,
@@ -514,6 +518,13 @@ void SmoothTaubin(Mesh* mesh, int iterations, double lambda = 0.5, double mu = -
 // under `min_area`, and the vertices no face names any more; the order of what stays is kept.
 // Whole components go, so a 2-manifold stays one. Adds what it dropped to `dropped` (optional).
 void DropSmallComponents(Mesh* mesh, double min_area, DroppedComponents* dropped = nullptr);
+// Drops the faces whose `drop` entry (one per face) is non-zero; then a vertex left with several
+// fans gets a copy per extra fan (SplitPinchedVertices), vertices no face names go, and so do the
+// components under `min_area` (DropSmallComponents, adding to `dropped`). A 2-manifold with
+// boundary stays one; the order of what stays is kept. Returns the faces dropped by `drop` (none:
+// the mesh is left as it was).
+int64_t DropFaces(Mesh* mesh, const std::vector<uint8_t>& drop, double min_area,
+                  DroppedComponents* dropped = nullptr);
 
 // What ExtractMesh does after taking dO through the Steiner filter: pinched vertices split (unless
 // the rule is kNone), small holes filled and Taubin smoothing as the options say, small components

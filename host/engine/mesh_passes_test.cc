@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -122,6 +123,54 @@ TEST(MeshPasses, ASecondRoundTakesOutFoldsTheFilterFlattened) {
   EXPECT_GE(regions[1], 1);
   EXPECT_LT(turned[1], turned[0]);  // 7 -> 3
   EXPECT_LT(rough[1], 0.6 * rough[0]) << "one round " << rough[0] << ", two " << rough[1];  // 6.1 -> 2.7
+}
+
+// DropFaces (engine.drop_back_faces' step): whatever faces go, the rest is a 2-manifold with
+// boundary, every vertex named by a face, point ids kept with their positions, the pieces under
+// the area gone; a vertex left with two fans is split.
+TEST(MeshPasses, DroppingAnyFacesLeavesAManifold) {
+  std::mt19937 rng(46);
+  int64_t split = 0, sheets = 0;
+  for (int trial = 0; trial < 1000; ++trial) {
+    Mesh m = testing::RandomSheet(rng, 4 + static_cast<int>(rng() % 6));
+    for (std::size_t v = 0; v < m.point_ids.size(); ++v) m.point_ids[v] = static_cast<int64_t>(1000 + v);
+    if (!CheckMesh(m, /*closed=*/false).ok) continue;  // RandomSheet's holes may pinch
+    ++sheets;
+    const Mesh before = m;
+    const std::size_t nf = m.faces.size() / 3;
+    std::vector<uint8_t> drop(nf, 0);
+    const int share = 1 + static_cast<int>(rng() % 40);  // percent of the faces
+    int64_t asked = 0;
+    for (auto& d : drop) asked += d = static_cast<int>(rng() % 100) < share ? 1 : 0;
+    DroppedComponents dropped;
+    const double min_area = trial % 2 == 0 ? 0.0 : 0.5;
+    EXPECT_EQ(DropFaces(&m, drop, min_area, &dropped), asked);
+    const ManifoldCheckResult check = CheckMesh(m, /*closed=*/false);
+    ASSERT_TRUE(check.ok) << "trial " << trial << ": " << check.message;
+    EXPECT_EQ(m.faces.size() / 3 + static_cast<std::size_t>(asked + dropped.faces), nf) << "trial " << trial;
+    std::vector<uint8_t> named(m.point_ids.size(), 0);
+    for (uint32_t v : m.faces) named[v] = 1;
+    for (std::size_t v = 0; v < named.size(); ++v) {
+      if (asked > 0) {
+        ASSERT_TRUE(named[v]) << "trial " << trial << ": vertex " << v << " named by no face";
+      }
+      const auto id = static_cast<std::size_t>(m.point_ids[v] - 1000);
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(m.vertices[3 * v + k], before.vertices[3 * id + k]);
+    }
+    std::vector<int> copies(before.point_ids.size(), 0);
+    for (int64_t id : m.point_ids) ++copies[static_cast<std::size_t>(id - 1000)];
+    for (int c : copies) split += c > 1 ? c - 1 : 0;
+    if (min_area > 0.0) {  // every piece left weighs at least min_area
+      Mesh again = m;
+      DroppedComponents none;
+      DropSmallComponents(&again, min_area, &none);
+      EXPECT_EQ(none.components, 0) << "trial " << trial;
+    }
+  }
+  EXPECT_GT(sheets, 500);
+  EXPECT_GT(split, 0);  // some drops pinched a vertex, and it was split
+  Mesh m = testing::RandomSheet(rng, 5);
+  EXPECT_THROW(DropFaces(&m, std::vector<uint8_t>(3, 0), 0.0), std::invalid_argument);
 }
 
 // A pass that breaks the manifold is undone (the mesh as the pass before it left it, its figures

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 #include <unordered_map>
 #include <vector>
 
@@ -195,6 +196,39 @@ void DropSmallComponents(Mesh* m, double min_area, DroppedComponents* dropped) {
     dropped->vertices += d.vertices;
     dropped->area += d.area;
   }
+}
+
+int64_t DropFaces(Mesh* m, const std::vector<uint8_t>& drop, double min_area, DroppedComponents* dropped) {
+  const size_t nf = m->faces.size() / 3;
+  if (drop.size() != nf) throw std::invalid_argument("DropFaces: one flag per face expected");
+  std::vector<uint32_t> kept;
+  kept.reserve(m->faces.size());
+  int64_t gone = 0;
+  for (size_t f = 0; f < nf; ++f) {
+    if (drop[f]) {
+      ++gone;
+      continue;
+    }
+    kept.insert(kept.end(), &m->faces[3 * f], &m->faces[3 * f] + 3);
+  }
+  if (gone == 0) return 0;
+  m->faces = std::move(kept);
+  SplitPinchedVertices(m);
+  // Vertices no face names any more, in the order of those that stay.
+  std::vector<uint32_t> new_index(m->point_ids.size(), kNone);
+  for (uint32_t v : m->faces) new_index[v] = 0;
+  Mesh out;
+  for (size_t v = 0; v < new_index.size(); ++v) {
+    if (new_index[v] == kNone) continue;
+    new_index[v] = static_cast<uint32_t>(out.point_ids.size());
+    out.vertices.insert(out.vertices.end(), &m->vertices[3 * v], &m->vertices[3 * v] + 3);
+    out.point_ids.push_back(m->point_ids[v]);
+  }
+  for (uint32_t& i : m->faces) i = new_index[i];
+  out.faces = std::move(m->faces);
+  *m = std::move(out);
+  DropSmallComponents(m, min_area, dropped);
+  return gone;
 }
 
 }  // namespace imr::engine

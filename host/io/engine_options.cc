@@ -141,6 +141,11 @@ std::vector<EngineOption> MakeTable() {
       Option("mesh_pass_rounds", &E::mesh_pass_rounds, {{"minimum", 1}, {"maximum", 16}}, "rounds",
              "export: times retriangulate_planes, flip_edges and filter_normals run in turn (a "
              "second round triangulates again the planes the normal filter flattened)"),
+      Option("drop_back_faces", &E::drop_back_faces, kNone, "",
+             "export of a whole mesh (a run that forgot nothing), after the passes: faces the "
+             "keyframes see from behind more than from the front are dropped (sheets closing "
+             "over where the cameras looked); inputs without intrinsics and forgetting runs "
+             "keep them"),
       Option("transfer_on_insert", &E::transfer_on_insert, kNone, "",
              "cells made by inserting a new point get weights from the policy; false: they "
              "start at 0 and the point's own rays weight them (measured: far better "

@@ -338,6 +338,8 @@ json MeshJson(const ReportInputs& in) {
   const engine::DroppedComponents& d =
       in.streamed != nullptr ? in.streamed->stream.dropped : in.small_components_dropped;
   mesh_json["small_components_dropped"] = {{"components", d.components}, {"faces", d.faces}, {"vertices", d.vertices}, {"area", d.area}};
+  // engine.drop_back_faces: the faces the keyframes saw from behind, dropped (a whole mesh only).
+  mesh_json["back_faces_dropped"] = in.back_faces_dropped;
   // engine.retriangulate_planes: the planar regions triangulated again.
   const engine::PlaneRetriangulationStats& pl = in.streamed != nullptr ? in.streamed->planes : in.planes;
   mesh_json["planes_retriangulated"] = {{"regions", pl.regions},

@@ -86,6 +86,7 @@ struct ReportInputs {
   engine::PlaneRetriangulationStats planes;  // engine.retriangulate_planes (a streamed run: its stats)
   engine::EdgeFlipStats flips;               // engine.flip_edges (a streamed run: its stats)
   engine::NormalFilterStats normal_filter;   // engine.filter_normals (a streamed run: its stats)
+  int64_t back_faces_dropped = 0;            // engine.drop_back_faces (a whole mesh only)
   // The mesh (or, streamed, the pieces) written without a pass that broke it; the first why.
   int64_t pieces_undone = 0;
   std::string undone_why;

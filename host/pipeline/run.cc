@@ -108,6 +108,7 @@ class SequenceRun {
   // Whether the engine forgot (engine.forget), kept too: a streamed run's ends after it is gone.
   bool Forgot() const { return engine_ ? engine_->forgetting() : engine_forgot_; }
   void WarnAbout();
+  void DropBackFaces();
   void Warn(const std::string& warning);
   void Note(const std::string& line);
   void WriteStreamExports();
@@ -272,6 +273,8 @@ namespace {
 
 std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh, const ExportContext& context);
 std::optional<render::BackFacing> BackFacingInKeyframes(const StreamedSurface& mesh, const ExportContext& context);
+std::vector<render::Camera> BackFacingCameras(const ExportContext& context, std::size_t max_views = 60);
+constexpr double kBackFacingScale = 0.25;
 
 // Creates one instance per stage of the job, each creation watched against its stage's timeout.
 void SequenceRun::InstantiateStages() {
@@ -619,6 +622,7 @@ void SequenceRun::Finish() {
     report_.normal_filter = passes.normal_filter;
     report_.pieces_undone = passes.undone;
     report_.undone_why = passes.undone_why;
+    if (engine_options_.drop_back_faces) DropBackFaces();
   }
   WarnAbout();
   WriteStreamExports();
@@ -730,16 +734,15 @@ void SequenceRun::FinishStreamedSurface() {
 }
 
 // The share of what the keyframes see that faces away from them (report.json mesh.back_facing):
-// at most 60 keyframes spread over the run, each drawn at a quarter of its size. None for inputs
+// at most `max_views` (60) keyframes spread over the run, each drawn at a quarter of its size. None for inputs
 // without intrinsics.
-std::vector<render::Camera> BackFacingCameras(const ExportContext& context) {
+std::vector<render::Camera> BackFacingCameras(const ExportContext& context, std::size_t max_views) {
   std::vector<const imr_camera*> usable;
   for (const imr_camera& c : context.keyframes)
     if (c.K[0] > 0.0 && c.K[4] > 0.0 && c.width > 0 && c.height > 0) usable.push_back(&c);
-  constexpr std::size_t kViews = 60;
   std::vector<render::Camera> cameras;
-  for (std::size_t i = 0; i < std::min(kViews, usable.size()); ++i) {
-    const imr_camera& c = *usable[i * usable.size() / std::min(kViews, usable.size())];
+  for (std::size_t i = 0; i < std::min(max_views, usable.size()); ++i) {
+    const imr_camera& c = *usable[i * usable.size() / std::min(max_views, usable.size())];
     render::Camera r;
     r.width = c.width, r.height = c.height;
     r.fx = c.K[0], r.fy = c.K[4], r.cx = c.K[2], r.cy = c.K[5];
@@ -751,7 +754,31 @@ std::vector<render::Camera> BackFacingCameras(const ExportContext& context) {
   }
   return cameras;
 }
-constexpr double kBackFacingScale = 0.25;
+
+// engine.drop_back_faces: the faces the keyframes see from behind more than from the front go (up
+// to 300 keyframes spread over the run, each drawn at a quarter of its size), then those the
+// dropped ones hid and that are now so seen, up to three times; pieces left under
+// min_component_area go too. A mesh all of whose faces are so seen is kept, with a warning.
+void SequenceRun::DropBackFaces() {
+  std::vector<render::Camera> cameras = BackFacingCameras(export_context_, 300);
+  if (cameras.empty() || mesh_->faces.empty()) return;
+  for (int pass = 0; pass < 3; ++pass) {
+    const std::vector<uint8_t> behind = render::FacesSeenFromBehind(
+        render::MeshRefOf(mesh_->vertices, mesh_->faces), cameras, kBackFacingScale);
+    if (std::find(behind.begin(), behind.end(), 0) == behind.end()) {
+      Warn("engine.drop_back_faces: the keyframes see every face of the surface from behind "
+           "more than from the front (its orientation?): it is written as it is");
+      break;
+    }
+    const int64_t dropped = engine::DropFaces(&*mesh_, behind, engine_options_.MinComponentArea(),
+                                              &report_.small_components_dropped);
+    if (dropped == 0) break;
+    report_.back_faces_dropped += dropped;
+  }
+  report_.mesh_check = engine::CheckMesh(*mesh_, /*closed=*/false);
+  if (!report_.mesh_check.ok)
+    throw std::runtime_error("engine.drop_back_faces left no manifold: " + report_.mesh_check.message);
+}
 
 std::optional<render::BackFacing> BackFacingInKeyframes(const engine::Mesh& mesh, const ExportContext& context) {
   const std::vector<render::Camera> cameras = BackFacingCameras(context);

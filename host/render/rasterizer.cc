@@ -355,6 +355,27 @@ BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cam
   return out;
 }
 
+std::vector<uint8_t> FacesSeenFromBehind(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
+  CheckScale(scale);
+  std::vector<int64_t> front(mesh.face_count, 0), back(mesh.face_count, 0);
+  RenderOptions o;
+  o.opacity = 1.0;
+  for (const Camera& full : cameras) {
+    const Camera c = ScaledCamera(full, scale);
+    const Rendering r = RenderIntoCamera(mesh, c, nullptr, o);
+    const Vec3 center = c.Center();
+    std::vector<int8_t> side(mesh.face_count, -1);  // per face: unknown, front 0, back 1
+    for (int32_t f : r.face) {
+      if (f < 0) continue;
+      if (side[f] < 0) side[f] = SeenFromBehind(mesh, static_cast<std::size_t>(f), center) ? 1 : 0;
+      ++(side[f] ? back : front)[f];
+    }
+  }
+  std::vector<uint8_t> behind(mesh.face_count, 0);
+  for (std::size_t f = 0; f < behind.size(); ++f) behind[f] = back[f] > front[f] ? 1 : 0;
+  return behind;
+}
+
 // One camera's frame buffer over the blocks, and per pixel whether its face is seen from behind
 // (decided while the face's block is there).
 struct BackFacingInBlocks::View {

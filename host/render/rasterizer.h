@@ -112,6 +112,12 @@ struct BackFacing {
 // Throws as RenderIntoCamera does; `scale` in (0, 1].
 BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale);
 
+// Per face, 1 when the cameras (each drawn at `scale` of its size) show it from behind more than
+// from the front: of the pixels it wins, more in cameras it faces away from; else 0 (a face seen
+// from behind through a hole by one camera and from the front by others stays). Throws as
+// MeasureBackFacing does.
+std::vector<uint8_t> FacesSeenFromBehind(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale);
+
 // MeasureBackFacing over a mesh given in blocks of triangles (a long drive's single mesh, read
 // back from disk), each camera's frame buffer kept across the blocks: the same figures as the
 // whole mesh when the blocks come in its face order. Holds per camera ~13 bytes a pixel.

@@ -122,6 +122,39 @@ TEST(Rasterizer, BackFacingShareCountsWhatTheCamerasSeeFromBehind) {
   EXPECT_THROW(MeasureBackFacing(m.ref(), cameras, 0.0), std::invalid_argument);
 }
 
+// Per face: seen from behind by the cameras (visible and facing away, in more pixels than from
+// the front); a face hidden behind a front-facing one is not, whichever way it faces; nor is a
+// face out of every view, nor one a camera behind it sees from the front more than the first
+// sees it from behind.
+TEST(Rasterizer, FacesSeenFromBehindAreTheVisibleBackFaces) {
+  const std::vector<Camera> cameras = {TestCamera()};
+  Mesh front = FanFacingCamera({4.0, 1.5, 1.0}, 0.5);  // 4 faces facing the camera
+  Mesh flipped = FanFacingCamera({8.0, 1.5, 1.0}, 0.2);  // behind it, wholly hidden
+  for (std::size_t f = 0; f < flipped.faces.size(); f += 3) std::swap(flipped.faces[f + 1], flipped.faces[f + 2]);
+  Mesh beside = FanFacingCamera({5.0, 2.9, 1.0}, 0.1);  // off to the side, in view, flipped
+  for (std::size_t f = 0; f < beside.faces.size(); f += 3) std::swap(beside.faces[f + 1], beside.faces[f + 2]);
+  Mesh outside = FanFacingCamera({5.0, 40.0, 1.0}, 0.1);  // out of the view, flipped
+  for (std::size_t f = 0; f < outside.faces.size(); f += 3) std::swap(outside.faces[f + 1], outside.faces[f + 2]);
+  Mesh all;
+  for (const Mesh* part : {&front, &flipped, &beside, &outside}) {
+    const auto base = static_cast<uint32_t>(all.xyz.size() / 3);
+    all.xyz.insert(all.xyz.end(), part->xyz.begin(), part->xyz.end());
+    for (uint32_t i : part->faces) all.faces.push_back(base + i);
+  }
+  const std::vector<uint8_t> behind = FacesSeenFromBehind(all.ref(), cameras, 1.0);
+  ASSERT_EQ(behind.size(), 16u);
+  for (std::size_t f = 0; f < 16; ++f) EXPECT_EQ(behind[f], f >= 8 && f < 12 ? 1 : 0) << "face " << f;
+  EXPECT_THROW(FacesSeenFromBehind(all.ref(), cameras, 1.5), std::invalid_argument);
+  // A second camera on the far side (at x = 7, looking back along -x) sees the side fan from its
+  // front, larger (it stands closer): the side fan stays.
+  Camera back_camera = TestCamera();
+  back_camera.rotation = {{{0, 1, 0}, {0, 0, -1}, {-1, 0, 0}}};
+  // C = (7, 2, 1.5): t = -R C = -(2, -1.5, -7).
+  back_camera.translation = {-2.0, 1.5, 7.0};
+  const std::vector<uint8_t> both = FacesSeenFromBehind(all.ref(), {TestCamera(), back_camera}, 1.0);
+  for (std::size_t f = 8; f < 12; ++f) EXPECT_EQ(both[f], 0) << "face " << f;
+}
+
 // The share over a mesh given in blocks (a long drive's spooled mesh): the whole mesh's figures,
 // with triangles overlapping across blocks, exact ties (the same triangle twice, flipped: the
 // first one drawn keeps its pixels) and triangles crossing the near plane.
