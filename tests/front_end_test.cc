@@ -517,14 +517,21 @@ TEST_F(FrontEnd, BadPosesAndCalibrationAreNamed) {
   }
 }
 
+// A folder of ../shared (IMR_SHARED_DIR), or empty when it is not there; why, for the skip.
+fs::path SharedData(const std::string& rel) {
+  const char* shared = std::getenv("IMR_SHARED_DIR");
+  const fs::path p = fs::path(shared ? shared : "") / rel;
+  return shared != nullptr && fs::is_directory(p) ? p : fs::path();
+}
+std::string NotThere(const std::string& what, const std::string& rel) {
+  return what + " is not at IMR_SHARED_DIR/" + rel + " (../shared/data is the team's data folder; set IMR_SHARED_DIR)";
+}
+constexpr const char* kKittiRawDrive = "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync";
+
 // The real KITTI raw sample: a traffic jam under an overpass, 78 frames of camera 2.
 TEST(FrontEndReal, KittiRawSampleRunsToAManifoldMesh) {
-  const char* shared = std::getenv("IMR_SHARED_DIR");
-  const fs::path drive = fs::path(shared ? shared : "") /
-                         "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync";
-  if (shared == nullptr || !fs::is_directory(drive))
-    GTEST_SKIP() << "the KITTI raw sample is not at " << drive
-                 << " (../shared/data is the team's data folder; set IMR_SHARED_DIR)";
+  const fs::path drive = SharedData(kKittiRawDrive);
+  if (drive.empty()) GTEST_SKIP() << NotThere("the KITTI raw sample", kKittiRawDrive);
   ScratchDir dir("front-end-kitti");
   json job = ImageJob("kitti_raw", {drive.string()}, {{"camera", 2}});
   job["output"]["directory"] = (dir / "out").string();
@@ -556,12 +563,8 @@ TEST(FrontEndReal, KittiRawSampleRunsToAManifoldMesh) {
 // out the sheets the keyframes see from behind (measured: 40 faces; 7.7 % of what the keyframes
 // saw without it, 0.0 % with it).
 TEST(FrontEndReal, MeshOnKittiRawSeesNothingFromBehind) {
-  const char* shared = std::getenv("IMR_SHARED_DIR");
-  const fs::path drive = fs::path(shared ? shared : "") /
-                         "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync";
-  if (shared == nullptr || !fs::is_directory(drive))
-    GTEST_SKIP() << "the KITTI raw sample is not at " << drive
-                 << " (../shared/data is the team's data folder; set IMR_SHARED_DIR)";
+  const fs::path drive = SharedData(kKittiRawDrive);
+  if (drive.empty()) GTEST_SKIP() << NotThere("the KITTI raw sample", kKittiRawDrive);
   ScratchDir dir("front-end-kitti-mesh");
   const CommandResult r = RunShell(Quote(kImr) + " mesh -q --input " + Quote(drive.string()) +
                                    " --format kitti_raw --out " + Quote((dir / "m.ply").string()));
@@ -576,11 +579,9 @@ TEST(FrontEndReal, MeshOnKittiRawSeesNothingFromBehind) {
 // imr mesh on a model in its own units (the Middlebury temple ring, centimetres): the street's
 // 4 m Steiner grid is not forced on it, engine.scale auto chooses, and a surface comes out.
 TEST(FrontEndReal, MeshOnTheTempleRingKeepsTheScaledGrid) {
-  const char* shared = std::getenv("IMR_SHARED_DIR");
-  const fs::path ring = fs::path(shared ? shared : "") / "data/middlebury/templeSparseRing";
-  if (shared == nullptr || !fs::is_directory(ring))
-    GTEST_SKIP() << "the Middlebury temple ring is not at " << ring
-                 << " (../shared/data is the team's data folder; set IMR_SHARED_DIR)";
+  const char* kRing = "data/middlebury/templeSparseRing";
+  const fs::path ring = SharedData(kRing);
+  if (ring.empty()) GTEST_SKIP() << NotThere("the Middlebury temple ring", kRing);
   ScratchDir dir("front-end-temple-mesh");
   const CommandResult r = RunShell(Quote(kImr) + " mesh -q --input " + Quote(ring.string()) +
                                    " --format middlebury --out " + Quote((dir / "t.ply").string()));

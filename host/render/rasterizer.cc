@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 
@@ -332,32 +333,10 @@ void CheckScale(double scale) {
   if (!(scale > 0.0 && scale <= 1.0)) throw std::invalid_argument("back-facing share: scale must be in (0, 1]");
 }
 
-}  // namespace
-
-BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
+// Each camera drawn at `scale` of its size: every pixel showing a face, as (face, seen from behind).
+void ForEachPixelSide(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale,
+                      const std::function<void(int32_t face, bool back)>& pixel) {
   CheckScale(scale);
-  BackFacing out;
-  RenderOptions o;
-  o.opacity = 1.0;
-  for (const Camera& full : cameras) {
-    const Camera c = ScaledCamera(full, scale);
-    const Rendering r = RenderIntoCamera(mesh, c, nullptr, o);
-    const Vec3 center = c.Center();
-    std::vector<int8_t> back(mesh.face_count, -1);  // per face: unknown, front 0, back 1
-    for (int32_t f : r.face) {
-      if (f < 0) continue;
-      if (back[f] < 0) back[f] = SeenFromBehind(mesh, static_cast<std::size_t>(f), center) ? 1 : 0;
-      ++out.pixels;
-      out.back_pixels += back[f];
-    }
-    ++out.views;
-  }
-  return out;
-}
-
-std::vector<uint8_t> FacesSeenFromBehind(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
-  CheckScale(scale);
-  std::vector<int64_t> front(mesh.face_count, 0), back(mesh.face_count, 0);
   RenderOptions o;
   o.opacity = 1.0;
   for (const Camera& full : cameras) {
@@ -368,9 +347,26 @@ std::vector<uint8_t> FacesSeenFromBehind(const MeshRef& mesh, const std::vector<
     for (int32_t f : r.face) {
       if (f < 0) continue;
       if (side[f] < 0) side[f] = SeenFromBehind(mesh, static_cast<std::size_t>(f), center) ? 1 : 0;
-      ++(side[f] ? back : front)[f];
+      pixel(f, side[f] == 1);
     }
   }
+}
+
+}  // namespace
+
+BackFacing MeasureBackFacing(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
+  BackFacing out;
+  ForEachPixelSide(mesh, cameras, scale, [&](int32_t, bool back) {
+    ++out.pixels;
+    out.back_pixels += back ? 1 : 0;
+  });
+  out.views = static_cast<int64_t>(cameras.size());
+  return out;
+}
+
+std::vector<uint8_t> FacesSeenFromBehind(const MeshRef& mesh, const std::vector<Camera>& cameras, double scale) {
+  std::vector<int64_t> front(mesh.face_count, 0), back(mesh.face_count, 0);
+  ForEachPixelSide(mesh, cameras, scale, [&](int32_t f, bool behind) { ++(behind ? back : front)[f]; });
   std::vector<uint8_t> behind(mesh.face_count, 0);
   for (std::size_t f = 0; f < behind.size(); ++f) behind[f] = back[f] > front[f] ? 1 : 0;
   return behind;
