@@ -31,47 +31,47 @@ void AddRound(PlaneRetriangulationStats* total, const PlaneRetriangulationStats&
 void AddRound(EdgeFlipStats* total, const EdgeFlipStats& round) { AddAngles(total, round); }
 void AddRound(NormalFilterStats* total, const NormalFilterStats& round) { AddAngles(total, round); }
 
+namespace {
+
+// A pass whose figures go to stats->*field: added over the rounds (AddRound), as they were
+// before it when it is undone. `changed` says from its figures whether it changed the mesh.
+template <class Stats, class Run, class Changed>
+MeshPass Pass(std::string name, bool moves_vertices, bool changes_faces, MeshPassesStats* stats,
+              Stats MeshPassesStats::*field, Run run, Changed changed) {
+  auto kept = std::make_shared<Stats>();
+  return {std::move(name), moves_vertices, changes_faces,
+          [stats, field, kept, run, changed](Mesh* m) {
+            *kept = stats->*field;
+            const Stats s = run(m);
+            AddRound(&(stats->*field), s);
+            return changed(s);
+          },
+          [stats, field, kept] { stats->*field = *kept; }};
+}
+
+}  // namespace
+
 std::vector<MeshPass> MeshPasses(const EngineOptions& options, MeshPassesStats* stats) {
   std::vector<MeshPass> passes;
   const auto planes = PlaneRetriangulationOptions::FromEngine(options);
   const auto flips = EdgeFlipOptions::FromEngine(options);
   const auto normals = NormalFilterOptions::FromEngine(options);
-  // A pass's figures add up over the rounds; undone, they are what they were before it ran.
   for (int round = 1; round <= std::max(1, options.mesh_pass_rounds); ++round) {
     const std::string suffix = round == 1 ? "" : " (round " + std::to_string(round) + ")";
-    if (planes.enabled()) {
-      auto kept = std::make_shared<PlaneRetriangulationStats>();
-      passes.push_back({"engine.retriangulate_planes" + suffix, true, true,
-                        [planes, stats, kept](Mesh* m) {
-                          *kept = stats->planes;
-                          const PlaneRetriangulationStats s = RetriangulatePlanes(m, planes);
-                          AddRound(&stats->planes, s);
-                          return s.regions > 0;
-                        },
-                        [stats, kept] { stats->planes = *kept; }});
-    }
-    if (flips.enabled) {
-      auto kept = std::make_shared<EdgeFlipStats>();
-      passes.push_back({"engine.flip_edges" + suffix, false, true,
-                        [flips, stats, kept](Mesh* m) {
-                          *kept = stats->flips;
-                          const EdgeFlipStats s = FlipEdges(m, flips);
-                          AddRound(&stats->flips, s);
-                          return s.flips > 0;
-                        },
-                        [stats, kept] { stats->flips = *kept; }});
-    }
-    if (normals.enabled()) {
-      auto kept = std::make_shared<NormalFilterStats>();
-      passes.push_back({"engine.filter_normals" + suffix, true, false,
-                        [normals, stats, kept](Mesh* m) {
-                          *kept = stats->normal_filter;
-                          const NormalFilterStats s = FilterNormals(m, normals);
-                          AddRound(&stats->normal_filter, s);
-                          return s.vertices_moved > 0;
-                        },
-                        [stats, kept] { stats->normal_filter = *kept; }});
-    }
+    if (planes.enabled())
+      passes.push_back(Pass(
+          "engine.retriangulate_planes" + suffix, true, true, stats, &MeshPassesStats::planes,
+          [planes](Mesh* m) { return RetriangulatePlanes(m, planes); },
+          [](const PlaneRetriangulationStats& s) { return s.regions > 0; }));
+    if (flips.enabled)
+      passes.push_back(Pass(
+          "engine.flip_edges" + suffix, false, true, stats, &MeshPassesStats::flips,
+          [flips](Mesh* m) { return FlipEdges(m, flips); }, [](const EdgeFlipStats& s) { return s.flips > 0; }));
+    if (normals.enabled())
+      passes.push_back(Pass(
+          "engine.filter_normals" + suffix, true, false, stats, &MeshPassesStats::normal_filter,
+          [normals](Mesh* m) { return FilterNormals(m, normals); },
+          [](const NormalFilterStats& s) { return s.vertices_moved > 0; }));
   }
   return passes;
 }

@@ -133,6 +133,27 @@ double TriangleArea(const double* a, const double* b, const double* c) {
   return 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
 }
 
+namespace {
+
+// `faces` (indices into m's vertices) become m's faces; the vertices no face names go, the others
+// keep their order, renumbered.
+void KeepFaces(Mesh* m, std::vector<uint32_t> faces) {
+  std::vector<uint32_t> new_index(m->point_ids.size(), kNone);
+  for (uint32_t v : faces) new_index[v] = 0;
+  Mesh out;
+  for (size_t v = 0; v < new_index.size(); ++v) {
+    if (new_index[v] == kNone) continue;
+    new_index[v] = static_cast<uint32_t>(out.point_ids.size());
+    out.vertices.insert(out.vertices.end(), &m->vertices[3 * v], &m->vertices[3 * v] + 3);
+    out.point_ids.push_back(m->point_ids[v]);
+  }
+  for (uint32_t& i : faces) i = new_index[i];
+  out.faces = std::move(faces);
+  *m = std::move(out);
+}
+
+}  // namespace
+
 void DropSmallComponents(Mesh* m, double min_area, DroppedComponents* dropped) {
   const size_t nv = m->point_ids.size(), nf = m->faces.size() / 3;
   if (!(min_area > 0.0) || nf == 0) return;
@@ -169,27 +190,14 @@ void DropSmallComponents(Mesh* m, double min_area, DroppedComponents* dropped) {
       d.area += area[v];
     }
   if (d.components == 0) return;
-  // What stays, in its order; vertices renumbered in theirs.
-  std::vector<uint32_t> new_index(nv, kNone);
+  // What stays, in its order.
   std::vector<uint32_t> kept;
   kept.reserve(m->faces.size());
   for (size_t f = 0; f < nf; ++f) {
     const uint32_t* t = &m->faces[3 * f];
-    const uint32_t r = find(t[0]);
-    if (area[r] < min_area) continue;
-    kept.insert(kept.end(), t, t + 3);
-    for (int k = 0; k < 3; ++k) new_index[t[k]] = 0;
+    if (area[find(t[0])] >= min_area) kept.insert(kept.end(), t, t + 3);
   }
-  Mesh out;
-  for (size_t v = 0; v < nv; ++v) {
-    if (new_index[v] == kNone) continue;
-    new_index[v] = static_cast<uint32_t>(out.point_ids.size());
-    out.vertices.insert(out.vertices.end(), &m->vertices[3 * v], &m->vertices[3 * v] + 3);
-    out.point_ids.push_back(m->point_ids[v]);
-  }
-  for (uint32_t& i : kept) i = new_index[i];
-  out.faces = std::move(kept);
-  *m = std::move(out);
+  KeepFaces(m, std::move(kept));
   if (dropped != nullptr) {
     dropped->components += d.components;
     dropped->faces += d.faces;
@@ -214,19 +222,7 @@ int64_t DropFaces(Mesh* m, const std::vector<uint8_t>& drop, double min_area, Dr
   if (gone == 0) return 0;
   m->faces = std::move(kept);
   SplitPinchedVertices(m);
-  // Vertices no face names any more, in the order of those that stay.
-  std::vector<uint32_t> new_index(m->point_ids.size(), kNone);
-  for (uint32_t v : m->faces) new_index[v] = 0;
-  Mesh out;
-  for (size_t v = 0; v < new_index.size(); ++v) {
-    if (new_index[v] == kNone) continue;
-    new_index[v] = static_cast<uint32_t>(out.point_ids.size());
-    out.vertices.insert(out.vertices.end(), &m->vertices[3 * v], &m->vertices[3 * v] + 3);
-    out.point_ids.push_back(m->point_ids[v]);
-  }
-  for (uint32_t& i : m->faces) i = new_index[i];
-  out.faces = std::move(m->faces);
-  *m = std::move(out);
+  KeepFaces(m, std::move(m->faces));
   DropSmallComponents(m, min_area, dropped);
   return gone;
 }

@@ -128,13 +128,15 @@ TEST(Rasterizer, BackFacingShareCountsWhatTheCamerasSeeFromBehind) {
 // sees it from behind.
 TEST(Rasterizer, FacesSeenFromBehindAreTheVisibleBackFaces) {
   const std::vector<Camera> cameras = {TestCamera()};
-  Mesh front = FanFacingCamera({4.0, 1.5, 1.0}, 0.5);  // 4 faces facing the camera
-  Mesh flipped = FanFacingCamera({8.0, 1.5, 1.0}, 0.2);  // behind it, wholly hidden
-  for (std::size_t f = 0; f < flipped.faces.size(); f += 3) std::swap(flipped.faces[f + 1], flipped.faces[f + 2]);
-  Mesh beside = FanFacingCamera({5.0, 2.9, 1.0}, 0.1);  // off to the side, in view, flipped
-  for (std::size_t f = 0; f < beside.faces.size(); f += 3) std::swap(beside.faces[f + 1], beside.faces[f + 2]);
-  Mesh outside = FanFacingCamera({5.0, 40.0, 1.0}, 0.1);  // out of the view, flipped
-  for (std::size_t f = 0; f < outside.faces.size(); f += 3) std::swap(outside.faces[f + 1], outside.faces[f + 2]);
+  const auto flipped_fan = [](const Vec3& centre, double h) {
+    Mesh m = FanFacingCamera(centre, h);
+    for (std::size_t f = 0; f < m.faces.size(); f += 3) std::swap(m.faces[f + 1], m.faces[f + 2]);
+    return m;
+  };
+  const Mesh front = FanFacingCamera({4.0, 1.5, 1.0}, 0.5);   // 4 faces facing the camera
+  const Mesh flipped = flipped_fan({8.0, 1.5, 1.0}, 0.2);     // behind it, wholly hidden
+  const Mesh beside = flipped_fan({5.0, 2.9, 1.0}, 0.1);      // off to the side, in view
+  const Mesh outside = flipped_fan({5.0, 40.0, 1.0}, 0.1);    // out of the view
   Mesh all;
   for (const Mesh* part : {&front, &flipped, &beside, &outside}) {
     const auto base = static_cast<uint32_t>(all.xyz.size() / 3);
