@@ -347,6 +347,28 @@ TEST_F(FrontEnd, EdgesAreFlippedWholeAndStreamed) {
   }
 }
 
+// engine.steiner_export open_steiner needs the surface whole: a run that writes it in parts keeps
+// all_steiner's triangles and says so; a whole run does not warn. Both are manifolds.
+TEST_F(FrontEnd, OpenSteinerWarnsWhenTheSurfaceIsWrittenInParts) {
+  for (const bool forget : {false, true}) {
+    json job = ImageJob("kitti_odometry", {Sequence().string()});
+    job["engine"]["forget"] = forget;
+    job["engine"]["steiner_export"] = "open_steiner";
+    job["pipeline"][3]["params"] = {{"vertex_colors", false}, {"texture", false}};
+    const std::string name = forget ? "open-steiner-streamed" : "open-steiner-whole";
+    job["output"]["directory"] = (*dir_ / name / "{sequence}").string();
+    const CommandResult r = RunJob(job, name);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json report = ReadJson(*dir_ / name / "street/report.json");
+    EXPECT_EQ(report.contains("surface_parts"), forget) << name;
+    bool warned = false;
+    for (const json& w : report.value("warnings", json::array()))
+      warned = warned || w.get<std::string>().rfind("engine.steiner_export open_steiner:", 0) == 0;
+    EXPECT_EQ(warned, forget) << name << ": " << report.value("warnings", json::array()).dump(2);
+    EXPECT_EQ(report["mesh"]["manifold"], true) << name;
+  }
+}
+
 // A short image set gets keyframes it can mesh unless the job chose keyframe_every (issue 37:
 // the Middlebury rings of 16 images made 4 keyframes and no surface); when the job did choose
 // and nothing is meshed, the message says what would change it.

@@ -50,6 +50,10 @@ enum class SteinerExportRule {
   kNone,         // Export all of dO (a closed surface).
   kAllSteiner,   // Drop triangles whose three vertices are Steiner points.
   kAnySteiner,   // Drop triangles with at least one Steiner vertex (default).
+  kOpenSteiner,  // all_steiner's, then the regions of triangles with a Steiner vertex whose rim
+                 // mostly borders nothing (sheets into the sky) go; those closing a gap between
+                 // point triangles stay (DropOpenSteinerRegions). Whole meshes only: a run that
+                 // writes its surface in parts keeps all_steiner's triangles.
 };
 std::string ToString(SteinerExportRule rule);
 bool FromString(const std::string& s, SteinerExportRule* rule);
@@ -526,9 +530,16 @@ void DropSmallComponents(Mesh* mesh, double min_area, DroppedComponents* dropped
 int64_t DropFaces(Mesh* mesh, const std::vector<uint8_t>& drop, double min_area,
                   DroppedComponents* dropped = nullptr);
 
-// What ExtractMesh does after taking dO through the Steiner filter: pinched vertices split (unless
-// the rule is kNone), small holes filled and Taubin smoothing as the options say, small components
-// dropped (`dropped`, optional, gets what went), canonical order.
+// steiner_export open_steiner on a mesh filtered by all_steiner: the triangles with a Steiner
+// vertex (point id -1), joined across shared edges, form regions; a region whose rim has fewer
+// edges shared with triangles between points than edges bordering nothing (or only dropped
+// all-Steiner triangles) goes. Returns the triangles dropped; vertices no face names go too.
+// Pinches it leaves are split by FinishExportedMesh, which calls it.
+int64_t DropOpenSteinerRegions(Mesh* mesh);
+
+// What ExtractMesh does after taking dO through the Steiner filter: open_steiner's regions dropped,
+// pinched vertices split (unless the rule is kNone), small holes filled and Taubin smoothing as the
+// options say, small components dropped (`dropped`, optional, gets what went), canonical order.
 void FinishExportedMesh(Mesh* mesh, const EngineOptions& options, DroppedComponents* dropped = nullptr);
 // The union of a run's parts (SurfacePart) as one mesh, vertices merged by key, before
 // FinishExportedMesh. Empty string, or why the parts do not fit together (a key at two positions,

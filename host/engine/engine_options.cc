@@ -37,6 +37,7 @@ std::string ToString(SteinerExportRule rule) {
     case SteinerExportRule::kNone: return "none";
     case SteinerExportRule::kAllSteiner: return "all_steiner";
     case SteinerExportRule::kAnySteiner: return "any_steiner";
+    case SteinerExportRule::kOpenSteiner: return "open_steiner";
   }
   return "all_steiner";
 }
@@ -45,6 +46,7 @@ bool FromString(const std::string& s, SteinerExportRule* rule) {
   if (s == "none") *rule = SteinerExportRule::kNone;
   else if (s == "all_steiner") *rule = SteinerExportRule::kAllSteiner;
   else if (s == "any_steiner") *rule = SteinerExportRule::kAnySteiner;
+  else if (s == "open_steiner") *rule = SteinerExportRule::kOpenSteiner;
   else return false;
   return true;
 }

@@ -65,7 +65,7 @@ TEST(EngineOptionsTest, EnumsRoundTrip) {
     EXPECT_EQ(back, r);
   }
   for (auto r : {SteinerExportRule::kNone, SteinerExportRule::kAllSteiner,
-                 SteinerExportRule::kAnySteiner}) {
+                 SteinerExportRule::kAnySteiner, SteinerExportRule::kOpenSteiner}) {
     SteinerExportRule back;
     ASSERT_TRUE(FromString(ToString(r), &back));
     EXPECT_EQ(back, r);

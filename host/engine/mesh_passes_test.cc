@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -171,6 +172,71 @@ TEST(MeshPasses, DroppingAnyFacesLeavesAManifold) {
   EXPECT_GT(split, 0);  // some drops pinched a vertex, and it was split
   Mesh m = testing::RandomSheet(rng, 5);
   EXPECT_THROW(DropFaces(&m, std::vector<uint8_t>(3, 0), 0.0), std::invalid_argument);
+}
+
+// steiner_export open_steiner's step on a flat 6 x 6 grid: a Steiner vertex inside (its fan
+// closes a gap between point triangles) and one on the border (rim: three edges on points, two
+// open) stay; the top row of Steiner vertices (its strip borders points on 5 edges, nothing on 7)
+// and a loose triangle with a Steiner corner (nothing on 3) go.
+TEST(SteinerRegions, GapsBetweenPointsStaySheetsIntoNothingGo) {
+  const int n = 6;
+  Mesh m = testing::Grid(n, [](int i, int j) { return std::array<double, 3>{1.0 * i, 1.0 * j, 0.0}; });
+  m.point_ids[2 * n + 2] = -1;  // inside
+  m.point_ids[0 * n + 3] = -1;  // on the border
+  for (int i = 0; i < n; ++i) m.point_ids[(n - 1) * n + i] = -1;  // the top row
+  const uint32_t loose = static_cast<uint32_t>(m.point_ids.size());
+  m.vertices.insert(m.vertices.end(), {10, 0, 0, 11, 0, 0, 10, 1, 0});
+  m.point_ids.insert(m.point_ids.end(), {-1, 100, 101});
+  m.faces.insert(m.faces.end(), {loose, loose + 1, loose + 2});
+  const std::size_t faces = m.faces.size() / 3;
+  EXPECT_EQ(DropOpenSteinerRegions(&m), 2 * (n - 1) + 1);
+  EXPECT_EQ(m.faces.size() / 3, faces - 2 * (n - 1) - 1);
+  EXPECT_EQ(m.point_ids.size(), static_cast<std::size_t>(n * (n - 1)));  // the top row, the loose corners gone
+  std::set<int64_t> steiner_faces_left;
+  for (std::size_t f = 0; f < m.faces.size() / 3; ++f)
+    for (int k = 0; k < 3; ++k)
+      if (m.point_ids[m.faces[3 * f + k]] < 0) steiner_faces_left.insert(static_cast<int64_t>(f));
+  EXPECT_EQ(steiner_faces_left.size(), 6u + 3u);  // the inside fan, the border fan
+  EXPECT_TRUE(CheckMesh(m, /*closed=*/false).ok) << CheckMesh(m, false).message;
+  EXPECT_EQ(DropOpenSteinerRegions(&m), 0);
+}
+
+// On random sheets with random Steiner vertices, through FinishExportedMesh: a 2-manifold, every
+// triangle between points kept, and nothing more to drop (a kept region's rim borders points or
+// nothing, never another region).
+TEST(SteinerRegions, RandomSheetsKeepTheirPointTrianglesAndAManifold) {
+  std::mt19937 rng(61);
+  EngineOptions o;
+  o.steiner_export = SteinerExportRule::kOpenSteiner;
+  o.fill_holes_perimeter = 0.0;
+  o.min_component_area = 0.0;
+  int64_t sheets = 0, dropped = 0, kept_steiner = 0;
+  auto point_faces = [](const Mesh& m) {
+    int64_t count = 0;
+    for (std::size_t f = 0; f < m.faces.size() / 3; ++f)
+      count += m.point_ids[m.faces[3 * f]] >= 0 && m.point_ids[m.faces[3 * f + 1]] >= 0 &&
+               m.point_ids[m.faces[3 * f + 2]] >= 0;
+    return count;
+  };
+  for (int trial = 0; trial < 1000; ++trial) {
+    Mesh m = testing::RandomSheet(rng, 4 + static_cast<int>(rng() % 6));
+    if (!CheckMesh(m, /*closed=*/false).ok) continue;
+    ++sheets;
+    const int share = 5 + static_cast<int>(rng() % 45);  // percent of the vertices
+    for (int64_t& id : m.point_ids) id = static_cast<int>(rng() % 100) < share ? -1 : id;
+    const std::size_t nf = m.faces.size() / 3;
+    const int64_t points = point_faces(m);
+    FinishExportedMesh(&m, o);
+    const ManifoldCheckResult check = CheckMesh(m, /*closed=*/false);
+    ASSERT_TRUE(check.ok) << "trial " << trial << ": " << check.message;
+    EXPECT_EQ(point_faces(m), points) << "trial " << trial;
+    dropped += static_cast<int64_t>(nf - m.faces.size() / 3);
+    kept_steiner += static_cast<int64_t>(m.faces.size() / 3) - points;
+    EXPECT_EQ(DropOpenSteinerRegions(&m), 0) << "trial " << trial;
+  }
+  EXPECT_GT(sheets, 500);
+  EXPECT_GT(dropped, 0);       // both outcomes happen
+  EXPECT_GT(kept_steiner, 0);
 }
 
 // A pass that breaks the manifold is undone (the mesh as the pass before it left it, its figures

@@ -1,6 +1,6 @@
-// What the export does to dO's exported part after the Steiner rule (no CGAL here): filling small
-// holes and smoothing, both keeping the mesh a 2-manifold (with the same boundary, for
-// smoothing).
+// What the export does to dO's exported part after the Steiner rule (no CGAL here): open_steiner's
+// regions, filling small holes and smoothing, both keeping the mesh a 2-manifold (with the same
+// boundary, for smoothing), dropping faces and small components.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -224,6 +224,79 @@ int64_t DropFaces(Mesh* m, const std::vector<uint8_t>& drop, double min_area, Dr
   SplitPinchedVertices(m);
   KeepFaces(m, std::move(m->faces));
   DropSmallComponents(m, min_area, dropped);
+  return gone;
+}
+
+// open_steiner: where the points are sparse, dO closes over the views through triangles with a
+// Steiner vertex. Those between point triangles fill gaps (the road between its few points);
+// those that mostly border nothing span into where no point was seen (a sheet over the sky). A
+// region's rim is counted edge by edge, not by length: its open edges run along the long grid
+// edges, its closing ones along the short point edges.
+int64_t DropOpenSteinerRegions(Mesh* m) {
+  const size_t nf = m->faces.size() / 3;
+  std::vector<uint8_t> steiner(nf, 0);
+  for (size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) steiner[f] |= m->point_ids[m->faces[3 * f + k]] < 0 ? 1 : 0;
+  // Each face's edges, grouped by their two vertices (dO can name an edge with four faces).
+  struct HalfEdge {
+    uint64_t key;
+    uint32_t face;
+  };
+  std::vector<HalfEdge> edges;
+  edges.reserve(3 * nf);
+  for (size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const uint64_t a = m->faces[3 * f + k], b = m->faces[3 * f + (k + 1) % 3];
+      edges.push_back({std::min(a, b) << 32 | std::max(a, b), static_cast<uint32_t>(f)});
+    }
+  std::sort(edges.begin(), edges.end(), [](const HalfEdge& x, const HalfEdge& y) {
+    return x.key != y.key ? x.key < y.key : x.face < y.face;
+  });
+  std::vector<uint32_t> region(nf);
+  std::iota(region.begin(), region.end(), 0u);
+  auto find = [&](uint32_t f) {
+    while (region[f] != f) f = region[f] = region[region[f]];
+    return f;
+  };
+  auto for_each_edge = [&](auto&& visit) {
+    for (size_t b = 0, e = 0; b < edges.size(); b = e) {
+      for (e = b + 1; e < edges.size() && edges[e].key == edges[b].key;) ++e;
+      visit(b, e);
+    }
+  };
+  for_each_edge([&](size_t b, size_t e) {
+    uint32_t first = nf;  // the group's first Steiner face
+    for (size_t i = b; i < e; ++i) {
+      const uint32_t f = edges[i].face;
+      if (!steiner[f]) continue;
+      if (first == nf) first = f;
+      else region[find(f)] = find(first);
+    }
+  });
+  // Per region: rim edges shared with a point triangle minus those bordering nothing.
+  std::vector<int64_t> closing_minus_open(nf, 0);
+  for_each_edge([&](size_t b, size_t e) {
+    bool point_face = false;
+    for (size_t i = b; i < e; ++i) point_face = point_face || !steiner[edges[i].face];
+    int steiner_faces = 0;
+    for (size_t i = b; i < e; ++i) steiner_faces += steiner[edges[i].face];
+    // A rim edge has one face of its region (an edge with two is inside it; one region per
+    // edge, as the faces at an edge were joined above).
+    if (steiner_faces == 1)
+      for (size_t i = b; i < e; ++i)
+        if (steiner[edges[i].face]) closing_minus_open[find(edges[i].face)] += point_face ? 1 : -1;
+  });
+  std::vector<uint32_t> kept;
+  kept.reserve(m->faces.size());
+  int64_t gone = 0;
+  for (size_t f = 0; f < nf; ++f) {
+    if (steiner[f] && closing_minus_open[find(static_cast<uint32_t>(f))] < 0) {
+      ++gone;
+      continue;
+    }
+    kept.insert(kept.end(), &m->faces[3 * f], &m->faces[3 * f] + 3);
+  }
+  if (gone > 0) KeepFaces(m, std::move(kept));
   return gone;
 }
 

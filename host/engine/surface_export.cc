@@ -36,7 +36,9 @@ Mesh Engine::Impl::ToMesh(const std::vector<Triangle>& tris, SteinerExportRule r
   for (const Triangle& t : tris) {
     int steiner_vertices = 0;
     for (Vertex_handle v : t.v) steiner_vertices += v->info().id < 0 ? 1 : 0;
-    if (rule == SteinerExportRule::kAllSteiner && steiner_vertices == 3) continue;
+    if ((rule == SteinerExportRule::kAllSteiner || rule == SteinerExportRule::kOpenSteiner) &&
+        steiner_vertices == 3)
+      continue;
     if (rule == SteinerExportRule::kAnySteiner && steiner_vertices > 0) continue;
     for (Vertex_handle v : t.v) {
       auto [it, inserted] = index.emplace(v, static_cast<uint32_t>(index.size()));
@@ -64,7 +66,9 @@ SurfacePart Engine::Impl::MakePart(std::vector<Triangle> tris) {
   for (const Triangle& t : tris) {
     int steiner_vertices = 0;
     for (Vertex_handle v : t.v) steiner_vertices += v->info().id < 0 ? 1 : 0;
-    if (rule == SteinerExportRule::kAllSteiner && steiner_vertices == 3) continue;
+    if ((rule == SteinerExportRule::kAllSteiner || rule == SteinerExportRule::kOpenSteiner) &&
+        steiner_vertices == 3)
+      continue;
     if (rule == SteinerExportRule::kAnySteiner && steiner_vertices > 0) continue;
     // Rotated to start at its smallest id, orientation kept.
     int first = 0;

@@ -3,9 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <map>
+#include <set>
 #include <string>
 
 #include "host/engine/testing/run_stream.h"
@@ -123,6 +126,56 @@ TEST(SurfaceStreamTest, OtherSteinerRulesAndNoFilling) {
         ExpectSame(batch, street.exported, what + ": merged parts vs ExtractMesh");
         ExpectSame(Streamed(parts, eo), batch, what);
       }
+  }
+}
+
+// open_steiner on a real engine's street, with many points and with few: between any_steiner and
+// all_steiner (triangles compared by their corners' positions, holes left open), the merged parts
+// finished as ExtractMesh; with few points, sheets that border nothing are there to drop.
+TEST(SurfaceStreamTest, OpenSteinerLiesBetweenAnyAndAllSteiner) {
+  using Triangles = std::set<std::array<double, 9>>;
+  auto triangles = [](const Mesh& m) {
+    Triangles out;
+    for (std::size_t f = 0; f < m.faces.size() / 3; ++f) {
+      std::array<std::array<double, 3>, 3> c;
+      for (int k = 0; k < 3; ++k)
+        for (int d = 0; d < 3; ++d) c[k][d] = m.vertices[3 * m.faces[3 * f + k] + d];
+      std::sort(c.begin(), c.end());
+      out.insert({c[0][0], c[0][1], c[0][2], c[1][0], c[1][1], c[1][2], c[2][0], c[2][1], c[2][2]});
+    }
+    return out;
+  };
+  for (int points : {150, 10}) {
+    synthetic::StreamOptions so;
+    so.scene = synthetic::SceneKind::kStreet;
+    so.frames = 60;
+    so.points_per_keyframe = points;
+    std::map<SteinerExportRule, Triangles> by_rule;
+    for (SteinerExportRule rule :
+         {SteinerExportRule::kAnySteiner, SteinerExportRule::kAllSteiner, SteinerExportRule::kOpenSteiner}) {
+      EngineOptions eo = Options();
+      eo.steiner_export = rule;
+      eo.fill_holes_perimeter = 0.0;
+      eo.min_component_area = 0.0;
+      synthetic::SyntheticStream stream(so);
+      Engine engine(eo, nullptr);
+      ASSERT_TRUE(testing::RunStream(&stream, &engine).ok());
+      const Mesh exported = engine.ExtractMesh();
+      by_rule[rule] = triangles(exported);
+      if (rule == SteinerExportRule::kOpenSteiner)
+        ExpectSame(Batch(SliceIntoParts(engine.ExtractBoundary(), rule, 5, CutOrder::kShuffled), eo),
+                   exported, "open_steiner: merged parts vs ExtractMesh");
+    }
+    const Triangles& any = by_rule[SteinerExportRule::kAnySteiner];
+    const Triangles& all = by_rule[SteinerExportRule::kAllSteiner];
+    const Triangles& open = by_rule[SteinerExportRule::kOpenSteiner];
+    const std::string what = std::to_string(points) + " points per keyframe";
+    EXPECT_TRUE(std::includes(open.begin(), open.end(), any.begin(), any.end())) << what;
+    EXPECT_TRUE(std::includes(all.begin(), all.end(), open.begin(), open.end())) << what;
+    EXPECT_GT(open.size(), any.size()) << what;  // gaps closed
+    std::printf("%s: any_steiner %zu, open_steiner %zu, all_steiner %zu triangles\n", what.c_str(),
+                any.size(), open.size(), all.size());
+    if (points < 150) EXPECT_LT(open.size(), all.size()) << what;  // sheets dropped
   }
 }
 

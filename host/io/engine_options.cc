@@ -27,7 +27,7 @@ std::vector<engine::VisibilityMode> EnumValues() {
 template <>
 std::vector<engine::SteinerExportRule> EnumValues() {
   return {engine::SteinerExportRule::kNone, engine::SteinerExportRule::kAllSteiner,
-          engine::SteinerExportRule::kAnySteiner};
+          engine::SteinerExportRule::kAnySteiner, engine::SteinerExportRule::kOpenSteiner};
 }
 
 // A row of the table: the schema entry follows from the member's type (double: number, int:
@@ -112,7 +112,10 @@ std::vector<EngineOption> MakeTable() {
              "neighbouring vertex is not made (the vertex and its rays stay); 0: every move "
              "(trade-off measured in docs/engine.md)"),
       Option("steiner_export", &E::steiner_export, kNone, "",
-             "which triangles touching Steiner points the exported mesh drops"),
+             "which triangles touching Steiner points the exported mesh drops: none; all_steiner, "
+             "those between three; any_steiner, those with one; open_steiner, all_steiner's and "
+             "the regions of triangles with one whose rim mostly borders nothing (sheets into the "
+             "sky; whole meshes only)"),
       Option("fill_holes_perimeter", &E::fill_holes_perimeter, Min(0.0), "m",
              "export: close holes with a perimeter up to this (0: none)"),
       Option("smoothing_iterations", &E::smoothing_iterations, Min(0), "steps",

@@ -471,6 +471,10 @@ void SequenceRun::StartStreamedSurface() {
     spool = spool_dir_->path();
   }
   streamed_.emplace(engine_options_, spool, tiles_ ? &*tiles_ : nullptr);
+  if (engine_options_.steiner_export == engine::SteinerExportRule::kOpenSteiner)
+    Warn("engine.steiner_export open_steiner: this run writes its surface in parts (engine.forget, "
+         "output.tiles), which keep all_steiner's triangles: a region's rim is known only once the "
+         "surface is whole");
   if (refinement_) streamed_->SetPartFilter([this](engine::SurfacePart* part) { refinement_->Freeze(part); });
 }
 

@@ -26,7 +26,8 @@ enum class CutOrder {
 inline bool KeptBySteinerRule(const Mesh& m, std::size_t f, SteinerExportRule rule) {
   int steiner = 0;
   for (int k = 0; k < 3; ++k) steiner += m.point_ids[m.faces[3 * f + k]] < 0 ? 1 : 0;
-  if (rule == SteinerExportRule::kAllSteiner) return steiner < 3;
+  if (rule == SteinerExportRule::kAllSteiner || rule == SteinerExportRule::kOpenSteiner)
+    return steiner < 3;
   if (rule == SteinerExportRule::kAnySteiner) return steiner == 0;
   return true;
 }
