@@ -549,6 +549,11 @@ std::string NotThere(const std::string& what, const std::string& rel) {
   return what + " is not at IMR_SHARED_DIR/" + rel + " (../shared/data is the team's data folder; set IMR_SHARED_DIR)";
 }
 constexpr const char* kKittiRawDrive = "data/kitti-raw-2011_09_26-traffic/2011_09_26/2011_09_26_drive_unknown_sync";
+// `imr mesh -q` on `input` in `format`, written to `out`.
+CommandResult ImrMesh(const fs::path& input, const std::string& format, const fs::path& out) {
+  return RunShell(Quote(kImr) + " mesh -q --input " + Quote(input.string()) + " --format " + format +
+                  " --out " + Quote(out.string()));
+}
 
 // The real KITTI raw sample: a traffic jam under an overpass, 78 frames of camera 2.
 TEST(FrontEndReal, KittiRawSampleRunsToAManifoldMesh) {
@@ -588,8 +593,7 @@ TEST(FrontEndReal, MeshOnKittiRawSeesNothingFromBehind) {
   const fs::path drive = SharedData(kKittiRawDrive);
   if (drive.empty()) GTEST_SKIP() << NotThere("the KITTI raw sample", kKittiRawDrive);
   ScratchDir dir("front-end-kitti-mesh");
-  const CommandResult r = RunShell(Quote(kImr) + " mesh -q --input " + Quote(drive.string()) +
-                                   " --format kitti_raw --out " + Quote((dir / "m.ply").string()));
+  const CommandResult r = ImrMesh(drive, "kitti_raw", dir / "m.ply");
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   const json report = ReadJson(dir / "m.imr/mesh/report.json");
   EXPECT_TRUE(report["mesh"]["manifold"].get<bool>());
@@ -605,8 +609,7 @@ TEST(FrontEndReal, MeshOnTheTempleRingKeepsTheScaledGrid) {
   const fs::path ring = SharedData(kRing);
   if (ring.empty()) GTEST_SKIP() << NotThere("the Middlebury temple ring", kRing);
   ScratchDir dir("front-end-temple-mesh");
-  const CommandResult r = RunShell(Quote(kImr) + " mesh -q --input " + Quote(ring.string()) +
-                                   " --format middlebury --out " + Quote((dir / "t.ply").string()));
+  const CommandResult r = ImrMesh(ring, "middlebury", dir / "t.ply");
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   const json job = ReadJson(dir / "t.imr/job.json");
   EXPECT_FALSE(job["engine"].contains("steiner_spacing")) << job["engine"].dump();

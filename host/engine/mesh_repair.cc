@@ -276,10 +276,9 @@ int64_t DropOpenSteinerRegions(Mesh* m) {
   // Per region: rim edges shared with a point triangle minus those bordering nothing.
   std::vector<int64_t> closing_minus_open(nf, 0);
   for_each_edge([&](size_t b, size_t e) {
-    bool point_face = false;
-    for (size_t i = b; i < e; ++i) point_face = point_face || !steiner[edges[i].face];
     int steiner_faces = 0;
     for (size_t i = b; i < e; ++i) steiner_faces += steiner[edges[i].face];
+    const bool point_face = steiner_faces < static_cast<int>(e - b);
     // A rim edge has one face of its region (an edge with two is inside it; one region per
     // edge, as the faces at an edge were joined above).
     if (steiner_faces == 1)

@@ -24,9 +24,24 @@ std::vector<Triangle> Boundary(const EngineState& s, bool live) {
   return out;
 }
 
+// Whether triangle t of dO stays under `rule`'s per-triangle filter (open_steiner's regions go
+// later, in FinishExportedMesh).
+static bool PassesSteinerRule(const Triangle& t, SteinerExportRule rule) {
+  int steiner_vertices = 0;
+  for (Vertex_handle v : t.v) steiner_vertices += v->info().id < 0 ? 1 : 0;
+  switch (rule) {
+    case SteinerExportRule::kNone: return true;
+    case SteinerExportRule::kAllSteiner:
+    case SteinerExportRule::kOpenSteiner: return steiner_vertices < 3;
+    case SteinerExportRule::kAnySteiner: return steiner_vertices == 0;
+  }
+  return true;
+}
+
 }  // namespace detail
 
 using detail::Boundary;
+using detail::PassesSteinerRule;
 using detail::Clock;
 using detail::Triangle;
 
@@ -34,12 +49,7 @@ Mesh Engine::Impl::ToMesh(const std::vector<Triangle>& tris, SteinerExportRule r
   Mesh m;
   std::unordered_map<Vertex_handle, uint32_t> index;
   for (const Triangle& t : tris) {
-    int steiner_vertices = 0;
-    for (Vertex_handle v : t.v) steiner_vertices += v->info().id < 0 ? 1 : 0;
-    if ((rule == SteinerExportRule::kAllSteiner || rule == SteinerExportRule::kOpenSteiner) &&
-        steiner_vertices == 3)
-      continue;
-    if (rule == SteinerExportRule::kAnySteiner && steiner_vertices > 0) continue;
+    if (!PassesSteinerRule(t, rule)) continue;
     for (Vertex_handle v : t.v) {
       auto [it, inserted] = index.emplace(v, static_cast<uint32_t>(index.size()));
       if (inserted) {
@@ -64,12 +74,7 @@ SurfacePart Engine::Impl::MakePart(std::vector<Triangle> tris) {
   std::vector<std::pair<Ids, Triangle>> kept;
   kept.reserve(tris.size());
   for (const Triangle& t : tris) {
-    int steiner_vertices = 0;
-    for (Vertex_handle v : t.v) steiner_vertices += v->info().id < 0 ? 1 : 0;
-    if ((rule == SteinerExportRule::kAllSteiner || rule == SteinerExportRule::kOpenSteiner) &&
-        steiner_vertices == 3)
-      continue;
-    if (rule == SteinerExportRule::kAnySteiner && steiner_vertices > 0) continue;
+    if (!PassesSteinerRule(t, rule)) continue;
     // Rotated to start at its smallest id, orientation kept.
     int first = 0;
     for (int k = 1; k < 3; ++k)
