@@ -738,8 +738,8 @@ void SequenceRun::FinishStreamedSurface() {
 }
 
 // The share of what the keyframes see that faces away from them (report.json mesh.back_facing):
-// at most `max_views` (60) keyframes spread over the run, each drawn at a quarter of its size. None for inputs
-// without intrinsics.
+// at most `max_views` (60) keyframes spread over the run, each drawn at a quarter of its size.
+// None for inputs without intrinsics.
 std::vector<render::Camera> BackFacingCameras(const ExportContext& context, std::size_t max_views) {
   std::vector<const imr_camera*> usable;
   for (const imr_camera& c : context.keyframes)
