@@ -109,7 +109,8 @@ DistanceStats Summarize(std::vector<double> v) {
 
 Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
                     const std::vector<io::CameraGeometry>& cameras,
-                    const EvaluationOptions& options, bool per_point) {
+                    const EvaluationOptions& options, bool per_point,
+                    const std::vector<ScannerView>* scanner_views) {
   const std::string problem = options.Check();
   if (!problem.empty()) throw std::invalid_argument(problem);
   Evaluation e;
@@ -183,6 +184,19 @@ Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
   const PointSetDistance to_truth(kept);
   std::vector<double> ds = to_truth.Distances(samples, e.threads);
   e.precision = SharesWithin(ds, e.taus);
+  if (scanner_views != nullptr && !scanner_views->empty()) {
+    // Only the samples some scan could have measured: a scanner sees a band of elevations.
+    std::vector<uint8_t> in_view(samples.size(), 0);
+    ParallelFor(samples.size(), e.threads, [&](std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) in_view[i] = InScannerView(*scanner_views, samples[i]);
+    });
+    std::vector<double> seen;
+    for (std::size_t i = 0; i < samples.size(); ++i)
+      if (in_view[i]) seen.push_back(ds[i]);
+    e.scanner_view = true;
+    e.samples_in_scanner_view = seen.size();
+    e.precision_in_scanner_view = SharesWithin(seen, e.taus);
+  }
   e.mesh_to_truth = Summarize(std::move(ds));
   e.seconds_mesh_to_truth = SecondsSince(t0);
   return e;
@@ -217,6 +231,7 @@ Truth LoadTruth(const std::string& path, const io::ImageSequence* sequence, int 
       throw std::runtime_error("Velodyne ground truth: no sequence with Velodyne scans given");
     VelodyneTruth v = LoadVelodyneTruth(*sequence, scan_step);
     truth.points = std::move(v.points);
+    truth.scanner_views = std::move(v.views);
     t = {{"source", "velodyne"},
          {"path", sequence->root},
          {"layout", sequence->layout},
@@ -265,7 +280,8 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
   report["truth"] = std::move(truth.description);
   const double seconds_read = SecondsSince(start);
 
-  const Evaluation e = Evaluate(mesh, truth.points, cameras, options, !in.per_point.empty());
+  const Evaluation e = Evaluate(mesh, truth.points, cameras, options, !in.per_point.empty(),
+                                &truth.scanner_views);
   if (!in.per_point.empty()) WritePerPoint(in.per_point, e.per_point);
 
   report["mesh"]["vertices"] = e.mesh_vertices;
@@ -284,6 +300,13 @@ json EvaluateFiles(const EvaluationInputs& in, const EvaluationOptions& options,
   report["tau"] = e.taus;
   report["completeness"] = e.completeness;
   report["precision"] = e.precision;
+  if (e.scanner_view)
+    report["scanner_view"] = {
+        {"rule", "mesh samples (kept by the crop) within some scan's elevations and range: what "
+                 "the scanner could have measured at all"},
+        {"samples", e.samples_in_scanner_view},
+        {"share", Share(e.samples_in_scanner_view, e.sample_crop.kept)},
+        {"precision", e.precision_in_scanner_view}};
   report["options"] = {{"threads", e.threads},
                        {"seed", options.seed},
                        {"precision_samples", options.precision_samples},
@@ -363,6 +386,14 @@ std::string FormatReport(const json& r) {
   o << "\nprecision    (mesh -> truth <= tau) ";
   for (const json& x : r["precision"]) o << " " << num(x, "%8.4f");
   o << "\n";
+  if (r.contains("scanner_view")) {
+    // The share of the mesh a laser scanner could judge, and precision over it.
+    const json& sv = r["scanner_view"];
+    o << "  in the scanner's view            ";
+    for (const json& x : sv["precision"]) o << " " << num(x, "%8.4f");
+    o << "   (" << num(sv["share"].is_number() ? json(100.0 * sv["share"].get<double>()) : sv["share"], "%.1f")
+      << " % of the samples: the rest above or below every scan's elevations, or beyond its range)\n";
+  }
   if (r.contains("road_surface")) {
     const json& rs = r["road_surface"];
     std::snprintf(buf, sizeof buf,

@@ -75,6 +75,11 @@ struct Evaluation {
   std::size_t precision_samples = 0;     // mesh samples drawn
   CropCounts sample_crop;                // mesh samples through the crop
   DistanceStats mesh_to_truth;           // kept mesh samples -> nearest kept truth point
+  // With scanner views (Velodyne truth): precision over the kept mesh samples some scan had
+  // within its elevations and range (ground_truth.h), the area the truth could confirm at all.
+  bool scanner_view = false;
+  std::size_t samples_in_scanner_view = 0;
+  std::vector<double> precision_in_scanner_view;  // per tau; NaN when no sample is in view
   int threads = 1;
   double seconds_crop = 0.0;
   double seconds_truth_to_mesh = 0.0;    // AABB tree build + queries
@@ -85,15 +90,19 @@ struct Evaluation {
 // Evaluates `mesh` against `truth`, cropped by `cameras` when options.crop and there are cameras.
 // Throws std::runtime_error when the mesh has no triangle of non-zero area or no truth point is
 // left after the crop.
+// With `scanner_views` (a laser scanner's truth), precision is also given over the samples in
+// their view.
 Evaluation Evaluate(const TriangleMesh& mesh, const std::vector<Vec3>& truth,
                     const std::vector<io::CameraGeometry>& cameras,
-                    const EvaluationOptions& options, bool per_point = false);
+                    const EvaluationOptions& options, bool per_point = false,
+                    const std::vector<ScannerView>* scanner_views = nullptr);
 
 // Ground truth as evaluated: its points and what a report says of them (its "truth": source,
 // path, points, ...).
 struct Truth {
   std::vector<Vec3> points;
   nlohmann::json description;
+  std::vector<ScannerView> scanner_views;  // Velodyne truth: one per scan
 };
 
 // Reads the ground truth `imr evaluate` and a job's "evaluation" name: `path` is a point cloud

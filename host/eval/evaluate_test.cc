@@ -215,6 +215,48 @@ TEST(VelodyneTest, TransformToWorld) {
     EXPECT_NEAR(back[i] + t[i], tr[i][0] * x[0] + tr[i][1] * x[1] + tr[i][2] * x[2] + tr[i][3], 1e-12);
 }
 
+// A scan point at `range`, `elevation` and `azimuth` (radians) in the scanner's frame.
+Vec3 Polar(double range, double elevation, double azimuth) {
+  return {range * std::cos(elevation) * std::cos(azimuth),
+          range * std::cos(elevation) * std::sin(azimuth), range * std::sin(elevation)};
+}
+
+TEST(ScannerViewTest, ElevationBandPerRangeBin) {
+  const double deg = M_PI / 180.0;
+  // The scanner at (1, 2, 3), turned a quarter around z: its x is the world's y.
+  const Vec3 origin = {1, 2, 3};
+  const std::array<Vec3, 3> axes = {Vec3{0, 1, 0}, Vec3{-1, 0, 0}, Vec3{0, 0, 1}};
+  const ScannerView v = ScannerViewOf(
+      {Polar(20, -20 * deg, 0.3), Polar(20, 3 * deg, 2.0),  // far: -20 to +3 degrees
+       Polar(2.0, 8 * deg, -1.0), Polar(2.2, -5 * deg, 1.0),  // close by the band is wider
+       Polar(0.5, 60 * deg, 0.0)},                            // the vehicle: left out
+      origin, axes);
+  EXPECT_DOUBLE_EQ(v.max_range, 20.0);
+  auto world = [&](double range, double elevation, double azimuth) {
+    const Vec3 l = Polar(range, elevation, azimuth);
+    Vec3 w = origin;
+    for (std::size_t a = 0; a < 3; ++a)
+      for (std::size_t i = 0; i < 3; ++i) w[i] += l[a] * axes[a][i];
+    return w;
+  };
+  const std::vector<ScannerView> views = {v};
+  EXPECT_TRUE(InScannerView(views, world(19, 2 * deg, -2.5)));   // any azimuth
+  EXPECT_FALSE(InScannerView(views, world(19, 5 * deg, -2.5)));  // above the band
+  EXPECT_FALSE(InScannerView(views, world(19, -21 * deg, 0)));   // below it
+  EXPECT_TRUE(InScannerView(views, world(2.1, 7 * deg, 0)));     // the close bin's band
+  EXPECT_FALSE(InScannerView(views, world(2.1, 9 * deg, 0)));
+  // 5 m has no return: the band of the next farther bin that has some (20 m's).
+  EXPECT_FALSE(InScannerView(views, world(5, 5 * deg, 0)));
+  EXPECT_TRUE(InScannerView(views, world(5, 1 * deg, 0)));
+  EXPECT_FALSE(InScannerView(views, world(20.5, 0, 0)));  // beyond the farthest return
+  EXPECT_FALSE(InScannerView(views, world(0.5, 60 * deg, 0)));  // the vehicle's own returns
+  // A second scan 1 m higher sees what the first missed; a scan with no return sees nothing.
+  ScannerView up = v;
+  up.origin[2] += 1;
+  EXPECT_TRUE(InScannerView({v, up}, world(19, 5 * deg, -2.5)));
+  EXPECT_FALSE(InScannerView({ScannerViewOf({}, origin, axes)}, world(19, 2 * deg, 0)));
+}
+
 class ScratchTest : public ::testing::Test {
  protected:
   io::testing::TempDir scratch_{"imr-eval"};
@@ -280,6 +322,46 @@ io::ImageSequence FakeSequence(const std::string& path, const io::ImageSequenceO
 }
 
 using EvaluateFilesTest = ScratchTest;
+
+// A fake KITTI sequence as FakeSequence, with a KITTI-like Tr: the scanner looks down the
+// camera's z (camera x = -velo y, camera y = -velo z, camera z = velo x).
+io::ImageSequence FakeKittiSequence(const std::string& path, const io::ImageSequenceOptions& o) {
+  io::ImageSequence seq = FakeSequence(path, o);
+  seq.lidar.velo_to_camera = {{{0, -1, 0, 0}, {0, 0, -1, 0}, {1, 0, 0, 0}}};
+  return seq;
+}
+
+TEST_F(EvaluateFilesTest, VelodynePrecisionInTheScannersView) {
+  // A wall 10 m ahead of the scanner, 2 m wide, from 1 m below it to 3 m above (velo x = 10,
+  // y in [-1, 1], z in [-1, 3]); the scan's returns on it reach 0.5 m up (its highest laser,
+  // +2.9 degrees): the wall above is outside every scan's view, right as it is.
+  std::ofstream(dir_ / "wall.obj") << "v 1 1 10\nv -1 1 10\nv -1 -3 10\nv 1 -3 10\nf 1 2 3 4\n";
+  std::vector<std::array<float, 4>> scan;
+  for (int i = 0; i <= 20; ++i)
+    for (int j = 0; j <= 30; ++j)
+      scan.push_back({10.0f, -1.0f + 0.1f * static_cast<float>(i), -1.0f + 0.05f * static_cast<float>(j), 0});
+  g_scan = (dir_ / "scan.bin").string();
+  WriteScan(g_scan, scan);
+  EvaluationInputs in;
+  in.mesh = (dir_ / "wall.obj").string();
+  in.sequence = "fake-kitti";
+  EvaluationOptions o;
+  o.precision_samples = 20000;
+  o.threads = 2;
+  o.taus = {0.2};
+  const nlohmann::json r = EvaluateFiles(in, o, &FakeKittiSequence);
+  ASSERT_TRUE(r.contains("scanner_view")) << r.dump();
+  // A quarter of the wall lies under 0.2 m above the highest return: precision about 0.42;
+  // in the scanner's view (1.5 m of the 4 m height) every sample is within 0.2 m.
+  EXPECT_NEAR(r["precision"][0].get<double>(), 1.7 / 4.0, 0.02);
+  EXPECT_NEAR(r["scanner_view"]["share"].get<double>(), 1.5 / 4.0, 0.02);
+  EXPECT_GT(r["scanner_view"]["precision"][0].get<double>(), 0.99);
+  EXPECT_NE(FormatReport(r).find("in the scanner's view"), std::string::npos);
+  // A truth file is not a scanner: no such figure.
+  std::ofstream(dir_ / "truth.xyz") << "0 0 10\n";
+  in.truth = (dir_ / "truth.xyz").string();
+  EXPECT_FALSE(EvaluateFiles(in, o, &FakeKittiSequence).contains("scanner_view"));
+}
 
 TEST_F(EvaluateFilesTest, VelodyneTruthCroppedReportAndPerPoint) {
   // A wall z = 10 in front of the camera, [-20, 20]^2; scan points on it, behind the camera and

@@ -107,11 +107,70 @@ VelodyneTruth LoadVelodyneTruth(const io::ImageSequence& sequence, int scan_step
       continue;
     }
     const io::CameraGeometry& cam = sequence.frames[i].camera;
-    for (const Vec3& x : ReadVelodyneScan(scan))
-      out.points.push_back(VelodyneToWorld(sequence.lidar.velo_to_camera, cam.rotation, cam.translation, x));
+    auto to_world = [&](const Vec3& x) {
+      return VelodyneToWorld(sequence.lidar.velo_to_camera, cam.rotation, cam.translation, x);
+    };
+    const std::vector<Vec3> points = ReadVelodyneScan(scan);
+    for (const Vec3& x : points) out.points.push_back(to_world(x));
+    const Vec3 origin = to_world({0.0, 0.0, 0.0});
+    std::array<Vec3, 3> axes{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      Vec3 e{0.0, 0.0, 0.0};
+      e[a] = 1.0;
+      const Vec3 w = to_world(e);
+      axes[a] = {w[0] - origin[0], w[1] - origin[1], w[2] - origin[2]};
+    }
+    out.views.push_back(ScannerViewOf(points, origin, axes));
     ++out.scans;
   }
   return out;
+}
+
+namespace {
+// The range bin of a return or sample at `range` (>= ScannerView::kFirstBin).
+std::size_t RangeBin(double range) {
+  return static_cast<std::size_t>(std::log(range / ScannerView::kFirstBin) /
+                                  std::log(ScannerView::kBinRatio));
+}
+}  // namespace
+
+ScannerView ScannerViewOf(const std::vector<Vec3>& points, const Vec3& origin,
+                          const std::array<Vec3, 3>& axes) {
+  ScannerView v;
+  v.origin = origin;
+  v.axes = axes;
+  for (const Vec3& x : points) {
+    const double range = std::hypot(x[0], x[1], x[2]);
+    if (std::isfinite(range) && range >= ScannerView::kFirstBin) v.max_range = std::max(v.max_range, range);
+  }
+  if (v.max_range == 0.0) return v;
+  const double empty = 10.0;  // above any elevation: marks a bin without returns
+  v.bands.assign(RangeBin(v.max_range) + 1, {empty, -empty});
+  for (const Vec3& x : points) {
+    const double horizontal = std::hypot(x[0], x[1]), range = std::hypot(horizontal, x[2]);
+    if (!std::isfinite(range) || range < ScannerView::kFirstBin) continue;
+    const double elevation = std::atan2(x[2], horizontal);
+    std::array<double, 2>& band = v.bands[RangeBin(range)];
+    band = {std::min(band[0], elevation), std::max(band[1], elevation)};
+  }
+  for (std::size_t k = v.bands.size() - 1; k-- > 0;)  // the last bin holds the farthest return
+    if (v.bands[k][0] > v.bands[k][1]) v.bands[k] = v.bands[k + 1];
+  return v;
+}
+
+bool InScannerView(const std::vector<ScannerView>& views, const Vec3& x) {
+  for (const ScannerView& v : views) {
+    const Vec3 d = {x[0] - v.origin[0], x[1] - v.origin[1], x[2] - v.origin[2]};
+    double local[3];
+    for (std::size_t a = 0; a < 3; ++a)
+      local[a] = d[0] * v.axes[a][0] + d[1] * v.axes[a][1] + d[2] * v.axes[a][2];
+    const double horizontal = std::hypot(local[0], local[1]), range = std::hypot(horizontal, local[2]);
+    if (!(range >= ScannerView::kFirstBin) || range > v.max_range) continue;
+    const std::array<double, 2>& band = v.bands[std::min(RangeBin(range), v.bands.size() - 1)];
+    const double elevation = std::atan2(local[2], horizontal);
+    if (elevation >= band[0] && elevation <= band[1]) return true;
+  }
+  return false;
 }
 
 bool InFrustum(const io::CameraGeometry& g, const Vec3& x) {

@@ -6,6 +6,7 @@
 #include "host/io/camera_model.h"
 #include "host/io/image_sequence.h"
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -27,8 +28,34 @@ std::vector<Vec3> ReadVelodyneScan(const std::filesystem::path& path);
 Vec3 VelodyneToWorld(const io::Mat34& velo_to_camera, const io::Mat3& r, const Vec3& t,
                      const Vec3& x_velo);
 
+// Where one scan could have measured anything: the scanner's centre and axes in world
+// coordinates, and the elevations its returns span at each range. A laser scanner sees a band of
+// elevations (the HDL-64E: about -24 to +3 degrees beyond 10 m), all around: a surface above that
+// band in every scan (a truck's top, a bridge close by) is absent from the ground truth however
+// right it is. The band is taken per range bin because close by it is wider (the lasers do not
+// start from one point: the HDL-64E's upper block sits ~0.2 m above the lower one).
+struct ScannerView {
+  static constexpr double kFirstBin = 1.0;   // returns closer than this (the vehicle) left out
+  static constexpr double kBinRatio = 1.25;  // bin k: [kFirstBin r^k, kFirstBin r^(k+1)) metres
+  Vec3 origin{};                     // the scanner's centre
+  std::array<Vec3, 3> axes{};        // its x (forward), y (left), z (up) axes, unit vectors
+  // Per range bin, the lowest and highest elevation (radians above the x-y plane) of the returns
+  // in it; a bin without returns takes the band of the next farther bin that has some.
+  std::vector<std::array<double, 2>> bands;
+  double max_range = 0.0;            // the farthest return's distance (0: no return)
+};
+
+// The view of a scan given in the scanner's frame (`points`), the scanner placed at `origin`
+// with `axes` (world coordinates).
+ScannerView ScannerViewOf(const std::vector<Vec3>& points, const Vec3& origin,
+                          const std::array<Vec3, 3>& axes);
+
+// True when some view's scanner had x within its elevations and range.
+bool InScannerView(const std::vector<ScannerView>& views, const Vec3& x);
+
 struct VelodyneTruth {
   std::vector<Vec3> points;            // world coordinates, scan after scan
+  std::vector<ScannerView> views;      // one per scan read
   std::size_t scans = 0;               // scans read
   std::size_t frames_without_scan = 0; // selected frames whose scan path is empty
 };

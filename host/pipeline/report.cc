@@ -90,29 +90,34 @@ json EvaluateAgainstTruth(const json& options, const engine::Mesh& mesh,
   std::vector<io::CameraGeometry> cameras;
   if (front_end != nullptr)
     for (const io::ImageFrame& f : front_end->sequence().frames) cameras.push_back(f.camera);
-  const eval::Evaluation e = eval::Evaluate(m, truth.points, cameras, o);
+  const eval::Evaluation e = eval::Evaluate(m, truth.points, cameras, o, false, &truth.scanner_views);
   const std::size_t k = static_cast<std::size_t>(
       std::find(e.taus.begin(), e.taus.end(), tau) - e.taus.begin());
   auto stats = [](const eval::DistanceStats& d) {
     return json{{"count", d.count}, {"mean", d.mean}, {"median", d.median},
                 {"rms", d.rms}, {"p90", d.p90}, {"max", d.max}};
   };
-  return {{"reference", "ground truth (" + t.value("source", std::string()) + ")"},
-          {"mean_truth_to_mesh", e.truth_to_mesh.mean},
-          {"median_truth_to_mesh", e.truth_to_mesh.median},
-          {"tau", tau},
-          {"completeness", k < e.completeness.size() ? e.completeness[k] : 0.0},
-          {"precision", k < e.precision.size() ? e.precision[k] : 0.0},
-          {"evaluation",
-           {{"truth", t},
-            {"crop", {{"applied", e.cropped}, {"rule", e.crop_note},
-                      {"truth_kept", e.truth_crop.kept}, {"truth_input", e.truth_crop.input}}},
-            {"truth_to_mesh", stats(e.truth_to_mesh)},
-            {"mesh_to_truth", stats(e.mesh_to_truth)},
-            {"taus", e.taus},
-            {"completeness", e.completeness},
-            {"precision", e.precision},
-            {"seconds", e.seconds_crop + e.seconds_truth_to_mesh + e.seconds_mesh_to_truth}}}};
+  json out = {{"reference", "ground truth (" + t.value("source", std::string()) + ")"},
+             {"mean_truth_to_mesh", e.truth_to_mesh.mean},
+             {"median_truth_to_mesh", e.truth_to_mesh.median},
+             {"tau", tau},
+             {"completeness", k < e.completeness.size() ? e.completeness[k] : 0.0},
+             {"precision", k < e.precision.size() ? e.precision[k] : 0.0},
+             {"evaluation",
+              {{"truth", t},
+               {"crop", {{"applied", e.cropped}, {"rule", e.crop_note},
+                         {"truth_kept", e.truth_crop.kept}, {"truth_input", e.truth_crop.input}}},
+               {"truth_to_mesh", stats(e.truth_to_mesh)},
+               {"mesh_to_truth", stats(e.mesh_to_truth)},
+               {"taus", e.taus},
+               {"completeness", e.completeness},
+               {"precision", e.precision},
+               {"seconds", e.seconds_crop + e.seconds_truth_to_mesh + e.seconds_mesh_to_truth}}}};
+  // A laser scanner's truth: precision also over the area it could have measured (eval/README.md).
+  if (e.scanner_view)
+    out["evaluation"]["scanner_view"] = {{"samples", e.samples_in_scanner_view},
+                                         {"precision", e.precision_in_scanner_view}};
+  return out;
 }
 
 bool MostPointsRefused(const engine::EngineStats& s) {

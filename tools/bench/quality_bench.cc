@@ -113,6 +113,9 @@ struct Row {
   double p2 = 0.0, p5 = 0.0;      // precision at 0.2 / 0.5 m
   double t2m_mean = 0.0, t2m_median = 0.0, m2t_mean = 0.0;
   std::optional<double> road;     // synth: completeness of the road alone at 0.2 m
+  // A laser scanner's truth: precision at 0.2 m over the mesh area it could have measured, and
+  // that area's share (eval/README.md, "in the scanner's view").
+  std::optional<double> p2_scanner, scanner_share;
   double roughness = 0.0;         // mean angle between neighbouring face normals, degrees
   bool refined = false;           // the job had a mesh_refiner stage
   // imr rows, from report.json: the share of the keyframes' camera centres in O (free space)
@@ -211,6 +214,11 @@ bool Evaluate(const fs::path& mesh, const eval::EvaluationInputs& completeness,
                        : eval::EvaluateFiles(p, o, eval::ReadKittiSequence);
     row->p2 = b["precision"][0];
     row->p5 = b["precision"][1];
+    if (b.contains("scanner_view") && b["scanner_view"]["precision"][0].is_number() &&
+        b["scanner_view"]["share"].is_number()) {
+      row->p2_scanner = b["scanner_view"]["precision"][0].get<double>();
+      row->scanner_share = b["scanner_view"]["share"].get<double>();
+    }
     row->m2t_mean = b["mesh_to_truth"]["mean"];
     row->ok = true;
   } catch (const std::exception& e) {
@@ -383,6 +391,7 @@ json RowJson(const Row& r) {
     j["roughness_on_planes"] = {{"deg", r.plane_roughness->degrees}, {"edges", r.plane_roughness->edges},
                                 {"face_share", r.plane_roughness->face_share}};
   if (r.behind) j["seen_from_behind_every_10th_keyframe"] = *r.behind;
+  if (r.p2_scanner) j["precision_in_scanner_view"] = {{"p2", *r.p2_scanner}, {"area_share", *r.scanner_share}};
   j["components"] = r.small.components;
   j["small_components"] = {{"count", r.small.small}, {"area_share", r.small.area_share}};
   return j;
@@ -464,6 +473,11 @@ void PrintNotes(const std::vector<Row>& rows, std::vector<Target>* targets) {
     targets->push_back({"keyframe camera centres in O", 1.0, true, *rows[0].cameras_in_o});
     targets->push_back({"visible area seen from behind", 0.01, false, *rows[0].back_facing});
   }
+  for (const Row& r : rows)
+    if (r.ok && r.p2_scanner && r.scanner_share)
+      std::printf("%s: precision 0.2 m in the scanner's view %.3f, over %.1f %% of the area (the "
+                  "rest above every scan's elevations or beyond its range)\n",
+                  r.mesher.c_str(), *r.p2_scanner, 100.0 * *r.scanner_share);
   for (const Row& r : rows)
     if (!r.ok || r.note.empty()) continue;
     else std::printf("%s: %s\n", r.mesher.c_str(), r.note.c_str());
