@@ -46,6 +46,7 @@ NOT_OPTIONS = {
     # report.json, summary.json, evaluation output
     "stage_seconds", "engine_scale", "cells_opened", "camera_regrowths", "export_input", "invariant_checks", "rays_walked_exact",
     "rays_uncast_listed", "ray_mismatches", "road_surface", "completeness_visible", "log_tail",
+    "scanner_view",
     # fields of input and output formats (SLAM JSON, OpenMVG, COLMAP, KITTI, imr's stream)
     "slam_data_version", "view_priors", "prior_focal_length", "focal_length", "colmap_model",
     "colmap_params", "imr_stream", "sfm_data", "image_0", "image_2",

@@ -119,6 +119,10 @@ struct EngineOptions {
                                       // the vertex and its rays stay (new cameras are cast from
                                       // it) and the next move is measured from it; 0: every move.
   SteinerExportRule steiner_export = SteinerExportRule::kAnySteiner;  // Export filter.
+  double open_steiner_crease = 180.0; // open_steiner: triangles with a Steiner vertex join one
+                                      // region across an edge only when their normals differ by
+                                      // at most this (degrees; 180: always), so a sheet meeting
+                                      // a truck's side at a crease is weighed on its own rim.
   double fill_holes_perimeter = 16.0; // Export: holes of the exported mesh with a perimeter up
                                       // to this (metres; 0: none) are closed by a fan around a
                                       // new vertex at their centroid.
@@ -531,11 +535,12 @@ int64_t DropFaces(Mesh* mesh, const std::vector<uint8_t>& drop, double min_area,
                   DroppedComponents* dropped = nullptr);
 
 // steiner_export open_steiner on a mesh filtered by all_steiner: the triangles with a Steiner
-// vertex (point id -1), joined across shared edges, form regions; a region whose rim has fewer
-// edges shared with triangles between points than edges bordering nothing (or only dropped
-// all-Steiner triangles) goes. Returns the triangles dropped; vertices no face names go too.
-// Pinches it leaves are split by FinishExportedMesh, which calls it.
-int64_t DropOpenSteinerRegions(Mesh* mesh);
+// vertex (point id -1), joined across shared edges whose two triangles' normals differ by at most
+// `crease_deg` (180: every shared edge), form regions; a region whose rim has fewer edges shared
+// with triangles between points than edges bordering anything else (nothing, only dropped
+// all-Steiner triangles, or another region) goes. Returns the triangles dropped; vertices no face
+// names go too. Pinches it leaves are split by FinishExportedMesh, which calls it.
+int64_t DropOpenSteinerRegions(Mesh* mesh, double crease_deg = 180.0);
 
 // What ExtractMesh does after taking dO through the Steiner filter: open_steiner's regions dropped,
 // pinched vertices split (unless the rule is kNone), small holes filled and Taubin smoothing as the

@@ -123,6 +123,8 @@ std::string EngineOptions::Check() const {
     e << "filter_normals_range must be > 0; ";
   if (!std::isfinite(min_component_area) || min_component_area < 0.0)
     e << "min_component_area must be >= 0 (x steiner_spacing^2; 0: keep every piece); ";
+  if (!std::isfinite(open_steiner_crease) || open_steiner_crease < 1.0 || open_steiner_crease > 180.0)
+    e << "open_steiner_crease must be in [1, 180] degrees (180: regions joined across any angle); ";
   if (!std::isfinite(regrow_radius) || regrow_radius < 0.0) e << "regrow_radius must be >= 0; ";
   if (camera_path < 0 || camera_path > 100000) e << "camera_path must be in [0, 100000]; ";
   if (camera_path_repair < 0 || camera_path_repair > 64)

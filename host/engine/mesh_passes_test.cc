@@ -201,6 +201,38 @@ TEST(SteinerRegions, GapsBetweenPointsStaySheetsIntoNothingGo) {
   EXPECT_EQ(DropOpenSteinerRegions(&m), 0);
 }
 
+// open_steiner_crease: a gap strip on a floor (row 4 Steiner, points on both sides) meets, at a
+// right angle, a wall of Steiner vertices rising into nothing (columns 6-8). Joined across the
+// crease (180 degrees) their rims balance and both stay; split at it (45), the strip keeps its
+// rim on points and stays, the wall's rim borders mostly nothing and goes, whole.
+TEST(SteinerRegions, ACreaseSplitsASheetFromTheGapItRisesFrom) {
+  const int n = 9;
+  auto floor_and_wall = [&] {
+    Mesh m = testing::Grid(n, [](int i, int j) {
+      return i <= 5 ? std::array<double, 3>{1.0 * i, 1.0 * j, 0.0}
+                    : std::array<double, 3>{5.0, 1.0 * j, 1.0 * (i - 5)};
+    });
+    for (int i = 0; i <= 5; ++i) m.point_ids[4 * n + i] = -1;  // the strip
+    for (int j = 0; j < n; ++j)
+      for (int i = 6; i < n; ++i) m.point_ids[j * n + i] = -1;  // the wall
+    return m;
+  };
+  Mesh joined = floor_and_wall();
+  const std::size_t faces = joined.faces.size() / 3;
+  EXPECT_EQ(DropOpenSteinerRegions(&joined, 180.0), 0);
+  EXPECT_EQ(DropOpenSteinerRegions(&joined), 0);  // 180 is the default
+  Mesh split = floor_and_wall();
+  const int64_t wall_faces = 2 * (n - 1) * 3;  // columns 5-8
+  EXPECT_EQ(DropOpenSteinerRegions(&split, 45.0), wall_faces);
+  ASSERT_EQ(split.faces.size() / 3, faces - static_cast<std::size_t>(wall_faces));
+  for (std::size_t v = 0; v < split.point_ids.size(); ++v)
+    EXPECT_LE(split.vertices[3 * v], 5.0 + 1e-12);  // nothing of the wall is left above the floor
+  for (std::size_t f = 0; f < split.faces.size() / 3; ++f)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(split.vertices[3 * split.faces[3 * f + k] + 2], 0.0);
+  EXPECT_TRUE(CheckMesh(split, /*closed=*/false).ok) << CheckMesh(split, false).message;
+  EXPECT_EQ(DropOpenSteinerRegions(&split, 45.0), 0);
+}
+
 // On random sheets with random Steiner vertices, through FinishExportedMesh: a 2-manifold, every
 // triangle between points kept, and nothing more to drop (a kept region's rim borders points or
 // nothing, never another region).

@@ -232,7 +232,7 @@ int64_t DropFaces(Mesh* m, const std::vector<uint8_t>& drop, double min_area, Dr
 // those that mostly border nothing span into where no point was seen (a sheet over the sky). A
 // region's rim is counted edge by edge, not by length: its open edges run along the long grid
 // edges, its closing ones along the short point edges.
-int64_t DropOpenSteinerRegions(Mesh* m) {
+int64_t DropOpenSteinerRegions(Mesh* m, double crease_deg) {
   const size_t nf = m->faces.size() / 3;
   std::vector<uint8_t> steiner(nf, 0);
   for (size_t f = 0; f < nf; ++f)
@@ -264,13 +264,34 @@ int64_t DropOpenSteinerRegions(Mesh* m) {
       visit(b, e);
     }
   };
+  // Unit normals of the Steiner faces, for the crease test (below 180 degrees only).
+  const bool creases = crease_deg < 180.0;
+  const double min_cos = std::cos(crease_deg * M_PI / 180.0);
+  std::vector<std::array<double, 3>> normal(creases ? nf : 0);
+  for (size_t f = 0; creases && f < nf; ++f) {
+    if (!steiner[f]) continue;
+    const double* p[3];
+    for (int k = 0; k < 3; ++k) p[k] = &m->vertices[3 * static_cast<size_t>(m->faces[3 * f + k])];
+    const double u[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+    const double v[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
+    std::array<double, 3> n = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                               u[0] * v[1] - u[1] * v[0]};
+    const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (len > 0.0)
+      for (double& x : n) x /= len;
+    normal[f] = n;
+  }
+  auto joined = [&](uint32_t f, uint32_t g) {
+    return !creases ||
+           normal[f][0] * normal[g][0] + normal[f][1] * normal[g][1] + normal[f][2] * normal[g][2] >= min_cos;
+  };
   for_each_edge([&](size_t b, size_t e) {
     uint32_t first = nf;  // the group's first Steiner face
     for (size_t i = b; i < e; ++i) {
       const uint32_t f = edges[i].face;
       if (!steiner[f]) continue;
       if (first == nf) first = f;
-      else region[find(f)] = find(first);
+      else if (joined(f, first)) region[find(f)] = find(first);
     }
   });
   // Per region: rim edges shared with a point triangle minus those bordering nothing.
@@ -279,11 +300,15 @@ int64_t DropOpenSteinerRegions(Mesh* m) {
     int steiner_faces = 0;
     for (size_t i = b; i < e; ++i) steiner_faces += steiner[edges[i].face];
     const bool point_face = steiner_faces < static_cast<int>(e - b);
-    // A rim edge has one face of its region (an edge with two is inside it; one region per
-    // edge, as the faces at an edge were joined above).
-    if (steiner_faces == 1)
-      for (size_t i = b; i < e; ++i)
-        if (steiner[edges[i].face]) closing_minus_open[find(edges[i].face)] += point_face ? 1 : -1;
+    // A rim edge has one face of its region (an edge with two is inside it); split at a crease,
+    // two regions can share an edge, each on its rim there.
+    for (size_t i = b; i < e; ++i) {
+      if (!steiner[edges[i].face]) continue;
+      const uint32_t r = find(edges[i].face);
+      int in_region = 0;
+      for (size_t j = b; j < e; ++j) in_region += steiner[edges[j].face] && find(edges[j].face) == r;
+      if (in_region == 1) closing_minus_open[r] += point_face ? 1 : -1;
+    }
   });
   std::vector<uint32_t> kept;
   kept.reserve(m->faces.size());

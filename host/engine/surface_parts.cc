@@ -10,7 +10,8 @@
 namespace imr::engine {
 
 void FinishExportedMesh(Mesh* m, const EngineOptions& o, DroppedComponents* dropped) {
-  if (o.steiner_export == SteinerExportRule::kOpenSteiner) DropOpenSteinerRegions(m);
+  if (o.steiner_export == SteinerExportRule::kOpenSteiner)
+    DropOpenSteinerRegions(m, o.open_steiner_crease);
   if (o.steiner_export != SteinerExportRule::kNone) SplitPinchedVertices(m);
   CanonicalizeMesh(m);
   if (o.fill_holes_perimeter > 0.0 || o.smoothing_iterations > 0) {

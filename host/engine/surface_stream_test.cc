@@ -175,7 +175,9 @@ TEST(SurfaceStreamTest, OpenSteinerLiesBetweenAnyAndAllSteiner) {
     EXPECT_GT(open.size(), any.size()) << what;  // gaps closed
     std::printf("%s: any_steiner %zu, open_steiner %zu, all_steiner %zu triangles\n", what.c_str(),
                 any.size(), open.size(), all.size());
-    if (points < 150) EXPECT_LT(open.size(), all.size()) << what;  // sheets dropped
+    if (points < 150) {
+      EXPECT_LT(open.size(), all.size()) << what;  // sheets dropped
+    }
   }
 }
 

@@ -116,6 +116,12 @@ std::vector<EngineOption> MakeTable() {
              "those between three; any_steiner, those with one; open_steiner, all_steiner's and "
              "the regions of triangles with one whose rim mostly borders nothing (sheets into the "
              "sky; whole meshes only)"),
+      Option("open_steiner_crease", &E::open_steiner_crease, {{"minimum", 1.0}, {"maximum", 180.0}},
+             "deg",
+             "open_steiner: triangles with a Steiner vertex join one region only across edges "
+             "where their normals differ by at most this, and a rim edge against another region "
+             "counts as open (a sheet meeting a truck's side at a crease is weighed alone); 180: "
+             "joined across any angle"),
       Option("fill_holes_perimeter", &E::fill_holes_perimeter, Min(0.0), "m",
              "export: close holes with a perimeter up to this (0: none)"),
       Option("smoothing_iterations", &E::smoothing_iterations, Min(0), "steps",
