@@ -231,7 +231,8 @@ int64_t DropFaces(Mesh* m, const std::vector<uint8_t>& drop, double min_area, Dr
 // Steiner vertex. Those between point triangles fill gaps (the road between its few points);
 // those that mostly border nothing span into where no point was seen (a sheet over the sky). A
 // region's rim is counted edge by edge, not by length: its open edges run along the long grid
-// edges, its closing ones along the short point edges.
+// edges, its closing ones along the short point edges. Split at creases (crease_deg < 180), a
+// sheet that meets a truck's side at an angle is weighed on its own rim, not on the truck's.
 int64_t DropOpenSteinerRegions(Mesh* m, double crease_deg) {
   const size_t nf = m->faces.size() / 3;
   std::vector<uint8_t> steiner(nf, 0);
@@ -294,7 +295,8 @@ int64_t DropOpenSteinerRegions(Mesh* m, double crease_deg) {
       else if (joined(f, first)) region[find(f)] = find(first);
     }
   });
-  // Per region: rim edges shared with a point triangle minus those bordering nothing.
+  // Per region: rim edges shared with a point triangle minus those bordering nothing or another
+  // region.
   std::vector<int64_t> closing_minus_open(nf, 0);
   for_each_edge([&](size_t b, size_t e) {
     int steiner_faces = 0;
