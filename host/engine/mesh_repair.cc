@@ -268,24 +268,18 @@ int64_t DropOpenSteinerRegions(Mesh* m, double crease_deg) {
   // Unit normals of the Steiner faces, for the crease test (below 180 degrees only).
   const bool creases = crease_deg < 180.0;
   const double min_cos = std::cos(crease_deg * M_PI / 180.0);
-  std::vector<std::array<double, 3>> normal(creases ? nf : 0);
+  std::vector<Vec3> normal(creases ? nf : 0);
+  auto corner = [&](size_t f, int k) {
+    const double* p = &m->vertices[3 * static_cast<size_t>(m->faces[3 * f + k])];
+    return Vec3{p[0], p[1], p[2]};
+  };
   for (size_t f = 0; creases && f < nf; ++f) {
     if (!steiner[f]) continue;
-    const double* p[3];
-    for (int k = 0; k < 3; ++k) p[k] = &m->vertices[3 * static_cast<size_t>(m->faces[3 * f + k])];
-    const double u[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
-    const double v[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
-    std::array<double, 3> n = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                               u[0] * v[1] - u[1] * v[0]};
-    const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (len > 0.0)
-      for (double& x : n) x /= len;
-    normal[f] = n;
+    const Vec3 n = Cross(Sub(corner(f, 1), corner(f, 0)), Sub(corner(f, 2), corner(f, 0)));
+    const double len = Norm(n);
+    normal[f] = len > 0.0 ? Scale(n, 1.0 / len) : n;
   }
-  auto joined = [&](uint32_t f, uint32_t g) {
-    return !creases ||
-           normal[f][0] * normal[g][0] + normal[f][1] * normal[g][1] + normal[f][2] * normal[g][2] >= min_cos;
-  };
+  auto joined = [&](uint32_t f, uint32_t g) { return !creases || Dot(normal[f], normal[g]) >= min_cos; };
   for_each_edge([&](size_t b, size_t e) {
     uint32_t first = nf;  // the group's first Steiner face
     for (size_t i = b; i < e; ++i) {

@@ -113,13 +113,9 @@ VelodyneTruth LoadVelodyneTruth(const io::ImageSequence& sequence, int scan_step
     const std::vector<Vec3> points = ReadVelodyneScan(scan);
     for (const Vec3& x : points) out.points.push_back(to_world(x));
     const Vec3 origin = to_world({0.0, 0.0, 0.0});
-    std::array<Vec3, 3> axes{};
-    for (std::size_t a = 0; a < 3; ++a) {
-      Vec3 e{0.0, 0.0, 0.0};
-      e[a] = 1.0;
-      const Vec3 w = to_world(e);
-      axes[a] = {w[0] - origin[0], w[1] - origin[1], w[2] - origin[2]};
-    }
+    const std::array<Vec3, 3> axes = {Sub(to_world({1.0, 0.0, 0.0}), origin),
+                                      Sub(to_world({0.0, 1.0, 0.0}), origin),
+                                      Sub(to_world({0.0, 0.0, 1.0}), origin)};
     out.views.push_back(ScannerViewOf(points, origin, axes));
     ++out.scans;
   }
@@ -139,20 +135,17 @@ ScannerView ScannerViewOf(const std::vector<Vec3>& points, const Vec3& origin,
   ScannerView v;
   v.origin = origin;
   v.axes = axes;
-  for (const Vec3& x : points) {
-    const double range = std::hypot(x[0], x[1], x[2]);
-    if (std::isfinite(range) && range >= ScannerView::kFirstBin) v.max_range = std::max(v.max_range, range);
-  }
-  if (v.max_range == 0.0) return v;
-  const double empty = 10.0;  // above any elevation: marks a bin without returns
-  v.bands.assign(RangeBin(v.max_range) + 1, {empty, -empty});
+  const std::array<double, 2> empty = {10.0, -10.0};  // no elevation inside: a bin without returns
   for (const Vec3& x : points) {
     const double horizontal = std::hypot(x[0], x[1]), range = std::hypot(horizontal, x[2]);
     if (!std::isfinite(range) || range < ScannerView::kFirstBin) continue;
+    v.max_range = std::max(v.max_range, range);
+    const std::size_t bin = RangeBin(range);
+    if (bin >= v.bands.size()) v.bands.resize(bin + 1, empty);
     const double elevation = std::atan2(x[2], horizontal);
-    std::array<double, 2>& band = v.bands[RangeBin(range)];
-    band = {std::min(band[0], elevation), std::max(band[1], elevation)};
+    v.bands[bin] = {std::min(v.bands[bin][0], elevation), std::max(v.bands[bin][1], elevation)};
   }
+  if (v.bands.empty()) return v;
   for (std::size_t k = v.bands.size() - 1; k-- > 0;)  // the last bin holds the farthest return
     if (v.bands[k][0] > v.bands[k][1]) v.bands[k] = v.bands[k + 1];
   return v;
@@ -160,10 +153,8 @@ ScannerView ScannerViewOf(const std::vector<Vec3>& points, const Vec3& origin,
 
 bool InScannerView(const std::vector<ScannerView>& views, const Vec3& x) {
   for (const ScannerView& v : views) {
-    const Vec3 d = {x[0] - v.origin[0], x[1] - v.origin[1], x[2] - v.origin[2]};
-    double local[3];
-    for (std::size_t a = 0; a < 3; ++a)
-      local[a] = d[0] * v.axes[a][0] + d[1] * v.axes[a][1] + d[2] * v.axes[a][2];
+    const Vec3 d = Sub(x, v.origin);
+    const Vec3 local = {Dot(d, v.axes[0]), Dot(d, v.axes[1]), Dot(d, v.axes[2])};
     const double horizontal = std::hypot(local[0], local[1]), range = std::hypot(horizontal, local[2]);
     if (!(range >= ScannerView::kFirstBin) || range > v.max_range) continue;
     const std::array<double, 2>& band = v.bands[std::min(RangeBin(range), v.bands.size() - 1)];
